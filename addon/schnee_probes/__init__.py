@@ -1,0 +1,50 @@
+"""Schnee probes: bake spherical-harmonics light probes in Blender for the Schnee Vulkan engine.
+
+Submodules register themselves; this file only orders them. The glTF exporter finds
+``glTF2ExportUserExtension`` on this package while the add-on is enabled.
+"""
+
+bl_info = {
+    "name": "Schnee Probes",
+    "author": "Schnee probes team",
+    "version": (0, 1, 0),
+    "blender": (3, 4, 0),
+    "location": "3D Viewport > Sidebar (N) > Schnee Engine",
+    "description": "Bake SH light probes in probe volumes and export them with glTF",
+    "category": "Lighting",
+}
+
+import importlib
+
+# Order matters: properties before the operators and panels that use them.
+_MODULE_NAMES = ("properties", "nodes", "operators", "panel", "gltf_export")
+
+
+def _modules():
+    mods = []
+    for name in _MODULE_NAMES:
+        try:
+            mods.append(importlib.import_module("." + name, __name__))
+        except ModuleNotFoundError as exc:
+            # A submodule that does not exist yet is skipped; any other import error is real.
+            if exc.name != __name__ + "." + name:
+                raise
+    return mods
+
+
+def register():
+    for mod in _modules():
+        mod.register()
+
+
+def unregister():
+    for mod in reversed(_modules()):
+        mod.unregister()
+
+
+def __getattr__(name):
+    # The glTF exporter looks this class up on the add-on module.
+    if name == "glTF2ExportUserExtension":
+        from .gltf_export import glTF2ExportUserExtension
+        return glTF2ExportUserExtension
+    raise AttributeError(name)

@@ -1,0 +1,30 @@
+/* Schnee probes — float image I/O through OpenImageIO (the only C++ in the core, behind extern "C").
+ * Used by the bake (panoramas) and by the engine (frame output). */
+#ifndef SCHNEE_PB_IMAGE_H
+#define SCHNEE_PB_IMAGE_H
+
+#include "schnee/pb_common.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct pb_image {
+    uint32_t width, height, channels; /* row 0 at the top, channels interleaved */
+    float *pixels;                    /* width * height * channels, owned; free with pb_image_free */
+} pb_image;
+
+/* Reads any format OpenImageIO knows as 32-bit float, converted to linear as stored in the file. */
+pb_result pb_image_read(const char *path, pb_image *out, pb_error *err);
+
+/* Writes `pixels` (row 0 at the top). The format follows the extension: .exr keeps float values;
+ * 8-bit formats (.png, ...) take values already in display encoding [0, 1]. Atomic: temp + rename. */
+pb_result pb_image_write(const char *path, uint32_t width, uint32_t height, uint32_t channels,
+                         const float *pixels, pb_error *err);
+
+void pb_image_free(pb_image *image);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

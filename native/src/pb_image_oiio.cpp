@@ -1,0 +1,2 @@
+// Placeholder: OpenImageIO behind extern "C".
+#include "schnee/pb_image.h"

@@ -1,0 +1,2 @@
+/* Placeholder: implemented in its own commit. */
+#include "schnee/pb_sh.h"

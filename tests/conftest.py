@@ -1,0 +1,45 @@
+"""Shared pytest helpers: repository paths and running scripts in real headless Blender."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+ADDON_DIR = REPO / "addon"
+BUILD_DIR = REPO / "build"
+STUDIOLIGHTS = Path("/usr/share/blender/datafiles/studiolights/world")
+
+# The add-on package (and the built native module inside it) importable from plain Python tests.
+if str(ADDON_DIR) not in sys.path:
+    sys.path.insert(0, str(ADDON_DIR))
+
+
+def run_blender(script, *args, blend=None, timeout=900, check=True, env=None):
+    """Run `blender -b [blend] --factory-startup -P script -- args...` and return CompletedProcess.
+
+    The add-on folder is put on PYTHONPATH so scripts can `import schnee_probes`. Output is captured
+    (text); on check=True a non-zero exit raises with Blender's output in the message.
+    """
+    cmd = ["blender", "-b"]
+    if blend is not None:
+        cmd.append(str(blend))
+    cmd += ["--factory-startup", "--python-exit-code", "1", "-P", str(script), "--"]
+    cmd += [str(a) for a in args]
+    full_env = dict(os.environ)
+    full_env["PYTHONPATH"] = str(ADDON_DIR) + os.pathsep + full_env.get("PYTHONPATH", "")
+    full_env.setdefault("SCHNEE_REPO", str(REPO))
+    if env:
+        full_env.update(env)
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=full_env)
+    if check and proc.returncode != 0:
+        raise AssertionError(
+            f"blender exited {proc.returncode}: {' '.join(cmd)}\n--- stdout\n{proc.stdout[-6000:]}"
+            f"\n--- stderr\n{proc.stderr[-4000:]}")
+    return proc
+
+
+@pytest.fixture
+def blender():
+    return run_blender
