@@ -43,8 +43,9 @@ def unregister():
 
 
 def __getattr__(name):
-    # The glTF exporter looks this class up on the add-on module.
-    if name == "glTF2ExportUserExtension":
-        from .gltf_export import glTF2ExportUserExtension
-        return glTF2ExportUserExtension
+    # The glTF exporter looks this class up on the add-on module, and (3.4) calls register_panel()
+    # when its dialog opens to show the extension's checkbox.
+    if name in ("glTF2ExportUserExtension", "register_panel"):
+        from . import gltf_export
+        return getattr(gltf_export, name)
     raise AttributeError(name)

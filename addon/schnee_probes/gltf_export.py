@@ -1,0 +1,359 @@
+"""glTF exporter user extension: probe grids, per-material SH settings, no probe volumes.
+
+Blender's bundled glTF exporter (io_scene_gltf2, 3.4) instantiates ``glTF2ExportUserExtension``
+of every enabled add-on whose module has that attribute, and calls its ``*_hook`` methods while
+it gathers the scene. Contract: DESIGN.md §5; user documentation: docs/export.md.
+
+- ``gather_scene_hook``: every ``*.shprobe`` in ``sh_coeffs/`` next to the .blend is validated
+  through the native reader, copied to ``sh_coeffs/`` next to the exported file, and listed in
+  ``scenes[i].extensions.VULKAN_SCHNEE_engine_properties.shProbeGrids`` (sorted by file name).
+- ``gather_material_hook``: ``materials[i].extensions.VULKAN_SCHNEE_materials`` from the material's
+  "VS Movable Diffuse" group node; also gives the glTF material the group's base colour, which the
+  exporter cannot see inside a node group.
+- ``gather_tree_filter_tag_hook``: objects of the probe-volume collection are left out.
+
+Both extensions are optional (``extensionsUsed`` only). The "Export Engine Properties" checkbox
+(Scene.schnee_gltf_export.enabled, on by default) switches off the two extensions and the copy.
+Every hook is idempotent: the exporter may call the material hook twice for one material.
+"""
+import copy
+import math
+import os
+import shutil
+import tempfile
+import urllib.parse
+
+import bpy
+
+from . import nodes
+
+EXT_ENGINE = "VULKAN_SCHNEE_engine_properties"
+EXT_MATERIALS = "VULKAN_SCHNEE_materials"
+SH_DIR = "sh_coeffs"
+SH_SUFFIX = ".shprobe"
+DEFAULT_VOLUME_COLLECTION = "ProbeVolumes"
+GRID_AXES = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]  # v1 grids are axis-aligned in engine space
+
+# Per-export state lives in export_settings under these keys (a fresh dict per export).
+_KEY_GRIDS = "schnee_probe_grids"
+_KEY_WARNINGS = "schnee_warnings"
+
+
+# --------------------------------------------------------------------------------------------
+# Settings and UI
+
+
+class SchneeGltfExportSettings(bpy.types.PropertyGroup):
+    enabled: bpy.props.BoolProperty(
+        name="Export Engine Properties",
+        description="Write the Schnee probe grids and per-material SH settings into the glTF "
+                    "(optional extensions) and copy the .shprobe files next to it",
+        default=True,
+    )
+
+
+class SCHNEE_PT_gltf_export(bpy.types.Panel):
+    """Checkbox under File > Export > glTF 2.0 > Exporter Extensions."""
+    bl_space_type = 'FILE_BROWSER'
+    bl_region_type = 'TOOL_PROPS'
+    bl_label = ""
+    bl_parent_id = "GLTF_PT_export_user_extensions"
+    bl_options = {'HIDE_HEADER'}
+
+    @classmethod
+    def poll(cls, context):
+        operator = getattr(context.space_data, "active_operator", None)
+        return operator is not None and operator.bl_idname == "EXPORT_SCENE_OT_gltf"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = False
+        layout.prop(context.scene.schnee_gltf_export, "enabled")
+
+
+class SCHNEE_OT_export_warning(bpy.types.Operator):
+    """Internal: put a warning of the glTF export into Blender's report list (status bar, Info)."""
+    bl_idname = "schnee.export_warning"
+    bl_label = "Schnee Export Warning"
+    bl_options = {'INTERNAL'}
+
+    message: bpy.props.StringProperty()
+
+    def execute(self, context):
+        self.report({'WARNING'}, self.message)
+        return {'FINISHED'}
+
+
+def register_panel():
+    """Called by the 3.4 exporter when its dialog opens; returns the matching unregister function.
+
+    The panel's parent only exists while io_scene_gltf2 is enabled, hence this on-demand
+    registration (the pattern of glTF-Blender-IO's example add-on)."""
+    try:
+        bpy.utils.register_class(SCHNEE_PT_gltf_export)
+    except (RuntimeError, ValueError):
+        pass  # already registered by an earlier dialog
+    return unregister_panel
+
+
+def unregister_panel():
+    try:
+        bpy.utils.unregister_class(SCHNEE_PT_gltf_export)
+    except (RuntimeError, ValueError):
+        pass
+
+
+def export_enabled(scene=None):
+    """The checkbox value of ``scene`` (default: the context scene); True when it is unset."""
+    scene = scene if scene is not None else bpy.context.scene
+    settings = getattr(scene, "schnee_gltf_export", None)
+    return True if settings is None else bool(settings.enabled)
+
+
+def volume_collection_name(scene=None):
+    """Name of the probe-volume collection: Scene.schnee_probes.volume_collection, else ProbeVolumes."""
+    scene = scene if scene is not None else bpy.context.scene
+    props = getattr(scene, "schnee_probes", None)
+    name = getattr(props, "volume_collection", None)
+    if isinstance(name, str) and name:
+        return name
+    coll = getattr(name, "name", None)  # tolerate a PointerProperty to the collection
+    return coll or DEFAULT_VOLUME_COLLECTION
+
+
+# --------------------------------------------------------------------------------------------
+# Helpers
+
+
+def _warn(export_settings, message):
+    """A warning the user must see: exporter console, Blender's report list, export_settings."""
+    message = "Schnee glTF export: " + message
+    warnings = export_settings.setdefault(_KEY_WARNINGS, [])
+    if message in warnings:
+        return  # hooks may run twice; say it once
+    warnings.append(message)
+    try:
+        from io_scene_gltf2.io.com.gltf2_io_debug import print_console
+        print_console('WARNING', message)
+    except ImportError:
+        print("WARNING: " + message)
+    try:
+        bpy.ops.schnee.export_warning(message=message)
+    except Exception:  # the operator is missing (add-on half-registered): the console line stays
+        pass
+
+
+def _f32(value):
+    """Shortest decimal that reads back as the same float32 (header floats are float32)."""
+    import numpy as np
+    return float(np.format_float_positional(np.float32(value), unique=True, trim='-'))
+
+
+def _make_extension(name, payload):
+    from io_scene_gltf2.io.com.gltf2_io_extensions import Extension
+    return Extension(name=name, extension=payload, required=False)
+
+
+def _blend_sh_dir():
+    if not bpy.data.filepath:
+        return None  # unsaved .blend: there is no "next to the .blend"
+    return os.path.join(os.path.dirname(os.path.abspath(bpy.data.filepath)), SH_DIR)
+
+
+def _copy_atomic(src, dst):
+    """Copy ``src`` to ``dst`` through a temporary file in the same folder (never a partial file)."""
+    if os.path.exists(dst) and os.path.samefile(src, dst):
+        return  # exporting next to the .blend: the file is already where it belongs
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=SH_SUFFIX, dir=os.path.dirname(dst))
+    try:
+        with os.fdopen(fd, "wb") as out, open(src, "rb") as inp:
+            shutil.copyfileobj(inp, out)
+        shutil.copymode(src, tmp)  # mkstemp creates 0600; keep the source's permissions
+        os.replace(tmp, dst)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def _grid_entry(path, header):
+    """The shProbeGrids entry of one file (DESIGN.md §5) from its validated header."""
+    name = os.path.splitext(os.path.basename(path))[0]
+    dims = [int(d) for d in header["grid_dims"]]
+    origin = [_f32(v) for v in header["grid_origin"]]
+    spacing = _f32(header["grid_spacing"])
+    if len(dims) != 3 or len(origin) != 3:
+        raise ValueError("header grid_dims/grid_origin do not have 3 components")
+    if not all(math.isfinite(v) for v in origin + [spacing]):
+        raise ValueError("header grid origin or spacing is not finite")
+    return {
+        "name": name,
+        "uri": SH_DIR + "/" + urllib.parse.quote(os.path.basename(path)),
+        "probeCount": int(header["probe_count"]),
+        "maxBand": int(header["max_band"]),
+        "gridOrigin": origin,
+        "gridDims": dims,
+        "gridSpacing": spacing,
+        "gridAxes": [list(axis) for axis in GRID_AXES],
+    }
+
+
+def collect_probe_grids(export_settings):
+    """Validate and copy the .shprobe files once per export; return the shProbeGrids entries.
+
+    A file the native reader rejects (or that cannot be copied) gets a warning and no entry.
+    The result is cached in ``export_settings`` so repeated hook calls copy and warn once.
+    """
+    if _KEY_GRIDS in export_settings:
+        return export_settings[_KEY_GRIDS]
+    entries = []
+    export_settings[_KEY_GRIDS] = entries
+
+    src_dir = _blend_sh_dir()
+    if src_dir is None or not os.path.isdir(src_dir):
+        return entries
+    files = sorted(f for f in os.listdir(src_dir)
+                   if f.endswith(SH_SUFFIX) and os.path.isfile(os.path.join(src_dir, f)))
+    if not files:
+        return entries
+
+    try:
+        from . import native
+    except Exception as exc:  # noqa: BLE001 - any import failure means "no reader"
+        _warn(export_settings, f"the native module cannot be loaded ({exc}); "
+                               f"{len(files)} .shprobe file(s) in {src_dir} not exported")
+        return entries
+
+    dst_dir = os.path.join(os.path.dirname(os.path.abspath(export_settings["gltf_filepath"])), SH_DIR)
+    for fname in files:
+        src = os.path.join(src_dir, fname)
+        try:
+            entry = _grid_entry(src, native.read_shprobe_header(src))
+        except Exception as exc:  # noqa: BLE001 - SchneeError, OSError, bad header values, ...
+            _warn(export_settings, f"skipped {src}: {exc}")
+            continue
+        try:
+            os.makedirs(dst_dir, exist_ok=True)
+            _copy_atomic(src, os.path.join(dst_dir, fname))
+        except OSError as exc:
+            _warn(export_settings, f"skipped {src}: cannot copy to {dst_dir}: {exc}")
+            continue
+        entries.append(entry)
+    return entries
+
+
+def material_settings(blender_material):
+    """``{"shScale", "ambientTerm"}`` of the material's "VS Movable Diffuse" node, or None."""
+    node = nodes.find_movable_diffuse_node(blender_material)
+    if node is None:
+        return None
+    return {
+        "shScale": _f32(node.inputs[nodes.INPUT_SH_SCALE].default_value),
+        "ambientTerm": _f32(node.inputs[nodes.INPUT_AMBIENT].default_value),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# The exporter extension
+
+
+class glTF2ExportUserExtension:
+    """Hooks called by io_scene_gltf2 (3.4 signatures: glTF object, Blender data, export_settings)."""
+
+    def __init__(self):
+        # Read once per export, from the scene the export starts in (the checkbox lives there).
+        self.enabled = export_enabled()
+
+    def gather_tree_filter_tag_hook(self, vtree, export_settings):
+        """Untag the probe-volume objects: the exporter then drops them and re-parents children."""
+        coll = bpy.data.collections.get(volume_collection_name(bpy.context.scene))
+        if coll is None:
+            return
+        volumes = set(coll.all_objects)
+        for vnode in vtree.nodes.values():
+            if vnode.blender_object in volumes:
+                vnode.keep_tag = False
+
+    def gather_scene_hook(self, gltf2_scene, blender_scene, export_settings):
+        if not self.enabled:
+            return
+        grids = collect_probe_grids(export_settings)
+        if gltf2_scene.extensions is None:
+            gltf2_scene.extensions = {}
+        if not grids:
+            gltf2_scene.extensions.pop(EXT_ENGINE, None)
+            return
+        # A fresh payload per call: replacing (not appending) keeps a repeated call harmless.
+        gltf2_scene.extensions[EXT_ENGINE] = _make_extension(
+            EXT_ENGINE, {"shProbeGrids": copy.deepcopy(grids)})
+
+    def gather_material_hook(self, gltf2_material, blender_material, export_settings):
+        node = nodes.find_movable_diffuse_node(blender_material)
+        if node is None:
+            return
+        if nodes.feeds_active_output(node):
+            _export_base_color(gltf2_material, node, blender_material, export_settings)
+        if not self.enabled:
+            return
+        if gltf2_material.extensions is None:
+            gltf2_material.extensions = {}
+        gltf2_material.extensions[EXT_MATERIALS] = _make_extension(
+            EXT_MATERIALS, material_settings(blender_material))
+
+
+def _export_base_color(gltf2_material, node, blender_material, export_settings):
+    """The group is the surface shader: give glTF its albedo (the exporter only looks at top-level
+    Principled BSDFs, so it would otherwise write white, metallic 1)."""
+    from io_scene_gltf2.io.com import gltf2_io
+    pbr = gltf2_material.pbr_metallic_roughness
+    if pbr is None:
+        pbr = gltf2_io.MaterialPBRMetallicRoughness(
+            base_color_factor=None, base_color_texture=None, extensions=None, extras=None,
+            metallic_factor=None, metallic_roughness_texture=None, roughness_factor=None)
+        gltf2_material.pbr_metallic_roughness = pbr
+    socket = node.inputs[nodes.INPUT_BASE_COLOR]
+    if socket.is_linked:
+        texture = _base_color_texture(socket, export_settings)
+        if texture is not None:
+            pbr.base_color_texture = texture
+            pbr.base_color_factor = None
+        else:
+            _warn(export_settings, f"material '{blender_material.name}': the Base Color of "
+                                   f"'{node.name}' is linked to something other than an image "
+                                   f"texture; exported with its unlinked value")
+    if not socket.is_linked or pbr.base_color_texture is None:
+        rgba = [min(max(float(c), 0.0), 1.0) for c in socket.default_value]
+        pbr.base_color_factor = None if rgba == [1.0, 1.0, 1.0, 1.0] else rgba
+    pbr.metallic_factor = 0.0  # a diffuse surface; glTF's default would be 1
+    pbr.roughness_factor = None  # glTF default 1.0
+
+
+def _base_color_texture(socket, export_settings):
+    """The exporter's own texture gathering applied to the group's Base Color socket, or None."""
+    try:
+        from io_scene_gltf2.blender.exp import gltf2_blender_gather_texture_info
+        result = gltf2_blender_gather_texture_info.gather_texture_info(socket, (socket,), export_settings)
+    except Exception:  # noqa: BLE001 - exporter internals differ between versions
+        return None
+    texture = result[0] if isinstance(result, tuple) else result
+    return texture
+
+
+# --------------------------------------------------------------------------------------------
+
+_classes = (SchneeGltfExportSettings, SCHNEE_OT_export_warning)
+
+
+def register():
+    for cls in _classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.schnee_gltf_export = bpy.props.PointerProperty(type=SchneeGltfExportSettings)
+
+
+def unregister():
+    unregister_panel()
+    del bpy.types.Scene.schnee_gltf_export
+    for cls in reversed(_classes):
+        bpy.utils.unregister_class(cls)

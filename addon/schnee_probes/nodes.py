@@ -1,0 +1,189 @@
+"""The "VS Movable Diffuse" shader node group and materials that use it.
+
+A material marks itself as movable-diffuse for the engine by using this group as its surface
+shader. Its inputs are the engine's per-material SH settings (DESIGN.md §3, §5):
+
+    diffuse = albedo · (shScale · max(E(n), 0) / π + ambientTerm)
+
+Inside Blender the group is a plain Diffuse BSDF driven by Base Color, which is the ``shScale = 1,
+ambientTerm = 0`` case of that formula. SH Scale and Ambient Term deliberately do not change the
+Cycles render: an emission for the ambient term would add light to the probe bake itself. They
+reach the engine through the glTF exporter (``gltf_export.py``, extension
+``VULKAN_SCHNEE_materials``).
+"""
+import math
+import re
+
+import bpy
+
+GROUP_NAME = "VS Movable Diffuse"
+# Custom property on the node tree: recognises our group even after a user renames it.
+GROUP_TAG = "schnee_movable_diffuse"
+GROUP_VERSION = 1
+
+INPUT_BASE_COLOR = "Base Color"
+INPUT_SH_SCALE = "SH Scale"
+INPUT_AMBIENT = "Ambient Term"
+OUTPUT_BSDF = "BSDF"
+
+DEFAULT_SH_SCALE = 1.0
+DEFAULT_AMBIENT = 0.1
+
+# "VS Movable Diffuse", or the ".001" copy Blender makes when a .blend with the group is appended.
+_NAME_RE = re.compile(r"^" + re.escape(GROUP_NAME) + r"(\.\d{3,})?$")
+
+
+def _interface_sockets(tree, in_out):
+    """(name -> socket) of a node group's interface; Blender 4.0 moved them to ``tree.interface``."""
+    if hasattr(tree, "interface"):  # 4.0+
+        return {item.name: item for item in tree.interface.items_tree
+                if item.item_type == 'SOCKET' and item.in_out == in_out}
+    return {s.name: s for s in (tree.inputs if in_out == 'INPUT' else tree.outputs)}
+
+
+def _new_socket(tree, in_out, socket_type, name):
+    if hasattr(tree, "interface"):  # 4.0+
+        return tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+    return (tree.inputs if in_out == 'INPUT' else tree.outputs).new(socket_type, name)
+
+
+def is_movable_diffuse_tree(tree):
+    """True when ``tree`` is a "VS Movable Diffuse" group (by tag or by name) with our sockets."""
+    if tree is None or getattr(tree, "bl_idname", "") != "ShaderNodeTree":
+        return False
+    if not (tree.get(GROUP_TAG) or _NAME_RE.match(tree.name)):
+        return False
+    inputs = _interface_sockets(tree, 'INPUT')
+    outputs = _interface_sockets(tree, 'OUTPUT')
+    return all(n in inputs for n in (INPUT_BASE_COLOR, INPUT_SH_SCALE, INPUT_AMBIENT)) \
+        and OUTPUT_BSDF in outputs
+
+
+def _build_group(tree):
+    base = _new_socket(tree, 'INPUT', 'NodeSocketColor', INPUT_BASE_COLOR)
+    base.default_value = (0.8, 0.8, 0.8, 1.0)
+    scale = _new_socket(tree, 'INPUT', 'NodeSocketFloat', INPUT_SH_SCALE)
+    scale.default_value = DEFAULT_SH_SCALE
+    scale.min_value = 0.0
+    scale.max_value = 100.0
+    ambient = _new_socket(tree, 'INPUT', 'NodeSocketFloat', INPUT_AMBIENT)
+    ambient.default_value = DEFAULT_AMBIENT
+    ambient.min_value = 0.0
+    ambient.max_value = 10.0
+    for sock, text in ((scale, "Multiplier for all SH coefficients (engine only)"),
+                       (ambient, "Constant added to the diffuse after SH evaluation (engine only)"),
+                       (base, "Albedo")):
+        if hasattr(sock, "description"):
+            sock.description = text
+    _new_socket(tree, 'OUTPUT', 'NodeSocketShader', OUTPUT_BSDF)
+
+    nodes = tree.nodes
+    group_in = nodes.new("NodeGroupInput")
+    group_in.location = (-300, 0)
+    diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.location = (0, 0)
+    group_out = nodes.new("NodeGroupOutput")
+    group_out.location = (250, 0)
+    tree.links.new(group_in.outputs[INPUT_BASE_COLOR], diffuse.inputs["Color"])
+    tree.links.new(diffuse.outputs["BSDF"], group_out.inputs[OUTPUT_BSDF])
+    tree[GROUP_TAG] = GROUP_VERSION
+
+
+def ensure_node_group():
+    """Return the "VS Movable Diffuse" node group, creating it once per .blend (idempotent).
+
+    An existing group of that name that is not ours (missing sockets) is left untouched and a new
+    one is created beside it (Blender names it "VS Movable Diffuse.001").
+    """
+    for tree in bpy.data.node_groups:
+        if tree.get(GROUP_TAG) and is_movable_diffuse_tree(tree):
+            return tree
+    existing = bpy.data.node_groups.get(GROUP_NAME)
+    if is_movable_diffuse_tree(existing):
+        existing[GROUP_TAG] = GROUP_VERSION
+        return existing
+    tree = bpy.data.node_groups.new(GROUP_NAME, "ShaderNodeTree")
+    _build_group(tree)
+    return tree
+
+
+def _check_factor(name, value):
+    value = float(value)
+    if not math.isfinite(value) or value < 0.0:
+        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+    return value
+
+
+def make_movable_diffuse_material(name, base_color=(0.8, 0.8, 0.8, 1.0), sh_scale=DEFAULT_SH_SCALE,
+                                  ambient=DEFAULT_AMBIENT):
+    """New material ``name`` whose surface is a "VS Movable Diffuse" group node.
+
+    ``base_color`` is linear RGB or RGBA (alpha defaults to 1); ``sh_scale`` and ``ambient`` are the
+    engine's SH Scale and Ambient Term (finite, >= 0). Returns the material.
+    """
+    color = tuple(float(c) for c in base_color)
+    if len(color) == 3:
+        color += (1.0,)
+    if len(color) != 4 or not all(math.isfinite(c) for c in color):
+        raise ValueError(f"base_color must be 3 or 4 finite numbers, got {base_color!r}")
+    sh_scale = _check_factor("sh_scale", sh_scale)
+    ambient = _check_factor("ambient", ambient)
+
+    group = ensure_node_group()
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    mat.diffuse_color = color  # solid-mode viewport colour
+    nodes = mat.node_tree.nodes
+    nodes.clear()
+    node = nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    node.name = node.label = GROUP_NAME
+    node.location = (0, 0)
+    node.inputs[INPUT_BASE_COLOR].default_value = color
+    node.inputs[INPUT_SH_SCALE].default_value = sh_scale
+    node.inputs[INPUT_AMBIENT].default_value = ambient
+    out = nodes.new("ShaderNodeOutputMaterial")
+    out.location = (300, 0)
+    mat.node_tree.links.new(node.outputs[OUTPUT_BSDF], out.inputs["Surface"])
+    return mat
+
+
+def find_movable_diffuse_node(material):
+    """The "VS Movable Diffuse" group node of ``material``, or None.
+
+    Several such nodes: the one feeding the active Material Output wins, else the first by name.
+    """
+    if material is None or not material.use_nodes or material.node_tree is None:
+        return None
+    found = [n for n in material.node_tree.nodes
+             if n.bl_idname == "ShaderNodeGroup" and not n.mute and is_movable_diffuse_tree(n.node_tree)]
+    if not found:
+        return None
+    linked = [n for n in found if feeds_active_output(n)]
+    return sorted(linked or found, key=lambda n: n.name)[0]
+
+
+def feeds_active_output(node):
+    """True when an output of ``node`` reaches the active Material Output (through any nodes)."""
+    seen = set()
+    todo = [node]
+    while todo:
+        current = todo.pop()
+        if current.name in seen:
+            continue
+        seen.add(current.name)
+        for out in current.outputs:
+            for link in out.links:
+                to = link.to_node
+                if to.bl_idname == "ShaderNodeOutputMaterial" and to.is_active_output:
+                    return True
+                todo.append(to)
+    return False
+
+
+def register():
+    pass  # node groups live in .blend data; nothing to register with Blender
+
+
+def unregister():
+    pass
