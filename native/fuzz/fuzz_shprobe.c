@@ -1,0 +1,40 @@
+/* libFuzzer target for the .shprobe reader: any byte string must either parse into a file whose
+ * every value the reader promises is valid, or fail with an error code and a message — never
+ * crash, leak or read out of bounds (built with ASan/UBSan by tests/fuzz/run_shprobe_fuzz.sh). */
+#include "schnee/pb_sh.h"
+#include "schnee/pb_shprobe.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    pb_shprobe *p = NULL;
+    pb_error err;
+    memset(&err, 0, sizeof err);
+    pb_result r = pb_shprobe_read_memory(data, size, &p, &err);
+    if (r != PB_SUCCESS) {
+        /* A rejection must carry a code and a non-empty message, and return no file. */
+        if (p != NULL || err.code != r || err.message[0] == '\0') abort();
+        return 0;
+    }
+    /* Accepted: re-check the reader's promises (touching every array also lets ASan see overruns). */
+    if (p->version < 1 || p->version > 2 || p->max_band > PB_SH_MAX_BAND) abort();
+    if (!(p->grid_spacing > 0.0f) || !isfinite(p->grid_spacing)) abort();
+    size_t coeffs = (size_t)p->probe_count * pb_sh_count(p->max_band) * 3u;
+    for (size_t i = 0; i < coeffs; i++)
+        if (!isfinite(p->coeffs[i])) abort();
+    size_t cells = (size_t)p->grid_dims[0] * p->grid_dims[1] * p->grid_dims[2];
+    for (size_t j = 0; j < cells; j++)
+        if (p->grid[j] < -1 || (p->grid[j] >= 0 && (uint32_t)p->grid[j] >= p->probe_count)) abort();
+    float centre[3];
+    for (int k = 0; k < 3; k++)
+        centre[k] = p->grid_origin[k] + 0.5f * p->grid_spacing * (float)p->grid_dims[k];
+    int32_t idx = pb_shprobe_lookup(p, centre);
+    if (idx < -1 || (idx >= 0 && (uint32_t)idx >= p->probe_count)) abort();
+    pb_shprobe_destroy(p);
+    return 0;
+}
