@@ -1,0 +1,161 @@
+"""Save, override and restore the scene state a bake touches.
+
+A bake changes render, Cycles, image and view-layer settings, the scene camera and some objects'
+visibility flags. :class:`SceneState` records every writable property of those structs (recursively
+through nested pointers such as ``render.image_settings``) before anything changes, and puts back
+the values that differ afterwards, on success, error and cancel alike.
+"""
+import bpy
+
+from . import compat
+
+# Nested pointers followed when snapshotting; others (ID pointers, collections) are kept by value
+# or skipped. Depth is bounded so cyclic RNA paths cannot recurse forever.
+_MAX_DEPTH = 3
+# Pointers into scene structure rather than settings.
+_SKIP = {"rna_type", "depsgraph", "layer_collection", "active_layer_collection", "active_aov",
+         "active_lightgroup",
+         # Reading these warns when their stored value is unavailable in this build (no OIDN,
+         # unset colour space); the bake never writes them.
+         "denoiser", "preview_denoiser", "linear_colorspace_settings"}
+
+
+def _snapshot(struct, depth=0):
+    """{identifier: value or nested snapshot} of the writable, non-ID properties of ``struct``."""
+    out = {}
+    for prop in struct.bl_rna.properties:
+        ident = prop.identifier
+        if ident in _SKIP:
+            continue
+        if prop.type == 'POINTER':
+            if prop.is_readonly and depth < _MAX_DEPTH:
+                sub = getattr(struct, ident, None)
+                if sub is not None and not isinstance(sub, bpy.types.ID):
+                    out[ident] = ("STRUCT", _snapshot(sub, depth + 1))
+            elif not prop.is_readonly:
+                out[ident] = ("VALUE", getattr(struct, ident))
+            continue
+        if prop.type == 'COLLECTION' or prop.is_readonly:
+            continue
+        value = getattr(struct, ident)
+        if getattr(prop, "is_array", False):
+            value = tuple(value)
+        out[ident] = ("VALUE", value)
+    return out
+
+
+def _restore(struct, snap):
+    """Write back the values of ``snap`` that differ now; returns the identifiers that failed."""
+    failed = []
+    for ident, (kind, value) in snap.items():
+        try:
+            if kind == "STRUCT":
+                failed += [ident + "." + f for f in _restore(getattr(struct, ident), value)]
+                continue
+            current = getattr(struct, ident)
+            if isinstance(value, tuple):
+                current = tuple(current)
+            if current != value:
+                setattr(struct, ident, value)
+        except (AttributeError, TypeError, ValueError):
+            failed.append(ident)
+    return failed
+
+
+class SceneState:
+    """Everything a bake may change on ``scene``, captured at construction."""
+
+    def __init__(self, scene, view_layer, objects=()):
+        self.scene = scene
+        self.view_layer = view_layer
+        self.render = _snapshot(scene.render)
+        self.cycles = _snapshot(scene.cycles)
+        self.view_layer_state = _snapshot(view_layer)
+        self.camera = scene.camera
+        self.frame = (scene.frame_current, scene.frame_subframe)
+        self.objects = {}
+        for ob in objects:
+            self._remember_object(ob)
+
+    def _remember_object(self, ob):
+        flags = {"hide_render": ob.hide_render}
+        if compat.has_visible_camera(ob):
+            flags["visible_camera"] = ob.visible_camera
+        self.objects[ob.name] = (ob, flags)
+
+    def remember_object(self, ob):
+        """Record ``ob``'s visibility flags before the bake changes them (idempotent)."""
+        if ob.name not in self.objects:
+            self._remember_object(ob)
+
+    def restore(self):
+        """Put everything back. Returns a list of properties that could not be restored."""
+        scene = self.scene
+        failed = []
+        # Twice: an enum may be refused until another property is back (e.g. color_depth vs format).
+        for _ in range(2):
+            failed = ["render." + f for f in _restore(scene.render, self.render)]
+            failed += ["cycles." + f for f in _restore(scene.cycles, self.cycles)]
+            failed += ["view_layer." + f for f in _restore(self.view_layer, self.view_layer_state)]
+            if not failed:
+                break
+        if scene.camera != self.camera:
+            scene.camera = self.camera
+        if (scene.frame_current, scene.frame_subframe) != self.frame:
+            scene.frame_set(self.frame[0], subframe=self.frame[1])
+        for ob, flags in self.objects.values():
+            try:
+                for ident, value in flags.items():
+                    if getattr(ob, ident) != value:
+                        setattr(ob, ident, value)
+            except ReferenceError:
+                pass  # the object was deleted meanwhile; nothing to restore
+        return failed
+
+
+def apply_bake_settings(scene, view_layer, settings):
+    """Override the render settings for panorama renders of a probe bake (see DESIGN.md §6).
+
+    ``settings`` is a :class:`bake_core.BakeSettings`. Everything written here is captured by a
+    :class:`SceneState` made before the call.
+    """
+    r = scene.render
+    r.engine = 'CYCLES'
+    r.resolution_x = settings.panorama_resolution
+    r.resolution_y = settings.panorama_resolution // 2
+    r.resolution_percentage = 100
+    r.pixel_aspect_x = 1.0
+    r.pixel_aspect_y = 1.0
+    r.use_border = False
+    r.film_transparent = False  # a transparent film would drop the sky from the RGB channels
+    r.use_compositing = False
+    r.use_sequencer = False
+    r.use_motion_blur = False
+    r.use_multiview = False
+    r.use_single_layer = True
+    r.use_persistent_data = settings.persistent_data
+    r.use_file_extension = True
+    im = r.image_settings
+    im.file_format = 'OPEN_EXR'
+    im.color_mode = 'RGB'
+    im.color_depth = '32'
+    im.exr_codec = 'NONE'  # lossless either way; uncompressed is fastest to write and read
+    im.use_zbuffer = False
+    im.use_preview = False
+
+    c = scene.cycles
+    c.samples = settings.samples
+    c.use_denoising = False  # Debian's Blender has no OpenImageDenoise; a denoiser also biases
+    c.use_adaptive_sampling = False  # the error should not depend on the image content
+    c.use_layer_samples = 'USE'
+    c.max_bounces = settings.max_bounces
+    c.diffuse_bounces = settings.max_bounces
+    c.glossy_bounces = settings.max_bounces
+    c.sample_clamp_direct = settings.clamp_direct
+    c.sample_clamp_indirect = settings.clamp_indirect
+    c.pixel_filter_type = settings.pixel_filter
+    c.filter_width = settings.filter_width
+    c.film_exposure = 1.0  # radiance in the units Cycles renders in
+    c.seed = settings.seed
+    c.use_animated_seed = False
+    view_layer.samples = 0  # 0 = use the scene's sample count
