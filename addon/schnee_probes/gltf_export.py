@@ -103,6 +103,16 @@ def unregister_panel():
         pass
 
 
+def draw_export(context, layout):
+    """Blender 4.2+: the exporter draws user extensions as ``layout.panel``s through this function
+    (registered in ``io_scene_gltf2.exporter_extension_layout_draw``); 3.4 uses the panel above."""
+    header, body = layout.panel("SCHNEE_gltf_export", default_closed=False)
+    header.use_property_split = False
+    header.prop(context.scene.schnee_gltf_export, "enabled")
+    if body:
+        body.label(text="Probe grids (sh_coeffs/*.shprobe) and VS Movable Diffuse settings")
+
+
 def export_enabled(scene=None):
     """The checkbox value of ``scene`` (default: the context scene); True when it is unset."""
     scene = scene if scene is not None else bpy.context.scene
@@ -132,11 +142,16 @@ def _warn(export_settings, message):
     if message in warnings:
         return  # hooks may run twice; say it once
     warnings.append(message)
+    log = export_settings.get("log")
+    if log is not None and hasattr(log, "warning"):
+        log.warning(message)  # 4.2+: the exporter shows its log as operator reports
+        return
     try:
         from io_scene_gltf2.io.com.gltf2_io_debug import print_console
         print_console('WARNING', message)
     except ImportError:
         print("WARNING: " + message)
+    # 3.4 has no report channel for hooks: an internal operator puts it into Blender's report list.
     try:
         bpy.ops.schnee.export_warning(message=message)
     except Exception:  # the operator is missing (add-on half-registered): the console line stays
@@ -150,7 +165,10 @@ def _f32(value):
 
 
 def _make_extension(name, payload):
-    from io_scene_gltf2.io.com.gltf2_io_extensions import Extension
+    try:
+        from io_scene_gltf2.io.com.gltf2_io_extensions import Extension  # 3.4 .. 4.2
+    except ImportError:
+        from io_scene_gltf2.io.com.extensions import Extension  # 4.3+ renamed the modules
     return Extension(name=name, extension=payload, required=False)
 
 
@@ -346,13 +364,28 @@ def _base_color_texture(socket, export_settings):
 _classes = (SchneeGltfExportSettings, SCHNEE_OT_export_warning)
 
 
+def _layout_draw_registry():
+    """4.2+ exporter's dict of user-extension draw functions; None on 3.4 (it uses register_panel)."""
+    try:
+        import io_scene_gltf2
+    except ImportError:
+        return None
+    return getattr(io_scene_gltf2, "exporter_extension_layout_draw", None)
+
+
 def register():
     for cls in _classes:
         bpy.utils.register_class(cls)
     bpy.types.Scene.schnee_gltf_export = bpy.props.PointerProperty(type=SchneeGltfExportSettings)
+    registry = _layout_draw_registry()
+    if registry is not None:
+        registry[__package__] = draw_export
 
 
 def unregister():
+    registry = _layout_draw_registry()
+    if registry is not None:
+        registry.pop(__package__, None)
     unregister_panel()
     del bpy.types.Scene.schnee_gltf_export
     for cls in reversed(_classes):

@@ -146,6 +146,10 @@ def test_probe_volumes_are_not_exported(exported, fmt):
     child = [i for i, n in enumerate(doc["nodes"]) if n["name"] == "VolumeChildProp"][0]
     assert child in doc["scenes"][0]["nodes"]
     assert "VolumeOnlyMat" not in {m["name"] for m in doc["materials"]}
+    if exported["result"]["custom_volume_setting"]:
+        # Scene.schnee_probes.volume_collection is honoured: "ProbeVolumes" is then ordinary.
+        assert exported["result"]["volume_collection"] == "BakeVolumes"
+        assert "NotAVolume" in names
 
 
 @pytest.mark.parametrize("fmt", sorted(OUTPUTS))
@@ -169,7 +173,10 @@ def test_corrupt_files_warn_and_are_left_out(exported):
 
 
 def test_checkbox_off_writes_no_extension_and_copies_nothing(exported):
-    assert exported["result"]["checkbox_default"] is True
+    result = exported["result"]
+    assert result["checkbox_default"] is True
+    assert result["extension_found"] and result["register_panel_found"]
+    assert result["panel_registered"] and result["panel_unregistered"]
     out = exported["work"] / "out_off"
     text = (out / "scene.gltf").read_text()
     assert "VULKAN_SCHNEE" not in text

@@ -64,6 +64,14 @@ add_cube("MovingB", (-2, 0, 0), root, mat_b)
 add_cube("MovingC", (0, 3, 0), root, mat_c)
 add_cube("Static", (0, 0, -1), root, plain, size=4.0)
 
+# With the add-on's settings registered, use a non-default collection name, and give the default
+# name to an ordinary collection whose object must then be exported.
+custom_volume_setting = hasattr(scene, "schnee_probes")
+if custom_volume_setting:
+    scene.schnee_probes.volume_collection = "BakeVolumes"
+    decoy = bpy.data.collections.new(gltf_export.DEFAULT_VOLUME_COLLECTION)
+    root.children.link(decoy)
+    add_cube("NotAVolume", (4, 0, 0), decoy, mat_b, size=0.5)
 volume_name = gltf_export.volume_collection_name(scene)
 volumes = bpy.data.collections.new(volume_name)
 root.children.link(volumes)
@@ -79,10 +87,21 @@ child.parent = vol_a
 os.makedirs(scene_dir, exist_ok=True)
 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(scene_dir, "scene.blend"))
 
+# The 3.4 exporter calls register_panel() when its dialog opens and the returned function on
+# unregister; the checkbox panel must come and go with it.
+unregister_panel = schnee_probes.register_panel()
+panel_registered = hasattr(bpy.types, "SCHNEE_PT_gltf_export")
+schnee_probes.register_panel()  # a second dialog: no error
+unregister_panel()
+panel_unregistered = not hasattr(bpy.types, "SCHNEE_PT_gltf_export")
+
 result = {
+    "panel_registered": panel_registered,
+    "panel_unregistered": panel_unregistered,
     "extension_found": hasattr(schnee_probes, "glTF2ExportUserExtension"),
     "register_panel_found": callable(getattr(schnee_probes, "register_panel", None)),
     "volume_collection": volume_name,
+    "custom_volume_setting": custom_volume_setting,
     "group_count_after_three_materials": sum(
         1 for g in bpy.data.node_groups if nodes.is_movable_diffuse_tree(g)),
     "ensure_node_group_idempotent": nodes.ensure_node_group() == nodes.ensure_node_group(),
