@@ -130,6 +130,12 @@ def test_materials_carry_sh_settings_and_base_color(exported, fmt):
         pbr = by_name[name]["pbrMetallicRoughness"]
         np.testing.assert_allclose(pbr["baseColorFactor"], color, atol=1e-6, err_msg=name)
         assert pbr["metallicFactor"] == 0, name  # diffuse; glTF's default would be 1
+    # An image on the group's Base Color is exported as the base colour texture.
+    tex = by_name["MovTex"]
+    assert tex["extensions"][MATERIAL_EXT] == {"shScale": 0.75, "ambientTerm": 0.5}
+    texture = doc["textures"][tex["pbrMetallicRoughness"]["baseColorTexture"]["index"]]
+    assert doc["images"][texture["source"]]["name"] == "checker"
+    assert "baseColorFactor" not in tex["pbrMetallicRoughness"]
     # A plain Principled material gets no Schnee extension.
     assert MATERIAL_EXT not in by_name["Plain"].get("extensions", {})
 
@@ -181,7 +187,7 @@ def test_checkbox_off_writes_no_extension_and_copies_nothing(exported):
     text = (out / "scene.gltf").read_text()
     assert "VULKAN_SCHNEE" not in text
     assert not (out / "sh_coeffs").exists()
-    assert sorted(p.name for p in out.iterdir()) == ["scene.bin", "scene.gltf"]
+    assert sorted(p.name for p in out.iterdir()) == ["checker.png", "scene.bin", "scene.gltf"]
     # The base colour of the node group is still right: it is plain glTF, not an extension.
     mat = {m["name"]: m for m in json.loads(text)["materials"]}["MovA"]
     np.testing.assert_allclose(mat["pbrMetallicRoughness"]["baseColorFactor"],

@@ -40,6 +40,7 @@ def add_cube(name, location, collection, material=None, size=1.0):
     verts = [(x * s, y * s, z * s) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
     faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
     mesh.from_pydata(verts, [], faces)
+    mesh.uv_layers.new(name="UVMap")  # a texture needs TEXCOORD_0 (the validator checks)
     mesh.update()
     if material is not None:
         mesh.materials.append(material)
@@ -54,6 +55,14 @@ mat_a = nodes.make_movable_diffuse_material("MovA", base_color=(0.8, 0.2, 0.1, 1
 mat_b = nodes.make_movable_diffuse_material("MovB")  # the defaults: 1.0 / 0.1
 mat_c = nodes.make_movable_diffuse_material("MovC", base_color=(0.3, 0.6, 0.9), sh_scale=2.0,
                                             ambient=0.0)
+# An image on the group's Base Color must become glTF's baseColorTexture.
+mat_tex = nodes.make_movable_diffuse_material("MovTex", sh_scale=0.75, ambient=0.5)
+image = bpy.data.images.new("checker", 8, 8)
+image.generated_type = 'COLOR_GRID'
+tex_node = mat_tex.node_tree.nodes.new("ShaderNodeTexImage")
+tex_node.image = image
+mat_tex.node_tree.links.new(tex_node.outputs["Color"],
+                            mat_tex.node_tree.nodes[nodes.GROUP_NAME].inputs[nodes.INPUT_BASE_COLOR])
 plain = bpy.data.materials.new("Plain")
 plain.use_nodes = True
 plain.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.1, 0.7, 0.2, 1.0)
@@ -63,6 +72,7 @@ add_cube("MovingA", (2, 0, 0), root, mat_a)
 add_cube("MovingB", (-2, 0, 0), root, mat_b)
 add_cube("MovingC", (0, 3, 0), root, mat_c)
 add_cube("Static", (0, 0, -1), root, plain, size=4.0)
+add_cube("Textured", (0, -3, 0), root, mat_tex)
 
 # With the add-on's settings registered, use a non-default collection name, and give the default
 # name to an ordinary collection whose object must then be exported.
