@@ -1,8 +1,857 @@
-/* Placeholder: the CPython extension module _schnee_native (stable ABI 3.11). */
+/* _schnee_native: the CPython face of the bake core (stable ABI, Py_LIMITED_API 3.11).
+ *
+ * The limited API has the buffer protocol but no numpy C API, so arrays come in as C-contiguous
+ * buffers whose format and length are checked here (addon/schnee_probes/native.py makes them so
+ * with numpy and gives them shapes), and go out as bytearrays that native.py wraps with
+ * np.frombuffer (writable, no copy). Long core calls run with the GIL released; the placement
+ * progress callback takes the GIL back to call Python. Core errors are raised as the class
+ * registered with _set_error_class (native.SchneeError), default _schnee_native.Error, with the
+ * core's message verbatim and `.code` = pb_result_string(code).
+ */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
-static struct PyModuleDef schnee_module = {PyModuleDef_HEAD_INIT, "_schnee_native", NULL, -1, NULL,
-                                           NULL, NULL, NULL, NULL};
+#include "schnee/pb_octree.h"
+#include "schnee/pb_sh.h"
+#include "schnee/pb_shprobe.h"
 
-PyMODINIT_FUNC PyInit__schnee_native(void) { return PyModule_Create(&schnee_module); }
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct module_state {
+    PyObject *error_class; /* raised for core errors */
+} module_state;
+
+static module_state *get_state(PyObject *module) { return (module_state *)PyModule_GetState(module); }
+
+/* Raises the registered error class with the core's message and `.code`. Returns NULL. */
+static PyObject *raise_core(PyObject *module, pb_result r, const pb_error *err)
+{
+    PyObject *cls = get_state(module)->error_class;
+    const char *msg = err && err->message[0] ? err->message : pb_result_string(r);
+    PyObject *exc = PyObject_CallFunction(cls, "s", msg);
+    if (!exc) return NULL;
+    PyObject *code = PyUnicode_FromString(pb_result_string(r));
+    if (!code || PyObject_SetAttrString(exc, "code", code) < 0) {
+        Py_XDECREF(code);
+        Py_DECREF(exc);
+        return NULL;
+    }
+    Py_DECREF(code);
+    PyErr_SetObject(cls, exc);
+    Py_DECREF(exc);
+    return NULL;
+}
+
+/* ---- argument helpers ------------------------------------------------------------------------- */
+
+/* A held buffer; `view.obj == NULL` means none. */
+typedef struct held_buffer {
+    Py_buffer view;
+    Py_ssize_t count; /* number of items */
+} held_buffer;
+
+static void release(held_buffer *b)
+{
+    if (b->view.obj) PyBuffer_Release(&b->view);
+    b->view.obj = NULL;
+}
+
+static const char *type_name(char code)
+{
+    switch (code) {
+    case 'd': return "float64";
+    case 'f': return "float32";
+    case 'i': return "int32";
+    case 'I': return "uint32";
+    }
+    return "?";
+}
+
+/* Gets a C-contiguous buffer of `code` items ('d', 'f', 'i', 'I'; native byte order) from obj.
+ * multiple > 0: the item count must be a multiple of it; expected >= 0: the count must equal it. */
+static int get_buffer(PyObject *obj, const char *name, char code, Py_ssize_t multiple,
+                      Py_ssize_t expected, held_buffer *out)
+{
+    memset(out, 0, sizeof *out);
+    if (PyObject_GetBuffer(obj, &out->view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+        PyErr_Clear();
+        out->view.obj = NULL;
+        PyObject *tname = PyType_GetName(Py_TYPE(obj));
+        PyErr_Format(PyExc_TypeError,
+                     "%s must be a C-contiguous %s buffer (e.g. numpy.ascontiguousarray(x, "
+                     "dtype=numpy.%s)), got %S",
+                     name, type_name(code), type_name(code), tname ? tname : Py_None);
+        Py_XDECREF(tname);
+        return -1;
+    }
+    const char *fmt = out->view.format ? out->view.format : "B";
+    if (*fmt == '@' || *fmt == '=' || (*fmt == '<' && PY_LITTLE_ENDIAN) || (*fmt == '>' && PY_BIG_ENDIAN))
+        fmt++;
+    Py_ssize_t itemsize = code == 'd' ? 8 : 4;
+    bool ok = fmt[0] != '\0' && fmt[1] == '\0' && out->view.itemsize == itemsize &&
+              (fmt[0] == code || (code == 'i' && fmt[0] == 'l') || (code == 'I' && fmt[0] == 'L'));
+    if (!ok) {
+        PyErr_Format(PyExc_TypeError, "%s must hold %s items, got buffer format '%s' (%zd bytes per item)",
+                     name, type_name(code), out->view.format ? out->view.format : "B",
+                     out->view.itemsize);
+        release(out);
+        return -1;
+    }
+    out->count = out->view.len / itemsize;
+    if (multiple > 0 && out->count % multiple != 0) {
+        PyErr_Format(PyExc_ValueError, "%s has %zd items, not a multiple of %zd", name, out->count,
+                     multiple);
+        release(out);
+        return -1;
+    }
+    if (expected >= 0 && out->count != expected) {
+        PyErr_Format(PyExc_ValueError, "%s has %zd items, expected %zd", name, out->count, expected);
+        release(out);
+        return -1;
+    }
+    return 0;
+}
+
+static int check_band(long band)
+{
+    if (band < 0 || band > PB_SH_MAX_BAND) {
+        PyErr_Format(PyExc_ValueError, "max_band %ld is out of range 0..%d", band, PB_SH_MAX_BAND);
+        return -1;
+    }
+    return 0;
+}
+
+static int check_u32(Py_ssize_t v, const char *name, uint32_t *out)
+{
+    if (v < 0 || (unsigned long long)v > UINT32_MAX) {
+        PyErr_Format(PyExc_ValueError, "%s %zd is out of range 0..4294967295", name, v);
+        return -1;
+    }
+    *out = (uint32_t)v;
+    return 0;
+}
+
+/* a*b*c as Py_ssize_t, or -1 with ValueError when it overflows. */
+static Py_ssize_t product3(Py_ssize_t a, Py_ssize_t b, Py_ssize_t c, const char *what)
+{
+    unsigned long long r = 0;
+    if (a < 0 || b < 0 || c < 0 || __builtin_mul_overflow((unsigned long long)a, (unsigned long long)b, &r) ||
+        __builtin_mul_overflow(r, (unsigned long long)c, &r) || r > (unsigned long long)PY_SSIZE_T_MAX) {
+        PyErr_Format(PyExc_ValueError, "%s %zd x %zd x %zd is too large", what, a, b, c);
+        return -1;
+    }
+    return (Py_ssize_t)r;
+}
+
+static PyObject *bytes_out(const void *data, size_t size)
+{
+    return PyByteArray_FromStringAndSize((const char *)data, (Py_ssize_t)size);
+}
+
+/* Optional 3x3 rotation: None or 9 float64. */
+static int get_rotation(PyObject *obj, held_buffer *out)
+{
+    memset(out, 0, sizeof *out);
+    if (obj == NULL || obj == Py_None) return 0;
+    return get_buffer(obj, "rotation", 'd', 0, 9, out);
+}
+
+/* ---- SH --------------------------------------------------------------------------------------- */
+
+static PyObject *py_sh_basis(PyObject *module, PyObject *args)
+{
+    PyObject *dirs_obj;
+    long band;
+    if (!PyArg_ParseTuple(args, "Ol:sh_basis", &dirs_obj, &band) || check_band(band) < 0) return NULL;
+    held_buffer dirs;
+    if (get_buffer(dirs_obj, "dirs", 'd', 3, -1, &dirs) < 0) return NULL;
+    Py_ssize_t n = dirs.count / 3;
+    uint32_t count = pb_sh_count((uint32_t)band);
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, n * (Py_ssize_t)count * 8);
+    if (out) {
+        double *o = (double *)(void *)PyByteArray_AsString(out);
+        const double *d = dirs.view.buf;
+        Py_BEGIN_ALLOW_THREADS
+        for (Py_ssize_t i = 0; i < n; i++) pb_sh_eval_basis((uint32_t)band, d + 3 * i, o + count * i);
+        Py_END_ALLOW_THREADS
+    }
+    release(&dirs);
+    return out;
+}
+
+static PyObject *py_min_panorama_size(PyObject *module, PyObject *args)
+{
+    long band;
+    if (!PyArg_ParseTuple(args, "l:min_panorama_size", &band) || check_band(band) < 0) return NULL;
+    uint32_t w = 0, h = 0;
+    pb_sh_min_panorama_size((uint32_t)band, &w, &h);
+    return Py_BuildValue("(II)", w, h);
+}
+
+static int check_negative(long negative)
+{
+    if (negative < PB_NEGATIVE_ERROR || negative > PB_NEGATIVE_ALLOW) {
+        PyErr_Format(PyExc_ValueError, "negative policy %ld is out of range 0..2", negative);
+        return -1;
+    }
+    return 0;
+}
+
+static PyObject *py_project_equirect(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"pixels", "width", "height", "channels", "max_band", "rotation",
+                             "negative", NULL};
+    PyObject *pix_obj, *rot_obj = Py_None;
+    Py_ssize_t width, height, channels;
+    long band = 2, negative = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Onnn|lOl:project_equirect", kwlist, &pix_obj, &width,
+                                     &height, &channels, &band, &rot_obj, &negative))
+        return NULL;
+    uint32_t w, h, c;
+    if (check_band(band) < 0 || check_negative(negative) < 0 || check_u32(width, "width", &w) < 0 ||
+        check_u32(height, "height", &h) < 0 || check_u32(channels, "channels", &c) < 0)
+        return NULL;
+    if (c < 3) return PyErr_Format(PyExc_ValueError, "channels %u: at least 3 (RGB first) are needed", c);
+    held_buffer pix, rot;
+    Py_ssize_t expected = product3(width, height, channels, "width x height x channels");
+    if (expected < 0 || get_buffer(pix_obj, "pixels", 'f', 0, expected, &pix) < 0) return NULL;
+    if (get_rotation(rot_obj, &rot) < 0) {
+        release(&pix);
+        return NULL;
+    }
+    pb_sh_project_desc desc = {0};
+    desc.pixels = pix.view.buf;
+    desc.width = w;
+    desc.height = h;
+    desc.channels = c;
+    desc.max_band = (uint32_t)band;
+    desc.rotation = rot.view.obj ? rot.view.buf : NULL;
+    desc.negative = (pb_negative_policy)negative;
+    double out[PB_SH_MAX_COEFFS * 3] = {0};
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS
+    r = pb_sh_project_equirect(&desc, out, &err);
+    Py_END_ALLOW_THREADS
+    release(&pix);
+    release(&rot);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    return bytes_out(out, pb_sh_count((uint32_t)band) * 3 * sizeof(double));
+}
+
+static PyObject *py_project_file(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"path", "max_band", "rotation", "negative", NULL};
+    PyObject *path = NULL, *rot_obj = Py_None;
+    long band = 2, negative = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&|lOl:project_file", kwlist, PyUnicode_FSConverter,
+                                     &path, &band, &rot_obj, &negative))
+        return NULL;
+    held_buffer rot;
+    if (check_band(band) < 0 || check_negative(negative) < 0 || get_rotation(rot_obj, &rot) < 0) {
+        Py_DECREF(path);
+        return NULL;
+    }
+    pb_sh_project_desc desc = {0};
+    desc.max_band = (uint32_t)band;
+    desc.rotation = rot.view.obj ? rot.view.buf : NULL;
+    desc.negative = (pb_negative_policy)negative;
+    double out[PB_SH_MAX_COEFFS * 3] = {0};
+    pb_error err = {0};
+    pb_result r;
+    const char *cpath = PyBytes_AsString(path);
+    Py_BEGIN_ALLOW_THREADS
+    r = pb_sh_project_file(cpath, &desc, out, &err);
+    Py_END_ALLOW_THREADS
+    release(&rot);
+    Py_DECREF(path);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    return bytes_out(out, pb_sh_count((uint32_t)band) * 3 * sizeof(double));
+}
+
+static PyObject *py_irradiance(PyObject *module, PyObject *args)
+{
+    PyObject *c_obj, *n_obj;
+    long band;
+    if (!PyArg_ParseTuple(args, "OlO:irradiance", &c_obj, &band, &n_obj) || check_band(band) < 0)
+        return NULL;
+    held_buffer coeffs, normals;
+    if (get_buffer(c_obj, "coeffs", 'd', 0, (Py_ssize_t)pb_sh_count((uint32_t)band) * 3, &coeffs) < 0)
+        return NULL;
+    if (get_buffer(n_obj, "normals", 'd', 3, -1, &normals) < 0) {
+        release(&coeffs);
+        return NULL;
+    }
+    Py_ssize_t n = normals.count / 3;
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, n * 3 * 8);
+    if (out) {
+        double *o = (double *)(void *)PyByteArray_AsString(out);
+        const double *c = coeffs.view.buf, *nrm = normals.view.buf;
+        Py_BEGIN_ALLOW_THREADS
+        for (Py_ssize_t i = 0; i < n; i++) pb_sh_irradiance((uint32_t)band, c, nrm + 3 * i, o + 3 * i);
+        Py_END_ALLOW_THREADS
+    }
+    release(&coeffs);
+    release(&normals);
+    return out;
+}
+
+static PyObject *py_window(PyObject *module, PyObject *args)
+{
+    PyObject *c_obj;
+    long band, kind;
+    double strength;
+    if (!PyArg_ParseTuple(args, "Olld:window", &c_obj, &band, &kind, &strength) || check_band(band) < 0)
+        return NULL;
+    if (kind < PB_SH_WINDOW_NONE || kind > PB_SH_WINDOW_LAPLACIAN)
+        return PyErr_Format(PyExc_ValueError, "window kind %ld is out of range 0..2", kind);
+    held_buffer coeffs;
+    Py_ssize_t n = (Py_ssize_t)pb_sh_count((uint32_t)band) * 3;
+    if (get_buffer(c_obj, "coeffs", 'd', 0, n, &coeffs) < 0) return NULL;
+    double work[PB_SH_MAX_COEFFS * 3], min_e[3] = {0, 0, 0};
+    memcpy(work, coeffs.view.buf, (size_t)n * sizeof(double));
+    release(&coeffs);
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS
+    r = pb_sh_window((uint32_t)band, (pb_sh_window_kind)kind, strength, work, min_e, &err);
+    Py_END_ALLOW_THREADS
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    PyObject *out = bytes_out(work, (size_t)n * sizeof(double));
+    if (!out) return NULL;
+    return Py_BuildValue("(N(ddd))", out, min_e[0], min_e[1], min_e[2]);
+}
+
+/* ---- placement -------------------------------------------------------------------------------- */
+
+typedef struct mesh_list {
+    Py_ssize_t count;
+    pb_mesh_desc *desc;
+    held_buffer *verts, *tris;
+    PyObject **items; /* strong references to the (name, verts, tris) items, kept alive */
+} mesh_list;
+
+static void mesh_list_free(mesh_list *m)
+{
+    for (Py_ssize_t i = 0; i < m->count; i++) {
+        if (m->verts) release(&m->verts[i]);
+        if (m->tris) release(&m->tris[i]);
+        if (m->items) Py_XDECREF(m->items[i]);
+    }
+    free(m->desc);
+    free(m->verts);
+    free(m->tris);
+    free(m->items);
+    memset(m, 0, sizeof *m);
+}
+
+static int mesh_list_get(PyObject *seq, const char *what, mesh_list *m)
+{
+    memset(m, 0, sizeof *m);
+    Py_ssize_t n = PySequence_Size(seq);
+    if (n < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s must be a sequence of (name, vertices, triangles)", what);
+        return -1;
+    }
+    if (n > UINT32_MAX) {
+        PyErr_Format(PyExc_ValueError, "%s: too many meshes", what);
+        return -1;
+    }
+    m->desc = calloc((size_t)n + 1, sizeof *m->desc);
+    m->verts = calloc((size_t)n + 1, sizeof *m->verts);
+    m->tris = calloc((size_t)n + 1, sizeof *m->tris);
+    m->items = calloc((size_t)n + 1, sizeof *m->items);
+    if (!m->desc || !m->verts || !m->tris || !m->items) {
+        mesh_list_free(m);
+        PyErr_NoMemory();
+        return -1;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        m->count = i + 1;
+        PyObject *item = PySequence_GetItem(seq, i);
+        m->items[i] = item;
+        if (!item) goto fail;
+        PyObject *name = NULL, *v = NULL, *t = NULL;
+        if (!PyArg_ParseTuple(item, "OOO", &name, &v, &t)) {
+            PyErr_Format(PyExc_TypeError, "%s[%zd] must be a (name, vertices, triangles) tuple", what, i);
+            goto fail;
+        }
+        if (name != Py_None) {
+            m->desc[i].name = PyUnicode_AsUTF8AndSize(name, NULL);
+            if (!m->desc[i].name) goto fail;
+        }
+        char label[96];
+        snprintf(label, sizeof label, "%s[%zd] vertices", what, i);
+        if (get_buffer(v, label, 'd', 3, -1, &m->verts[i]) < 0) goto fail;
+        snprintf(label, sizeof label, "%s[%zd] triangles", what, i);
+        if (get_buffer(t, label, 'I', 3, -1, &m->tris[i]) < 0) goto fail;
+        if (m->verts[i].count / 3 > UINT32_MAX || m->tris[i].count / 3 > UINT32_MAX) {
+            PyErr_Format(PyExc_ValueError, "%s[%zd]: too many vertices or triangles", what, i);
+            goto fail;
+        }
+        m->desc[i].positions = m->verts[i].view.buf;
+        m->desc[i].vertex_count = (uint32_t)(m->verts[i].count / 3);
+        m->desc[i].indices = m->tris[i].view.buf;
+        m->desc[i].triangle_count = (uint32_t)(m->tris[i].count / 3);
+    }
+    return 0;
+fail:
+    mesh_list_free(m);
+    return -1;
+}
+
+typedef struct progress_ctx {
+    PyObject *callable;
+    PyObject *exc_type, *exc_value, *exc_tb; /* the callback's exception, re-raised afterwards */
+} progress_ctx;
+
+/* Called by the core with the GIL released, possibly from a worker thread. */
+static bool progress_trampoline(void *user, double fraction, const char *stage)
+{
+    progress_ctx *ctx = user;
+    PyGILState_STATE g = PyGILState_Ensure();
+    bool keep_going = false;
+    if (!ctx->exc_type) {
+        PyObject *res = PyObject_CallFunction(ctx->callable, "ds", fraction, stage ? stage : "");
+        if (!res) {
+            PyErr_Fetch(&ctx->exc_type, &ctx->exc_value, &ctx->exc_tb);
+        } else {
+            /* None (a callback without return) continues; False or another falsy value cancels. */
+            int truth = res == Py_None ? 1 : PyObject_IsTrue(res);
+            Py_DECREF(res);
+            if (truth < 0) PyErr_Fetch(&ctx->exc_type, &ctx->exc_value, &ctx->exc_tb);
+            keep_going = truth > 0;
+        }
+    }
+    PyGILState_Release(g);
+    return keep_going;
+}
+
+static int dict_put(PyObject *d, const char *key, PyObject *value)
+{
+    if (!value) return -1;
+    int r = PyDict_SetItemString(d, key, value);
+    Py_DECREF(value);
+    return r;
+}
+
+static PyObject *placement_dict(const pb_placement *p)
+{
+    PyObject *d = PyDict_New();
+    if (!d) return NULL;
+    size_t n = p->probe_count;
+    uint64_t cells = (uint64_t)p->grid_dims[0] * p->grid_dims[1] * p->grid_dims[2];
+    if (dict_put(d, "probe_count", PyLong_FromUnsignedLong(p->probe_count)) < 0 ||
+        dict_put(d, "positions", bytes_out(p->positions, n * 3 * sizeof(double))) < 0 ||
+        dict_put(d, "cell_sizes", bytes_out(p->cell_sizes, n * sizeof(double))) < 0 ||
+        dict_put(d, "backface_ratio", bytes_out(p->backface_ratio, n * sizeof(float))) < 0 ||
+        dict_put(d, "grid", bytes_out(p->grid, (size_t)cells * sizeof(int32_t))) < 0 ||
+        dict_put(d, "grid_dims", Py_BuildValue("(III)", p->grid_dims[0], p->grid_dims[1], p->grid_dims[2])) < 0 ||
+        dict_put(d, "grid_origin", Py_BuildValue("(ddd)", p->grid_origin[0], p->grid_origin[1], p->grid_origin[2])) < 0 ||
+        dict_put(d, "grid_spacing", PyFloat_FromDouble(p->grid_spacing)) < 0 ||
+        dict_put(d, "leaf_count", PyLong_FromUnsignedLongLong(p->leaf_count)) < 0 ||
+        dict_put(d, "pruned_count", PyLong_FromUnsignedLongLong(p->pruned_count)) < 0) {
+        Py_DECREF(d);
+        return NULL;
+    }
+    return d;
+}
+
+static PyObject *py_place_probes(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"volumes", "geometry", "min_cell_size", "max_cell_size", "threads",
+                             "progress", "solid_ray_count", "solid_backface_ratio",
+                             "max_grid_cells", NULL};
+    PyObject *vol_obj, *geo_obj, *progress = Py_None;
+    double min_cell = 0.0, max_cell = 0.0, backface = 0.0;
+    Py_ssize_t threads = 0, rays = 0;
+    unsigned long long max_cells = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO|ddnOndK:place_probes", kwlist, &vol_obj, &geo_obj,
+                                     &min_cell, &max_cell, &threads, &progress, &rays, &backface,
+                                     &max_cells))
+        return NULL;
+    uint32_t threads32, rays32;
+    if (check_u32(threads, "threads", &threads32) < 0 || check_u32(rays, "solid_ray_count", &rays32) < 0)
+        return NULL;
+    if (progress != Py_None && !PyCallable_Check(progress))
+        return PyErr_Format(PyExc_TypeError, "progress must be callable(fraction, stage) or None");
+    mesh_list vols, geo;
+    if (mesh_list_get(vol_obj, "volumes", &vols) < 0) return NULL;
+    if (mesh_list_get(geo_obj, "geometry", &geo) < 0) {
+        mesh_list_free(&vols);
+        return NULL;
+    }
+    progress_ctx ctx = {progress, NULL, NULL, NULL};
+    pb_placement_desc desc = {0};
+    desc.volumes = vols.desc;
+    desc.volume_count = (uint32_t)vols.count;
+    desc.geometry = geo.desc;
+    desc.geometry_count = (uint32_t)geo.count;
+    desc.min_cell_size = min_cell;
+    desc.max_cell_size = max_cell;
+    desc.solid_ray_count = rays32;
+    desc.solid_backface_ratio = backface;
+    desc.max_grid_cells = max_cells;
+    desc.thread_count = threads32;
+    if (progress != Py_None) {
+        desc.progress = progress_trampoline;
+        desc.progress_user = &ctx;
+    }
+    pb_placement *placement = NULL;
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS
+    r = pb_placement_build(&desc, &placement, &err);
+    Py_END_ALLOW_THREADS
+    mesh_list_free(&vols);
+    mesh_list_free(&geo);
+    if (ctx.exc_type) { /* the callback raised: that exception wins over "cancelled" */
+        pb_placement_destroy(placement);
+        PyErr_Restore(ctx.exc_type, ctx.exc_value, ctx.exc_tb);
+        return NULL;
+    }
+    if (r != PB_SUCCESS) {
+        pb_placement_destroy(placement);
+        return raise_core(module, r, &err);
+    }
+    PyObject *d = placement_dict(placement);
+    pb_placement_destroy(placement);
+    return d;
+}
+
+/* ---- .shprobe --------------------------------------------------------------------------------- */
+
+static int header_into_dict(PyObject *d, const pb_shprobe *p)
+{
+    const float *a = p->grid_axes;
+    return (dict_put(d, "version", PyLong_FromUnsignedLong(p->version)) < 0 ||
+            dict_put(d, "probe_count", PyLong_FromUnsignedLong(p->probe_count)) < 0 ||
+            dict_put(d, "max_band", PyLong_FromUnsignedLong(p->max_band)) < 0 ||
+            dict_put(d, "grid_dims", Py_BuildValue("(III)", p->grid_dims[0], p->grid_dims[1], p->grid_dims[2])) < 0 ||
+            dict_put(d, "grid_origin", Py_BuildValue("(ddd)", (double)p->grid_origin[0],
+                                                     (double)p->grid_origin[1], (double)p->grid_origin[2])) < 0 ||
+            dict_put(d, "grid_spacing", PyFloat_FromDouble(p->grid_spacing)) < 0 ||
+            dict_put(d, "grid_axes", Py_BuildValue("((ddd)(ddd)(ddd))", (double)a[0], (double)a[1],
+                                                   (double)a[2], (double)a[3], (double)a[4], (double)a[5],
+                                                   (double)a[6], (double)a[7], (double)a[8])) < 0 ||
+            dict_put(d, "default_sh_scale", PyFloat_FromDouble(p->default_sh_scale)) < 0 ||
+            dict_put(d, "default_ambient", PyFloat_FromDouble(p->default_ambient)) < 0)
+               ? -1
+               : 0;
+}
+
+static PyObject *shprobe_dict(const pb_shprobe *p)
+{
+    PyObject *d = PyDict_New();
+    if (!d) return NULL;
+    size_t n = p->probe_count;
+    size_t cells = (size_t)p->grid_dims[0] * p->grid_dims[1] * p->grid_dims[2];
+    PyObject *positions = p->positions ? bytes_out(p->positions, n * 3 * sizeof(float)) : Py_NewRef(Py_None);
+    if (header_into_dict(d, p) < 0 ||
+        dict_put(d, "coeffs", bytes_out(p->coeffs, n * pb_sh_count(p->max_band) * 3 * sizeof(float))) < 0 ||
+        dict_put(d, "probe_scale", bytes_out(p->probe_scale, n * sizeof(float))) < 0 ||
+        dict_put(d, "probe_ambient", bytes_out(p->probe_ambient, n * sizeof(float))) < 0 ||
+        dict_put(d, "validity", bytes_out(p->validity, n * sizeof(float))) < 0 ||
+        dict_put(d, "positions", positions) < 0 ||
+        dict_put(d, "grid", bytes_out(p->grid, cells * sizeof(int32_t))) < 0) {
+        Py_DECREF(d);
+        return NULL;
+    }
+    return d;
+}
+
+static PyObject *py_shprobe_read(PyObject *module, PyObject *args)
+{
+    PyObject *path = NULL;
+    if (!PyArg_ParseTuple(args, "O&:shprobe_read", PyUnicode_FSConverter, &path)) return NULL;
+    const char *cpath = PyBytes_AsString(path);
+    pb_shprobe *p = NULL;
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS
+    r = pb_shprobe_read(cpath, &p, &err);
+    Py_END_ALLOW_THREADS
+    Py_DECREF(path);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    PyObject *d = shprobe_dict(p);
+    pb_shprobe_destroy(p);
+    return d;
+}
+
+static PyObject *py_shprobe_read_memory(PyObject *module, PyObject *args)
+{
+    PyObject *obj;
+    if (!PyArg_ParseTuple(args, "O:shprobe_read_memory", &obj)) return NULL;
+    Py_buffer view;
+    if (PyObject_GetBuffer(obj, &view, PyBUF_C_CONTIGUOUS) < 0) return NULL;
+    pb_shprobe *p = NULL;
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS
+    r = pb_shprobe_read_memory(view.buf, (size_t)view.len, &p, &err);
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&view);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    PyObject *d = shprobe_dict(p);
+    pb_shprobe_destroy(p);
+    return d;
+}
+
+static PyObject *py_shprobe_read_header(PyObject *module, PyObject *args)
+{
+    PyObject *path = NULL;
+    if (!PyArg_ParseTuple(args, "O&:shprobe_read_header", PyUnicode_FSConverter, &path)) return NULL;
+    const char *cpath = PyBytes_AsString(path);
+    pb_shprobe h;
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS
+    r = pb_shprobe_read_header(cpath, &h, &err);
+    Py_END_ALLOW_THREADS
+    Py_DECREF(path);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    PyObject *d = PyDict_New();
+    if (d && header_into_dict(d, &h) < 0) Py_CLEAR(d);
+    return d;
+}
+
+/* Optional per-probe float32 array of `n` items. */
+static int get_optional(PyObject *obj, const char *name, Py_ssize_t n, held_buffer *out)
+{
+    memset(out, 0, sizeof *out);
+    if (obj == NULL || obj == Py_None) return 0;
+    return get_buffer(obj, name, 'f', 0, n, out);
+}
+
+static PyObject *py_shprobe_write(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"path", "coeffs", "max_band", "grid", "grid_dims", "grid_origin",
+                             "grid_spacing", "default_sh_scale", "default_ambient", "positions",
+                             "probe_scale", "probe_ambient", "validity", "grid_axes", "version", NULL};
+    PyObject *path = NULL, *c_obj, *g_obj, *pos_obj = Py_None, *scale_obj = Py_None;
+    PyObject *amb_obj = Py_None, *val_obj = Py_None, *axes_obj = Py_None;
+    long band, version = 0;
+    Py_ssize_t dims[3];
+    float origin[3], spacing, def_scale = 1.0f, def_ambient = 0.1f;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&OlO(nnn)(fff)f|ffOOOOOl:shprobe_write", kwlist,
+                                     PyUnicode_FSConverter, &path, &c_obj, &band, &g_obj, &dims[0],
+                                     &dims[1], &dims[2], &origin[0], &origin[1], &origin[2], &spacing,
+                                     &def_scale, &def_ambient, &pos_obj, &scale_obj, &amb_obj,
+                                     &val_obj, &axes_obj, &version))
+        return NULL;
+    pb_shprobe p;
+    memset(&p, 0, sizeof p);
+    held_buffer coeffs = {0}, grid = {0}, pos = {0}, scale = {0}, amb = {0}, val = {0}, axes = {0};
+    PyObject *result = NULL;
+    if (check_band(band) < 0) goto done;
+    if (version < 0 || version > 2) {
+        PyErr_Format(PyExc_ValueError, "version %ld: expected 0 (auto), 1 or 2", version);
+        goto done;
+    }
+    for (int i = 0; i < 3; i++)
+        if (check_u32(dims[i], "grid_dims entry", &p.grid_dims[i]) < 0) goto done;
+    Py_ssize_t per_probe = (Py_ssize_t)pb_sh_count((uint32_t)band) * 3;
+    if (get_buffer(c_obj, "coeffs", 'f', per_probe, -1, &coeffs) < 0) goto done;
+    Py_ssize_t n = coeffs.count / per_probe;
+    if (n > UINT32_MAX) {
+        PyErr_Format(PyExc_ValueError, "%zd probes exceed the file's uint32 probe count", n);
+        goto done;
+    }
+    Py_ssize_t cells = product3(dims[0], dims[1], dims[2], "grid_dims");
+    if (cells < 0 || get_buffer(g_obj, "grid", 'i', 0, cells, &grid) < 0) goto done;
+    if (pos_obj != Py_None && get_buffer(pos_obj, "positions", 'f', 0, n * 3, &pos) < 0) goto done;
+    if (get_optional(scale_obj, "probe_scale", n, &scale) < 0 ||
+        get_optional(amb_obj, "probe_ambient", n, &amb) < 0 ||
+        get_optional(val_obj, "validity", n, &val) < 0 ||
+        get_optional(axes_obj, "grid_axes", 9, &axes) < 0)
+        goto done;
+    p.version = (uint32_t)version;
+    p.probe_count = (uint32_t)n;
+    p.max_band = (uint32_t)band;
+    memcpy(p.grid_origin, origin, sizeof origin);
+    p.grid_spacing = spacing;
+    p.default_sh_scale = def_scale;
+    p.default_ambient = def_ambient;
+    p.coeffs = coeffs.view.buf;
+    p.grid = grid.view.buf;
+    p.positions = pos.view.obj ? pos.view.buf : NULL;
+    p.probe_scale = scale.view.obj ? scale.view.buf : NULL;
+    p.probe_ambient = amb.view.obj ? amb.view.buf : NULL;
+    p.validity = val.view.obj ? val.view.buf : NULL;
+    if (axes.view.obj) memcpy(p.grid_axes, axes.view.buf, sizeof p.grid_axes);
+    {
+        const char *cpath = PyBytes_AsString(path);
+        pb_error err = {0};
+        pb_shprobe written;
+        pb_result r;
+        Py_BEGIN_ALLOW_THREADS
+        r = pb_shprobe_write(cpath, &p, &err);
+        /* Report the version actually chosen by reading back the header just written. */
+        if (r == PB_SUCCESS) r = pb_shprobe_read_header(cpath, &written, &err);
+        Py_END_ALLOW_THREADS
+        if (r != PB_SUCCESS) raise_core(module, r, &err);
+        else result = PyLong_FromUnsignedLong(written.version);
+    }
+done:
+    release(&coeffs);
+    release(&grid);
+    release(&pos);
+    release(&scale);
+    release(&amb);
+    release(&val);
+    release(&axes);
+    Py_DECREF(path);
+    return result;
+}
+
+static PyObject *py_shprobe_lookup(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"grid", "grid_dims", "grid_origin", "grid_spacing", "probe_count",
+                             "points", "grid_axes", NULL};
+    PyObject *g_obj, *pts_obj, *axes_obj = Py_None;
+    Py_ssize_t dims[3], count;
+    float origin[3], spacing;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O(nnn)(fff)fnO|O:shprobe_lookup", kwlist, &g_obj,
+                                     &dims[0], &dims[1], &dims[2], &origin[0], &origin[1], &origin[2],
+                                     &spacing, &count, &pts_obj, &axes_obj))
+        return NULL;
+    pb_shprobe p;
+    memset(&p, 0, sizeof p);
+    for (int i = 0; i < 3; i++)
+        if (check_u32(dims[i], "grid_dims entry", &p.grid_dims[i]) < 0) return NULL;
+    if (check_u32(count, "probe_count", &p.probe_count) < 0) return NULL;
+    held_buffer grid, pts, axes;
+    Py_ssize_t cells = product3(dims[0], dims[1], dims[2], "grid_dims");
+    if (cells < 0 || get_buffer(g_obj, "grid", 'i', 0, cells, &grid) < 0) return NULL;
+    if (get_buffer(pts_obj, "points", 'f', 3, -1, &pts) < 0) {
+        release(&grid);
+        return NULL;
+    }
+    if (get_optional(axes_obj, "grid_axes", 9, &axes) < 0) {
+        release(&grid);
+        release(&pts);
+        return NULL;
+    }
+    memcpy(p.grid_origin, origin, sizeof origin);
+    p.grid_spacing = spacing;
+    p.grid = grid.view.buf;
+    if (axes.view.obj) memcpy(p.grid_axes, axes.view.buf, sizeof p.grid_axes);
+    Py_ssize_t n = pts.count / 3;
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, n * 4);
+    if (out) {
+        int32_t *o = (int32_t *)(void *)PyByteArray_AsString(out);
+        const float *pt = pts.view.buf;
+        for (Py_ssize_t i = 0; i < n; i++) o[i] = pb_shprobe_lookup(&p, pt + 3 * i);
+    }
+    release(&grid);
+    release(&pts);
+    release(&axes);
+    return out;
+}
+
+/* ---- module ----------------------------------------------------------------------------------- */
+
+static PyObject *py_set_error_class(PyObject *module, PyObject *cls)
+{
+    if (!PyType_Check(cls) || !PyObject_IsSubclass(cls, PyExc_Exception))
+        return PyErr_Format(PyExc_TypeError, "_set_error_class expects an Exception subclass");
+    module_state *st = get_state(module);
+    PyObject *old = st->error_class;
+    st->error_class = Py_NewRef(cls);
+    Py_XDECREF(old);
+    Py_RETURN_NONE;
+}
+
+static PyObject *py_result_string(PyObject *module, PyObject *args)
+{
+    int code;
+    if (!PyArg_ParseTuple(args, "i:result_string", &code)) return NULL;
+    return PyUnicode_FromString(pb_result_string((pb_result)code));
+}
+
+static PyMethodDef methods[] = {
+    {"sh_basis", py_sh_basis, METH_VARARGS,
+     "sh_basis(dirs: float64[N*3], max_band) -> bytearray float64[N*count]"},
+    {"min_panorama_size", py_min_panorama_size, METH_VARARGS, "min_panorama_size(max_band) -> (w, h)"},
+    {"project_equirect", (PyCFunction)(void (*)(void))py_project_equirect, METH_VARARGS | METH_KEYWORDS,
+     "project_equirect(pixels: float32[H*W*C], width, height, channels, max_band=2, rotation=None, "
+     "negative=0) -> bytearray float64[count*3]"},
+    {"project_file", (PyCFunction)(void (*)(void))py_project_file, METH_VARARGS | METH_KEYWORDS,
+     "project_file(path, max_band=2, rotation=None, negative=0) -> bytearray float64[count*3]"},
+    {"irradiance", py_irradiance, METH_VARARGS,
+     "irradiance(coeffs: float64[count*3], max_band, normals: float64[N*3]) -> bytearray float64[N*3]"},
+    {"window", py_window, METH_VARARGS,
+     "window(coeffs: float64[count*3], max_band, kind, strength) -> (bytearray, (min_r, min_g, min_b))"},
+    {"place_probes", (PyCFunction)(void (*)(void))py_place_probes, METH_VARARGS | METH_KEYWORDS,
+     "place_probes(volumes, geometry, min_cell_size=0, max_cell_size=0, threads=0, progress=None, "
+     "solid_ray_count=0, solid_backface_ratio=0, max_grid_cells=0) -> dict"},
+    {"shprobe_write", (PyCFunction)(void (*)(void))py_shprobe_write, METH_VARARGS | METH_KEYWORDS,
+     "shprobe_write(path, coeffs, max_band, grid, grid_dims, grid_origin, grid_spacing, "
+     "default_sh_scale=1, default_ambient=0.1, positions=None, probe_scale=None, probe_ambient=None, "
+     "validity=None, grid_axes=None, version=0) -> version written"},
+    {"shprobe_read", py_shprobe_read, METH_VARARGS, "shprobe_read(path) -> dict"},
+    {"shprobe_read_memory", py_shprobe_read_memory, METH_VARARGS, "shprobe_read_memory(buffer) -> dict"},
+    {"shprobe_read_header", py_shprobe_read_header, METH_VARARGS, "shprobe_read_header(path) -> dict"},
+    {"shprobe_lookup", (PyCFunction)(void (*)(void))py_shprobe_lookup, METH_VARARGS | METH_KEYWORDS,
+     "shprobe_lookup(grid, grid_dims, grid_origin, grid_spacing, probe_count, points: float32[N*3], "
+     "grid_axes=None) -> bytearray int32[N]"},
+    {"result_string", py_result_string, METH_VARARGS, "result_string(code) -> str"},
+    {"_set_error_class", py_set_error_class, METH_O,
+     "_set_error_class(cls): raise core errors as cls(message) with .code set"},
+    {NULL, NULL, 0, NULL},
+};
+
+static int module_traverse(PyObject *module, visitproc visit, void *arg)
+{
+    module_state *st = get_state(module);
+    if (st) Py_VISIT(st->error_class);
+    return 0;
+}
+
+static int module_clear(PyObject *module)
+{
+    module_state *st = get_state(module);
+    if (st) Py_CLEAR(st->error_class);
+    return 0;
+}
+
+static void module_free(void *module) { module_clear((PyObject *)module); }
+
+static struct PyModuleDef schnee_module = {
+    PyModuleDef_HEAD_INIT,
+    "_schnee_native",
+    "Schnee probes bake core (stable ABI). Use schnee_probes.native, which wraps this module.",
+    sizeof(module_state),
+    methods,
+    NULL,
+    module_traverse,
+    module_clear,
+    module_free,
+};
+
+PyMODINIT_FUNC PyInit__schnee_native(void)
+{
+    PyObject *m = PyModule_Create(&schnee_module);
+    if (!m) return NULL;
+    PyObject *error = PyErr_NewExceptionWithDoc(
+        "_schnee_native.Error", "A core error; `.code` is the pb_result name.", PyExc_RuntimeError, NULL);
+    if (!error) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    get_state(m)->error_class = Py_NewRef(error);
+    if (PyModule_AddObject(m, "Error", error) < 0) {
+        Py_DECREF(error);
+        Py_DECREF(m);
+        return NULL;
+    }
+    if (PyModule_AddIntConstant(m, "SH_MAX_BAND", PB_SH_MAX_BAND) < 0 ||
+        PyModule_AddIntConstant(m, "SHPROBE_MAGIC", (long)PB_SHPROBE_MAGIC) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}
