@@ -249,6 +249,9 @@ def collect_probe_grids(export_settings):
         src = os.path.join(src_dir, fname)
         try:
             entry = _grid_entry(src, native.read_shprobe_header(src))
+            # The header alone passes a file whose body the engine would refuse (grid entries out
+            # of range, NaN coefficients): validate all of it with the same reader.
+            native.read_shprobe(src)
         except Exception as exc:  # noqa: BLE001 - SchneeError, OSError, bad header values, ...
             _warn(export_settings, f"skipped {src}: {exc}")
             continue

@@ -29,7 +29,7 @@ GRIDS = {
     "b_hall": ((3, 2, 4), (-1.5, 0.0, -2.25), 0.5, 20, 0.75, 0.05),
     "z_last": ((1, 1, 1), (7.0, -3.5, 11.0), 2.0, 1, 1.0, 0.1),
 }
-CORRUPT = ("c_bad_magic", "e_truncated")
+CORRUPT = ("c_bad_magic", "d_bad_grid", "e_truncated")
 # Material name -> (shScale, ambientTerm, base colour), as export_scene.py builds them.
 MATERIALS = {
     "MovA": (0.5, 0.25, (0.8, 0.2, 0.1, 1.0)),
@@ -63,6 +63,10 @@ def _write_grids(native, folder):
     good = (folder / "b_hall.shprobe").read_bytes()
     (folder / "c_bad_magic.shprobe").write_bytes(b"XXXX" + good[4:])
     (folder / "e_truncated.shprobe").write_bytes(good[: len(good) - 7])
+    # A sound header over a bad body: grid cell 0 names probe 999 of 20 (DESIGN.md §4 rejects it).
+    bad_grid = bytearray(good)
+    struct.pack_into("<i", bad_grid, 48 + 20 * 160, 999)
+    (folder / "d_bad_grid.shprobe").write_bytes(bytes(bad_grid))
     (folder / "notes.txt").write_text("not a probe file")
 
 
