@@ -1,0 +1,292 @@
+/* schnee-view: plays back a Schnee-probes glTF export (scene + baked SH probes) with Vulkan.
+ * Command line: see usage() and docs/engine.md. */
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "sv_app.h"
+#include "sv_math.h"
+
+static void usage(FILE *f) {
+    fprintf(f,
+            "usage: schnee-view SCENE.gltf|.glb [options]\n"
+            "  --headless               render offscreen and write --output (no window)\n"
+            "  --output PATH            headless output: .png/.jpg (tone mapped, sRGB) or .exr (linear, before tone mapping)\n"
+            "  --width W --height H     frame size (default 960x540)\n"
+            "  --camera NAME            camera node or camera name (default: first camera, else frame the scene)\n"
+            "  --exposure E             linear exposure multiplier before tone mapping (default 1)\n"
+            "  --tonemap neutral|aces|none  operator (default neutral = Khronos PBR Neutral); --no-tonemap = none\n"
+            "  --debug none|probe-color|probe-index|normals  debug view (probe-index writes the index in R)\n"
+            "  --no-direct              skip KHR_lights_punctual direct light (probe + ambient + emission only)\n"
+            "  --probe-cells            draw a small sphere per occupied probe cell, lit by its probe\n"
+            "  --fallback-radiance V    uniform radiance of fallback probe 0 (default %.2f)\n"
+            "  --move NODE X Y Z        set a node's translation before rendering (objects are re-assigned)\n"
+            "  --print-assignments      print each object's probe index and exit status as usual\n"
+            "  --validation             enable VK_LAYER_KHRONOS_validation; any message fails the run (exit 3)\n"
+            "  --frames N               headless: frames to render and time; window: quit after N frames\n"
+            "  --screenshot PATH        window: write the last frame presented to PATH\n"
+            "window keys: WASD/QE move, right mouse drag looks, Shift faster, P probe colours, C probe cells,\n"
+            "             N next object, J/L/I/K/U/O move it (its probe is re-queried), Esc quits\n",
+            SV_FALLBACK_RADIANCE);
+}
+
+double sv_now_ms(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
+static bool parse_float(const char *s, float *out) {
+    char *end = NULL;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (errno || end == s || *end || !isfinite(v) || fabs(v) > FLT_MAX) return false;
+    *out = (float)v;
+    return true;
+}
+
+static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out) {
+    char *end = NULL;
+    errno = 0;
+    unsigned long v = strtoul(s, &end, 10);
+    if (errno || end == s || *end || s[0] == '-' || v < lo || v > hi) return false;
+    *out = (uint32_t)v;
+    return true;
+}
+
+/* Returns 0 on success, 2 on a usage error (message printed). */
+static int parse_args(int argc, char **argv, sv_options *o) {
+    memset(o, 0, sizeof(*o));
+    o->width = 960;
+    o->height = 540;
+    o->exposure = 1.0f;
+    o->tonemap = SV_TONEMAP_PBR_NEUTRAL;
+    o->fallback_radiance = SV_FALLBACK_RADIANCE;
+    for (int i = 1; i < argc; ++i) {
+        const char *a = argv[i];
+        const char *next = i + 1 < argc ? argv[i + 1] : NULL;
+#define NEED(n)                                                                   \
+    if (i + (n) >= argc) {                                                        \
+        fprintf(stderr, "schnee-view: error: %s needs %d value(s)\n", a, (n));    \
+        return 2;                                                                 \
+    }
+#define BAD_VALUE(v)                                                              \
+    do {                                                                          \
+        fprintf(stderr, "schnee-view: error: bad value '%s' for %s\n", (v), a);   \
+        return 2;                                                                 \
+    } while (0)
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            usage(stdout);
+            exit(0);
+        } else if (strcmp(a, "--headless") == 0) {
+            o->headless = true;
+        } else if (strcmp(a, "--output") == 0 || strcmp(a, "-o") == 0) {
+            NEED(1);
+            o->output = argv[++i];
+        } else if (strcmp(a, "--width") == 0) {
+            NEED(1);
+            if (!parse_u32(next, 1, 16384, &o->width)) BAD_VALUE(next);
+            ++i;
+        } else if (strcmp(a, "--height") == 0) {
+            NEED(1);
+            if (!parse_u32(next, 1, 16384, &o->height)) BAD_VALUE(next);
+            ++i;
+        } else if (strcmp(a, "--camera") == 0) {
+            NEED(1);
+            o->camera = argv[++i];
+        } else if (strcmp(a, "--exposure") == 0) {
+            NEED(1);
+            if (!parse_float(next, &o->exposure) || o->exposure < 0) BAD_VALUE(next);
+            ++i;
+        } else if (strcmp(a, "--tonemap") == 0) {
+            NEED(1);
+            ++i;
+            if (strcmp(next, "neutral") == 0) o->tonemap = SV_TONEMAP_PBR_NEUTRAL;
+            else if (strcmp(next, "aces") == 0) o->tonemap = SV_TONEMAP_ACES;
+            else if (strcmp(next, "none") == 0) o->tonemap = SV_TONEMAP_NONE;
+            else BAD_VALUE(next);
+        } else if (strcmp(a, "--no-tonemap") == 0) {
+            o->tonemap = SV_TONEMAP_NONE;
+        } else if (strcmp(a, "--debug") == 0) {
+            NEED(1);
+            ++i;
+            if (strcmp(next, "none") == 0) o->debug_mode = SV_DEBUG_NONE;
+            else if (strcmp(next, "probe-color") == 0) o->debug_mode = SV_DEBUG_PROBE_COLOR;
+            else if (strcmp(next, "probe-index") == 0) o->debug_mode = SV_DEBUG_PROBE_INDEX;
+            else if (strcmp(next, "normals") == 0) o->debug_mode = SV_DEBUG_NORMALS;
+            else BAD_VALUE(next);
+        } else if (strcmp(a, "--no-direct") == 0) {
+            o->no_direct = true;
+        } else if (strcmp(a, "--probe-cells") == 0) {
+            o->show_cells = true;
+        } else if (strcmp(a, "--fallback-radiance") == 0) {
+            NEED(1);
+            if (!parse_float(next, &o->fallback_radiance) || o->fallback_radiance < 0) BAD_VALUE(next);
+            ++i;
+        } else if (strcmp(a, "--move") == 0) {
+            NEED(4);
+            if (o->move_count == SV_MAX_MOVES) {
+                fprintf(stderr, "schnee-view: error: at most %d --move options\n", SV_MAX_MOVES);
+                return 2;
+            }
+            sv_move *m = &o->moves[o->move_count++];
+            m->node = argv[i + 1];
+            for (int k = 0; k < 3; ++k)
+                if (!parse_float(argv[i + 2 + k], &m->translation[k])) BAD_VALUE(argv[i + 2 + k]);
+            i += 4;
+        } else if (strcmp(a, "--print-assignments") == 0) {
+            o->print_assignments = true;
+        } else if (strcmp(a, "--validation") == 0) {
+            o->validation = true;
+        } else if (strcmp(a, "--frames") == 0) {
+            NEED(1);
+            if (!parse_u32(next, 1, 1000000, &o->frames)) BAD_VALUE(next);
+            ++i;
+        } else if (strcmp(a, "--screenshot") == 0) {
+            NEED(1);
+            o->screenshot = argv[++i];
+        } else if (a[0] == '-' && a[1]) {
+            fprintf(stderr, "schnee-view: error: unknown option '%s' (see --help)\n", a);
+            return 2;
+        } else if (!o->scene_path) {
+            o->scene_path = a;
+        } else {
+            fprintf(stderr, "schnee-view: error: more than one scene given ('%s', '%s')\n", o->scene_path, a);
+            return 2;
+        }
+#undef NEED
+#undef BAD_VALUE
+    }
+    if (!o->scene_path) {
+        usage(stderr);
+        return 2;
+    }
+    if (o->headless && !o->output && !o->print_assignments) {
+        fprintf(stderr, "schnee-view: error: --headless needs --output PATH\n");
+        return 2;
+    }
+    return 0;
+}
+
+bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *v) {
+    memset(v, 0, sizeof(*v));
+    v->exposure = opt->exposure;
+    v->tonemap = opt->tonemap;
+    v->debug_mode = opt->debug_mode;
+    v->flags = opt->no_direct ? SV_FRAME_NO_DIRECT : 0;
+    v->show_cells = opt->show_cells;
+    const sv_gltf *g = scene->gltf;
+    int32_t cam = -1;
+    if (opt->camera) {
+        cam = sv_gltf_find_camera(g, opt->camera);
+        if (cam < 0) {
+            fprintf(stderr, "schnee-view: error: no camera named '%s' in %s (%u camera(s))\n", opt->camera,
+                    opt->scene_path, g->camera_instance_count);
+            for (uint32_t i = 0; i < g->camera_instance_count; ++i)
+                fprintf(stderr, "  node '%s'\n", g->nodes[g->camera_instances[i].node].name);
+            return false;
+        }
+    } else if (g->camera_instance_count) {
+        cam = 0;
+    }
+    if (cam >= 0) {
+        const sv_gltf_camera_instance *ci = &g->camera_instances[cam];
+        const sv_gltf_camera *c = &g->cameras[ci->camera];
+        if (!sv_mat4_invert(ci->world, v->view)) {
+            fprintf(stderr, "schnee-view: error: camera '%s' has a singular transform\n", g->nodes[ci->node].name);
+            return false;
+        }
+        memcpy(v->camera_pos, ci->world + 12, 3 * sizeof(float));
+        v->yfov = c->type == SV_GLTF_CAMERA_PERSPECTIVE ? c->yfov : 0.0f;
+        v->xmag = c->xmag;
+        v->ymag = c->ymag;
+        v->znear = c->znear > 0 ? c->znear : 0.01f;
+        v->zfar = c->zfar;
+        return true;
+    }
+    /* Frame the bounds: look at the centre from +Z and somewhat above, far enough that the
+     * bounding sphere fits the vertical field of view. */
+    float center[3] = {0, 0, 0}, radius = 1.0f;
+    if (scene->aabb_min[0] <= scene->aabb_max[0]) {
+        float d2 = 0;
+        for (int k = 0; k < 3; ++k) {
+            center[k] = 0.5f * (scene->aabb_min[k] + scene->aabb_max[k]);
+            float e = 0.5f * (scene->aabb_max[k] - scene->aabb_min[k]);
+            d2 += e * e;
+        }
+        radius = fmaxf(sqrtf(d2), 1e-3f);
+    }
+    v->yfov = 0.8f;
+    float dist = radius / sinf(0.5f * v->yfov);
+    float dir[3] = {0.0f, 0.35f, 1.0f};
+    float dl = sqrtf(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+    for (int k = 0; k < 3; ++k) v->camera_pos[k] = center[k] + dir[k] / dl * dist;
+    float up[3] = {0, 1, 0};
+    sv_mat4_look_at(v->camera_pos, center, up, v->view);
+    v->znear = dist * 0.01f;
+    v->zfar = dist * 10.0f;
+    return true;
+}
+
+void sv_app_print_assignments(const sv_scene *scene) {
+    for (uint32_t i = 0; i < scene->object_count; ++i) {
+        const sv_object *o = &scene->objects[i];
+        printf("object %u '%s' probe %u center (%g, %g, %g)\n", i, o->name, o->probe,
+               0.5 * (o->aabb_min[0] + o->aabb_max[0]), 0.5 * (o->aabb_min[1] + o->aabb_max[1]),
+               0.5 * (o->aabb_min[2] + o->aabb_max[2]));
+    }
+    fflush(stdout);
+}
+
+bool sv_app_validation_clean(const sv_context *ctx) {
+    if (!ctx->validation) return true;
+    if (ctx->validation_errors || ctx->validation_warnings) {
+        fprintf(stderr, "schnee-view: error: validation reported %u error(s) and %u warning(s)\n",
+                ctx->validation_errors, ctx->validation_warnings);
+        return false;
+    }
+    return true;
+}
+
+int main(int argc, char **argv) {
+    sv_options opt;
+    int rc = parse_args(argc, argv, &opt);
+    if (rc) return rc;
+
+    sv_scene scene;
+    sv_probes probes;
+    double t0 = sv_now_ms();
+    if (!sv_scene_load(opt.scene_path, &scene)) return 1;
+    double t1 = sv_now_ms();
+    if (!sv_probes_load(scene.gltf, &probes)) {
+        sv_scene_destroy(&scene);
+        return 1;
+    }
+    double t2 = sv_now_ms();
+    fprintf(stderr, "schnee-view: loaded %s: %u object(s), %u probe grid(s), %u probe(s) + fallback; "
+                    "scene %.1f ms, probes %.1f ms\n",
+            opt.scene_path, scene.object_count, probes.grid_count, probes.total - 1, t1 - t0, t2 - t1);
+
+    sv_probes_assign(&probes, &scene);
+    for (uint32_t i = 0; i < opt.move_count; ++i) {
+        int32_t node = sv_scene_find_node(&scene, opt.moves[i].node);
+        if (node < 0) {
+            fprintf(stderr, "schnee-view: error: --move: no node named '%s'\n", opt.moves[i].node);
+            rc = 2;
+            goto done;
+        }
+        sv_scene_set_translation(&scene, (uint32_t)node, opt.moves[i].translation);
+        uint32_t n = sv_probes_assign(&probes, &scene);
+        fprintf(stderr, "schnee-view: moved '%s'; %u object(s) re-assigned\n", opt.moves[i].node, n);
+    }
+    if (opt.print_assignments) sv_app_print_assignments(&scene);
+    if (opt.headless && !opt.output) goto done; /* --print-assignments only */
+    rc = opt.headless ? sv_run_headless(&opt, &scene, &probes) : sv_run_window(&opt, &scene, &probes);
+done:
+    sv_probes_destroy(&probes);
+    sv_scene_destroy(&scene);
+    return rc;
+}

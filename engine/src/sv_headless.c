@@ -1,0 +1,138 @@
+/* Headless front end: render offscreen, copy to a host-visible buffer, write with OpenImageIO. */
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "schnee/pb_image.h"
+#include "sv_app.h"
+
+static bool ends_with_exr(const char *path) {
+    size_t n = strlen(path);
+    return n >= 4 && strcasecmp(path + n - 4, ".exr") == 0;
+}
+
+/* Records a copy of `image` (in `layout`) into `buffer`, then returns the image to `layout`. */
+static void record_readback(VkCommandBuffer cmd, VkImage image, VkImageLayout layout, uint32_t w, uint32_t h,
+                            VkBuffer buffer) {
+    if (layout != VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL)
+        sv_image_barrier(cmd, image, VK_IMAGE_ASPECT_COLOR_BIT, layout, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                         VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_ACCESS_TRANSFER_READ_BIT);
+    VkBufferImageCopy region = {.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1}, .imageExtent = {w, h, 1}};
+    vkCmdCopyImageToBuffer(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, buffer, 1, &region);
+    VkBufferMemoryBarrier b = {
+        .sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER,
+        .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+        .dstAccessMask = VK_ACCESS_HOST_READ_BIT,
+        .srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
+        .dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
+        .buffer = buffer,
+        .size = VK_WHOLE_SIZE,
+    };
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 0, NULL, 1, &b, 0, NULL);
+}
+
+static bool submit_and_wait(sv_context *ctx, VkCommandBuffer cmd, VkFence fence) {
+    VkSubmitInfo submit = {.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO, .commandBufferCount = 1, .pCommandBuffers = &cmd};
+    VK_CHECK(vkResetFences(ctx->device, 1, &fence));
+    VK_CHECK(vkQueueSubmit(ctx->queue, 1, &submit, fence));
+    VK_CHECK(vkWaitForFences(ctx->device, 1, &fence, VK_TRUE, UINT64_MAX));
+    return true;
+fail:
+    return false;
+}
+
+int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes) {
+    sv_context ctx = {0};
+    sv_renderer r = {0};
+    sv_image out = {0};
+    sv_buffer readback = {0};
+    VkFence fence = VK_NULL_HANDLE;
+    VkCommandBuffer cmd = VK_NULL_HANDLE;
+    float *pixels = NULL;
+    int rc = 1;
+    const uint32_t w = opt->width, h = opt->height;
+    const bool exr = ends_with_exr(opt->output);
+
+    double t0 = sv_now_ms();
+    if (!sv_create_instance(&ctx, opt->validation, NULL, 0) || !sv_pick_device(&ctx) || !sv_create_device(&ctx) ||
+        !sv_create_command_pool(&ctx))
+        goto done;
+    double t1 = sv_now_ms();
+    if (!sv_renderer_create(&r, &ctx, scene, probes, VK_FORMAT_R8G8B8A8_SRGB, opt->fallback_radiance) ||
+        !sv_renderer_resize(&r, w, h))
+        goto done;
+    if (!sv_image_create(&ctx, w, h, VK_FORMAT_R8G8B8A8_SRGB,
+                         VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
+                         &out) ||
+        !sv_buffer_create(&ctx, (VkDeviceSize)w * h * (exr ? 16 : 4), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true, &readback))
+        goto done;
+    double t2 = sv_now_ms();
+    fprintf(stderr, "schnee-view: device %s; Vulkan setup %.1f ms, scene upload %.1f ms\n", ctx.properties.deviceName,
+            t1 - t0, t2 - t1);
+
+    VkFenceCreateInfo fi = {.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    VK_CHECK(vkCreateFence(ctx.device, &fi, NULL, &fence));
+    VkCommandBufferAllocateInfo ai = {
+        .sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO,
+        .commandPool = ctx.command_pool,
+        .level = VK_COMMAND_BUFFER_LEVEL_PRIMARY,
+        .commandBufferCount = 1,
+    };
+    VK_CHECK(vkAllocateCommandBuffers(ctx.device, &ai, &cmd));
+
+    sv_view view;
+    if (!sv_app_initial_view(opt, scene, &view)) goto done;
+    uint32_t frames = opt->frames ? opt->frames : 1;
+    double frame_total = 0.0, frame_min = 1e30;
+    for (uint32_t f = 0; f < frames; ++f) {
+        bool last = f + 1 == frames;
+        double fs = sv_now_ms();
+        VkCommandBufferBeginInfo begin = {.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
+                                          .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
+        VK_CHECK(vkResetCommandBuffer(cmd, 0));
+        VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
+        sv_renderer_record(&r, cmd, scene, &view, out.image, out.view, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+        if (last) {
+            if (exr)
+                record_readback(cmd, r.hdr.image, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, w, h, readback.buffer);
+            else
+                record_readback(cmd, out.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, w, h, readback.buffer);
+        }
+        VK_CHECK(vkEndCommandBuffer(cmd));
+        if (!submit_and_wait(&ctx, cmd, fence)) goto done;
+        double ms = sv_now_ms() - fs;
+        frame_total += ms;
+        if (ms < frame_min) frame_min = ms;
+    }
+    fprintf(stderr, "schnee-view: %u frame(s) at %ux%u: mean %.2f ms, min %.2f ms (submit to fence, incl. readback on the last)\n",
+            frames, w, h, frame_total / frames, frame_min);
+
+    /* Drop alpha: PNG/EXR outputs are RGB. 8-bit readback holds sRGB-encoded bytes already. */
+    pixels = malloc((size_t)w * h * 3 * sizeof(float));
+    if (!pixels) goto done;
+    for (size_t i = 0; i < (size_t)w * h; ++i)
+        for (int c = 0; c < 3; ++c)
+            pixels[i * 3 + c] = exr ? ((const float *)readback.mapped)[i * 4 + c]
+                                    : ((const uint8_t *)readback.mapped)[i * 4 + c] / 255.0f;
+    pb_error err = {0};
+    if (pb_image_write(opt->output, w, h, 3, pixels, &err) != PB_SUCCESS) {
+        fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", opt->output, err.message);
+        goto done;
+    }
+    fprintf(stderr, "schnee-view: wrote %s\n", opt->output);
+    rc = 0;
+done:
+fail:
+    free(pixels);
+    if (ctx.device) {
+        vkDeviceWaitIdle(ctx.device);
+        if (fence) vkDestroyFence(ctx.device, fence, NULL);
+        sv_buffer_destroy(&ctx, &readback);
+        sv_image_destroy(&ctx, &out);
+        sv_renderer_destroy(&r);
+    }
+    sv_context_destroy(&ctx);
+    if (!sv_app_validation_clean(&ctx) && rc == 0) rc = 3;
+    return rc;
+}

@@ -1,0 +1,57 @@
+/* Probe grids of a scene (DESIGN.md §5, §7): each shProbeGrids entry read with the bake's own
+ * reader (pb_shprobe_read), packed into one GPU buffer whose index 0 is the fallback probe and
+ * whose grids follow in glTF order; and the per-object query (first grid holding the point with a
+ * valid cell wins, else 0).
+ */
+#ifndef SV_PROBES_H
+#define SV_PROBES_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "schnee/pb_shprobe.h"
+#include "sv_gpu_types.h"
+#include "sv_scene.h"
+
+/* Fallback probe (index 0): a uniform environment of this radiance in every channel, so an object
+ * outside every grid gets E(n) = pi * radiance, i.e. diffuse = albedo * (shScale * radiance +
+ * ambientTerm). The value is a neutral mid-dark grey; --fallback-radiance overrides it. */
+#define SV_FALLBACK_RADIANCE 0.2f
+
+typedef struct sv_probe_grid {
+    pb_shprobe *file;
+    uint32_t base;        /* buffer index of the grid's probe 0 */
+    const char *name;     /* entry name (owned by the glTF) */
+} sv_probe_grid;
+
+typedef struct sv_probes {
+    sv_probe_grid *grids;
+    uint32_t grid_count;
+    uint32_t total;       /* probes in the buffer, fallback included (>= 1) */
+} sv_probes;
+
+/* Reads every grid of the scene. A file that cannot be read or is malformed is an error (message
+ * names the grid and the file); an entry that disagrees with its file header is a warning (the
+ * file is trusted). */
+bool sv_probes_load(const sv_gltf *gltf, sv_probes *out);
+void sv_probes_destroy(sv_probes *probes);
+
+/* Buffer index for a world-space point (DESIGN.md §7). */
+uint32_t sv_probes_lookup(const sv_probes *probes, const float point[3]);
+
+/* Re-queries every object flagged needs_probe (centre of its world bounds); returns how many. */
+uint32_t sv_probes_assign(const sv_probes *probes, sv_scene *scene);
+
+/* GPU buffer contents: total entries, caller frees. */
+sv_gpu_probe *sv_probes_pack(const sv_probes *probes, float fallback_radiance);
+
+/* One entry per occupied grid cell for the probe-cell view: centre + radius, probe index. */
+typedef struct sv_gpu_cell {
+    float center_radius[4];
+    uint32_t probe[4];
+} sv_gpu_cell;
+_Static_assert(sizeof(sv_gpu_cell) == 32, "sv_gpu_cell must match probe_cells.vert");
+
+sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *count);
+
+#endif

@@ -1,0 +1,777 @@
+/* Scene upload, pipelines and frame recording (see sv_renderer.h). */
+#include "sv_renderer.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "schnee/pb_image.h"
+#include "sv_math.h"
+
+/* SPIR-V embedded at build time (glslc -mfmt=c), so the binary runs from any working directory. */
+static const uint32_t mesh_vert_spv[] =
+#include "mesh.vert.inc"
+    ;
+static const uint32_t mesh_frag_spv[] =
+#include "mesh.frag.inc"
+    ;
+static const uint32_t probe_cells_vert_spv[] =
+#include "probe_cells.vert.inc"
+    ;
+static const uint32_t probe_cells_frag_spv[] =
+#include "probe_cells.frag.inc"
+    ;
+static const uint32_t fullscreen_vert_spv[] =
+#include "fullscreen.vert.inc"
+    ;
+static const uint32_t tonemap_frag_spv[] =
+#include "tonemap.frag.inc"
+    ;
+
+#define SV_VERTEX_FLOATS 8 /* position xyz, normal xyz, uv */
+
+static void fail_msg(const char *what) { fprintf(stderr, "schnee-view: error: %s\n", what); }
+
+/* ---- geometry ------------------------------------------------------------------------------- */
+
+/* Appends a UV sphere of radius 1 (for the probe-cell view) to the vertex/index arrays. */
+enum { SPHERE_SEG = 16, SPHERE_RINGS = 8 };
+
+static bool upload_geometry(sv_renderer *r, const sv_gltf *g) {
+    size_t prims = 0, verts = 0, idx = 0;
+    for (uint32_t m = 0; m < g->mesh_count; ++m) {
+        prims += g->meshes[m].primitive_count;
+        for (uint32_t p = 0; p < g->meshes[m].primitive_count; ++p) {
+            verts += g->meshes[m].primitives[p].vertex_count;
+            idx += g->meshes[m].primitives[p].index_count;
+        }
+    }
+    size_t sphere_verts = (SPHERE_SEG + 1) * (SPHERE_RINGS + 1), sphere_idx = SPHERE_SEG * SPHERE_RINGS * 6;
+    if (verts + sphere_verts > INT32_MAX || idx + sphere_idx > UINT32_MAX) {
+        fail_msg("scene too large (more than 2^31 vertices)");
+        return false;
+    }
+    r->prim_first_index = calloc(prims + 1, sizeof(uint32_t));
+    r->prim_index_count = calloc(prims + 1, sizeof(uint32_t));
+    r->prim_vertex_offset = calloc(prims + 1, sizeof(int32_t));
+    r->prim_material = calloc(prims + 1, sizeof(uint32_t));
+    r->mesh_prim_base = calloc(g->mesh_count + 1, sizeof(uint32_t));
+    float *v = malloc((verts + sphere_verts) * SV_VERTEX_FLOATS * sizeof(float));
+    uint32_t *ix = malloc((idx + sphere_idx) * sizeof(uint32_t));
+    bool ok = false;
+    if (!r->prim_first_index || !r->prim_index_count || !r->prim_vertex_offset || !r->prim_material ||
+        !r->mesh_prim_base || !v || !ix) {
+        fail_msg("out of memory uploading geometry");
+        goto done;
+    }
+    size_t vo = 0, io = 0, pi = 0;
+    for (uint32_t m = 0; m < g->mesh_count; ++m) {
+        r->mesh_prim_base[m] = (uint32_t)pi;
+        for (uint32_t p = 0; p < g->meshes[m].primitive_count; ++p, ++pi) {
+            const sv_gltf_primitive *pr = &g->meshes[m].primitives[p];
+            r->prim_first_index[pi] = (uint32_t)io;
+            r->prim_index_count[pi] = pr->index_count;
+            r->prim_vertex_offset[pi] = (int32_t)vo;
+            r->prim_material[pi] = pr->material >= 0 ? (uint32_t)pr->material : g->material_count;
+            for (uint32_t k = 0; k < pr->vertex_count; ++k) {
+                float *d = v + (vo + k) * SV_VERTEX_FLOATS;
+                memcpy(d, pr->positions + 3 * (size_t)k, 3 * sizeof(float));
+                if (pr->normals) memcpy(d + 3, pr->normals + 3 * (size_t)k, 3 * sizeof(float));
+                else d[3] = 0, d[4] = 1, d[5] = 0;
+                if (pr->texcoords0) memcpy(d + 6, pr->texcoords0 + 2 * (size_t)k, 2 * sizeof(float));
+                else d[6] = d[7] = 0;
+            }
+            memcpy(ix + io, pr->indices, pr->index_count * sizeof(uint32_t));
+            vo += pr->vertex_count;
+            io += pr->index_count;
+        }
+    }
+    r->sphere_vertex_offset = (int32_t)vo;
+    r->sphere_first_index = (uint32_t)io;
+    r->sphere_index_count = (uint32_t)sphere_idx;
+    for (uint32_t ring = 0; ring <= SPHERE_RINGS; ++ring)
+        for (uint32_t s = 0; s <= SPHERE_SEG; ++s) {
+            float th = 3.14159265f * (float)ring / SPHERE_RINGS, ph = 6.2831853f * (float)s / SPHERE_SEG;
+            float *d = v + (vo + ring * (SPHERE_SEG + 1) + s) * SV_VERTEX_FLOATS;
+            d[0] = d[3] = sinf(th) * cosf(ph);
+            d[1] = d[4] = cosf(th);
+            d[2] = d[5] = sinf(th) * sinf(ph);
+            d[6] = (float)s / SPHERE_SEG;
+            d[7] = (float)ring / SPHERE_RINGS;
+        }
+    for (uint32_t ring = 0; ring < SPHERE_RINGS; ++ring)
+        for (uint32_t s = 0; s < SPHERE_SEG; ++s) {
+            uint32_t a = ring * (SPHERE_SEG + 1) + s, b = a + SPHERE_SEG + 1;
+            uint32_t q[6] = {a, b, a + 1, a + 1, b, b + 1};
+            memcpy(ix + io, q, sizeof(q));
+            io += 6;
+        }
+    ok = sv_buffer_create_with_data(r->ctx, v, (verts + sphere_verts) * SV_VERTEX_FLOATS * sizeof(float),
+                                    VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, &r->vertices) &&
+         sv_buffer_create_with_data(r->ctx, ix, io * sizeof(uint32_t), VK_BUFFER_USAGE_INDEX_BUFFER_BIT, &r->indices);
+done:
+    free(v);
+    free(ix);
+    return ok;
+}
+
+/* ---- materials, textures, lights, probes ----------------------------------------------------- */
+
+static int32_t texture_slot(const sv_gltf *g, const sv_gltf_texture_ref *ref) {
+    if (ref->texture < 0 || (uint32_t)ref->texture >= g->texture_count) return -1;
+    if (g->textures[ref->texture].image < 0) return -1;
+    return ref->texture;
+}
+
+static bool upload_materials(sv_renderer *r, const sv_gltf *g) {
+    uint32_t n = g->material_count + 1; /* + the glTF default material */
+    sv_gpu_material *m = calloc(n, sizeof(*m));
+    if (!m) return false;
+    for (uint32_t i = 0; i < n; ++i) {
+        if (i == g->material_count) { /* glTF spec defaults + DESIGN.md §5 defaults */
+            for (int c = 0; c < 4; ++c) m[i].base_color[c] = 1.0f;
+            m[i].sh_scale = 1.0f;
+            m[i].ambient_term = 0.1f;
+            m[i].metallic = 1.0f;
+            m[i].roughness = 1.0f;
+            m[i].base_color_texture = m[i].emissive_texture = -1;
+            continue;
+        }
+        const sv_gltf_material *s = &g->materials[i];
+        memcpy(m[i].base_color, s->base_color_factor, sizeof(m[i].base_color));
+        for (int c = 0; c < 3; ++c) m[i].emissive[c] = s->emissive_factor[c] * s->emissive_strength;
+        m[i].sh_scale = s->sh_scale;
+        m[i].ambient_term = s->ambient_term;
+        m[i].metallic = s->metallic_factor;
+        m[i].roughness = s->roughness_factor;
+        m[i].base_color_texture = texture_slot(g, &s->base_color_texture);
+        m[i].emissive_texture = texture_slot(g, &s->emissive_texture);
+    }
+    bool ok = sv_buffer_create_with_data(r->ctx, m, n * sizeof(*m), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->materials);
+    free(m);
+    return ok;
+}
+
+/* Uploads RGBA8 sRGB pixels into a sampled image (blocking). */
+static bool upload_rgba8(sv_renderer *r, const uint8_t *pixels, uint32_t w, uint32_t h, sv_image *out) {
+    if (!sv_image_create(r->ctx, w, h, VK_FORMAT_R8G8B8A8_SRGB,
+                         VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT, out))
+        return false;
+    sv_buffer staging;
+    if (!sv_buffer_create(r->ctx, (VkDeviceSize)w * h * 4, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true, &staging))
+        return false;
+    memcpy(staging.mapped, pixels, (size_t)w * h * 4);
+    VkCommandBuffer cmd = sv_begin_one_shot(r->ctx);
+    bool ok = cmd != VK_NULL_HANDLE;
+    if (ok) {
+        sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, 0,
+                         VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+        VkBufferImageCopy region = {
+            .imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
+            .imageExtent = {w, h, 1},
+        };
+        vkCmdCopyBufferToImage(cmd, staging.buffer, out->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+        sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
+        ok = sv_end_one_shot(r->ctx, cmd);
+    }
+    sv_buffer_destroy(r->ctx, &staging);
+    return ok;
+}
+
+/* Reads a glTF image through OpenImageIO (embedded bytes go through a temporary file, since the
+ * core's image API takes paths). Returns false with a warning; the caller then uses white. */
+static bool read_gltf_image(const sv_gltf_image *img, pb_image *out) {
+    pb_error err = {0};
+    if (img->path) {
+        if (pb_image_read(img->path, out, &err) == PB_SUCCESS) return true;
+        fprintf(stderr, "schnee-view: warning: image '%s': %s (using white)\n", img->path, err.message);
+        return false;
+    }
+    if (!img->data || !img->size) return false;
+    const char *suffix = strstr(img->mime_type, "jpeg") ? ".jpg" : ".png";
+    char tmp[64];
+    snprintf(tmp, sizeof(tmp), "/tmp/schnee-view-XXXXXX%s", suffix);
+    int fd = mkstemps(tmp, (int)strlen(suffix));
+    if (fd < 0) return false;
+    bool ok = write(fd, img->data, img->size) == (ssize_t)img->size;
+    close(fd);
+    ok = ok && pb_image_read(tmp, out, &err) == PB_SUCCESS;
+    if (!ok) fprintf(stderr, "schnee-view: warning: embedded image '%s': %s (using white)\n", img->name, err.message);
+    unlink(tmp);
+    return ok;
+}
+
+static bool upload_textures(sv_renderer *r, const sv_gltf *g) {
+    const uint8_t white[4] = {255, 255, 255, 255};
+    if (!upload_rgba8(r, white, 1, 1, &r->white)) return false;
+    r->textures = calloc(g->texture_count ? g->texture_count : 1, sizeof(sv_image));
+    if (!r->textures) return false;
+    r->texture_count = g->texture_count;
+    for (uint32_t t = 0; t < g->texture_count; ++t) {
+        if (g->textures[t].image < 0) continue;
+        pb_image img = {0};
+        if (!read_gltf_image(&g->images[g->textures[t].image], &img)) continue;
+        size_t n = (size_t)img.width * img.height;
+        uint8_t *px = malloc(n * 4);
+        bool ok = px != NULL;
+        for (size_t i = 0; ok && i < n; ++i)
+            for (uint32_t c = 0; c < 4; ++c) {
+                /* Grey images replicate their channel; a missing alpha is opaque. */
+                float f = c == 3 ? (img.channels == 4 ? img.pixels[i * 4 + 3] : img.channels == 2 ? img.pixels[i * 2 + 1] : 1.0f)
+                                 : img.pixels[i * img.channels + (img.channels >= 3 ? c : 0)];
+                f = f < 0 ? 0 : f > 1 ? 1 : f;
+                px[i * 4 + c] = (uint8_t)lrintf(f * 255.0f);
+            }
+        if (ok) ok = upload_rgba8(r, px, img.width, img.height, &r->textures[t]);
+        free(px);
+        pb_image_free(&img);
+        if (!ok) return false;
+    }
+    return true;
+}
+
+static bool upload_lights(sv_renderer *r, const sv_gltf *g) {
+    uint32_t n = g->light_instance_count;
+    sv_gpu_light *l = calloc(n ? n : 1, sizeof(*l));
+    if (!l) return false;
+    for (uint32_t i = 0; i < n; ++i) {
+        const sv_gltf_light_instance *li = &g->light_instances[i];
+        const sv_gltf_light *s = &g->lights[li->light];
+        memcpy(l[i].position_range, li->position, 3 * sizeof(float));
+        l[i].position_range[3] = s->range;
+        memcpy(l[i].direction_type, li->direction, 3 * sizeof(float));
+        l[i].direction_type[3] = s->type == SV_GLTF_LIGHT_DIRECTIONAL ? 0.0f : s->type == SV_GLTF_LIGHT_POINT ? 1.0f : 2.0f;
+        for (int c = 0; c < 3; ++c) l[i].color[c] = s->color[c] * s->intensity;
+        /* KHR_lights_punctual: scale = 1 / max(0.001, cos(inner) - cos(outer)), offset = -cos(outer) * scale. */
+        float scale = 1.0f / fmaxf(0.001f, cosf(s->inner_cone_angle) - cosf(s->outer_cone_angle));
+        l[i].spot[0] = scale;
+        l[i].spot[1] = -cosf(s->outer_cone_angle) * scale;
+    }
+    r->light_count = n;
+    bool ok = sv_buffer_create_with_data(r->ctx, l, (n ? n : 1) * sizeof(*l), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->lights);
+    free(l);
+    return ok;
+}
+
+static bool upload_probes(sv_renderer *r, const sv_probes *probes, float fallback_radiance) {
+    sv_gpu_probe *p = sv_probes_pack(probes, fallback_radiance);
+    uint32_t ncells = 0;
+    sv_gpu_cell *cells = sv_probes_cells(probes, &ncells);
+    bool ok = p && cells;
+    if (!ok) fail_msg("out of memory packing probes");
+    ok = ok && sv_buffer_create_with_data(r->ctx, p, probes->total * sizeof(*p), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                          &r->probes);
+    ok = ok && sv_buffer_create_with_data(r->ctx, cells, (ncells ? ncells : 1) * sizeof(*cells),
+                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cells);
+    r->probe_count = probes->total;
+    r->cell_count = ncells;
+    free(p);
+    free(cells);
+    return ok;
+}
+
+/* ---- descriptors and pipelines -------------------------------------------------------------- */
+
+static bool create_descriptors(sv_renderer *r, const sv_gltf *g) {
+    VkDevice dev = r->ctx->device;
+    VkSamplerCreateInfo si = {
+        .sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
+        .magFilter = VK_FILTER_LINEAR,
+        .minFilter = VK_FILTER_LINEAR,
+        .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
+        .addressModeU = VK_SAMPLER_ADDRESS_MODE_REPEAT,
+        .addressModeV = VK_SAMPLER_ADDRESS_MODE_REPEAT,
+        .addressModeW = VK_SAMPLER_ADDRESS_MODE_REPEAT,
+        .maxLod = 0.0f,
+    };
+    VK_CHECK(vkCreateSampler(dev, &si, NULL, &r->sampler));
+    si.magFilter = si.minFilter = VK_FILTER_NEAREST;
+    si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+    VK_CHECK(vkCreateSampler(dev, &si, NULL, &r->hdr_sampler));
+
+    const VkShaderStageFlags vf = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
+    VkDescriptorSetLayoutBinding scene_b[] = {
+        {0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, vf, NULL},
+        {1, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {2, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {3, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {5, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT, NULL},
+    };
+    VkDescriptorSetLayoutCreateInfo li = {
+        .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
+        .bindingCount = 5,
+        .pBindings = scene_b,
+    };
+    VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->scene_set_layout));
+    /* Set 1, per material: separate sets rather than a sampler array, since lavapipe (and Vulkan
+     * 1.0 in general) need not support dynamically indexed sampler arrays. */
+    VkDescriptorSetLayoutBinding mat_b[2] = {
+        {0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {1, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+    };
+    li.bindingCount = 2;
+    li.pBindings = mat_b;
+    VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->material_set_layout));
+    VkDescriptorSetLayoutBinding tone_b = {0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL};
+    li.bindingCount = 1;
+    li.pBindings = &tone_b;
+    VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->tonemap_set_layout));
+
+    VkDescriptorPoolSize sizes[] = {
+        {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 4},
+        {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2 * r->material_count + 1},
+    };
+    VkDescriptorPoolCreateInfo pi = {
+        .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
+        .maxSets = 2 + r->material_count,
+        .poolSizeCount = 3,
+        .pPoolSizes = sizes,
+    };
+    VK_CHECK(vkCreateDescriptorPool(dev, &pi, NULL, &r->pool));
+    VkDescriptorSetLayout layouts[2] = {r->scene_set_layout, r->tonemap_set_layout};
+    VkDescriptorSet sets[2];
+    VkDescriptorSetAllocateInfo ai = {
+        .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO,
+        .descriptorPool = r->pool,
+        .descriptorSetCount = 2,
+        .pSetLayouts = layouts,
+    };
+    VK_CHECK(vkAllocateDescriptorSets(dev, &ai, sets));
+    r->scene_set = sets[0];
+    r->tonemap_set = sets[1];
+    r->material_sets = calloc(r->material_count, sizeof(VkDescriptorSet));
+    if (!r->material_sets) return false;
+    for (uint32_t m = 0; m < r->material_count; ++m) {
+        ai.descriptorSetCount = 1;
+        ai.pSetLayouts = &r->material_set_layout;
+        VK_CHECK(vkAllocateDescriptorSets(dev, &ai, &r->material_sets[m]));
+        int32_t tex[2] = {-1, -1};
+        if (m < g->material_count) {
+            tex[0] = texture_slot(g, &g->materials[m].base_color_texture);
+            tex[1] = texture_slot(g, &g->materials[m].emissive_texture);
+        }
+        VkDescriptorImageInfo ii[2];
+        for (int k = 0; k < 2; ++k) {
+            ii[k].sampler = r->sampler;
+            ii[k].imageView = tex[k] >= 0 && r->textures[tex[k]].view ? r->textures[tex[k]].view : r->white.view;
+            ii[k].imageLayout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+        }
+        VkWriteDescriptorSet mw = {
+            .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
+            .dstSet = r->material_sets[m],
+            .dstBinding = 0,
+            .descriptorCount = 2,
+            .descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+            .pImageInfo = ii,
+        };
+        vkUpdateDescriptorSets(dev, 1, &mw, 0, NULL);
+    }
+
+    VkDescriptorBufferInfo bufs[5] = {
+        {r->frame.buffer, 0, VK_WHOLE_SIZE},
+        {r->materials.buffer, 0, VK_WHOLE_SIZE},
+        {r->probes.buffer, 0, VK_WHOLE_SIZE},
+        {r->lights.buffer, 0, VK_WHOLE_SIZE},
+        {r->cells.buffer, 0, VK_WHOLE_SIZE},
+    };
+    VkWriteDescriptorSet w[5];
+    for (uint32_t i = 0; i < 5; ++i)
+        w[i] = (VkWriteDescriptorSet){
+            .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
+            .dstSet = r->scene_set,
+            .dstBinding = scene_b[i].binding,
+            .descriptorCount = 1,
+            .descriptorType = scene_b[i].descriptorType,
+            .pBufferInfo = &bufs[i],
+        };
+    vkUpdateDescriptorSets(dev, 5, w, 0, NULL);
+    return true;
+fail:
+    return false;
+}
+
+typedef struct pipeline_desc {
+    const uint32_t *vs;
+    size_t vs_size;
+    const uint32_t *fs;
+    size_t fs_size;
+    VkPipelineLayout layout;
+    VkFormat color_format;
+    VkFormat depth_format; /* VK_FORMAT_UNDEFINED = no depth */
+    uint32_t attribute_count; /* vertex attributes the vertex shader reads (0 = no vertex buffer) */
+} pipeline_desc;
+
+static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d) {
+    VkPipeline pipe = VK_NULL_HANDLE;
+    VkShaderModule vs = sv_shader_module(ctx, d->vs, d->vs_size);
+    VkShaderModule fs = sv_shader_module(ctx, d->fs, d->fs_size);
+    if (!vs || !fs) goto fail;
+    VkPipelineShaderStageCreateInfo stages[2] = {
+        {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, .stage = VK_SHADER_STAGE_VERTEX_BIT, .module = vs, .pName = "main"},
+        {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, .stage = VK_SHADER_STAGE_FRAGMENT_BIT, .module = fs, .pName = "main"},
+    };
+    VkVertexInputBindingDescription binding = {0, SV_VERTEX_FLOATS * sizeof(float), VK_VERTEX_INPUT_RATE_VERTEX};
+    VkVertexInputAttributeDescription attrs[3] = {
+        {0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
+        {1, 0, VK_FORMAT_R32G32B32_SFLOAT, 3 * sizeof(float)},
+        {2, 0, VK_FORMAT_R32G32_SFLOAT, 6 * sizeof(float)},
+    };
+    VkPipelineVertexInputStateCreateInfo vi = {.sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+    if (d->attribute_count) {
+        vi.vertexBindingDescriptionCount = 1;
+        vi.pVertexBindingDescriptions = &binding;
+        vi.vertexAttributeDescriptionCount = d->attribute_count;
+        vi.pVertexAttributeDescriptions = attrs;
+    }
+    VkPipelineInputAssemblyStateCreateInfo ia = {
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
+        .topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
+    };
+    VkPipelineViewportStateCreateInfo vp = {
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO, .viewportCount = 1, .scissorCount = 1};
+    /* No culling: glTF meshes from Blender are often open; back faces get a flipped normal. */
+    VkPipelineRasterizationStateCreateInfo rs = {
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO,
+        .polygonMode = VK_POLYGON_MODE_FILL,
+        .cullMode = VK_CULL_MODE_NONE,
+        .frontFace = VK_FRONT_FACE_CLOCKWISE, /* CCW in glTF, mirrored by the y-flipped projection */
+        .lineWidth = 1.0f,
+    };
+    VkPipelineMultisampleStateCreateInfo ms = {
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO,
+        .rasterizationSamples = VK_SAMPLE_COUNT_1_BIT,
+    };
+    VkPipelineDepthStencilStateCreateInfo ds = {
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO,
+        .depthTestEnable = d->depth_format != VK_FORMAT_UNDEFINED,
+        .depthWriteEnable = d->depth_format != VK_FORMAT_UNDEFINED,
+        .depthCompareOp = VK_COMPARE_OP_LESS,
+    };
+    VkPipelineColorBlendAttachmentState blend = {.colorWriteMask = 0xF};
+    VkPipelineColorBlendStateCreateInfo cb = {
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
+        .attachmentCount = 1,
+        .pAttachments = &blend,
+    };
+    VkDynamicState dyn[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+    VkPipelineDynamicStateCreateInfo dy = {
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO, .dynamicStateCount = 2, .pDynamicStates = dyn};
+    VkPipelineRenderingCreateInfo rendering = {
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO,
+        .colorAttachmentCount = 1,
+        .pColorAttachmentFormats = &d->color_format,
+        .depthAttachmentFormat = d->depth_format,
+    };
+    VkGraphicsPipelineCreateInfo info = {
+        .sType = VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO,
+        .pNext = &rendering,
+        .stageCount = 2,
+        .pStages = stages,
+        .pVertexInputState = &vi,
+        .pInputAssemblyState = &ia,
+        .pViewportState = &vp,
+        .pRasterizationState = &rs,
+        .pMultisampleState = &ms,
+        .pDepthStencilState = &ds,
+        .pColorBlendState = &cb,
+        .pDynamicState = &dy,
+        .layout = d->layout,
+    };
+    VK_CHECK(vkCreateGraphicsPipelines(ctx->device, VK_NULL_HANDLE, 1, &info, NULL, &pipe));
+fail:
+    if (vs) vkDestroyShaderModule(ctx->device, vs, NULL);
+    if (fs) vkDestroyShaderModule(ctx->device, fs, NULL);
+    return pipe;
+}
+
+static bool create_pipelines(sv_renderer *r) {
+    VkDevice dev = r->ctx->device;
+    VkPushConstantRange scene_push = {VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(sv_gpu_draw)};
+    VkDescriptorSetLayout set_layouts[2] = {r->scene_set_layout, r->material_set_layout};
+    VkPipelineLayoutCreateInfo li = {
+        .sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
+        .setLayoutCount = 2,
+        .pSetLayouts = set_layouts,
+        .pushConstantRangeCount = 1,
+        .pPushConstantRanges = &scene_push,
+    };
+    VK_CHECK(vkCreatePipelineLayout(dev, &li, NULL, &r->scene_layout));
+    VkPushConstantRange tone_push = {VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(sv_gpu_tonemap)};
+    li.setLayoutCount = 1;
+    li.pSetLayouts = &r->tonemap_set_layout;
+    li.pPushConstantRanges = &tone_push;
+    VK_CHECK(vkCreatePipelineLayout(dev, &li, NULL, &r->tonemap_layout));
+
+    pipeline_desc d = {mesh_vert_spv, sizeof(mesh_vert_spv), mesh_frag_spv, sizeof(mesh_frag_spv),
+                       r->scene_layout, r->hdr_format, r->depth_format, 3};
+    r->mesh_pipeline = create_pipeline(r->ctx, &d);
+    d.vs = probe_cells_vert_spv;
+    d.vs_size = sizeof(probe_cells_vert_spv);
+    d.fs = probe_cells_frag_spv;
+    d.fs_size = sizeof(probe_cells_frag_spv);
+    d.attribute_count = 2; /* position, normal */
+    r->cells_pipeline = create_pipeline(r->ctx, &d);
+    pipeline_desc t = {fullscreen_vert_spv, sizeof(fullscreen_vert_spv), tonemap_frag_spv, sizeof(tonemap_frag_spv),
+                       r->tonemap_layout, r->output_format, VK_FORMAT_UNDEFINED, 0};
+    r->tonemap_pipeline = create_pipeline(r->ctx, &t);
+    return r->mesh_pipeline && r->cells_pipeline && r->tonemap_pipeline;
+fail:
+    return false;
+}
+
+static VkFormat pick_depth_format(sv_context *ctx) {
+    VkFormat candidates[] = {VK_FORMAT_D32_SFLOAT, VK_FORMAT_X8_D24_UNORM_PACK32, VK_FORMAT_D16_UNORM};
+    for (int i = 0; i < 3; ++i) {
+        VkFormatProperties p;
+        vkGetPhysicalDeviceFormatProperties(ctx->physical, candidates[i], &p);
+        if (p.optimalTilingFeatures & VK_FORMAT_FEATURE_DEPTH_STENCIL_ATTACHMENT_BIT) return candidates[i];
+    }
+    return VK_FORMAT_D16_UNORM;
+}
+
+bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, const sv_probes *probes,
+                        VkFormat output_format, float fallback_radiance) {
+    memset(r, 0, sizeof(*r));
+    r->ctx = ctx;
+    r->hdr_format = VK_FORMAT_R32G32B32A32_SFLOAT; /* exact linear values for .exr output */
+    r->depth_format = pick_depth_format(ctx);
+    r->output_format = output_format;
+    r->encode_srgb = output_format != VK_FORMAT_B8G8R8A8_SRGB && output_format != VK_FORMAT_R8G8B8A8_SRGB;
+    const sv_gltf *g = scene->gltf;
+    if (!upload_geometry(r, g) || !upload_materials(r, g) || !upload_textures(r, g) || !upload_lights(r, g) ||
+        !upload_probes(r, probes, fallback_radiance))
+        return false;
+    if (!sv_buffer_create(ctx, sizeof(sv_gpu_frame), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true, &r->frame)) return false;
+    r->material_count = g->material_count + 1;
+    return create_descriptors(r, g) && create_pipelines(r);
+}
+
+bool sv_renderer_resize(sv_renderer *r, uint32_t width, uint32_t height) {
+    sv_context *ctx = r->ctx;
+    vkDeviceWaitIdle(ctx->device);
+    sv_image_destroy(ctx, &r->hdr);
+    sv_image_destroy(ctx, &r->depth);
+    if (!sv_image_create(ctx, width, height, r->hdr_format,
+                         VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                         VK_IMAGE_ASPECT_COLOR_BIT, &r->hdr) ||
+        !sv_image_create(ctx, width, height, r->depth_format, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
+                         VK_IMAGE_ASPECT_DEPTH_BIT, &r->depth))
+        return false;
+    r->width = width;
+    r->height = height;
+    VkDescriptorImageInfo img = {r->hdr_sampler, r->hdr.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    VkWriteDescriptorSet w = {
+        .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
+        .dstSet = r->tonemap_set,
+        .dstBinding = 0,
+        .descriptorCount = 1,
+        .descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+        .pImageInfo = &img,
+    };
+    vkUpdateDescriptorSets(ctx->device, 1, &w, 0, NULL);
+    return true;
+}
+
+void sv_view_projection(const sv_view *v, float aspect, float m[16]) {
+    memset(m, 0, 16 * sizeof(float));
+    if (v->yfov > 0.0f) {
+        float f = 1.0f / tanf(0.5f * v->yfov);
+        m[0] = f / aspect;
+        m[5] = -f; /* Vulkan clip space: y down */
+        m[11] = -1.0f;
+        if (v->zfar > 0.0f) {
+            m[10] = v->zfar / (v->znear - v->zfar);
+            m[14] = v->znear * v->zfar / (v->znear - v->zfar);
+        } else {
+            m[10] = -1.0f;
+            m[14] = -v->znear;
+        }
+    } else {
+        float ymag = v->ymag > 0 ? v->ymag : 1.0f;
+        float xmag = ymag * aspect; /* keep pixels square in the viewport */
+        float zfar = v->zfar > v->znear ? v->zfar : v->znear + 1000.0f;
+        m[0] = 1.0f / xmag;
+        m[5] = -1.0f / ymag;
+        m[10] = -1.0f / (zfar - v->znear);
+        m[14] = -v->znear / (zfar - v->znear);
+        m[15] = 1.0f;
+    }
+}
+
+/* Inverse-transpose of the upper 3x3 as three vec4 columns. */
+static void normal_matrix(const float m[16], float out[12]) {
+    float a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], i = m[10];
+    float A = e * i - f * h, B = -(d * i - f * g), C = d * h - e * g;
+    float D = -(b * i - c * h), E = a * i - c * g, F = -(a * h - b * g);
+    float G = b * f - c * e, H = -(a * f - c * d), I = a * e - b * d;
+    float det = a * A + b * B + c * C;
+    float s = fabsf(det) > 1e-20f ? 1.0f / det : 0.0f;
+    /* inverse-transpose = cofactor matrix / det; column k of it. */
+    float cols[3][3] = {{A, B, C}, {D, E, F}, {G, H, I}};
+    for (int k = 0; k < 3; ++k) {
+        for (int r = 0; r < 3; ++r) out[k * 4 + r] = cols[k][r] * s;
+        out[k * 4 + 3] = 0.0f;
+    }
+}
+
+void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene, const sv_view *view,
+                        VkImage out_image, VkImageView out_view, VkImageLayout out_final) {
+    sv_gpu_frame frame = {0};
+    float proj[16];
+    sv_view_projection(view, (float)r->width / (float)r->height, proj);
+    sv_mat4_mul(proj, view->view, frame.view_proj);
+    memcpy(frame.camera_pos, view->camera_pos, 3 * sizeof(float));
+    frame.light_count = r->light_count;
+    frame.debug_mode = view->debug_mode;
+    frame.flags = view->flags;
+    frame.probe_count = r->probe_count;
+    memcpy(r->frame.mapped, &frame, sizeof(frame));
+
+    sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                     VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
+                     VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT);
+    sv_image_barrier(cmd, r->depth.image, VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                     VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+                     VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT,
+                     VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT,
+                     VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT,
+                     VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
+    VkRenderingAttachmentInfo color = {
+        .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
+        .imageView = r->hdr.view,
+        .imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+        .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
+        .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
+        .clearValue.color = {{0.0f, 0.0f, 0.0f, 0.0f}}, /* background is black, alpha 0 */
+    };
+    VkRenderingAttachmentInfo depth = {
+        .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
+        .imageView = r->depth.view,
+        .imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+        .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
+        .storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
+        .clearValue.depthStencil = {1.0f, 0},
+    };
+    VkRenderingInfo ri = {
+        .sType = VK_STRUCTURE_TYPE_RENDERING_INFO,
+        .renderArea = {{0, 0}, {r->width, r->height}},
+        .layerCount = 1,
+        .colorAttachmentCount = 1,
+        .pColorAttachments = &color,
+        .pDepthAttachment = &depth,
+    };
+    VkViewport viewport = {0, 0, (float)r->width, (float)r->height, 0.0f, 1.0f};
+    VkRect2D scissor = {{0, 0}, {r->width, r->height}};
+    vkCmdBeginRendering(cmd, &ri);
+    vkCmdSetViewport(cmd, 0, 1, &viewport);
+    vkCmdSetScissor(cmd, 0, 1, &scissor);
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->mesh_pipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 0, 1, &r->scene_set, 0, NULL);
+    VkDeviceSize zero = 0;
+    vkCmdBindVertexBuffers(cmd, 0, 1, &r->vertices.buffer, &zero);
+    vkCmdBindIndexBuffer(cmd, r->indices.buffer, 0, VK_INDEX_TYPE_UINT32);
+    const sv_gltf *g = scene->gltf;
+    uint32_t bound_material = UINT32_MAX;
+    for (uint32_t o = 0; o < scene->object_count; ++o) {
+        const sv_object *obj = &scene->objects[o];
+        sv_gpu_draw draw = {0};
+        memcpy(draw.model, obj->world, sizeof(draw.model));
+        normal_matrix(obj->world, draw.normal_matrix);
+        draw.probe_index = obj->probe;
+        draw.object_index = o;
+        const sv_gltf_mesh *mesh = &g->meshes[obj->mesh];
+        for (uint32_t p = 0; p < mesh->primitive_count; ++p) {
+            uint32_t pi = r->mesh_prim_base[obj->mesh] + p;
+            if (!r->prim_index_count[pi]) continue;
+            draw.material_index = r->prim_material[pi];
+            if (draw.material_index != bound_material) {
+                bound_material = draw.material_index;
+                vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 1, 1,
+                                        &r->material_sets[bound_material], 0, NULL);
+            }
+            vkCmdPushConstants(cmd, r->scene_layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
+                               sizeof(draw), &draw);
+            vkCmdDrawIndexed(cmd, r->prim_index_count[pi], 1, r->prim_first_index[pi], r->prim_vertex_offset[pi], 0);
+        }
+    }
+    if (view->show_cells && r->cell_count) {
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->cells_pipeline);
+        if (bound_material == UINT32_MAX)
+            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 1, 1,
+                                    &r->material_sets[r->material_count - 1], 0, NULL);
+        sv_gpu_draw draw = {0};
+        sv_mat4_identity(draw.model);
+        vkCmdPushConstants(cmd, r->scene_layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
+                           sizeof(draw), &draw);
+        vkCmdDrawIndexed(cmd, r->sphere_index_count, r->cell_count, r->sphere_first_index, r->sphere_vertex_offset, 0);
+    }
+    vkCmdEndRendering(cmd);
+
+    sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                     VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT,
+                     VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
+    sv_image_barrier(cmd, out_image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                     VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT, 0,
+                     VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT);
+    VkRenderingAttachmentInfo out = {
+        .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
+        .imageView = out_view,
+        .imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+        .loadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE,
+        .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
+    };
+    ri.pColorAttachments = &out;
+    ri.pDepthAttachment = NULL;
+    vkCmdBeginRendering(cmd, &ri);
+    vkCmdSetViewport(cmd, 0, 1, &viewport);
+    vkCmdSetScissor(cmd, 0, 1, &scissor);
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->tonemap_pipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->tonemap_layout, 0, 1, &r->tonemap_set, 0, NULL);
+    sv_gpu_tonemap tm = {view->exposure, view->tonemap, r->encode_srgb ? 1u : 0u, 0};
+    vkCmdPushConstants(cmd, r->tonemap_layout, VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(tm), &tm);
+    vkCmdDraw(cmd, 3, 1, 0, 0);
+    vkCmdEndRendering(cmd);
+    VkPipelineStageFlags dst_stage = out_final == VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL ? VK_PIPELINE_STAGE_TRANSFER_BIT
+                                                                                       : VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT;
+    VkAccessFlags dst_access = out_final == VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL ? VK_ACCESS_TRANSFER_READ_BIT : 0;
+    sv_image_barrier(cmd, out_image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, out_final,
+                     VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT, dst_stage,
+                     dst_access);
+}
+
+void sv_renderer_destroy(sv_renderer *r) {
+    sv_context *ctx = r->ctx;
+    if (!ctx || !ctx->device) return;
+    VkDevice dev = ctx->device;
+    vkDeviceWaitIdle(dev);
+    if (r->mesh_pipeline) vkDestroyPipeline(dev, r->mesh_pipeline, NULL);
+    if (r->cells_pipeline) vkDestroyPipeline(dev, r->cells_pipeline, NULL);
+    if (r->tonemap_pipeline) vkDestroyPipeline(dev, r->tonemap_pipeline, NULL);
+    if (r->scene_layout) vkDestroyPipelineLayout(dev, r->scene_layout, NULL);
+    if (r->tonemap_layout) vkDestroyPipelineLayout(dev, r->tonemap_layout, NULL);
+    if (r->pool) vkDestroyDescriptorPool(dev, r->pool, NULL);
+    if (r->scene_set_layout) vkDestroyDescriptorSetLayout(dev, r->scene_set_layout, NULL);
+    if (r->material_set_layout) vkDestroyDescriptorSetLayout(dev, r->material_set_layout, NULL);
+    if (r->tonemap_set_layout) vkDestroyDescriptorSetLayout(dev, r->tonemap_set_layout, NULL);
+    if (r->sampler) vkDestroySampler(dev, r->sampler, NULL);
+    if (r->hdr_sampler) vkDestroySampler(dev, r->hdr_sampler, NULL);
+    for (uint32_t i = 0; i < r->texture_count; ++i) sv_image_destroy(ctx, &r->textures[i]);
+    free(r->textures);
+    free(r->material_sets);
+    sv_image_destroy(ctx, &r->white);
+    sv_image_destroy(ctx, &r->hdr);
+    sv_image_destroy(ctx, &r->depth);
+    sv_buffer *bufs[] = {&r->vertices, &r->indices, &r->frame, &r->materials, &r->probes, &r->lights, &r->cells};
+    for (size_t i = 0; i < sizeof(bufs) / sizeof(bufs[0]); ++i) sv_buffer_destroy(ctx, bufs[i]);
+    free(r->prim_first_index);
+    free(r->prim_index_count);
+    free(r->prim_vertex_offset);
+    free(r->prim_material);
+    free(r->mesh_prim_base);
+    memset(r, 0, sizeof(*r));
+}

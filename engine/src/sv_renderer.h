@@ -1,0 +1,74 @@
+/* The renderer shared by the headless and the windowed path: scene GPU data, pipelines, and one
+ * function that records a whole frame into a caller-provided output image:
+ *   scene pass  -> HDR target (RGBA32F, linear scene-referred radiance) + depth
+ *   tonemap pass -> output image (exposure, operator, sRGB)
+ * The headless path reads back either image; the window passes swapchain images.
+ */
+#ifndef SV_RENDERER_H
+#define SV_RENDERER_H
+
+#include "sv_gpu_types.h"
+#include "sv_probes.h"
+#include "sv_scene.h"
+#include "sv_vk.h"
+
+typedef struct sv_view {
+    float view[16];         /* world -> camera (camera looks along -Z) */
+    float yfov;             /* radians (perspective); 0 = orthographic with ymag */
+    float ymag, xmag;       /* orthographic half extents */
+    float znear, zfar;      /* zfar 0 = infinite (perspective) */
+    float camera_pos[3];
+    uint32_t debug_mode;    /* SV_DEBUG_* */
+    uint32_t flags;         /* SV_FRAME_* */
+    float exposure;
+    uint32_t tonemap;       /* SV_TONEMAP_* */
+    bool show_cells;        /* draw the probe-cell spheres */
+} sv_view;
+
+typedef struct sv_renderer {
+    sv_context *ctx;
+    VkFormat hdr_format, depth_format, output_format;
+    bool encode_srgb;       /* output format is UNORM: the shader applies the sRGB curve */
+
+    sv_buffer vertices, indices, frame, materials, probes, lights, cells;
+    uint32_t *prim_first_index;   /* per primitive, flattened over meshes */
+    uint32_t *prim_index_count;
+    int32_t *prim_vertex_offset;
+    uint32_t *prim_material;
+    uint32_t *mesh_prim_base;     /* per mesh: first flattened primitive */
+    uint32_t sphere_first_index, sphere_index_count;
+    int32_t sphere_vertex_offset;
+    uint32_t light_count, cell_count, probe_count;
+
+    sv_image *textures;           /* per glTF texture (image NULL when it could not be read) */
+    uint32_t texture_count;
+    sv_image white;               /* bound where a material has no texture */
+    VkSampler sampler, hdr_sampler;
+    VkDescriptorSetLayout scene_set_layout, material_set_layout, tonemap_set_layout;
+    VkDescriptorPool pool;
+    VkDescriptorSet scene_set, tonemap_set;
+    VkDescriptorSet *material_sets; /* set 1 per material, the glTF default material last */
+    uint32_t material_count;
+    VkPipelineLayout scene_layout, tonemap_layout;
+    VkPipeline mesh_pipeline, cells_pipeline, tonemap_pipeline;
+
+    sv_image hdr, depth;
+    uint32_t width, height;
+} sv_renderer;
+
+/* Uploads the scene (geometry, materials, textures, lights) and the probes, builds pipelines for
+ * `output_format`. Prints a clear message and returns false on failure (call destroy anyway). */
+bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, const sv_probes *probes,
+                        VkFormat output_format, float fallback_radiance);
+/* (Re)creates the HDR and depth targets at width x height. */
+bool sv_renderer_resize(sv_renderer *r, uint32_t width, uint32_t height);
+/* Records one frame. The caller has waited for the previous frame (the frame uniform is written
+ * here). Leaves the HDR target in SHADER_READ_ONLY_OPTIMAL and the output in `out_final`. */
+void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene, const sv_view *view,
+                        VkImage out_image, VkImageView out_view, VkImageLayout out_final);
+void sv_renderer_destroy(sv_renderer *r);
+
+/* Projection for the view at the given aspect (width / height), Vulkan clip space. */
+void sv_view_projection(const sv_view *view, float aspect, float out[16]);
+
+#endif

@@ -1,0 +1,48 @@
+/* The scene schnee-view draws: the loaded glTF (sv_gltf, immutable) plus the mutable state the
+ * viewer changes — node transforms and, per drawn object, its world matrix, world bounds and the
+ * probe it was assigned (DESIGN.md §7). Shared by the headless and the windowed path.
+ */
+#ifndef SV_SCENE_H
+#define SV_SCENE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "sv_gltf.h"
+
+/* One drawn object: a mesh instance of the default scene. */
+typedef struct sv_object {
+    uint32_t node;        /* index into gltf->nodes */
+    uint32_t mesh;        /* index into gltf->meshes */
+    const char *name;     /* the node's name (owned by the glTF handle) */
+    float world[16];      /* current object -> world */
+    float aabb_min[3];    /* current world-space bounds (8 corners of the mesh bounds transformed) */
+    float aabb_max[3];
+    uint32_t probe;       /* assigned index in the probe buffer (0 = fallback) */
+    bool needs_probe;     /* moved since the last probe query */
+} sv_object;
+
+typedef struct sv_scene {
+    sv_gltf *gltf;
+    float *node_local;    /* node_count * 16, current local transforms */
+    float *node_world;    /* node_count * 16, current world transforms */
+    sv_object *objects;
+    uint32_t object_count;
+    float aabb_min[3];    /* union of the objects' current bounds (min > max when empty) */
+    float aabb_max[3];
+} sv_scene;
+
+/* Loads the glTF at path (prints the loader's warnings). On error prints a message naming the
+ * problem and returns false with nothing allocated. */
+bool sv_scene_load(const char *path, sv_scene *out);
+void sv_scene_destroy(sv_scene *scene);
+
+/* Index of the node named `name` (first match), or -1. */
+int32_t sv_scene_find_node(const sv_scene *scene, const char *name);
+
+/* Moves a node: sets its local translation (keeps rotation/scale; a node given by "matrix" gets
+ * its translation column replaced), recomputes the world transforms of its subtree and marks every
+ * affected object as needing a new probe query. */
+void sv_scene_set_translation(sv_scene *scene, uint32_t node, const float translation[3]);
+
+#endif

@@ -1,0 +1,49 @@
+#version 450
+// Scene shading: DESIGN.md §3 movable diffuse from the object's probe, punctual lights, emission.
+// Output is linear scene-referred radiance (the HDR target, tone mapped in tonemap.frag).
+#extension GL_GOOGLE_include_directive : require
+#define SV_SCENE_BINDINGS
+#include "gpu_types.glsl"
+#include "shading.glsl"
+
+layout(location = 0) in vec3 v_world;
+layout(location = 1) in vec3 v_normal;
+layout(location = 2) in vec2 v_uv;
+
+layout(location = 0) out vec4 out_color;
+
+void main() {
+    vec3 n = normalize(v_normal);
+    if (!gl_FrontFacing) n = -n; // planes and open meshes are lit from the side we see
+    if (frame.debug_mode == SV_DEBUG_PROBE_INDEX) {
+        out_color = vec4(float(draw.probe_index), 0.0, 0.0, 1.0);
+        return;
+    }
+    if (frame.debug_mode == SV_DEBUG_PROBE_COLOR) {
+        out_color = vec4(probe_color(draw.probe_index) * (0.6 + 0.4 * abs(n.y)), 1.0);
+        return;
+    }
+    if (frame.debug_mode == SV_DEBUG_NORMALS) {
+        out_color = vec4(n * 0.5 + 0.5, 1.0);
+        return;
+    }
+
+    sv_gpu_material m = materials[draw.material_index];
+    vec4 base = m.base_color;
+    if (m.base_color_texture >= 0) base *= texture(base_color_tex, v_uv);
+    vec3 albedo = base.rgb;
+
+    // diffuse = albedo * (shScale * max(E(n), 0) / pi + ambientTerm); the probe's own scale
+    // multiplies the material's shScale (1.0 in a fresh bake).
+    vec3 e = max(probe_irradiance(draw.probe_index, n), vec3(0.0));
+    float sh_scale = m.sh_scale * probes[draw.probe_index].params.y;
+    vec3 color = albedo * (sh_scale * e / SH_PI + m.ambient_term);
+
+    if ((frame.flags & SV_FRAME_NO_DIRECT) == 0u)
+        color += direct_light(v_world, n, albedo, m.metallic, m.roughness);
+
+    vec3 emissive = m.emissive.rgb;
+    if (m.emissive_texture >= 0) emissive *= texture(emissive_tex, v_uv).rgb;
+    color += emissive;
+    out_color = vec4(color, 1.0);
+}
