@@ -32,7 +32,7 @@ EXT_MATERIALS = "VULKAN_SCHNEE_materials"
 SH_DIR = "sh_coeffs"
 SH_SUFFIX = ".shprobe"
 DEFAULT_VOLUME_COLLECTION = "ProbeVolumes"
-GRID_AXES = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]  # v1 grids are axis-aligned in engine space
+GRID_AXES = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]  # rows: grid X, Y, Z axes; v1 is always identity
 
 # Per-export state lives in export_settings under these keys (a fresh dict per export).
 _KEY_GRIDS = "schnee_probe_grids"
@@ -204,8 +204,12 @@ def _grid_entry(path, header):
     spacing = _f32(header["grid_spacing"])
     if len(dims) != 3 or len(origin) != 3:
         raise ValueError("header grid_dims/grid_origin do not have 3 components")
-    if not all(math.isfinite(v) for v in origin + [spacing]):
-        raise ValueError("header grid origin or spacing is not finite")
+    # Version 1 grids are axis-aligned (the reader reports identity); version 2 may rotate them.
+    axes = [[_f32(v) for v in row] for row in header.get("grid_axes", GRID_AXES)]
+    if len(axes) != 3 or any(len(row) != 3 for row in axes):
+        raise ValueError("header grid_axes is not 3x3")
+    if not all(math.isfinite(v) for v in origin + [spacing] + sum(axes, [])):
+        raise ValueError("header grid origin, spacing or axes are not finite")
     return {
         "name": name,
         "uri": SH_DIR + "/" + urllib.parse.quote(os.path.basename(path)),
@@ -214,7 +218,7 @@ def _grid_entry(path, header):
         "gridOrigin": origin,
         "gridDims": dims,
         "gridSpacing": spacing,
-        "gridAxes": [list(axis) for axis in GRID_AXES],
+        "gridAxes": axes,
     }
 
 
@@ -253,7 +257,8 @@ def collect_probe_grids(export_settings):
             # of range, NaN coefficients): validate all of it with the same reader.
             native.read_shprobe(src)
         except Exception as exc:  # noqa: BLE001 - SchneeError, OSError, bad header values, ...
-            _warn(export_settings, f"skipped {src}: {exc}")
+            reason = str(exc)
+            _warn(export_settings, "skipped " + (reason if src in reason else f"{src}: {reason}"))
             continue
         try:
             os.makedirs(dst_dir, exist_ok=True)

@@ -27,8 +27,13 @@ MATERIAL_EXT = "VULKAN_SCHNEE_materials"
 GRIDS = {
     "a_room": ((2, 2, 2), (0.1, 0.2, 0.3), 0.25, 8, 1.0, 0.1),
     "b_hall": ((3, 2, 4), (-1.5, 0.0, -2.25), 0.5, 20, 0.75, 0.05),
+    "y_rotated": ((2, 1, 3), (1.0, 2.0, 3.0), 1.0, 6, 1.0, 0.1),
     "z_last": ((1, 1, 1), (7.0, -3.5, 11.0), 2.0, 1, 1.0, 0.1),
 }
+# Version 2 files may carry a rotated grid and a higher band: name -> (max band, grid axes rows).
+# This one is turned 90° about engine +Y (grid X = -Z, grid Z = +X).
+V2 = {"y_rotated": (3, ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0)))}
+IDENTITY = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
 CORRUPT = ("c_bad_magic", "d_bad_grid", "e_truncated")
 # Material name -> (shScale, ambientTerm, base colour), as export_scene.py builds them.
 MATERIALS = {
@@ -56,10 +61,13 @@ def _write_grids(native, folder):
         cells = dims[0] * dims[1] * dims[2]
         grid = np.full(cells, -1, dtype=np.int32)
         grid[rng.permutation(cells)[:count]] = np.arange(count, dtype=np.int32)
-        coeffs = rng.uniform(-1.0, 1.0, size=(count, 9, 3)).astype(np.float32)
+        band, axes = V2.get(name, (2, None))
+        coeffs = rng.uniform(-1.0, 1.0, size=(count, (band + 1) ** 2, 3)).astype(np.float32)
         coeffs[:, 0, :] = np.abs(coeffs[:, 0, :]) + 1.0
-        native.write_shprobe(str(folder / f"{name}.shprobe"), coeffs, grid, dims, origin, spacing,
-                             default_sh_scale=scale, default_ambient=ambient)
+        version = native.write_shprobe(str(folder / f"{name}.shprobe"), coeffs, grid, dims, origin,
+                                       spacing, default_sh_scale=scale, default_ambient=ambient,
+                                       grid_axes=None if axes is None else np.array(axes))
+        assert version == (2 if name in V2 else 1)
     good = (folder / "b_hall.shprobe").read_bytes()
     (folder / "c_bad_magic.shprobe").write_bytes(b"XXXX" + good[4:])
     (folder / "e_truncated.shprobe").write_bytes(good[: len(good) - 7])
@@ -111,13 +119,14 @@ def test_probe_grids_repeat_the_headers_in_file_name_order(exported, fmt):
         assert entry["uri"] == f"sh_coeffs/{entry['name']}.shprobe"
         # Expected: the values written above; the header must agree with them too.
         assert entry["probeCount"] == count == header["probe_count"]
-        assert entry["maxBand"] == 2 == header["max_band"]
+        band, axes = V2.get(entry["name"], (2, IDENTITY))
+        assert entry["maxBand"] == band == header["max_band"]
         assert entry["gridDims"] == list(dims) == list(header["grid_dims"])
         # float32 in the file: equality after rounding the JSON number back to float32.
         np.testing.assert_array_equal(np.float32(entry["gridOrigin"]), np.float32(origin))
         np.testing.assert_array_equal(np.float32(entry["gridOrigin"]), np.float32(header["grid_origin"]))
         assert np.float32(entry["gridSpacing"]) == np.float32(spacing) == np.float32(header["grid_spacing"])
-        assert entry["gridAxes"] == [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+        assert entry["gridAxes"] == [list(row) for row in axes]
 
 
 @pytest.mark.parametrize("fmt", sorted(OUTPUTS))
