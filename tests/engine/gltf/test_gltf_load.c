@@ -520,7 +520,7 @@ static void test_files_glb_and_external_bin(void)
     sv_gltf_free(g3);
 
     /* Truncated external buffer file. */
-    tg_write(dir, "my mesh.bin", b.data, 20);
+    free(tg_write(dir, "my mesh.bin", b.data, 20));
     sv_gltf_error e4 = {0};
     TU_CHECK_EQ_INT(sv_gltf_load_file(p_gltf, NULL, &g3, &e4), SV_GLTF_ERROR_FORMAT);
     TU_CHECK_CONTAINS(e4.message, "buffers[0]: file '");
