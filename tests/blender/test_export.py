@@ -3,7 +3,7 @@
 One Blender launch builds a scene and exports it four ways (tests/blender/scripts/export_scene.py),
 one more re-imports the results with Blender's own importer; the Khronos validator (node) checks
 each file. Expected values come from what this test wrote with the native writer, so an entry
-that merely repeats a wrong reader would still fail. Runtime here: about 5 s in all.
+that merely repeats a wrong reader would still fail. Runtime here: 3-7 s in all.
 """
 import importlib
 import json
