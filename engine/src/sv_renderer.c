@@ -439,7 +439,9 @@ static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d) {
         .sType = VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO,
         .polygonMode = VK_POLYGON_MODE_FILL,
         .cullMode = VK_CULL_MODE_NONE,
-        .frontFace = VK_FRONT_FACE_CLOCKWISE, /* CCW in glTF, mirrored by the y-flipped projection */
+        /* glTF is CCW; Vulkan measures winding in framebuffer space (y down), which the y-flipped
+         * projection matches, so CCW stays CCW. */
+        .frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE,
         .lineWidth = 1.0f,
     };
     VkPipelineMultisampleStateCreateInfo ms = {
