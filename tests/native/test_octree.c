@@ -426,6 +426,68 @@ static void test_union_generic(void)
     mesh_free(&geo);
 }
 
+/* A rotated cube (not aligned with the grid): the inside/outside answer of every grid cell matches
+ * the closed form (the point's coordinates in the cube's frame), which exercises the multi-ray
+ * inside vote and the recursive fill of leaves that straddle the volume surface. */
+static void test_rotated_volume(void)
+{
+    const double ay = 0.5235987755982988, ax = 0.3490658503988659; /* 30° about y, then 20° about x */
+    const double cy = cos(ay), sy = sin(ay), cx = cos(ax), sx = sin(ax);
+    /* R = Rx · Ry; rows are the cube's axes in world space. */
+    const double R[3][3] = {{cy, 0, sy}, {sx * sy, cx, -sx * cy}, {-cx * sy, sx, cx * cy}};
+    const double half = 1.3, centre[3] = {0.37, -0.21, 0.11};
+    mesh vol = {0};
+    box_at(&vol, -half, -half, -half, half, half, half);
+    for (uint32_t i = 0; i < vol.nv; i++) {
+        double q[3] = {vol.pos[3 * i], vol.pos[3 * i + 1], vol.pos[3 * i + 2]}, w[3];
+        for (int r = 0; r < 3; r++) w[r] = R[0][r] * q[0] + R[1][r] * q[1] + R[2][r] * q[2];
+        for (int r = 0; r < 3; r++) vol.pos[3 * i + r] = centre[r] + w[r];
+    }
+    pb_mesh_desc v = mesh_desc(&vol, "Rotated");
+    pb_placement_desc d = {0};
+    d.volumes = &v;
+    d.volume_count = 1;
+    d.min_cell_size = 0.125;
+    d.max_cell_size = 1;
+    pb_error err;
+    pb_placement *p = build(&d, &err);
+    TU_REQUIRE(p);
+    check_consistency(p);
+    size_t wrong = 0, inside = 0, ambiguous = 0;
+    for (size_t i = 0; i < grid_cells(p); i++) {
+        double c[3], l[3], m = 0;
+        grid_cell_centre(p, i, c);
+        for (int r = 0; r < 3; r++) {
+            l[r] = R[r][0] * (c[0] - centre[0]) + R[r][1] * (c[1] - centre[1]) + R[r][2] * (c[2] - centre[2]);
+            m = fmax(m, fabs(l[r]));
+        }
+        if (fabs(m - half) < 1e-6) {
+            ambiguous++;
+            continue;
+        }
+        inside += m < half;
+        wrong += (m < half) != (p->grid[i] >= 0);
+    }
+    TU_CHECK_EQ_INT(wrong, 0);
+    TU_CHECK_EQ_INT(ambiguous, 0);
+    /* Cube volume 2.6³ = 17.576 m³ over cells of 0.125³ m³ ≈ 9000 cells (sampling error ~1 %). */
+    TU_CHECK_REL((double)inside, 17.576 / (0.125 * 0.125 * 0.125), 0.03);
+    for (uint32_t k = 0; k < p->probe_count; k++) {
+        double m = 0;
+        for (int r = 0; r < 3; r++) {
+            double l = R[r][0] * (p->positions[3 * k] - centre[0]) + R[r][1] * (p->positions[3 * k + 1] - centre[1]) +
+                       R[r][2] * (p->positions[3 * k + 2] - centre[2]);
+            m = fmax(m, fabs(l));
+        }
+        if (!(m < half)) {
+            TU_CHECK(m < half); /* every probe inside the cube */
+            break;
+        }
+    }
+    pb_placement_destroy(p);
+    mesh_free(&vol);
+}
+
 /* A volume with a missing triangle, and one with a flipped triangle: PB_ERROR_OPEN_MESH naming it. */
 static void test_open_volume(void)
 {
@@ -732,6 +794,7 @@ int main(void)
     TU_RUN(test_far_from_origin);
     TU_RUN(test_union_hand_count);
     TU_RUN(test_union_generic);
+    TU_RUN(test_rotated_volume);
     TU_RUN(test_open_volume);
     TU_RUN(test_degenerate_triangles);
     TU_RUN(test_bad_input);
