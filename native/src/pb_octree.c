@@ -933,7 +933,7 @@ static void solid_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
     solid_job *j = (solid_job *)user;
     struct RTCIntersectContext ictx;
     struct RTCRayHit16 rh;
-    int valid[16];
+    _Alignas(64) int valid[16]; /* Embree requires the 16-wide valid mask 64-byte aligned */
     for (uint64_t i = begin; i < end; i++) {
         oct_cell *leaf = &j->leaves[i];
         j->ratio[i] = 0.0f;
