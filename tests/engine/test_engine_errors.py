@@ -1,0 +1,121 @@
+"""schnee-view on bad input: a clear message naming the problem, a non-zero exit, never a crash
+(a crash would show as a negative return code, i.e. a signal)."""
+import struct
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent / "scripts"))
+import scenegen as sg  # noqa: E402
+import viewer  # noqa: E402
+
+
+def scene_with_probe_bytes(d, data):
+    (d / "sh_coeffs").mkdir(exist_ok=True)
+    (d / "sh_coeffs" / "p.shprobe").write_bytes(data)
+    b = sg.GltfBuilder()
+    b.node("Cube", mesh=b.mesh("cube", sg.cube(0.5)))
+    b.probe_grids([sg.grid_entry("p", "sh_coeffs/p.shprobe", 2, (0, 0, 0), (2, 1, 1), 1.0)])
+    return b.write(d / "scene.gltf")
+
+
+def good_probe_bytes(tmp_path):
+    return sg.write_shprobe_v1(tmp_path / "good.shprobe", np.ones((2, 9, 3)), np.array([[[0, 1]]], np.int32),
+                               (0, 0, 0), 1.0)
+
+
+def expect_error(proc, *fragments):
+    assert proc.returncode > 0, f"exit {proc.returncode} (negative = killed by a signal)\n{proc.stderr}"
+    assert "error" in proc.stderr
+    for f in fragments:
+        assert f in proc.stderr, f"expected {f!r} in:\n{proc.stderr}"
+    assert "validation error" not in proc.stderr
+
+
+def corrupt(data, offset, value_bytes):
+    b = bytearray(data)
+    b[offset:offset + len(value_bytes)] = value_bytes
+    return bytes(b)
+
+
+# DESIGN.md §4 layout: magic @0, version @4, count @8, dims @12, probes from 48 (160 bytes each),
+# grid after the probes.
+@pytest.mark.parametrize("name, mutate", [
+    ("bad magic", lambda d: corrupt(d, 0, b"XXXX")),
+    ("unknown version", lambda d: corrupt(d, 4, struct.pack("<I", 99))),
+    ("truncated", lambda d: d[:100]),
+    ("grid entry >= count", lambda d: corrupt(d, 48 + 2 * 160 + 4, struct.pack("<i", 2))),
+    ("grid entry < -1", lambda d: corrupt(d, 48 + 2 * 160, struct.pack("<i", -5))),
+    ("NaN coefficient", lambda d: corrupt(d, 48 + 16, struct.pack("<f", float("nan")))),
+    ("overflowing dims", lambda d: corrupt(d, 12, struct.pack("<III", 0xFFFFFFFF, 0xFFFFFFFF, 0xFFFFFFFF))),
+    ("empty file", lambda d: b""),
+])
+def test_malformed_shprobe(tmp_path, name, mutate):
+    gltf = scene_with_probe_bytes(tmp_path, mutate(good_probe_bytes(tmp_path)))
+    proc = viewer.run(gltf, "--headless", "--output", tmp_path / "x.png", "--width", 8, "--height", 8)
+    expect_error(proc, "p.shprobe", "shProbeGrids[0]")
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_good_shprobe_control(tmp_path):
+    # The unmodified bytes load: the failures above come from the mutations alone.
+    gltf = scene_with_probe_bytes(tmp_path, good_probe_bytes(tmp_path))
+    viewer.check(viewer.run(gltf, "--headless", "--output", tmp_path / "x.png", "--width", 8, "--height", 8))
+    assert (tmp_path / "x.png").stat().st_size > 0
+
+
+def test_missing_shprobe_file(tmp_path):
+    gltf = scene_with_probe_bytes(tmp_path, b"")
+    (tmp_path / "sh_coeffs" / "p.shprobe").unlink()
+    expect_error(viewer.run(gltf, "--headless", "--print-assignments"), "p.shprobe")
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ('{"asset": {"version": "2.0"}, "scenes": [', "cannot load"),
+    ("not json at all", "cannot load"),
+    ('{"asset": {"version": "2.0"}, "nodes": [{"mesh": 3}], "scenes": [{"nodes": [0]}]}', "cannot load"),
+    ('{"asset": {"version": "2.0"}, "meshes": [{"primitives": [{"attributes": {"POSITION": 9}}]}],'
+     ' "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}]}', "cannot load"),
+    ('{"asset": {"version": "2.0"}, "buffers": [{"byteLength": 64, "uri": "missing.bin"}]}', "cannot load"),
+])
+def test_malformed_gltf(tmp_path, text, fragment):
+    p = tmp_path / "bad.gltf"
+    p.write_text(text)
+    expect_error(viewer.run(p, "--headless", "--output", tmp_path / "x.png"), fragment, "bad.gltf")
+
+
+def test_missing_gltf(tmp_path):
+    expect_error(viewer.run(tmp_path / "nope.gltf", "--headless", "--output", tmp_path / "x.png"), "nope.gltf")
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--width", "0"], "bad value '0' for --width"),
+    (["--width", "abc"], "bad value 'abc' for --width"),
+    (["--exposure", "nan"], "bad value 'nan' for --exposure"),
+    (["--tonemap", "reinhard"], "bad value 'reinhard' for --tonemap"),
+    (["--frobnicate"], "unknown option '--frobnicate'"),
+    (["--move", "Cube", "1", "2"], "--move needs 4 value(s)"),
+])
+def test_bad_command_line(tmp_path, args, fragment):
+    gltf = scene_with_probe_bytes(tmp_path, good_probe_bytes(tmp_path))
+    proc = viewer.run(gltf, "--headless", "--output", tmp_path / "x.png", *args, validation=False)
+    assert proc.returncode == 2
+    assert fragment in proc.stderr
+
+
+def test_unknown_camera_and_node(tmp_path):
+    gltf = scene_with_probe_bytes(tmp_path, good_probe_bytes(tmp_path))
+    expect_error(viewer.run(gltf, "--headless", "--output", tmp_path / "x.png", "--camera", "Nope"),
+                 "no camera named 'Nope'")
+    expect_error(viewer.run(gltf, "--headless", "--print-assignments", "--move", "Ghost", "0", "0", "0"),
+                 "no node named 'Ghost'")
+
+
+def test_empty_scene_renders_black(tmp_path):
+    p = tmp_path / "empty.gltf"
+    p.write_text('{"asset": {"version": "2.0"}, "scenes": [{"nodes": []}], "scene": 0}')
+    out = tmp_path / "empty.exr"
+    viewer.check(viewer.run(p, "--headless", "--output", out, "--width", 8, "--height", 8))
+    assert np.all(viewer.read_image(out) == 0)
