@@ -864,8 +864,11 @@ static bool parse_images(ctx_ *c, const cJSON *root)
                 free(mime);
             }
         } else {
-            im->path = resolve_uri(c, uri->valuestring, path);
-            if (!im->path) return false;
+            if (!c->g->base_dir) {
+                warn(c, "%s: external URI '%.200s' left unresolved (no base directory)", path, uri->valuestring);
+            } else if (!(im->path = resolve_uri(c, uri->valuestring, path))) {
+                return false;
+            }
         }
         i++;
     }
@@ -1578,8 +1581,10 @@ static bool parse_probe_grids(ctx_ *c, const cJSON *scene, const char *spath)
         }
         sv_gltf_probe_grid *dst = &c->g->probe_grids[c->g->probe_grid_count++];
         *dst = pg;
-        if (!(dst->name = xstrdup(c, name)) || !(dst->uri = xstrdup(c, uri)) ||
-            !(dst->path = resolve_uri(c, uri, gpath)))
+        if (!(dst->name = xstrdup(c, name)) || !(dst->uri = xstrdup(c, uri))) return false;
+        if (!c->g->base_dir)
+            warn(c, "%s: URI '%.200s' left unresolved (no base directory)", gpath, uri);
+        else if (!(dst->path = resolve_uri(c, uri, gpath)))
             return false;
     }
     return true;

@@ -54,9 +54,10 @@ typedef struct sv_gltf_error {
 /* Load options. Zero-initialised = defaults. */
 typedef struct sv_gltf_desc {
     const char *base_dir;       /* sv_gltf_load_memory only: folder that relative URIs (buffers,
-                                   images, probe grids) resolve against. NULL = external URIs are
-                                   refused (SV_GLTF_ERROR_UNSUPPORTED); data: URIs and GLB chunks
-                                   still work. sv_gltf_load_file uses the file's own folder. */
+                                   images, probe grids) resolve against. NULL = external buffers
+                                   are refused (SV_GLTF_ERROR_UNSUPPORTED), image and probe-grid
+                                   paths stay NULL with a warning; data: URIs and GLB chunks still
+                                   work. sv_gltf_load_file uses the file's own folder. */
     uint64_t max_decoded_bytes; /* cap on all buffers read + all decoded arrays together;
                                    0 = 4 GiB. Exceeding it is SV_GLTF_ERROR_TOO_LARGE. */
     bool keep_shared_normals;   /* default false: a primitive without NORMAL gets flat normals
@@ -111,7 +112,8 @@ typedef struct sv_gltf_sampler {
 typedef struct sv_gltf_image {
     char *name;
     char *path;            /* resolved file path of an external image (percent-decoded uri, relative
-                              to the glTF's folder), or NULL when the image is embedded */
+                              to the glTF's folder), or NULL when the image is embedded (or, loaded
+                              from memory without desc.base_dir, unresolved: a warning says so) */
     const uint8_t *data;   /* embedded bytes (bufferView or data: URI), or NULL; owned by the handle */
     size_t size;           /* bytes at data */
     char *mime_type;       /* "image/png", "image/jpeg", ... or "" when not given */
@@ -225,7 +227,8 @@ typedef struct sv_gltf_light_instance {
 typedef struct sv_gltf_probe_grid {
     char *name;             /* "" when absent */
     char *uri;              /* as written in the file */
-    char *path;             /* uri resolved against the glTF's folder (percent-decoded) */
+    char *path;             /* uri resolved against the glTF's folder (percent-decoded); NULL when
+                               loaded from memory without desc.base_dir (a warning says so) */
     uint32_t probe_count;
     uint32_t max_band;
     float grid_origin[3];

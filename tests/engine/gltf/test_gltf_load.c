@@ -355,6 +355,14 @@ static void test_materials_textures_images(void)
     TU_CHECK_EQ_INT(g->images[2].data[1], 0xD8);
     TU_CHECK(strcmp(g->images[2].mime_type, "image/jpeg") == 0);
     sv_gltf_free(g);
+
+    /* From memory without a base dir: external image paths stay NULL, with a warning. */
+    g = load_json(MATERIAL_GLTF, NULL, NULL);
+    TU_REQUIRE(g);
+    TU_CHECK(g->images[0].path == NULL && g->images[0].data == NULL);
+    TU_REQUIRE(g->warning_count == 1);
+    TU_CHECK_CONTAINS(g->warnings[0], "images[0]: external URI 'tex/base%20color.png' left unresolved (no base directory)");
+    sv_gltf_free(g);
 }
 
 static void test_cameras_and_lights(void)
@@ -465,6 +473,13 @@ static void test_probe_grids(void)
     TU_CHECK_CONTAINS(g->warnings[0], "shProbeGrids[1].gridDims: expected an array of 3 numbers");
     TU_CHECK_CONTAINS(g->warnings[0], "skipped");
     TU_CHECK_CONTAINS(g->warnings[1], "shProbeGrids[2].uri: missing");
+    sv_gltf_free(g);
+
+    g = load_json(json, NULL, NULL);
+    TU_REQUIRE(g);
+    TU_REQUIRE(g->probe_grid_count == 2);
+    TU_CHECK(g->probe_grids[0].path == NULL && strcmp(g->probe_grids[0].uri, "sh_coeffs/probes.shprobe") == 0);
+    TU_CHECK_EQ_INT(g->warning_count, 4);
     sv_gltf_free(g);
 }
 

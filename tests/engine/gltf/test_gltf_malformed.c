@@ -213,8 +213,8 @@ static const bad_case CASES[] = {
     {"{" A "," Z12 "," V12 ",'images':[{'uri':'a.png','bufferView':0}]}", SV_GLTF_ERROR_FORMAT,
      "images[0]: needs exactly one of uri and bufferView"},
     {"{" A ",'images':[{}]}", SV_GLTF_ERROR_FORMAT, "images[0]: needs exactly one of uri and bufferView"},
-    {"{" A ",'images':[{'uri':'a.png'}]}", SV_GLTF_ERROR_UNSUPPORTED,
-     "images[0]: external URI 'a.png' but no base directory was given"},
+    {"{" A ",'images':[{'uri':'http://example.com/a.png'}]}", SV_GLTF_ERROR_UNSUPPORTED,
+     "images[0]: URI scheme 'http:' is not supported", false, "/data"},
     {"{" A ",'samplers':[{'wrapS':1}]}", SV_GLTF_ERROR_FORMAT, "samplers[0].wrapS: 1 is not 33071, 33648 or 10497"},
     {"{" A ",'samplers':[{'magFilter':9984}]}", SV_GLTF_ERROR_FORMAT, "samplers[0].magFilter: 9984 is not 9728 or 9729"},
     /* probe-grid extension: the container must have the right type (entries are only warned about) */
