@@ -65,8 +65,10 @@ static void tri(mesh *m, uint32_t a, uint32_t b, uint32_t c)
 static void box(mesh *m, double x0, double y0, double z0, double x1, double y1, double z1)
 {
     uint32_t v[8];
-    for (int i = 0; i < 8; i++) v[i] = vtx(m, (i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? z1 : z0);
-    static const int f[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+    for (int i = 0; i < 8; i++)
+        v[i] = vtx(m, (i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? z1 : z0);
+    static const int f[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4},
+                                {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
     for (int k = 0; k < 6; k++) {
         tri(m, v[f[k][0]], v[f[k][1]], v[f[k][2]]);
         tri(m, v[f[k][0]], v[f[k][2]], v[f[k][3]]);
@@ -105,12 +107,12 @@ static void sphere_tri(mesh *m, const double c[3], double r, const double a[3], 
 static void icosphere(mesh *m, const double c[3], double r, int level)
 {
     const double t = (1.0 + sqrt(5.0)) / 2.0;
-    double v[12][3] = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
-                       {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
-    static const int f[20][3] = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11},
-                                 {1, 5, 9}, {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-                                 {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8}, {3, 8, 9},
-                                 {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+    double v[12][3] = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+                       {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
+    static const int f[20][3] = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                                 {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                                 {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                                 {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
     for (int i = 0; i < 12; i++) {
         double l = sqrt(v[i][0] * v[i][0] + v[i][1] * v[i][1] + v[i][2] * v[i][2]);
         for (int k = 0; k < 3; k++) v[i][k] /= l;
@@ -165,7 +167,8 @@ int main(int argc, char **argv)
     int spheres = 0;
     while ((long)geo.nt + 1280 <= target) {
         double r = 0.3 + 1.2 * urand();
-        double c[3] = {r + (W - 2 * r) * urand(), r + (H - 2 * r) * urand(), r + (D - 2 * r) * urand()};
+        double c[3] = {r + (W - 2 * r) * urand(), r + (H - 2 * r) * urand(),
+                       r + (D - 2 * r) * urand()};
         icosphere(&geo, c, r, 3);
         spheres++;
     }

@@ -63,9 +63,9 @@
 #define PB_BOX_EPS 1e-6
 
 /* Cell flags. */
-#define CELL_FULL 1u          /* box entirely inside the volumes (no volume triangle crosses it) */
-#define CELL_CENTRE_IN 2u     /* centre inside the volumes (known) */
-#define CELL_PRUNED 4u        /* centre inside solid geometry */
+#define CELL_FULL 1u /* box entirely inside the volumes (no volume triangle crosses it) */
+#define CELL_CENTRE_IN 2u /* centre inside the volumes (known) */
+#define CELL_PRUNED 4u /* centre inside solid geometry */
 
 /* Classification results of one octree cell. */
 enum { CLS_DROP = 0, CLS_LEAF = 1, CLS_SPLIT = 2 };
@@ -75,7 +75,7 @@ enum { CLS_DROP = 0, CLS_LEAF = 1, CLS_SPLIT = 2 };
 
 typedef struct oct_cell {
     uint32_t x, y, z; /* min corner, grid units */
-    uint8_t lg;       /* edge = 2^lg grid units */
+    uint8_t lg; /* edge = 2^lg grid units */
     uint8_t flags;
 } oct_cell;
 
@@ -89,12 +89,12 @@ typedef struct oct_ctx {
     uint64_t max_cells;
 
     /* Frame and grid. */
-    double centre[3];     /* absolute centre of the volumes' bounding box */
-    double bbmin[3];      /* absolute min corner = grid origin */
+    double centre[3]; /* absolute centre of the volumes' bounding box */
+    double bbmin[3]; /* absolute min corner = grid origin */
     double origin_rel[3]; /* grid origin relative to centre */
     uint32_t dims[3];
-    uint32_t root_lg;     /* root cell edge = 2^root_lg grid units */
-    double eps;           /* PB_BOX_EPS · min_cell, metres */
+    uint32_t root_lg; /* root cell edge = 2^root_lg grid units */
+    double eps; /* PB_BOX_EPS · min_cell, metres */
 
     /* Embree. */
     RTCDevice device;
@@ -191,7 +191,8 @@ static void par_run_chunks(par_job *j, bool main_thread, double p0, double p1, c
         uint64_t e = b + j->chunk < j->count ? b + j->chunk : j->count;
         j->fn(j->c, j->user, b, e);
         uint64_t done = atomic_fetch_add(&j->done, e - b) + (e - b);
-        if (main_thread) report(j->c, p0 + (p1 - p0) * (double)done / (double)j->count, stage, false);
+        if (main_thread)
+            report(j->c, p0 + (p1 - p0) * (double)done / (double)j->count, stage, false);
     }
 }
 
@@ -300,7 +301,8 @@ static bool tri_box_overlap(const double bc[3], double h, const double t0[3], co
 /* ---------------------------------------------------------------------------------------------- */
 /* Queries                                                                                          */
 
-static inline void mesh_vertex_rel(const oct_ctx *c, const pb_mesh_desc *m, uint32_t v, double out[3])
+static inline void mesh_vertex_rel(const oct_ctx *c, const pb_mesh_desc *m, uint32_t v,
+                                   double out[3])
 {
     out[0] = m->positions[3 * (size_t)v + 0] - c->centre[0];
     out[1] = m->positions[3 * (size_t)v + 1] - c->centre[1];
@@ -361,7 +363,8 @@ static bool box_overlaps(const oct_ctx *c, RTCScene scene, const pb_mesh_desc *m
 
 static bool box_touches_geometry(const oct_ctx *c, const double centre[3], double h)
 {
-    return box_overlaps(c, c->geo_scene, c->desc->geometry, c->geo_mesh_of_geom, centre, h + c->eps);
+    return box_overlaps(c, c->geo_scene, c->desc->geometry, c->geo_mesh_of_geom, centre,
+                        h + c->eps);
 }
 
 static bool box_straddles_volumes(const oct_ctx *c, const double centre[3], double h)
@@ -413,8 +416,8 @@ static void inside_filter(const struct RTCFilterFunctionNArguments *args)
 }
 
 static const double inside_dirs[3][3] = {
-    {0.26726124191242440, 0.53452248382484879, 0.80178372573727319},   /* (1,2,3)/√14 */
-    {-0.71066905451870360, 0.24313941206692493, 0.66003068395598600},  /* arbitrary, off-axis */
+    {0.26726124191242440, 0.53452248382484879, 0.80178372573727319}, /* (1,2,3)/√14 */
+    {-0.71066905451870360, 0.24313941206692493, 0.66003068395598600}, /* arbitrary, off-axis */
     {0.13168938050081670, -0.82305862813010440, 0.55217424537227870},
 };
 
@@ -506,10 +509,11 @@ static pb_result check_mesh(oct_ctx *c, const pb_mesh_desc *m, const char *kind,
                             mesh_name(m), index, m->vertex_count);
     for (size_t i = 0; i < 3 * (size_t)m->triangle_count; i++) {
         if (m->indices[i] >= m->vertex_count)
-            return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                                "%s '%s' (#%u): triangle %zu uses vertex index %u, but the mesh has "
-                                "only %u vertices",
-                                kind, mesh_name(m), index, i / 3, m->indices[i], m->vertex_count);
+            return pb_error_set(
+                c->err, PB_ERROR_INVALID_ARGUMENT,
+                "%s '%s' (#%u): triangle %zu uses vertex index %u, but the mesh has "
+                "only %u vertices",
+                kind, mesh_name(m), index, i / 3, m->indices[i], m->vertex_count);
     }
     for (size_t i = 0; i < 3 * (size_t)m->vertex_count; i++) {
         if (!isfinite(m->positions[i]))
@@ -517,9 +521,10 @@ static pb_result check_mesh(oct_ctx *c, const pb_mesh_desc *m, const char *kind,
                                 "%s '%s' (#%u): vertex %zu has a non-finite coordinate (%g)", kind,
                                 mesh_name(m), index, i / 3, m->positions[i]);
         if (fabs(m->positions[i]) > 1e15)
-            return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                                "%s '%s' (#%u): vertex %zu coordinate %g is out of range (|x| > 1e15 m)",
-                                kind, mesh_name(m), index, i / 3, m->positions[i]);
+            return pb_error_set(
+                c->err, PB_ERROR_INVALID_ARGUMENT,
+                "%s '%s' (#%u): vertex %zu coordinate %g is out of range (|x| > 1e15 m)", kind,
+                mesh_name(m), index, i / 3, m->positions[i]);
     }
     return PB_SUCCESS;
 }
@@ -531,7 +536,9 @@ static pb_result check_closed(oct_ctx *c, const pb_mesh_desc *m, uint32_t index)
 {
     size_t n = 0;
     uint64_t *edges = malloc(sizeof(uint64_t) * 3 * ((size_t)m->triangle_count + 1));
-    if (!edges) return pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory checking volume '%s'", mesh_name(m));
+    if (!edges)
+        return pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory checking volume '%s'",
+                            mesh_name(m));
     for (size_t t = 0; t < m->triangle_count; t++) {
         const uint32_t *i = &m->indices[3 * t];
         if (i[0] == i[1] || i[1] == i[2] || i[2] == i[0]) continue;
@@ -561,12 +568,13 @@ static pb_result check_closed(oct_ctx *c, const pb_mesh_desc *m, uint32_t index)
     }
     free(edges);
     if (bad)
-        return pb_error_set(c->err, PB_ERROR_OPEN_MESH,
-                            "probe volume '%s' (#%u) is not a closed mesh: %zu edge%s not shared by "
-                            "exactly two triangles with opposite orientation (e.g. the edge from "
-                            "vertex %u to vertex %u); close the holes and make the normals consistent",
-                            mesh_name(m), index, bad, bad == 1 ? " is" : "s are",
-                            (uint32_t)(example >> 32), (uint32_t)example);
+        return pb_error_set(
+            c->err, PB_ERROR_OPEN_MESH,
+            "probe volume '%s' (#%u) is not a closed mesh: %zu edge%s not shared by "
+            "exactly two triangles with opposite orientation (e.g. the edge from "
+            "vertex %u to vertex %u); close the holes and make the normals consistent",
+            mesh_name(m), index, bad, bad == 1 ? " is" : "s are", (uint32_t)(example >> 32),
+            (uint32_t)example);
     return PB_SUCCESS;
 }
 
@@ -600,7 +608,8 @@ static pb_result setup(oct_ctx *c)
         return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
                             "solid_ray_count %u is above the maximum of %u", c->solid_rays,
                             PB_MAX_SOLID_RAYS);
-    c->solid_ratio = d->solid_backface_ratio == 0 ? PB_DEFAULT_BACKFACE_RATIO : d->solid_backface_ratio;
+    c->solid_ratio =
+        d->solid_backface_ratio == 0 ? PB_DEFAULT_BACKFACE_RATIO : d->solid_backface_ratio;
     if (!(c->solid_ratio > 0 && c->solid_ratio <= 1))
         return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
                             "solid_backface_ratio must be in (0, 1] (got %g; 1 disables pruning)",
@@ -616,7 +625,9 @@ static pb_result setup(oct_ctx *c)
     /* Root cell: max_cell_size rounded down to min·2^k (1e-9 relative slack so that 16/0.5 = 2^5
      * is not lost to rounding). */
     uint32_t k = 0;
-    while (k < PB_MAX_LEVELS && c->min_cell * (double)(UINT64_C(1) << (k + 1)) <= max_cell * (1 + 1e-9)) k++;
+    while (k < PB_MAX_LEVELS &&
+           c->min_cell * (double)(UINT64_C(1) << (k + 1)) <= max_cell * (1 + 1e-9))
+        k++;
     c->root_lg = k;
 
     for (uint32_t i = 0; i < d->volume_count; i++) {
@@ -664,8 +675,10 @@ static pb_result setup(oct_ctx *c)
             c->dims[a] = 0;
         } else {
             c->dims[a] = (uint32_t)want[a];
-            if (!overflow && total > UINT64_MAX / c->dims[a]) overflow = true;
-            else if (!overflow) total *= c->dims[a];
+            if (!overflow && total > UINT64_MAX / c->dims[a])
+                overflow = true;
+            else if (!overflow)
+                total *= c->dims[a];
         }
     }
     c->eps = PB_BOX_EPS * c->min_cell;
@@ -678,8 +691,8 @@ static pb_result setup(oct_ctx *c)
                             "(%.4g MiB); use a larger Min Cell Size (about %.3g m or more) or "
                             "smaller probe volumes",
                             want[0], want[1], want[2], cells, cells * 4.0 / 1048576.0, c->min_cell,
-                            (unsigned long long)c->max_cells, (double)c->max_cells * 4.0 / 1048576.0,
-                            suggest);
+                            (unsigned long long)c->max_cells,
+                            (double)c->max_cells * 4.0 / 1048576.0, suggest);
     }
     return PB_SUCCESS;
 }
@@ -696,7 +709,8 @@ static pb_result build_mesh_scene(oct_ctx *c, const pb_mesh_desc *meshes, uint32
         if (scene) rtcReleaseScene(scene);
         free(map);
         pb_result r = embree_check(c, "creating a scene");
-        return r ? r : pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating a scene");
+        return r ? r
+                 : pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating a scene");
     }
     *out_scene = scene;
     *out_map = map;
@@ -746,8 +760,8 @@ static pb_result build_mesh_scene(oct_ctx *c, const pb_mesh_desc *meshes, uint32
 
 typedef struct classify_job {
     const oct_cell *cells;
-    uint8_t *result;  /* CLS_* */
-    uint8_t *flags;   /* flags for the leaf or the children */
+    uint8_t *result; /* CLS_* */
+    uint8_t *flags; /* flags for the leaf or the children */
 } classify_job;
 
 static void classify_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
@@ -840,7 +854,8 @@ static pb_result build_octree(oct_ctx *c, cell_vec *leaves)
     /* Root count ≤ grid cells ≤ max_grid_cells (checked), so this fits. */
     size_t nroot = (size_t)(roots[0] * roots[1] * roots[2]);
     if (!cell_vec_reserve(&cur, nroot)) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree root cells", nroot);
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree root cells",
+                         nroot);
         goto done;
     }
     for (uint64_t z = 0; z < roots[2]; z++)
@@ -863,7 +878,8 @@ static pb_result build_octree(oct_ctx *c, cell_vec *leaves)
         res = malloc(cur.n);
         flg = malloc(cur.n);
         if (!res || !flg) {
-            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree cells", cur.n);
+            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree cells",
+                             cur.n);
             goto done;
         }
         classify_job job = {cur.v, res, flg};
@@ -876,8 +892,10 @@ static pb_result build_octree(oct_ctx *c, cell_vec *leaves)
             nsplit += res[i] == CLS_SPLIT;
             nleaf += res[i] == CLS_LEAF;
         }
-        if (!cell_vec_reserve(leaves, leaves->n + nleaf) || (nsplit && !cell_vec_reserve(&next, 8 * nsplit))) {
-            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for the octree (%zu cells)",
+        if (!cell_vec_reserve(leaves, leaves->n + nleaf) ||
+            (nsplit && !cell_vec_reserve(&next, 8 * nsplit))) {
+            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY,
+                             "out of memory for the octree (%zu cells)",
                              leaves->n + nleaf + 8 * nsplit);
             goto done;
         }
@@ -1010,14 +1028,15 @@ static void grid_write_box(const oct_ctx *c, int32_t *grid, uint64_t x0, uint64_
 
 /* Fills the part of a leaf that straddles the volume surface: sub-boxes no volume triangle crosses
  * are classified by their centre, the others split down to single grid cells. */
-static void grid_fill_straddling(const oct_ctx *c, int32_t *grid, uint64_t x, uint64_t y, uint64_t z,
-                                 uint32_t lg, int32_t inside_value)
+static void grid_fill_straddling(const oct_ctx *c, int32_t *grid, uint64_t x, uint64_t y,
+                                 uint64_t z, uint32_t lg, int32_t inside_value)
 {
     if (x >= c->dims[0] || y >= c->dims[1] || z >= c->dims[2]) return;
     double ctr[3], h;
     cell_geometry(c, x, y, z, lg, ctr, &h);
     if (lg == 0 || !box_straddles_volumes(c, ctr, h)) {
-        grid_write_box(c, grid, x, y, z, UINT64_C(1) << lg, point_inside(c, ctr) ? inside_value : -1);
+        grid_write_box(c, grid, x, y, z, UINT64_C(1) << lg,
+                       point_inside(c, ctr) ? inside_value : -1);
         return;
     }
     uint64_t half = UINT64_C(1) << (lg - 1);
@@ -1188,7 +1207,8 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     ratio = malloc(sizeof *ratio * (leaves.n + 1));
     leaf_probe = malloc(sizeof *leaf_probe * (leaves.n + 1));
     if (!c->ray_dirs || !ratio || !leaf_probe) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree leaves", leaves.n);
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree leaves",
+                         leaves.n);
         goto done;
     }
     /* Spherical Fibonacci directions (offset by 0.1 rad so that none lies in an axis plane). */
@@ -1226,7 +1246,8 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     size_t ncells = (size_t)c->dims[0] * c->dims[1] * c->dims[2];
     out->grid = malloc(sizeof(int32_t) * ncells);
     if (!out->grid) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for the occupancy grid (%zu cells)", ncells);
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY,
+                         "out of memory for the occupancy grid (%zu cells)", ncells);
         goto done;
     }
     for (size_t i = 0; i < ncells; i++) out->grid[i] = -1;
@@ -1241,14 +1262,16 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     out->cell_sizes = malloc(sizeof(double) * (nprobe + 1));
     out->backface_ratio = malloc(sizeof(float) * (nprobe + 1));
     if (!probe_rel || !out->cell_sizes || !out->backface_ratio) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes", (unsigned long long)nprobe);
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes",
+                         (unsigned long long)nprobe);
         goto done;
     }
     for (size_t i = 0; i < leaves.n; i++) {
         int32_t p = leaf_probe[i];
         if (p < 0) continue;
         double h;
-        cell_geometry(c, leaves.v[i].x, leaves.v[i].y, leaves.v[i].z, leaves.v[i].lg, &probe_rel[3 * (size_t)p], &h);
+        cell_geometry(c, leaves.v[i].x, leaves.v[i].y, leaves.v[i].z, leaves.v[i].lg,
+                      &probe_rel[3 * (size_t)p], &h);
         out->cell_sizes[p] = 2.0 * h;
         out->backface_ratio[p] = ratio[i];
     }
@@ -1267,7 +1290,8 @@ static pb_result place(oct_ctx *c, pb_placement *out)
         }
         nearest_cells = malloc(sizeof *nearest_cells * nnear);
         if (!nearest_cells) {
-            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu grid cells", nnear);
+            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu grid cells",
+                             nnear);
             goto done;
         }
         for (size_t i = 0, k = 0; i < ncells; i++)
@@ -1301,7 +1325,8 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     refs = calloc(nprobe + 1, sizeof *refs);
     remap = malloc(sizeof *remap * (nprobe + 1));
     if (!refs || !remap) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes", (unsigned long long)nprobe);
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes",
+                         (unsigned long long)nprobe);
         goto done;
     }
     for (size_t i = 0; i < ncells; i++)
@@ -1317,10 +1342,11 @@ static pb_result place(oct_ctx *c, pb_placement *out)
         }
     }
     if (kept == 0) {
-        r = pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                         "no probe could be placed: no occupancy-grid cell centre (spacing %g m) lies "
-                         "inside the probe volumes; are the volumes thinner than Min Cell Size?",
-                         c->min_cell);
+        r = pb_error_set(
+            c->err, PB_ERROR_INVALID_ARGUMENT,
+            "no probe could be placed: no occupancy-grid cell centre (spacing %g m) lies "
+            "inside the probe volumes; are the volumes thinner than Min Cell Size?",
+            c->min_cell);
         goto done;
     }
     if (kept != nprobe)
@@ -1359,7 +1385,8 @@ pb_result pb_placement_build(const pb_placement_desc *desc, pb_placement **out, 
 {
     if (out) *out = NULL;
     if (!desc || !out)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_placement_build: desc and out must not be NULL");
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                            "pb_placement_build: desc and out must not be NULL");
     oct_ctx *c = calloc(1, sizeof *c);
     pb_placement *p = calloc(1, sizeof *p);
     if (!c || !p) {

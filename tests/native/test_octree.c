@@ -44,7 +44,8 @@ static void mesh_box(mesh *m, const double lo[3], const double hi[3])
 {
     uint32_t v[8];
     for (int i = 0; i < 8; i++)
-        v[i] = mesh_vertex(m, (i & 1) ? hi[0] : lo[0], (i & 2) ? hi[1] : lo[1], (i & 4) ? hi[2] : lo[2]);
+        v[i] = mesh_vertex(m, (i & 1) ? hi[0] : lo[0], (i & 2) ? hi[1] : lo[1],
+                           (i & 4) ? hi[2] : lo[2]);
     /* Each face as 4 corners in counter-clockwise order seen from outside. */
     static const int faces[6][4] = {
         {0, 4, 6, 2}, /* −x */
@@ -86,12 +87,15 @@ static void make_room(mesh *volume, mesh *walls, const double o[3])
 {
     const double t = 0.2;
     box_at(volume, o[0], o[1], o[2], o[0] + 10, o[1] + 4, o[2] + 10);
-    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0] + 10 + t, o[1], o[2] + 10 + t);         /* floor */
-    box_at(walls, o[0] - t, o[1] + 4, o[2] - t, o[0] + 10 + t, o[1] + 4 + t, o[2] + 10 + t); /* ceiling */
-    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0], o[1] + 4 + t, o[2] + 10 + t);          /* −x wall */
-    box_at(walls, o[0] + 10, o[1] - t, o[2] - t, o[0] + 10 + t, o[1] + 4 + t, o[2] + 10 + t); /* +x wall */
-    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0] + 10 + t, o[1] + 4 + t, o[2]);          /* −z wall */
-    box_at(walls, o[0] - t, o[1] - t, o[2] + 10, o[0] + 10 + t, o[1] + 4 + t, o[2] + 10 + t); /* +z wall */
+    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0] + 10 + t, o[1], o[2] + 10 + t); /* floor */
+    box_at(walls, o[0] - t, o[1] + 4, o[2] - t, o[0] + 10 + t, o[1] + 4 + t,
+           o[2] + 10 + t); /* ceiling */
+    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0], o[1] + 4 + t, o[2] + 10 + t); /* −x wall */
+    box_at(walls, o[0] + 10, o[1] - t, o[2] - t, o[0] + 10 + t, o[1] + 4 + t,
+           o[2] + 10 + t); /* +x wall */
+    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0] + 10 + t, o[1] + 4 + t, o[2]); /* −z wall */
+    box_at(walls, o[0] - t, o[1] - t, o[2] + 10, o[0] + 10 + t, o[1] + 4 + t,
+           o[2] + 10 + t); /* +z wall */
 }
 
 /* Furniture: a solid 3 m × 1 m × 4 m block standing on the floor, relative to the room corner. */
@@ -121,8 +125,10 @@ static void check_consistency(const pb_placement *p)
     char *ref = calloc(p->probe_count + 1, 1);
     for (size_t i = 0; i < n; i++) {
         int32_t g = p->grid[i];
-        if (g < -1 || g >= (int32_t)p->probe_count) bad++;
-        else if (g >= 0) ref[g] = 1;
+        if (g < -1 || g >= (int32_t)p->probe_count)
+            bad++;
+        else if (g >= 0)
+            ref[g] = 1;
     }
     for (uint32_t k = 0; k < p->probe_count; k++) unref += !ref[k];
     free(ref);
@@ -136,7 +142,8 @@ static void check_consistency(const pb_placement *p)
     }
 }
 
-static bool strictly_inside_box(const double p[3], const double lo[3], const double hi[3], double margin)
+static bool strictly_inside_box(const double p[3], const double lo[3], const double hi[3],
+                                double margin)
 {
     for (int a = 0; a < 3; a++)
         if (!(p[a] > lo[a] + margin && p[a] < hi[a] - margin)) return false;
@@ -148,7 +155,8 @@ static pb_placement *build(const pb_placement_desc *d, pb_error *err)
     pb_placement *p = NULL;
     memset(err, 0, sizeof *err);
     pb_result r = pb_placement_build(d, &p, err);
-    if (r != PB_SUCCESS) fprintf(stderr, "pb_placement_build: %s: %s\n", pb_result_string(r), err->message);
+    if (r != PB_SUCCESS)
+        fprintf(stderr, "pb_placement_build: %s: %s\n", pb_result_string(r), err->message);
     return p;
 }
 
@@ -193,9 +201,12 @@ static void test_room_count(void)
     size_t n1 = 0, n05 = 0, other = 0;
     float max_ratio = 0;
     for (uint32_t k = 0; k < p->probe_count; k++) {
-        if (p->cell_sizes[k] == 1.0) n1++;
-        else if (p->cell_sizes[k] == 0.5) n05++;
-        else other++;
+        if (p->cell_sizes[k] == 1.0)
+            n1++;
+        else if (p->cell_sizes[k] == 0.5)
+            n05++;
+        else
+            other++;
         if (p->backface_ratio[k] > max_ratio) max_ratio = p->backface_ratio[k];
     }
     TU_CHECK_EQ_INT(n1, 128);
@@ -324,7 +335,8 @@ static void test_far_from_origin(void)
         double worst = 0;
         for (uint32_t k = 0; k < a->probe_count; k++)
             for (int c = 0; c < 3; c++)
-                worst = fmax(worst, fabs(b->positions[3 * k + c] - o1[c] - a->positions[3 * k + c]));
+                worst =
+                    fmax(worst, fabs(b->positions[3 * k + c] - o1[c] - a->positions[3 * k + c]));
         TU_CHECK_NEAR(worst, 0.0, 1e-9);
         TU_CHECK(!memcmp(a->grid, b->grid, sizeof(int32_t) * grid_cells(a)));
     }
@@ -431,7 +443,8 @@ static void test_union_generic(void)
  * inside vote and the recursive fill of leaves that straddle the volume surface. */
 static void test_rotated_volume(void)
 {
-    const double ay = 0.5235987755982988, ax = 0.3490658503988659; /* 30° about y, then 20° about x */
+    const double ay = 0.5235987755982988,
+                 ax = 0.3490658503988659; /* 30° about y, then 20° about x */
     const double cy = cos(ay), sy = sin(ay), cx = cos(ax), sx = sin(ax);
     /* R = Rx · Ry; rows are the cube's axes in world space. */
     const double R[3][3] = {{cy, 0, sy}, {sx * sy, cx, -sx * cy}, {-cx * sy, sx, cx * cy}};
@@ -458,7 +471,8 @@ static void test_rotated_volume(void)
         double c[3], l[3], m = 0;
         grid_cell_centre(p, i, c);
         for (int r = 0; r < 3; r++) {
-            l[r] = R[r][0] * (c[0] - centre[0]) + R[r][1] * (c[1] - centre[1]) + R[r][2] * (c[2] - centre[2]);
+            l[r] = R[r][0] * (c[0] - centre[0]) + R[r][1] * (c[1] - centre[1]) +
+                   R[r][2] * (c[2] - centre[2]);
             m = fmax(m, fabs(l[r]));
         }
         if (fabs(m - half) < 1e-6) {
@@ -475,7 +489,8 @@ static void test_rotated_volume(void)
     for (uint32_t k = 0; k < p->probe_count; k++) {
         double m = 0;
         for (int r = 0; r < 3; r++) {
-            double l = R[r][0] * (p->positions[3 * k] - centre[0]) + R[r][1] * (p->positions[3 * k + 1] - centre[1]) +
+            double l = R[r][0] * (p->positions[3 * k] - centre[0]) +
+                       R[r][1] * (p->positions[3 * k + 1] - centre[1]) +
                        R[r][2] * (p->positions[3 * k + 2] - centre[2]);
             m = fmax(m, fabs(l));
         }
@@ -539,7 +554,7 @@ static void test_degenerate_triangles(void)
     mesh_tri(&walls, a, a, b); /* repeated index */
     mesh_tri(&walls, a, b, c); /* collinear: zero area */
     mesh_tri(&walls, c, c, c); /* a point */
-    mesh_tri(&vol, 0, 0, 1);   /* repeated index in the volume: no area, does not open it */
+    mesh_tri(&vol, 0, 0, 1); /* repeated index in the volume: no area, does not open it */
     mesh_tri(&vol, 3, 3, 3);
     v = mesh_desc(&vol, "Room");
     g = mesh_desc(&walls, "Walls");
@@ -548,7 +563,8 @@ static void test_degenerate_triangles(void)
     TU_CHECK_EQ_INT(dirty->probe_count, 2304);
     TU_CHECK_EQ_INT(dirty->probe_count, clean->probe_count);
     if (dirty->probe_count == clean->probe_count) {
-        TU_CHECK(!memcmp(dirty->positions, clean->positions, sizeof(double) * 3 * clean->probe_count));
+        TU_CHECK(
+            !memcmp(dirty->positions, clean->positions, sizeof(double) * 3 * clean->probe_count));
         TU_CHECK(!memcmp(dirty->grid, clean->grid, sizeof(int32_t) * grid_cells(clean)));
     }
     pb_placement_destroy(clean);
