@@ -752,7 +752,8 @@ static void test_too_large(void)
 /* Cancel at every progress call in turn: PB_ERROR_CANCELLED, nothing returned, nothing leaked (the
  * ASan build checks the last part). */
 typedef struct cancel_state {
-    int calls, cancel_at;
+    int calls, cancel_at, non_monotonic;
+    double last;
 } cancel_state;
 
 static bool cancel_progress(void *user, double fraction, const char *stage)
@@ -760,6 +761,8 @@ static bool cancel_progress(void *user, double fraction, const char *stage)
     cancel_state *s = (cancel_state *)user;
     (void)stage;
     if (!(fraction >= 0 && fraction <= 1)) return false;
+    s->non_monotonic += fraction < s->last;
+    s->last = fraction;
     return ++s->calls != s->cancel_at;
 }
 
@@ -779,7 +782,7 @@ static void test_cancel(void)
     int cancels = 0;
     bool completed = false;
     for (int at = 1; at < 200 && !completed; at++) {
-        cancel_state s = {0, at};
+        cancel_state s = {0, at, 0, 0.0};
         d.progress_user = &s;
         pb_placement *p = NULL;
         pb_error err = {0};
@@ -788,6 +791,8 @@ static void test_cancel(void)
             completed = true;
             TU_CHECK(s.calls < at); /* finished before reaching the cancelling call */
             TU_CHECK(p != NULL);
+            TU_CHECK_EQ_INT(s.non_monotonic, 0); /* fractions never go back */
+            TU_CHECK_NEAR(s.last, 1.0, 0);
         } else {
             cancels++;
             TU_CHECK_EQ_INT(r, PB_ERROR_CANCELLED);
