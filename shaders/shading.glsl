@@ -3,12 +3,18 @@
 #define SV_SHADING_GLSL
 #include "sh.glsl"
 
-// Irradiance E(n) of probe `index` (DESIGN.md §3), not clamped.
+// Irradiance E(n) of probe `index` (DESIGN.md §3), not clamped: sh_irradiance() of sh.glsl,
+// reading the coefficients straight from the buffer and only the bands the probe has.
 vec3 probe_irradiance(uint index, vec3 n) {
-    uint band = uint(probes[index].params.x);
-    vec3 c[25];
-    for (int i = 0; i < 25; ++i) c[i] = probes[index].sh[i].xyz;
-    return sh_irradiance(band, c, n);
+    uint band = min(uint(probes[index].params.x), 4u);
+    float Y[25];
+    sh_eval_basis(band, n, Y);
+    vec3 e = vec3(0.0);
+    for (uint l = 0u; l <= band; ++l) {
+        float a = sh_lambert_band(l);
+        for (uint i = l * l; i < (l + 1u) * (l + 1u); ++i) e += a * Y[i] * probes[index].sh[i].xyz;
+    }
+    return e;
 }
 
 // A distinct, stable colour per probe index (index 0, the fallback, is mid grey).
