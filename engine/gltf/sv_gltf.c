@@ -1522,7 +1522,7 @@ static bool check_probe_grid(ctx_ *c, const cJSON *j, const char *gpath, sv_gltf
         return false;
     }
     for (int k = 0; k < 3; k++) {
-        if (!(dims[k] >= 0.0f && dims[k] <= 4294967295.0f && dims[k] == floorf(dims[k]))) {
+        if (!(dims[k] >= 0.0f && dims[k] < 4294967296.0f && dims[k] == floorf(dims[k]))) {
             fail(c, SV_GLTF_ERROR_FORMAT, "%s.gridDims[%d]: %g is not a non-negative integer", gpath, k, dims[k]);
             return false;
         }
@@ -1804,17 +1804,26 @@ static bool load_document(ctx_ *c, const uint8_t *data, size_t size)
         c->is_glb = true;
         if (!parse_glb(c, data, size, &json, &json_size)) return false;
     }
+    /* cJSON gets a NUL-terminated copy: its length-bounded parser then cannot read past the chunk
+     * even on a parser bug (libcjson is not built with sanitizers). */
+    if (!take_budget(c, (uint64_t)json_size + 1, "glTF JSON")) return false;
+    char *text = xcalloc(c, (uint64_t)json_size + 1, 1);
+    if (!text) return false;
+    memcpy(text, json, json_size);
+    json = text;
     const char *end = NULL;
     cJSON *root = cJSON_ParseWithLengthOpts(json, json_size, &end, false);
     if (!root) {
         size_t at = end && end >= json ? (size_t)(end - json) : 0;
         fail(c, SV_GLTF_ERROR_JSON, "%s: invalid JSON near byte %zu", c->is_glb ? "GLB JSON chunk" : "glTF", at);
+        free(text);
         return false;
     }
     for (const char *p = end; p && p < json + json_size; p++)
         if (*p != ' ' && *p != '\t' && *p != '\n' && *p != '\r' && *p != '\0') {
             cJSON_Delete(root);
             fail(c, SV_GLTF_ERROR_JSON, "glTF: trailing data after the JSON value at byte %zu", (size_t)(p - json));
+            free(text);
             return false;
         }
     bool ok = true;
@@ -1827,6 +1836,7 @@ static bool load_document(ctx_ *c, const uint8_t *data, size_t size)
          parse_textures(c, root) && parse_materials(c, root) && parse_meshes(c, root) &&
          parse_cameras(c, root) && parse_lights(c, root) && parse_nodes(c, root) && parse_scene(c, root);
     cJSON_Delete(root);
+    free(text);
     return ok;
 }
 
