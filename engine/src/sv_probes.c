@@ -10,6 +10,14 @@
 
 static bool differs(float a, float b) { return fabsf(a - b) > 1e-5f * fmaxf(1.0f, fmaxf(fabsf(a), fabsf(b))); }
 
+/* The file's grid axes (rows X, Y, Z); all-zero (never set) means identity. */
+static const float *file_axes(const pb_shprobe *f) {
+    static const float identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    for (int i = 0; i < 9; ++i)
+        if (f->grid_axes[i] != 0.0f) return f->grid_axes;
+    return identity;
+}
+
 /* Warns about every field where the glTF entry disagrees with the file it names. */
 static void check_entry(const sv_gltf_probe_grid *e, const pb_shprobe *f, uint32_t index) {
     const char *n = e->name[0] ? e->name : e->uri;
@@ -38,11 +46,12 @@ static void check_entry(const sv_gltf_probe_grid *e, const pb_shprobe *f, uint32
     if (differs(e->grid_spacing, f->grid_spacing))
         fprintf(stderr, "schnee-view: warning: shProbeGrids[%u] '%s': gridSpacing %g but the file has %g (using the file)\n",
                 index, n, e->grid_spacing, f->grid_spacing);
+    const float *axes = file_axes(f);
     for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c)
-            if (differs(e->grid_axes[r][c], r == c ? 1.0f : 0.0f)) {
-                fprintf(stderr, "schnee-view: warning: shProbeGrids[%u] '%s': gridAxes is not the identity; "
-                                "the engine treats grids as axis-aligned (as v1 files are)\n", index, n);
+            if (differs(e->grid_axes[r][c], axes[r * 3 + c])) {
+                fprintf(stderr, "schnee-view: warning: shProbeGrids[%u] '%s': gridAxes differ from the file's "
+                                "(using the file)\n", index, n);
                 return;
             }
 }
@@ -157,9 +166,11 @@ sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *count) {
                     int32_t idx = f->grid[x + (size_t)y * X + (size_t)z * X * Y];
                     if (idx < 0) continue;
                     sv_gpu_cell *c = &out[(*count)++];
-                    c->center_radius[0] = f->grid_origin[0] + ((float)x + 0.5f) * f->grid_spacing;
-                    c->center_radius[1] = f->grid_origin[1] + ((float)y + 0.5f) * f->grid_spacing;
-                    c->center_radius[2] = f->grid_origin[2] + ((float)z + 0.5f) * f->grid_spacing;
+                    const float *ax = file_axes(f);
+                    float u[3] = {((float)x + 0.5f) * f->grid_spacing, ((float)y + 0.5f) * f->grid_spacing,
+                                  ((float)z + 0.5f) * f->grid_spacing};
+                    for (int k = 0; k < 3; ++k)
+                        c->center_radius[k] = f->grid_origin[k] + u[0] * ax[k] + u[1] * ax[3 + k] + u[2] * ax[6 + k];
                     c->center_radius[3] = 0.15f * f->grid_spacing;
                     c->probe[0] = probes->grids[g].base + (uint32_t)idx;
                 }

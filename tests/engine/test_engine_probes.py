@@ -145,3 +145,24 @@ def test_scene_without_probe_grids_uses_fallback(tmp_path):
     b.node("Lonely", mesh=b.mesh("cube", sg.cube(0.5)))
     proc = viewer.check(viewer.run(b.write(tmp_path / "plain.gltf"), "--headless", "--print-assignments"))
     assert viewer.assignments(proc.stdout) == {"Lonely": 0}
+
+
+def test_rotated_v2_grid(tmp_path):
+    # Version-2 grid turned 90° about +Y (rows: grid X = -Z, Y = +Y, grid Z = +X), written by the
+    # core's writer. A point p maps to cell floor(((p - origin)·axis_i) / spacing).
+    native = pytest.importorskip("schnee_probes.native", reason="needs the built _schnee_native module")
+    axes = np.array([[0, 0, -1], [0, 1, 0], [1, 0, 0]], np.float32)
+    (tmp_path / "sh_coeffs").mkdir()
+    native.write_shprobe(str(tmp_path / "sh_coeffs" / "rot.shprobe"), np.ones((2, 9, 3), np.float32),
+                         np.array([0, 1], np.int32), (2, 1, 1), (0, 0, 0), 1.0, grid_axes=axes)
+    b = sg.GltfBuilder()
+    cube = b.mesh("cube", sg.cube(0.1))
+    b.node("Near", mesh=cube, translation=(0.5, 0.5, -0.5))  # grid (0, 0, 0) -> probe 0 -> 1
+    b.node("Far", mesh=cube, translation=(0.5, 0.5, -1.5))   # grid (1, 0, 0) -> probe 1 -> 2
+    b.node("Behind", mesh=cube, translation=(0.5, 0.5, 0.5))  # grid x = -0.5: outside -> 0
+    entry = sg.grid_entry("rot", "sh_coeffs/rot.shprobe", 2, (0, 0, 0), (2, 1, 1), 1.0)
+    entry["gridAxes"] = axes.tolist()
+    b.probe_grids([entry])
+    proc = viewer.check(viewer.run(b.write(tmp_path / "rot.gltf"), "--headless", "--print-assignments"))
+    assert viewer.assignments(proc.stdout) == {"Near": 1, "Far": 2, "Behind": 0}
+    assert "gridAxes" not in proc.stderr  # entry and file agree: no warning

@@ -133,3 +133,37 @@ def test_png_is_tonemapped_srgb_of_the_exr(sphere_scene, tmp_path):
     assert mapped.max() < 0.76
     srgb = np.where(mapped <= 0.0031308, 12.92 * mapped, 1.055 * np.power(np.maximum(mapped, 0), 1 / 2.4) - 0.055)
     assert np.abs(enc - np.clip(srgb, 0, 1)).max() <= 1.5 / 255
+
+
+def test_band4_probe_matches_core_cpu_evaluator(tmp_path):
+    # A version-2 file with L = 4 (25 coefficients), written by the bake core's own writer; the
+    # reference is the core's pb_sh_irradiance (through the Python module), which the GLSL in
+    # shaders/sh.glsl mirrors. Bands 3 (A3 = 0) and 4 (A4 = -π/24) both enter E.
+    native = pytest.importorskip("schnee_probes.native", reason="needs the built _schnee_native module")
+    try:
+        native.sh_count(4)
+    except Exception as exc:  # module present but not built
+        pytest.skip(f"_schnee_native unavailable: {exc}")
+    rng = np.random.default_rng(7)
+    c = rng.normal(0.0, 0.25, (25, 3))
+    c[0] = [3.0, 2.5, 2.0]
+    c[16:25] *= 3.0  # make band 4 matter (A4 is small)
+    (tmp_path / "sh_coeffs").mkdir()
+    native.write_shprobe(str(tmp_path / "sh_coeffs" / "l4.shprobe"), c[None].astype(np.float32),
+                         np.zeros((1, 1, 1), np.int32), (1, 1, 1), (-2, -2, -2), 4.0)
+    b = sg.GltfBuilder()
+    m = b.material("white", base_color=(1, 1, 1, 1), sh_scale=1.0, ambient_term=0.0)
+    b.node("Sphere", mesh=b.mesh("sphere", sg.uv_sphere(1.0, 192, 96), m))
+    b.node("Camera", camera=b.camera("cam", YFOV), translation=(0, 0, CAM_Z))
+    b.probe_grids([sg.grid_entry("l4", "sh_coeffs/l4.shprobe", 1, (-2, -2, -2), (1, 1, 1), 4.0, max_band=4)])
+    out = tmp_path / "l4.exr"
+    viewer.check(viewer.run(b.write(tmp_path / "l4.gltf"), "--headless", "--output", out, "--width", W, "--height", H))
+    img = viewer.read_image(out)
+    p, hit, facing = sphere_normals()
+    interior = hit & (facing > 0.3)
+    e = native.irradiance(c.astype(np.float32).astype(np.float64), p[interior] / np.linalg.norm(p[interior], axis=-1, keepdims=True))
+    expected = np.maximum(e, 0.0) / np.pi
+    band2_only = np.maximum(irradiance(c[:9], p[interior]), 0.0) / np.pi
+    assert np.abs(expected - band2_only).max() > 0.02  # band 4 changes the image measurably
+    err = np.abs(img[interior] - expected)
+    assert np.all(err <= 1e-4 + 3e-3 * np.abs(expected)), f"max abs error {err.max():.4g}"
