@@ -1,0 +1,25 @@
+"""Probe placement of the opened .blend through the add-on (geometry gathering + native octree),
+without rendering: ``blender -b room.blend -P addon_placement.py -- MIN MAX``.
+Emits the probe positions in Blender space and the grid."""
+import os
+import sys
+
+import bpy
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import addon_common as common  # noqa: E402
+
+import schnee_probes  # noqa: E402
+from schnee_probes import bake_core, scene_export  # noqa: E402
+
+lo, hi = (float(x) for x in common.args()[:2])
+schnee_probes.register()
+settings = bake_core.BakeSettings(min_cell_size=lo, max_cell_size=hi, panorama_resolution=32, samples=1)
+bake = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings)
+try:
+    bake.prepare()
+finally:
+    bake.cancel()
+t = bake.targets[0]
+common.emit(count=bake.total, positions=scene_export.engine_to_blender(bake.positions).tolist(),
+            grid_dims=list(t.grid_dims), grid_valid=int((t.grid >= 0).sum()), grid_size=int(t.grid.size))
