@@ -1,5 +1,6 @@
 /* schnee-view: plays back a Schnee-probes glTF export (scene + baked SH probes) with Vulkan.
  * Command line: see usage() and docs/engine.md. */
+#define _DEFAULT_SOURCE /* clock_gettime, mkstemps, strcasecmp under -std=c11 */
 #include <errno.h>
 #include <float.h>
 #include <math.h>

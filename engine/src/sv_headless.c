@@ -1,4 +1,5 @@
 /* Headless front end: render offscreen, copy to a host-visible buffer, write with OpenImageIO. */
+#define _DEFAULT_SOURCE /* clock_gettime, mkstemps, strcasecmp under -std=c11 */
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>

@@ -1,4 +1,5 @@
 /* Scene upload, pipelines and frame recording (see sv_renderer.h). */
+#define _DEFAULT_SOURCE /* clock_gettime, mkstemps, strcasecmp under -std=c11 */
 #include "sv_renderer.h"
 
 #include <math.h>

@@ -1,5 +1,6 @@
 /* Window front end: GLFW window, swapchain, free-flying camera, debug toggles, frame time in the
  * title. Scene, probes and every draw go through the same sv_renderer as the headless path. */
+#define _DEFAULT_SOURCE /* clock_gettime, mkstemps, strcasecmp under -std=c11 */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
