@@ -58,7 +58,7 @@ class BakeSettings:
     panorama_resolution: int = 128
     max_band: int = 2
     samples: int = 64
-    max_bounces: int = 4
+    max_bounces: int = 12
     clamp_direct: float = 0.0
     clamp_indirect: float = 10.0
     pixel_filter: str = 'BOX'

@@ -8,12 +8,6 @@ for p in (os.path.join(REPO, "scenes"), os.path.join(REPO, "addon")):
     if p not in sys.path:
         sys.path.insert(0, p)
 
-DEVSHIM = os.environ.get("SCHNEE_DEV_NATIVE_SHIM")  # development aid only; unset in the suite
-if DEVSHIM:
-    sys.path.insert(0, DEVSHIM)
-    import devnative  # noqa: E402
-    devnative.install()
-
 import scene_lib  # noqa: E402,F401
 
 

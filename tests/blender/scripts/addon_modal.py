@@ -1,0 +1,70 @@
+"""The modal Bake SH in Volumes in a real UI session (run under Xvfb with --enable-event-simulate):
+a bake that finishes, then a bake cancelled with a simulated Esc. ``-- OUT_DIR``.
+Emits RESULT with what happened; quits Blender itself."""
+import os
+import sys
+
+import bpy
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import addon_common as common  # noqa: E402
+from addon_common import scene_lib as lib  # noqa: E402
+
+import schnee_probes  # noqa: E402
+from schnee_probes import operators  # noqa: E402
+
+out = common.args()[0]
+lib.clear_scene()
+lib.hdri_world("courtyard.exr")
+lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 2.0))
+lib.save(os.path.join(out, "modal.blend"))
+schnee_probes.register()
+props = bpy.context.scene.schnee_probes
+props.min_cell_size = props.max_cell_size = 1.0   # 16 probes: long enough to cancel in between
+props.panorama_resolution = 16
+props.samples = 1
+shprobe = os.path.join(out, "sh_coeffs", "probes.shprobe")
+results = {}
+phase = ["start"]
+Op = operators.SCHNEE_OT_bake_sh_volumes
+
+
+def override():
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == 'VIEW_3D') if any(
+        a.type == 'VIEW_3D' for a in win.screen.areas) else win.screen.areas[0]
+    return win, dict(window=win, screen=win.screen, area=area)
+
+
+def tick():
+    win, ctx = override()
+    if phase[0] == "start":
+        with bpy.context.temp_override(**ctx):
+            results["start"] = sorted(bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT'))
+        results["running_after_start"] = Op._running
+        phase[0] = "wait1"
+    elif phase[0] == "wait1":
+        if not Op._running:
+            results["finished_message"] = props.last_message
+            results["file"] = os.path.exists(shprobe)
+            results["mtime"] = os.path.getmtime(shprobe) if results["file"] else None
+            results["engine_after"] = bpy.context.scene.render.engine
+            with bpy.context.temp_override(**ctx):
+                bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT')
+            phase[0] = "esc"
+    elif phase[0] == "esc":
+        win.event_simulate(type='ESC', value='PRESS')
+        phase[0] = "wait2"
+    elif phase[0] == "wait2":
+        if not Op._running:
+            results["cancel_message"] = props.last_message
+            results["file_unchanged"] = os.path.getmtime(shprobe) == results["mtime"]
+            results["engine_after_cancel"] = bpy.context.scene.render.engine
+            common.emit(**results)
+            bpy.ops.wm.quit_blender()
+            return None
+    return 0.05
+
+
+bpy.context.scene.render.engine = 'BLENDER_EEVEE'
+bpy.app.timers.register(tick, first_interval=1.0)
