@@ -40,7 +40,7 @@ class SchneeProbeSettings(bpy.types.PropertyGroup):
     max_bounces: IntProperty(
         name="Bounces", default=12, min=0, max=64,
         description="Light bounces (total, diffuse and glossy): fewer is faster but darker indoors "
-                    "(in the default room 4 bounces lose 26 % of the irradiance, 8 lose 8 %)")
+                    "(light missing ≈ albedo^bounces; default room: 4 lose 30 %, 8 lose 13 %, 12 lose 6 %)")
     clamp_direct: FloatProperty(
         name="Clamp Direct", default=0.0, min=0.0,
         description="Clamp of direct-light samples (0 = off); clamping trades fireflies for bias")
