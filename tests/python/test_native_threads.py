@@ -51,9 +51,18 @@ def test_file_reads_release_the_gil():
 
 def test_thread_runs_during_long_call():
     rng = np.random.default_rng(3)
-    normals = rng.normal(size=(1_000_000, 3))
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     coeffs = rng.normal(size=(25, 3))
+    # Grow the input until one call clearly lasts long enough to tell (machine speed varies:
+    # 1M normals take ~0.1 s on an idle core, ~0.3 s on a loaded one).
+    n = 1_000_000
+    while True:
+        normals = rng.normal(size=(n, 3))
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        s0 = time.perf_counter()
+        native.irradiance(coeffs, normals)
+        if time.perf_counter() - s0 > 0.25 or n >= 16_000_000:
+            break
+        n *= 2
     stamps = []
     stop = threading.Event()
 
