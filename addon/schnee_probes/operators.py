@@ -200,12 +200,4 @@ class SCHNEE_OT_bake_sh_cursor(bpy.types.Operator):
 
 classes = (SCHNEE_OT_bake_sh_volumes, SCHNEE_OT_bake_sh_cursor)
 
-
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)
