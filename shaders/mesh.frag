@@ -34,10 +34,21 @@ void main() {
     vec3 albedo = base.rgb;
 
     // diffuse = albedo * (shScale * max(E(n), 0) / pi + ambientTerm); the probe's own scale
-    // multiplies the material's shScale (1.0 in a fresh bake).
-    vec3 e = max(probe_irradiance(draw.probe_index, n), vec3(0.0));
-    float sh_scale = m.sh_scale * probes[draw.probe_index].params.y;
-    vec3 color = albedo * (sh_scale * e / SH_PI + m.ambient_term);
+    // multiplies the material's shScale (1.0 in a fresh bake). E comes from the object's probe,
+    // from the grids per pixel, or from the fallback probe 0 (mode off), by the material's
+    // probeMode unless --probe-mode overrides it.
+    uint mode = frame.probe_mode == SV_PROBE_MODE_MATERIAL ? m.probe_mode : frame.probe_mode;
+    vec3 e_probe;
+    if (mode == SV_PROBE_MODE_PIXEL) {
+        if (!grid_irradiance(v_world, n, e_probe)) e_probe = probe_scale(0u) * probe_irradiance(0u, n);
+    } else {
+        uint index = mode == SV_PROBE_MODE_OFF ? 0u : draw.probe_index;
+        e_probe = probe_scale(index) * probe_irradiance(index, n);
+    }
+    vec3 color = albedo * (m.sh_scale * max(e_probe, vec3(0.0)) / SH_PI + m.ambient_term);
+
+    if ((frame.flags & (SV_FRAME_SKY | SV_FRAME_NO_SPECULAR)) == SV_FRAME_SKY)
+        color += sky_specular(v_world, n, albedo, m.metallic, m.roughness, e_probe);
 
     if ((frame.flags & SV_FRAME_NO_DIRECT) == 0u)
         color += direct_light(v_world, n, albedo, m.metallic, m.roughness);

@@ -3,18 +3,137 @@
 #define SV_SHADING_GLSL
 #include "sh.glsl"
 
-// Irradiance E(n) of probe `index` (DESIGN.md §3), not clamped: sh_irradiance() of sh.glsl,
-// reading the coefficients straight from the buffer and only the bands the probe has.
-vec3 probe_irradiance(uint index, vec3 n) {
-    uint band = min(uint(probes[index].params.x), 4u);
-    float Y[25];
-    sh_eval_basis(band, n, Y);
+// Probe buffer access for either storage (SV_HALF_PROBES, a specialization constant).
+uint probe_band(uint index) {
+    float b = SV_HALF_PROBES ? unpackHalf2x16(probes_half[index].params[0]).x : probes[index].params.x;
+    return min(uint(b + 0.5), 4u);
+}
+float probe_scale(uint index) {
+    return SV_HALF_PROBES ? unpackHalf2x16(probes_half[index].params[0]).y : probes[index].params.y;
+}
+float probe_validity(uint index) {
+    return SV_HALF_PROBES ? unpackHalf2x16(probes_half[index].params[1]).x : probes[index].params.w;
+}
+vec3 probe_coeff(uint index, uint i) {
+    if (SV_HALF_PROBES) {
+        uvec2 c = probes_half[index].sh[i];
+        return vec3(unpackHalf2x16(c.x), unpackHalf2x16(c.y).x);
+    }
+    return probes[index].sh[i].xyz;
+}
+
+// sum_i A_l(i) Y_i L_i of probe `index` for a precomputed basis Y (bands <= band).
+vec3 probe_irradiance_basis(uint index, uint band, float Y[25]) {
     vec3 e = vec3(0.0);
     for (uint l = 0u; l <= band; ++l) {
         float a = sh_lambert_band(l);
-        for (uint i = l * l; i < (l + 1u) * (l + 1u); ++i) e += a * Y[i] * probes[index].sh[i].xyz;
+        for (uint i = l * l; i < (l + 1u) * (l + 1u); ++i) e += a * Y[i] * probe_coeff(index, i);
     }
     return e;
+}
+
+// Irradiance E(n) of probe `index` (DESIGN.md §3), not clamped: sh_irradiance() of sh.glsl,
+// reading the coefficients straight from the buffer and only the bands the probe has.
+vec3 probe_irradiance(uint index, vec3 n) {
+    uint band = probe_band(index);
+    float Y[25];
+    sh_eval_basis(band, n, Y);
+    return probe_irradiance_basis(index, band, Y);
+}
+
+// Per-pixel probe lighting (DESIGN.md §7, docs/engine.md "Per-pixel probes"): the first grid
+// whose box holds p (moved by normal_bias grid spacings along n) is sampled trilinearly between
+// the centres of the 8 neighbouring cells (indices clamped at the grid's faces). A neighbour gets
+// weight  trilinear * validity * backface, where backface = smoothstep(-0.1, 0.1, dot(c - p, n) / spacing)
+// is ~0 for a probe centre c behind the surface's tangent plane (the anti-leak measure); empty
+// cells (-1) are skipped and the weights renormalised. When every weight is 0 the cell holding
+// p is used alone (the per-object rule); when that is empty too, the next grid is tried.
+// Returns E(n) including each probe's own scale; false when no grid holds p.
+bool grid_irradiance(vec3 p_surface, vec3 n, out vec3 e_out) {
+    e_out = vec3(0.0);
+    for (uint g = 0u; g < frame.grid_count; ++g) {
+        sv_gpu_grid gr = grids[g];
+        float h = gr.origin_spacing.w;
+        vec3 p = p_surface + n * (frame.normal_bias * h);
+        vec3 rel = p - gr.origin_spacing.xyz;
+        vec3 u = vec3(dot(rel, gr.axes[0].xyz), dot(rel, gr.axes[1].xyz), dot(rel, gr.axes[2].xyz)) / h;
+        ivec3 dims = ivec3(gr.dims.xyz);
+        if (any(lessThan(u, vec3(0.0))) || any(greaterThanEqual(u, vec3(dims)))) continue;
+        vec3 c = u - 0.5;
+        ivec3 i0 = ivec3(floor(c));
+        vec3 f = c - vec3(i0);
+        uint off = gr.dims.w;
+        uint band = 0u;
+        float Y[25];
+        // Probes of one grid share the band: evaluate the basis once.
+        bool have_basis = false;
+        vec3 e = vec3(0.0);
+        float wsum = 0.0;
+        for (int k = 0; k < 8; ++k) {
+            ivec3 o = ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+            ivec3 ci = clamp(i0 + o, ivec3(0), dims - 1);
+            int idx = cell_probe[off + uint(ci.x + ci.y * dims.x + ci.z * dims.x * dims.y)];
+            if (idx < 0) continue;
+            vec3 w3 = mix(1.0 - f, f, vec3(o));
+            float w = w3.x * w3.y * w3.z;
+            vec3 centre_local = (vec3(ci) + 0.5) * h;
+            vec3 centre = gr.origin_spacing.xyz + centre_local.x * gr.axes[0].xyz + centre_local.y * gr.axes[1].xyz +
+                          centre_local.z * gr.axes[2].xyz;
+            float t = dot(centre - p_surface, n) / h;
+            uint pi = gr.base.x + uint(idx);
+            w *= smoothstep(-0.1, 0.1, t) * probe_validity(pi);
+            if (w <= 0.0) continue;
+            if (!have_basis) {
+                band = probe_band(pi);
+                sh_eval_basis(band, n, Y);
+                have_basis = true;
+            }
+            e += w * probe_scale(pi) * probe_irradiance_basis(pi, band, Y);
+            wsum += w;
+        }
+        if (wsum > 1e-6) {
+            e_out = e / wsum;
+            return true;
+        }
+        ivec3 cell = clamp(ivec3(floor(u)), ivec3(0), dims - 1);
+        int idx = cell_probe[off + uint(cell.x + cell.y * dims.x + cell.z * dims.x * dims.y)];
+        if (idx >= 0) {
+            uint pi = gr.base.x + uint(idx);
+            e_out = probe_scale(pi) * probe_irradiance(pi, n);
+            return true;
+        }
+    }
+    return false;
+}
+
+// Equirect texture coordinate of an engine-space direction (DESIGN.md §3's panorama mapping:
+// Blender d = (e.x, -e.z, e.y), u = (pi - atan2(d.y, d.x)) / 2pi, v = acos(d.z) / pi).
+vec2 sky_uv(vec3 e) {
+    float phi = atan(-e.z, e.x);
+    return vec2((SH_PI - phi) / (2.0 * SH_PI), acos(clamp(e.y, -1.0, 1.0)) / SH_PI);
+}
+
+float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
+
+// Split-sum image-based specular from the sky (prefiltered mips + BRDF LUT), scaled by
+// clamp(lum(E_probe(n)) / lum(E_sky(n)), 0, 1) so surfaces the probes see darker than the open sky
+// (interiors) do not reflect it at full strength. e_probe: the irradiance the diffuse term used.
+vec3 sky_specular(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, vec3 e_probe) {
+    vec3 v = normalize(frame.camera_pos.xyz - p);
+    float nv = clamp(dot(n, v), 1e-4, 1.0);
+    vec3 r = reflect(-v, n);
+    float mips = frame.camera_pos.w;
+    float rough = clamp(roughness, 0.0, 1.0);
+    vec3 pre = textureLod(sky_tex, sky_uv(r), rough * max(mips - 1.0, 0.0)).rgb;
+    vec2 ab = texture(brdf_lut, vec2(nv, rough)).rg;
+    vec3 f0 = mix(vec3(0.04), albedo, metallic);
+    vec3 spec = pre * (f0 * ab.x + ab.y);
+    if ((frame.flags & SV_FRAME_NO_RENORM) == 0u) {
+        float sky = luminance(max(probe_irradiance(0u, n), vec3(0.0)));
+        float ratio = sky > 1e-6 ? clamp(luminance(max(e_probe, vec3(0.0))) / sky, 0.0, 1.0) : 1.0;
+        spec *= ratio;
+    }
+    return spec;
 }
 
 // A distinct, stable colour per probe index (index 0, the fallback, is mid grey).

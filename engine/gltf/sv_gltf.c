@@ -971,6 +971,7 @@ static bool parse_materials(ctx_ *c, const cJSON *root)
         m->emissive_strength = 1.0f;
         m->sh_scale = 1.0f;
         m->ambient_term = 0.1f;
+        m->probe_mode = SV_GLTF_PROBE_MODE_OBJECT;
         if (ext && (!get_typed(c, ext, "VULKAN_SCHNEE_materials", ext_path, cJSON_Object, &schnee) ||
                     !get_typed(c, ext, "KHR_materials_emissive_strength", ext_path, cJSON_Object, &strength)))
             return false;
@@ -984,9 +985,20 @@ static bool parse_materials(ctx_ *c, const cJSON *root)
             char p[112];
             snprintf(p, sizeof p, "%s.VULKAN_SCHNEE_materials", ext_path);
             m->has_schnee = true;
+            const cJSON *mode = NULL;
             if (!get_float(c, schnee, "shScale", p, false, 1.0f, -FLT_MAX, FLT_MAX, &m->sh_scale) ||
-                !get_float(c, schnee, "ambientTerm", p, false, 0.1f, -FLT_MAX, FLT_MAX, &m->ambient_term))
+                !get_float(c, schnee, "ambientTerm", p, false, 0.1f, -FLT_MAX, FLT_MAX, &m->ambient_term) ||
+                !get_typed(c, schnee, "probeMode", p, cJSON_String, &mode))
                 return false;
+            if (mode) {
+                if (strcmp(mode->valuestring, "off") == 0) m->probe_mode = SV_GLTF_PROBE_MODE_OFF;
+                else if (strcmp(mode->valuestring, "pixel") == 0) m->probe_mode = SV_GLTF_PROBE_MODE_PIXEL;
+                else if (strcmp(mode->valuestring, "object") != 0) {
+                    fail(c, SV_GLTF_ERROR_FORMAT, "%s.probeMode: '%.40s' is not off, object or pixel", p,
+                         mode->valuestring);
+                    return false;
+                }
+            }
         }
         i++;
     }
@@ -1551,6 +1563,67 @@ static bool check_probe_grid(ctx_ *c, const cJSON *j, const char *gpath, sv_gltf
     return true;
 }
 
+/* The optional "sky" member, checked on a scratch context like a grid entry. */
+static bool check_sky(ctx_ *c, const cJSON *j, const char *path, sv_gltf_sky *sky, const char **uri)
+{
+    const cJSON *u = NULL, *sh = NULL, *e;
+    uint64_t band = 2;
+    *uri = NULL;
+    if (!cJSON_IsObject(j)) {
+        fail(c, SV_GLTF_ERROR_FORMAT, "%s: expected an object, got %s", path, type_of(j));
+        return false;
+    }
+    if (!get_typed(c, j, "uri", path, cJSON_String, &u) || !get_typed(c, j, "sh", path, cJSON_Array, &sh) ||
+        !get_uint(c, j, "maxBand", path, false, 2, 0, 4, &band))
+        return false;
+    if (!u || !sh) {
+        fail(c, SV_GLTF_ERROR_FORMAT, "%s.%s: missing", path, !u ? "uri" : "sh");
+        return false;
+    }
+    uint32_t n = (uint32_t)((band + 1) * (band + 1));
+    if (cJSON_GetArraySize(sh) != (int)n) {
+        fail(c, SV_GLTF_ERROR_FORMAT, "%s.sh: expected %u RGB triples for maxBand %u, got %d", path, n,
+             (unsigned)band, cJSON_GetArraySize(sh));
+        return false;
+    }
+    uint32_t i = 0;
+    cJSON_ArrayForEach(e, sh) {
+        char where[192];
+        snprintf(where, sizeof where, "%s.sh[%u]", path, i);
+        if (!floats_of(c, e, where, 3, sky->sh[i])) return false;
+        i++;
+    }
+    sky->max_band = (uint32_t)band;
+    *uri = u->valuestring;
+    return true;
+}
+
+static bool parse_sky(ctx_ *c, const cJSON *props, const char *path)
+{
+    const cJSON *j = get(props, "sky");
+    if (!j) return true;
+    char spath[160];
+    snprintf(spath, sizeof spath, "%s.sky", path);
+    sv_gltf_error e = {0};
+    ctx_ scratch = *c;
+    scratch.err = &e;
+    scratch.result = SV_GLTF_SUCCESS;
+    sv_gltf_sky sky = {0};
+    const char *uri;
+    if (!check_sky(&scratch, j, spath, &sky, &uri)) {
+        warn(c, "%s (sky skipped)", e.message);
+        return true;
+    }
+    c->g->sky = sky;
+    c->g->sky.present = true;
+    if (!(c->g->sky.uri = xstrdup(c, uri))) return false;
+    if (!c->g->base_dir)
+        warn(c, "%s: URI '%.200s' left unresolved (no base directory)", spath, uri);
+    else if (!(c->g->sky.path = resolve_uri(c, uri, spath)))
+        return false;
+    return true;
+}
+
 static bool parse_probe_grids(ctx_ *c, const cJSON *scene, const char *spath)
 {
     const cJSON *ext, *props = NULL, *grids = NULL, *j;
@@ -1560,6 +1633,7 @@ static bool parse_probe_grids(ctx_ *c, const cJSON *scene, const char *spath)
     if (ext && !get_typed(c, ext, "VULKAN_SCHNEE_engine_properties", path, cJSON_Object, &props)) return false;
     snprintf(path, sizeof path, "%s.extensions.VULKAN_SCHNEE_engine_properties", spath);
     if (props && !get_typed(c, props, "shProbeGrids", path, cJSON_Array, &grids)) return false;
+    if (props && !parse_sky(c, props, path)) return false;
     if (!grids) return true;
     c->g->probe_grids = xcalloc(c, (uint64_t)cJSON_GetArraySize(grids), sizeof *c->g->probe_grids);
     if (!c->g->probe_grids) return false;
@@ -1956,6 +2030,8 @@ void sv_gltf_free(sv_gltf *g)
         free(g->probe_grids[i].path);
     }
     free(g->probe_grids);
+    free(g->sky.uri);
+    free(g->sky.path);
     for (uint32_t i = 0; g->warnings && i < g->warning_count; i++) free(g->warnings[i]);
     free(g->warnings);
     free(g->scene_name);

@@ -81,6 +81,13 @@ typedef struct sv_gltf_texture_ref {
     float scale;       /* normalTexture.scale / occlusionTexture.strength; 1 otherwise */
 } sv_gltf_texture_ref;
 
+/* VULKAN_SCHNEE_materials.probeMode: "off" | "object" | "pixel" (docs/engine.md). */
+typedef enum sv_gltf_probe_mode {
+    SV_GLTF_PROBE_MODE_OFF = 0,    /* no baked probe: the fallback probe (the sky's SH when present) */
+    SV_GLTF_PROBE_MODE_OBJECT = 1, /* one probe per object (default) */
+    SV_GLTF_PROBE_MODE_PIXEL = 2,  /* probes interpolated per pixel */
+} sv_gltf_probe_mode;
+
 typedef struct sv_gltf_material {
     char *name;
     float base_color_factor[4];          /* linear RGBA, default (1,1,1,1) */
@@ -100,6 +107,7 @@ typedef struct sv_gltf_material {
     bool has_schnee;                     /* the extension object is present */
     float sh_scale;                      /* default 1.0 */
     float ambient_term;                  /* default 0.1 */
+    sv_gltf_probe_mode probe_mode;       /* VULKAN_SCHNEE_materials.probeMode, default OBJECT */
 } sv_gltf_material;
 
 typedef struct sv_gltf_sampler {
@@ -237,6 +245,17 @@ typedef struct sv_gltf_probe_grid {
     float grid_axes[3][3];  /* rows = X, Y, Z axis; identity when absent */
 } sv_gltf_probe_grid;
 
+/* scenes[scene].extensions.VULKAN_SCHNEE_engine_properties.sky (docs/export.md): the world
+ * captured by the bake as an equirect HDR image plus its radiance SH (engine space). A malformed
+ * entry is skipped with a warning, like a bad grid entry. */
+typedef struct sv_gltf_sky {
+    bool present;
+    char *uri;              /* as written */
+    char *path;             /* resolved like a grid's uri (NULL without a base directory) */
+    uint32_t max_band;      /* 0..4, the band of sh */
+    float sh[25][3];        /* radiance projection L_i, RGB; entries past the band are 0 */
+} sv_gltf_sky;
+
 typedef struct sv_gltf {
     int32_t scene;          /* default scene ("scene", else 0), -1 when the file has no scenes */
     char *scene_name;
@@ -258,6 +277,7 @@ typedef struct sv_gltf {
     float scene_aabb_max[3];
 
     sv_gltf_probe_grid *probe_grids;  uint32_t probe_grid_count;
+    sv_gltf_sky sky;
 
     char **warnings;                  uint32_t warning_count; /* non-fatal, e.g. skipped primitives */
     char *base_dir;                   /* folder URIs were resolved against, or NULL */

@@ -8,6 +8,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "schnee/pb_image.h"
 #include "sv_app.h"
 #include "sv_math.h"
 
@@ -22,14 +23,24 @@ static void usage(FILE *f) {
             "  --tonemap neutral|aces|none  operator (default neutral = Khronos PBR Neutral); --no-tonemap = none\n"
             "  --debug none|probe-color|probe-index|normals  debug view (probe-index writes the index in R)\n"
             "  --no-direct              skip KHR_lights_punctual direct light (probe + ambient + emission only)\n"
-            "  --probe-cells            draw a small sphere per occupied probe cell, lit by its probe\n"
+            "  --probe-view             probe view: a small sphere per probe shaded with its SH + grid cell outlines\n"
+            "                           (--probe-cells is the same)\n"
+            "  --probe-mode off|object|pixel|material  probe lighting for every material (default material =\n"
+            "                           each material's VULKAN_SCHNEE_materials.probeMode, itself default object)\n"
+            "  --probe-storage float|half  GPU storage of the SH coefficients (default float)\n"
+            "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
+            "  --no-sky                 ignore the scene's sky (no background, no specular, constant fallback)\n"
+            "  --no-specular            no sky reflections (image-based specular)\n"
+            "  --no-renorm              do not scale sky reflections by probe / sky irradiance\n"
+            "  --write-brdf-lut PATH    write the engine's split-sum BRDF LUT (R = A, G = B) to PATH and exit\n"
             "  --fallback-radiance V    uniform radiance of fallback probe 0 (default %.2f)\n"
             "  --move NODE X Y Z        set a node's translation before rendering (objects are re-assigned)\n"
             "  --print-assignments      print each object's probe index and exit status as usual\n"
             "  --validation             enable VK_LAYER_KHRONOS_validation; any message fails the run (exit 3)\n"
             "  --frames N               headless: frames to render and time; window: quit after N frames\n"
             "  --screenshot PATH        window: write the last frame presented to PATH\n"
-            "window keys: WASD/QE move, right mouse drag looks, Shift faster, P probe colours, C probe cells,\n"
+            "window keys: WASD/QE move, right mouse drag looks, Shift faster, P probe colours, C probe view,\n"
+            "             M probe mode (material/object/pixel/off),\n"
             "             N next object, J/L/I/K/U/O move it (its probe is re-queried), Esc quits\n",
             SV_FALLBACK_RADIANCE);
 }
@@ -66,6 +77,7 @@ static int parse_args(int argc, char **argv, sv_options *o) {
     o->exposure = 1.0f;
     o->tonemap = SV_TONEMAP_PBR_NEUTRAL;
     o->fallback_radiance = SV_FALLBACK_RADIANCE;
+    o->probe_mode = SV_PROBE_MODE_MATERIAL;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *next = i + 1 < argc ? argv[i + 1] : NULL;
@@ -121,8 +133,35 @@ static int parse_args(int argc, char **argv, sv_options *o) {
             else BAD_VALUE(next);
         } else if (strcmp(a, "--no-direct") == 0) {
             o->no_direct = true;
-        } else if (strcmp(a, "--probe-cells") == 0) {
+        } else if (strcmp(a, "--probe-cells") == 0 || strcmp(a, "--probe-view") == 0) {
             o->show_cells = true;
+        } else if (strcmp(a, "--probe-mode") == 0) {
+            NEED(1);
+            ++i;
+            if (strcmp(next, "off") == 0) o->probe_mode = SV_PROBE_MODE_OFF;
+            else if (strcmp(next, "object") == 0) o->probe_mode = SV_PROBE_MODE_OBJECT;
+            else if (strcmp(next, "pixel") == 0) o->probe_mode = SV_PROBE_MODE_PIXEL;
+            else if (strcmp(next, "material") == 0) o->probe_mode = SV_PROBE_MODE_MATERIAL;
+            else BAD_VALUE(next);
+        } else if (strcmp(a, "--probe-storage") == 0) {
+            NEED(1);
+            ++i;
+            if (strcmp(next, "float") == 0) o->half_probes = false;
+            else if (strcmp(next, "half") == 0) o->half_probes = true;
+            else BAD_VALUE(next);
+        } else if (strcmp(a, "--normal-bias") == 0) {
+            NEED(1);
+            if (!parse_float(next, &o->normal_bias) || o->normal_bias < 0 || o->normal_bias > 1) BAD_VALUE(next);
+            ++i;
+        } else if (strcmp(a, "--no-sky") == 0) {
+            o->no_sky = true;
+        } else if (strcmp(a, "--no-specular") == 0) {
+            o->no_specular = true;
+        } else if (strcmp(a, "--no-renorm") == 0) {
+            o->no_renorm = true;
+        } else if (strcmp(a, "--write-brdf-lut") == 0) {
+            NEED(1);
+            o->write_brdf_lut = argv[++i];
         } else if (strcmp(a, "--fallback-radiance") == 0) {
             NEED(1);
             if (!parse_float(next, &o->fallback_radiance) || o->fallback_radiance < 0) BAD_VALUE(next);
@@ -161,7 +200,7 @@ static int parse_args(int argc, char **argv, sv_options *o) {
 #undef NEED
 #undef BAD_VALUE
     }
-    if (!o->scene_path) {
+    if (!o->scene_path && !o->write_brdf_lut) {
         usage(stderr);
         return 2;
     }
@@ -179,6 +218,10 @@ bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *
     v->debug_mode = opt->debug_mode;
     v->flags = opt->no_direct ? SV_FRAME_NO_DIRECT : 0;
     v->show_cells = opt->show_cells;
+    v->probe_mode = opt->probe_mode;
+    v->normal_bias = opt->normal_bias;
+    if (opt->no_specular) v->flags |= SV_FRAME_NO_SPECULAR;
+    if (opt->no_renorm) v->flags |= SV_FRAME_NO_RENORM;
     const sv_gltf *g = scene->gltf;
     int32_t cam = -1;
     if (opt->camera) {
@@ -252,10 +295,40 @@ bool sv_app_validation_clean(const sv_context *ctx) {
     return true;
 }
 
+sv_renderer_desc sv_app_renderer_desc(const sv_options *opt, const sv_sky *sky) {
+    sv_renderer_desc d = {0};
+    d.fallback_radiance = opt->fallback_radiance;
+    d.half_probes = opt->half_probes;
+    d.sky = sky && sky->present && !opt->no_sky ? sky : NULL;
+    return d;
+}
+
+/* --write-brdf-lut: the table the renderer uploads, as an image (R = A, G = B, B = 0). */
+static int write_brdf_lut(const char *path) {
+    float *lut = sv_brdf_lut(SV_BRDF_LUT_SIZE, SV_BRDF_LUT_SAMPLES);
+    float *rgb = malloc((size_t)SV_BRDF_LUT_SIZE * SV_BRDF_LUT_SIZE * 3 * sizeof(float));
+    int rc = 1;
+    if (lut && rgb) {
+        /* Row j = roughness (j + 0.5) / size from the top, column i = NoV (i + 0.5) / size. */
+        for (size_t t = 0; t < (size_t)SV_BRDF_LUT_SIZE * SV_BRDF_LUT_SIZE; ++t) {
+            rgb[t * 3 + 0] = lut[t * 2 + 0];
+            rgb[t * 3 + 1] = lut[t * 2 + 1];
+            rgb[t * 3 + 2] = 0.0f;
+        }
+        pb_error err = {0};
+        if (pb_image_write(path, SV_BRDF_LUT_SIZE, SV_BRDF_LUT_SIZE, 3, rgb, &err) == PB_SUCCESS) rc = 0;
+        else fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", path, err.message);
+    }
+    free(lut);
+    free(rgb);
+    return rc;
+}
+
 int main(int argc, char **argv) {
     sv_options opt;
     int rc = parse_args(argc, argv, &opt);
     if (rc) return rc;
+    if (opt.write_brdf_lut) return write_brdf_lut(opt.write_brdf_lut);
 
     sv_scene scene;
     sv_probes probes;
@@ -271,6 +344,17 @@ int main(int argc, char **argv) {
                     "scene %.1f ms, probes %.1f ms\n",
             opt.scene_path, scene.object_count, probes.grid_count, probes.total - 1, t1 - t0, t2 - t1);
 
+    sv_sky sky = {0};
+    if (!opt.no_sky) {
+        double ts = sv_now_ms();
+        if (!sv_sky_load(scene.gltf, &sky)) {
+            rc = 1;
+            goto done;
+        }
+        if (sky.present)
+            fprintf(stderr, "schnee-view: sky %s: %ux%u, %u prefiltered mip(s), band %u; %.1f ms\n",
+                    scene.gltf->sky.path, sky.width[0], sky.height[0], sky.mip_count, sky.max_band, sv_now_ms() - ts);
+    }
     sv_probes_assign(&probes, &scene);
     for (uint32_t i = 0; i < opt.move_count; ++i) {
         int32_t node = sv_scene_find_node(&scene, opt.moves[i].node);
@@ -285,8 +369,9 @@ int main(int argc, char **argv) {
     }
     if (opt.print_assignments) sv_app_print_assignments(&scene);
     if (opt.headless && !opt.output) goto done; /* --print-assignments only */
-    rc = opt.headless ? sv_run_headless(&opt, &scene, &probes) : sv_run_window(&opt, &scene, &probes);
+    rc = opt.headless ? sv_run_headless(&opt, &scene, &probes, &sky) : sv_run_window(&opt, &scene, &probes, &sky);
 done:
+    sv_sky_destroy(&sky);
     sv_probes_destroy(&probes);
     sv_scene_destroy(&scene);
     return rc;

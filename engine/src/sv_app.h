@@ -33,6 +33,13 @@ typedef struct sv_options {
                                   headless: frames rendered (timed), default 1 */
     const char *screenshot;    /* window: write the last presented frame here */
     float fallback_radiance;
+    uint32_t probe_mode;       /* SV_PROBE_MODE_*, default _MATERIAL (each material's probeMode) */
+    bool half_probes;          /* --probe-storage half */
+    float normal_bias;         /* --normal-bias, grid spacings (default 0) */
+    bool no_specular;          /* --no-specular: no sky reflections */
+    bool no_renorm;            /* --no-renorm: sky specular not scaled by probe / sky irradiance */
+    bool no_sky;               /* --no-sky: ignore the glTF's sky */
+    const char *write_brdf_lut; /* --write-brdf-lut PATH: write the split-sum LUT and exit */
 } sv_options;
 
 /* Camera for the first frame: --camera, else the first glTF camera, else one framing the scene
@@ -45,8 +52,11 @@ void sv_app_print_assignments(const sv_scene *scene);
 /* Checks the validation counters; prints a summary and returns false if any message was seen. */
 bool sv_app_validation_clean(const sv_context *ctx);
 
-int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes);
-int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes);
+int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky);
+int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky);
+
+/* The renderer description for the options and the loaded sky. */
+sv_renderer_desc sv_app_renderer_desc(const sv_options *opt, const sv_sky *sky);
 
 double sv_now_ms(void);
 

@@ -43,7 +43,7 @@ fail:
     return false;
 }
 
-int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes) {
+int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky) {
     sv_context ctx = {0};
     sv_renderer r = {0};
     sv_image out = {0};
@@ -60,7 +60,8 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes) {
         !sv_create_command_pool(&ctx))
         goto done;
     double t1 = sv_now_ms();
-    if (!sv_renderer_create(&r, &ctx, scene, probes, VK_FORMAT_R8G8B8A8_SRGB, opt->fallback_radiance) ||
+    sv_renderer_desc desc = sv_app_renderer_desc(opt, sky);
+    if (!sv_renderer_create(&r, &ctx, scene, probes, VK_FORMAT_R8G8B8A8_SRGB, &desc) ||
         !sv_renderer_resize(&r, w, h))
         goto done;
     if (!sv_image_create(&ctx, w, h, VK_FORMAT_R8G8B8A8_SRGB,

@@ -42,16 +42,29 @@ uint32_t sv_probes_lookup(const sv_probes *probes, const float point[3]);
 /* Re-queries every object flagged needs_probe (centre of its world bounds); returns how many. */
 uint32_t sv_probes_assign(const sv_probes *probes, sv_scene *scene);
 
-/* GPU buffer contents: total entries, caller frees. */
-sv_gpu_probe *sv_probes_pack(const sv_probes *probes, float fallback_radiance);
+/* GPU buffer contents: total entries, caller frees. Probe 0 (the fallback) is `sky_sh` (band
+ * `sky_band`, radiance SH) when sky_sh is not NULL, else uniform `fallback_radiance`. */
+sv_gpu_probe *sv_probes_pack(const sv_probes *probes, float fallback_radiance, const float (*sky_sh)[3],
+                             uint32_t sky_band);
+/* The same entries in half storage (packHalf2x16 layout of sv_gpu_probe_half). Caller frees. */
+sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t count);
+/* IEEE 754 binary16 of a float (round to nearest even), as GLSL's packHalf2x16 stores it. */
+uint16_t sv_half_from_float(float f);
 
-/* One entry per occupied grid cell for the probe-cell view: centre + radius, probe index. */
+/* Per-pixel sampling data: one sv_gpu_grid per grid and the concatenated occupancy grids
+ * (*cell_count int32). Caller frees both. */
+bool sv_probes_gpu_grids(const sv_probes *probes, sv_gpu_grid **grids, int32_t **cells, uint32_t *cell_count);
+
+/* Probe view instances: centre + radius, probe[0] = probe-buffer index, probe[1] = grid index. */
 typedef struct sv_gpu_cell {
     float center_radius[4];
     uint32_t probe[4];
 } sv_gpu_cell;
 _Static_assert(sizeof(sv_gpu_cell) == 32, "sv_gpu_cell must match probe_cells.vert");
 
-sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *count);
+/* One sphere per probe (at its v2 position, else the mean centre of the cells that map to it;
+ * radius 0.2 x the grid spacing), then one entry per occupied cell (its centre, for the
+ * outlines). Caller frees. */
+sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, uint32_t *cell_count);
 
 #endif

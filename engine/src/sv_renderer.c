@@ -23,6 +23,18 @@ static const uint32_t probe_cells_vert_spv[] =
 static const uint32_t probe_cells_frag_spv[] =
 #include "probe_cells.frag.inc"
     ;
+static const uint32_t probe_outline_vert_spv[] =
+#include "probe_outline.vert.inc"
+    ;
+static const uint32_t probe_outline_frag_spv[] =
+#include "probe_outline.frag.inc"
+    ;
+static const uint32_t sky_vert_spv[] =
+#include "sky.vert.inc"
+    ;
+static const uint32_t sky_frag_spv[] =
+#include "sky.frag.inc"
+    ;
 static const uint32_t fullscreen_vert_spv[] =
 #include "fullscreen.vert.inc"
     ;
@@ -137,6 +149,7 @@ static bool upload_materials(sv_renderer *r, const sv_gltf *g) {
             m[i].metallic = 1.0f;
             m[i].roughness = 1.0f;
             m[i].base_color_texture = m[i].emissive_texture = -1;
+            m[i].probe_mode = SV_PROBE_MODE_OBJECT;
             continue;
         }
         const sv_gltf_material *s = &g->materials[i];
@@ -148,6 +161,9 @@ static bool upload_materials(sv_renderer *r, const sv_gltf *g) {
         m[i].roughness = s->roughness_factor;
         m[i].base_color_texture = texture_slot(g, &s->base_color_texture);
         m[i].emissive_texture = texture_slot(g, &s->emissive_texture);
+        m[i].probe_mode = s->probe_mode == SV_GLTF_PROBE_MODE_OFF     ? SV_PROBE_MODE_OFF
+                          : s->probe_mode == SV_GLTF_PROBE_MODE_PIXEL ? SV_PROBE_MODE_PIXEL
+                                                                      : SV_PROBE_MODE_OBJECT;
     }
     bool ok = sv_buffer_create_with_data(r->ctx, m, n * sizeof(*m), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->materials);
     free(m);
@@ -258,20 +274,113 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g) {
     return ok;
 }
 
-static bool upload_probes(sv_renderer *r, const sv_probes *probes, float fallback_radiance) {
-    sv_gpu_probe *p = sv_probes_pack(probes, fallback_radiance);
-    uint32_t ncells = 0;
-    sv_gpu_cell *cells = sv_probes_cells(probes, &ncells);
-    bool ok = p && cells;
+static bool upload_probes(sv_renderer *r, const sv_probes *probes, const sv_renderer_desc *desc) {
+    const sv_sky *sky = desc->sky && desc->sky->present ? desc->sky : NULL;
+    sv_gpu_probe *p = sv_probes_pack(probes, desc->fallback_radiance, sky ? sky->sh : NULL, sky ? sky->max_band : 0);
+    sv_gpu_probe_half *ph = p && desc->half_probes ? sv_probes_pack_half(p, probes->total) : NULL;
+    uint32_t nspheres = 0, ncells = 0, grid_cells = 0;
+    sv_gpu_cell *cells = sv_probes_cells(probes, &nspheres, &ncells);
+    sv_gpu_grid *grids = NULL;
+    int32_t *cell_index = NULL;
+    bool ok = p && cells && (!desc->half_probes || ph);
     if (!ok) fail_msg("out of memory packing probes");
-    ok = ok && sv_buffer_create_with_data(r->ctx, p, probes->total * sizeof(*p), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                                          &r->probes);
-    ok = ok && sv_buffer_create_with_data(r->ctx, cells, (ncells ? ncells : 1) * sizeof(*cells),
+    ok = ok && sv_probes_gpu_grids(probes, &grids, &cell_index, &grid_cells);
+    /* Only the storage in use holds the probes; the other binding gets one zero entry. */
+    static const sv_gpu_probe zero_probe;
+    static const sv_gpu_probe_half zero_half;
+    ok = ok && sv_buffer_create_with_data(r->ctx, desc->half_probes ? &zero_probe : (const void *)p,
+                                          desc->half_probes ? sizeof(*p) : probes->total * sizeof(*p),
+                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->probes);
+    ok = ok && sv_buffer_create_with_data(r->ctx, desc->half_probes ? (const void *)ph : &zero_half,
+                                          desc->half_probes ? probes->total * sizeof(*ph) : sizeof(*ph),
+                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->probes_half);
+    ok = ok && sv_buffer_create_with_data(r->ctx, cells, (nspheres + ncells ? nspheres + ncells : 1) * sizeof(*cells),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cells);
+    ok = ok && sv_buffer_create_with_data(r->ctx, grids, (probes->grid_count ? probes->grid_count : 1) * sizeof(*grids),
+                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->grids);
+    ok = ok && sv_buffer_create_with_data(r->ctx, cell_index, (grid_cells ? grid_cells : 1) * sizeof(int32_t),
+                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cell_index);
     r->probe_count = probes->total;
-    r->cell_count = ncells;
+    r->grid_count = probes->grid_count;
+    r->sphere_count = nspheres;
+    r->outline_count = ncells;
+    r->half_probes = desc->half_probes;
     free(p);
+    free(ph);
     free(cells);
+    free(grids);
+    free(cell_index);
+    return ok;
+}
+
+/* Uploads float texel data (levels[l]: width>>l x height>>l texels of texel_bytes) into a sampled
+ * image with `count` mip levels (blocking). */
+static bool upload_float_image(sv_renderer *r, VkFormat format, uint32_t texel_bytes, const float *const *levels,
+                               const uint32_t *widths, const uint32_t *heights, uint32_t count, sv_image *out) {
+    VkFormatProperties fp;
+    vkGetPhysicalDeviceFormatProperties(r->ctx->physical, format, &fp);
+    if (!(fp.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT)) {
+        fail_msg("the device cannot filter 32-bit float images linearly (needed for the sky)");
+        return false;
+    }
+    if (!sv_image_create_mips(r->ctx, widths[0], heights[0], count, format,
+                              VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT, out))
+        return false;
+    VkDeviceSize total = 0;
+    for (uint32_t l = 0; l < count; ++l) total += (VkDeviceSize)widths[l] * heights[l] * texel_bytes;
+    sv_buffer staging;
+    if (!sv_buffer_create(r->ctx, total, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true, &staging)) return false;
+    VkBufferImageCopy regions[SV_SKY_MAX_MIPS];
+    VkDeviceSize off = 0;
+    for (uint32_t l = 0; l < count && l < SV_SKY_MAX_MIPS; ++l) {
+        size_t bytes = (size_t)widths[l] * heights[l] * texel_bytes;
+        memcpy((uint8_t *)staging.mapped + off, levels[l], bytes);
+        regions[l] = (VkBufferImageCopy){
+            .bufferOffset = off,
+            .imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, l, 0, 1},
+            .imageExtent = {widths[l], heights[l], 1},
+        };
+        off += bytes;
+    }
+    VkCommandBuffer cmd = sv_begin_one_shot(r->ctx);
+    bool ok = cmd != VK_NULL_HANDLE;
+    if (ok) {
+        sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, 0,
+                         VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+        vkCmdCopyBufferToImage(cmd, staging.buffer, out->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, count, regions);
+        sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
+        ok = sv_end_one_shot(r->ctx, cmd);
+    }
+    sv_buffer_destroy(r->ctx, &staging);
+    return ok;
+}
+
+/* Sky mips (or a 1x1 black stand-in) and the BRDF LUT (always: the binding must hold an image). */
+static bool upload_sky(sv_renderer *r, const sv_sky *sky) {
+    r->has_sky = sky && sky->present;
+    bool ok;
+    if (r->has_sky) {
+        ok = upload_float_image(r, VK_FORMAT_R32G32B32A32_SFLOAT, 16, (const float *const *)sky->rgba, sky->width,
+                                sky->height, sky->mip_count, &r->sky);
+    } else {
+        const float black[4] = {0, 0, 0, 1};
+        const float *lv[1] = {black};
+        uint32_t one = 1;
+        ok = upload_float_image(r, VK_FORMAT_R32G32B32A32_SFLOAT, 16, lv, &one, &one, 1, &r->sky);
+    }
+    if (!ok) return false;
+    float *lut = r->has_sky ? sv_brdf_lut(SV_BRDF_LUT_SIZE, SV_BRDF_LUT_SAMPLES) : calloc(2, sizeof(float));
+    if (!lut) {
+        fail_msg("out of memory for the BRDF LUT");
+        return false;
+    }
+    const float *lv[1] = {lut};
+    uint32_t size = r->has_sky ? SV_BRDF_LUT_SIZE : 1;
+    ok = upload_float_image(r, VK_FORMAT_R32G32_SFLOAT, 8, lv, &size, &size, 1, &r->brdf_lut);
+    free(lut);
     return ok;
 }
 
@@ -293,6 +402,13 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g) {
     si.magFilter = si.minFilter = VK_FILTER_NEAREST;
     si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
     VK_CHECK(vkCreateSampler(dev, &si, NULL, &r->hdr_sampler));
+    /* LUT: bilinear, clamped; sky: bilinear + linear between mips, u wraps (longitude), v clamps. */
+    si.magFilter = si.minFilter = VK_FILTER_LINEAR;
+    VK_CHECK(vkCreateSampler(dev, &si, NULL, &r->lut_sampler));
+    si.addressModeU = VK_SAMPLER_ADDRESS_MODE_REPEAT;
+    si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_LINEAR;
+    si.maxLod = VK_LOD_CLAMP_NONE;
+    VK_CHECK(vkCreateSampler(dev, &si, NULL, &r->sky_sampler));
 
     const VkShaderStageFlags vf = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
     VkDescriptorSetLayoutBinding scene_b[] = {
@@ -301,10 +417,15 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g) {
         {2, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
         {3, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
         {5, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT, NULL},
+        {6, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, vf, NULL},
+        {7, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {8, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {9, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {10, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     };
     VkDescriptorSetLayoutCreateInfo li = {
         .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
-        .bindingCount = 5,
+        .bindingCount = 10,
         .pBindings = scene_b,
     };
     VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->scene_set_layout));
@@ -324,8 +445,8 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g) {
 
     VkDescriptorPoolSize sizes[] = {
         {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 4},
-        {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2 * r->material_count + 1},
+        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 7},
+        {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2 * r->material_count + 3},
     };
     VkDescriptorPoolCreateInfo pi = {
         .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
@@ -373,24 +494,32 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g) {
         vkUpdateDescriptorSets(dev, 1, &mw, 0, NULL);
     }
 
-    VkDescriptorBufferInfo bufs[5] = {
+    VkDescriptorBufferInfo bufs[8] = {
         {r->frame.buffer, 0, VK_WHOLE_SIZE},
         {r->materials.buffer, 0, VK_WHOLE_SIZE},
         {r->probes.buffer, 0, VK_WHOLE_SIZE},
         {r->lights.buffer, 0, VK_WHOLE_SIZE},
         {r->cells.buffer, 0, VK_WHOLE_SIZE},
+        {r->grids.buffer, 0, VK_WHOLE_SIZE},
+        {r->cell_index.buffer, 0, VK_WHOLE_SIZE},
+        {r->probes_half.buffer, 0, VK_WHOLE_SIZE},
     };
-    VkWriteDescriptorSet w[5];
-    for (uint32_t i = 0; i < 5; ++i)
+    VkDescriptorImageInfo imgs[2] = {
+        {r->sky_sampler, r->sky.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+        {r->lut_sampler, r->brdf_lut.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+    };
+    VkWriteDescriptorSet w[10];
+    for (uint32_t i = 0; i < 10; ++i)
         w[i] = (VkWriteDescriptorSet){
             .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
             .dstSet = r->scene_set,
             .dstBinding = scene_b[i].binding,
             .descriptorCount = 1,
             .descriptorType = scene_b[i].descriptorType,
-            .pBufferInfo = &bufs[i],
+            .pBufferInfo = i < 8 ? &bufs[i] : NULL,
+            .pImageInfo = i >= 8 ? &imgs[i - 8] : NULL,
         };
-    vkUpdateDescriptorSets(dev, 5, w, 0, NULL);
+    vkUpdateDescriptorSets(dev, 10, w, 0, NULL);
     return true;
 fail:
     return false;
@@ -405,6 +534,9 @@ typedef struct pipeline_desc {
     VkFormat color_format;
     VkFormat depth_format; /* VK_FORMAT_UNDEFINED = no depth */
     uint32_t attribute_count; /* vertex attributes the vertex shader reads (0 = no vertex buffer) */
+    VkPrimitiveTopology topology; /* 0 = triangle list */
+    bool no_depth_test;           /* with a depth attachment: neither test nor write (background) */
+    const VkSpecializationInfo *spec; /* fragment and vertex stage constants, or NULL */
 } pipeline_desc;
 
 static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d) {
@@ -413,8 +545,10 @@ static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d) {
     VkShaderModule fs = sv_shader_module(ctx, d->fs, d->fs_size);
     if (!vs || !fs) goto fail;
     VkPipelineShaderStageCreateInfo stages[2] = {
-        {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, .stage = VK_SHADER_STAGE_VERTEX_BIT, .module = vs, .pName = "main"},
-        {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, .stage = VK_SHADER_STAGE_FRAGMENT_BIT, .module = fs, .pName = "main"},
+        {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, .stage = VK_SHADER_STAGE_VERTEX_BIT, .module = vs, .pName = "main",
+         .pSpecializationInfo = d->spec},
+        {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, .stage = VK_SHADER_STAGE_FRAGMENT_BIT, .module = fs, .pName = "main",
+         .pSpecializationInfo = d->spec},
     };
     VkVertexInputBindingDescription binding = {0, SV_VERTEX_FLOATS * sizeof(float), VK_VERTEX_INPUT_RATE_VERTEX};
     VkVertexInputAttributeDescription attrs[3] = {
@@ -431,7 +565,7 @@ static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d) {
     }
     VkPipelineInputAssemblyStateCreateInfo ia = {
         .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
-        .topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
+        .topology = d->topology,
     };
     VkPipelineViewportStateCreateInfo vp = {
         .sType = VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO, .viewportCount = 1, .scissorCount = 1};
@@ -451,8 +585,8 @@ static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d) {
     };
     VkPipelineDepthStencilStateCreateInfo ds = {
         .sType = VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO,
-        .depthTestEnable = d->depth_format != VK_FORMAT_UNDEFINED,
-        .depthWriteEnable = d->depth_format != VK_FORMAT_UNDEFINED,
+        .depthTestEnable = d->depth_format != VK_FORMAT_UNDEFINED && !d->no_depth_test,
+        .depthWriteEnable = d->depth_format != VK_FORMAT_UNDEFINED && !d->no_depth_test,
         .depthCompareOp = VK_COMPARE_OP_LESS,
     };
     VkPipelineColorBlendAttachmentState blend = {.colorWriteMask = 0xF};
@@ -510,8 +644,13 @@ static bool create_pipelines(sv_renderer *r) {
     li.pPushConstantRanges = &tone_push;
     VK_CHECK(vkCreatePipelineLayout(dev, &li, NULL, &r->tonemap_layout));
 
+    /* constant_id 0 = SV_HALF_PROBES (gpu_types.glsl). */
+    VkBool32 half = r->half_probes ? VK_TRUE : VK_FALSE;
+    VkSpecializationMapEntry entry = {0, 0, sizeof(VkBool32)};
+    VkSpecializationInfo spec = {1, &entry, sizeof(half), &half};
     pipeline_desc d = {mesh_vert_spv, sizeof(mesh_vert_spv), mesh_frag_spv, sizeof(mesh_frag_spv),
-                       r->scene_layout, r->hdr_format, r->depth_format, 3};
+                       r->scene_layout, r->hdr_format, r->depth_format, 3, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
+                       false, &spec};
     r->mesh_pipeline = create_pipeline(r->ctx, &d);
     d.vs = probe_cells_vert_spv;
     d.vs_size = sizeof(probe_cells_vert_spv);
@@ -519,10 +658,25 @@ static bool create_pipelines(sv_renderer *r) {
     d.fs_size = sizeof(probe_cells_frag_spv);
     d.attribute_count = 2; /* position, normal */
     r->cells_pipeline = create_pipeline(r->ctx, &d);
+    d.vs = probe_outline_vert_spv;
+    d.vs_size = sizeof(probe_outline_vert_spv);
+    d.fs = probe_outline_frag_spv;
+    d.fs_size = sizeof(probe_outline_frag_spv);
+    d.attribute_count = 0;
+    d.topology = VK_PRIMITIVE_TOPOLOGY_LINE_LIST;
+    r->outline_pipeline = create_pipeline(r->ctx, &d);
+    d.vs = sky_vert_spv;
+    d.vs_size = sizeof(sky_vert_spv);
+    d.fs = sky_frag_spv;
+    d.fs_size = sizeof(sky_frag_spv);
+    d.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+    d.no_depth_test = true;
+    r->sky_pipeline = create_pipeline(r->ctx, &d);
     pipeline_desc t = {fullscreen_vert_spv, sizeof(fullscreen_vert_spv), tonemap_frag_spv, sizeof(tonemap_frag_spv),
-                       r->tonemap_layout, r->output_format, VK_FORMAT_UNDEFINED, 0};
+                       r->tonemap_layout, r->output_format, VK_FORMAT_UNDEFINED, 0, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
+                       false, NULL};
     r->tonemap_pipeline = create_pipeline(r->ctx, &t);
-    return r->mesh_pipeline && r->cells_pipeline && r->tonemap_pipeline;
+    return r->mesh_pipeline && r->cells_pipeline && r->outline_pipeline && r->sky_pipeline && r->tonemap_pipeline;
 fail:
     return false;
 }
@@ -538,7 +692,7 @@ static VkFormat pick_depth_format(sv_context *ctx) {
 }
 
 bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, const sv_probes *probes,
-                        VkFormat output_format, float fallback_radiance) {
+                        VkFormat output_format, const sv_renderer_desc *desc) {
     memset(r, 0, sizeof(*r));
     r->ctx = ctx;
     r->hdr_format = VK_FORMAT_R32G32B32A32_SFLOAT; /* exact linear values for .exr output */
@@ -547,7 +701,7 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
     r->encode_srgb = output_format != VK_FORMAT_B8G8R8A8_SRGB && output_format != VK_FORMAT_R8G8B8A8_SRGB;
     const sv_gltf *g = scene->gltf;
     if (!upload_geometry(r, g) || !upload_materials(r, g) || !upload_textures(r, g) || !upload_lights(r, g) ||
-        !upload_probes(r, probes, fallback_radiance))
+        !upload_probes(r, probes, desc) || !upload_sky(r, desc->sky))
         return false;
     if (!sv_buffer_create(ctx, sizeof(sv_gpu_frame), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true, &r->frame)) return false;
     r->material_count = g->material_count + 1;
@@ -628,11 +782,16 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     float proj[16];
     sv_view_projection(view, (float)r->width / (float)r->height, proj);
     sv_mat4_mul(proj, view->view, frame.view_proj);
+    if (!sv_mat4_invert(frame.view_proj, frame.inv_view_proj)) sv_mat4_identity(frame.inv_view_proj);
     memcpy(frame.camera_pos, view->camera_pos, 3 * sizeof(float));
+    frame.camera_pos[3] = r->has_sky ? (float)r->sky.mip_levels : 0.0f;
     frame.light_count = r->light_count;
     frame.debug_mode = view->debug_mode;
-    frame.flags = view->flags;
+    frame.flags = view->flags | (r->has_sky ? SV_FRAME_SKY : 0u);
     frame.probe_count = r->probe_count;
+    frame.grid_count = r->grid_count;
+    frame.probe_mode = view->probe_mode;
+    frame.normal_bias = view->normal_bias;
     memcpy(r->frame.mapped, &frame, sizeof(frame));
 
     sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
@@ -673,13 +832,23 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     vkCmdBeginRendering(cmd, &ri);
     vkCmdSetViewport(cmd, 0, 1, &viewport);
     vkCmdSetScissor(cmd, 0, 1, &scissor);
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->mesh_pipeline);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 0, 1, &r->scene_set, 0, NULL);
+    /* Set 1 must be bound for every pipeline of this layout: the default material's set. */
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 1, 1,
+                            &r->material_sets[r->material_count - 1], 0, NULL);
+    uint32_t bound_material = r->material_count - 1;
+    if (r->has_sky && view->debug_mode == SV_DEBUG_NONE) {
+        sv_gpu_draw none = {0};
+        vkCmdPushConstants(cmd, r->scene_layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
+                           sizeof(none), &none);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->sky_pipeline);
+        vkCmdDraw(cmd, 3, 1, 0, 0);
+    }
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->mesh_pipeline);
     VkDeviceSize zero = 0;
     vkCmdBindVertexBuffers(cmd, 0, 1, &r->vertices.buffer, &zero);
     vkCmdBindIndexBuffer(cmd, r->indices.buffer, 0, VK_INDEX_TYPE_UINT32);
     const sv_gltf *g = scene->gltf;
-    uint32_t bound_material = UINT32_MAX;
     for (uint32_t o = 0; o < scene->object_count; ++o) {
         const sv_object *obj = &scene->objects[o];
         sv_gpu_draw draw = {0};
@@ -702,16 +871,20 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
             vkCmdDrawIndexed(cmd, r->prim_index_count[pi], 1, r->prim_first_index[pi], r->prim_vertex_offset[pi], 0);
         }
     }
-    if (view->show_cells && r->cell_count) {
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->cells_pipeline);
-        if (bound_material == UINT32_MAX)
-            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 1, 1,
-                                    &r->material_sets[r->material_count - 1], 0, NULL);
+    if (view->show_cells && r->sphere_count + r->outline_count) {
         sv_gpu_draw draw = {0};
         sv_mat4_identity(draw.model);
         vkCmdPushConstants(cmd, r->scene_layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
                            sizeof(draw), &draw);
-        vkCmdDrawIndexed(cmd, r->sphere_index_count, r->cell_count, r->sphere_first_index, r->sphere_vertex_offset, 0);
+        if (r->sphere_count) {
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->cells_pipeline);
+            vkCmdDrawIndexed(cmd, r->sphere_index_count, r->sphere_count, r->sphere_first_index,
+                             r->sphere_vertex_offset, 0);
+        }
+        if (r->outline_count) { /* cell entries follow the spheres in the instance buffer */
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->outline_pipeline);
+            vkCmdDraw(cmd, 24, r->outline_count, 0, r->sphere_count);
+        }
     }
     vkCmdEndRendering(cmd);
 
@@ -754,6 +927,8 @@ void sv_renderer_destroy(sv_renderer *r) {
     vkDeviceWaitIdle(dev);
     if (r->mesh_pipeline) vkDestroyPipeline(dev, r->mesh_pipeline, NULL);
     if (r->cells_pipeline) vkDestroyPipeline(dev, r->cells_pipeline, NULL);
+    if (r->outline_pipeline) vkDestroyPipeline(dev, r->outline_pipeline, NULL);
+    if (r->sky_pipeline) vkDestroyPipeline(dev, r->sky_pipeline, NULL);
     if (r->tonemap_pipeline) vkDestroyPipeline(dev, r->tonemap_pipeline, NULL);
     if (r->scene_layout) vkDestroyPipelineLayout(dev, r->scene_layout, NULL);
     if (r->tonemap_layout) vkDestroyPipelineLayout(dev, r->tonemap_layout, NULL);
@@ -763,13 +938,18 @@ void sv_renderer_destroy(sv_renderer *r) {
     if (r->tonemap_set_layout) vkDestroyDescriptorSetLayout(dev, r->tonemap_set_layout, NULL);
     if (r->sampler) vkDestroySampler(dev, r->sampler, NULL);
     if (r->hdr_sampler) vkDestroySampler(dev, r->hdr_sampler, NULL);
+    if (r->sky_sampler) vkDestroySampler(dev, r->sky_sampler, NULL);
+    if (r->lut_sampler) vkDestroySampler(dev, r->lut_sampler, NULL);
+    sv_image_destroy(ctx, &r->sky);
+    sv_image_destroy(ctx, &r->brdf_lut);
     for (uint32_t i = 0; i < r->texture_count; ++i) sv_image_destroy(ctx, &r->textures[i]);
     free(r->textures);
     free(r->material_sets);
     sv_image_destroy(ctx, &r->white);
     sv_image_destroy(ctx, &r->hdr);
     sv_image_destroy(ctx, &r->depth);
-    sv_buffer *bufs[] = {&r->vertices, &r->indices, &r->frame, &r->materials, &r->probes, &r->lights, &r->cells};
+    sv_buffer *bufs[] = {&r->vertices, &r->indices, &r->frame, &r->materials, &r->probes,    &r->probes_half,
+                         &r->lights,   &r->cells,   &r->grids, &r->cell_index};
     for (size_t i = 0; i < sizeof(bufs) / sizeof(bufs[0]); ++i) sv_buffer_destroy(ctx, bufs[i]);
     free(r->prim_first_index);
     free(r->prim_index_count);

@@ -10,6 +10,7 @@
 #include "sv_gpu_types.h"
 #include "sv_probes.h"
 #include "sv_scene.h"
+#include "sv_sky.h"
 #include "sv_vk.h"
 
 typedef struct sv_view {
@@ -22,15 +23,24 @@ typedef struct sv_view {
     uint32_t flags;         /* SV_FRAME_* */
     float exposure;
     uint32_t tonemap;       /* SV_TONEMAP_* */
-    bool show_cells;        /* draw the probe-cell spheres */
+    bool show_cells;        /* probe view: a sphere per probe + the grid cell outlines */
+    uint32_t probe_mode;    /* SV_PROBE_MODE_*, _MATERIAL = each material's own */
+    float normal_bias;      /* per-pixel sample offset along n, in grid spacings (default 0) */
 } sv_view;
+
+/* What the renderer uploads besides the scene (zero = defaults). */
+typedef struct sv_renderer_desc {
+    float fallback_radiance;  /* uniform radiance of probe 0 when there is no sky */
+    bool half_probes;         /* half-float probe storage (sv_gpu_probe_half) instead of float */
+    const sv_sky *sky;        /* NULL or !present: no background, no specular, constant fallback */
+} sv_renderer_desc;
 
 typedef struct sv_renderer {
     sv_context *ctx;
     VkFormat hdr_format, depth_format, output_format;
     bool encode_srgb;       /* output format is UNORM: the shader applies the sRGB curve */
 
-    sv_buffer vertices, indices, frame, materials, probes, lights, cells;
+    sv_buffer vertices, indices, frame, materials, probes, probes_half, lights, cells, grids, cell_index;
     uint32_t *prim_first_index;   /* per primitive, flattened over meshes */
     uint32_t *prim_index_count;
     int32_t *prim_vertex_offset;
@@ -38,7 +48,11 @@ typedef struct sv_renderer {
     uint32_t *mesh_prim_base;     /* per mesh: first flattened primitive */
     uint32_t sphere_first_index, sphere_index_count;
     int32_t sphere_vertex_offset;
-    uint32_t light_count, cell_count, probe_count;
+    uint32_t light_count, sphere_count, outline_count, probe_count, grid_count;
+    bool half_probes;
+    bool has_sky;
+    sv_image sky, brdf_lut;       /* prefiltered equirect mips (1x1 black without a sky), split-sum LUT */
+    VkSampler sky_sampler, lut_sampler;
 
     sv_image *textures;           /* per glTF texture (image NULL when it could not be read) */
     uint32_t texture_count;
@@ -50,7 +64,7 @@ typedef struct sv_renderer {
     VkDescriptorSet *material_sets; /* set 1 per material, the glTF default material last */
     uint32_t material_count;
     VkPipelineLayout scene_layout, tonemap_layout;
-    VkPipeline mesh_pipeline, cells_pipeline, tonemap_pipeline;
+    VkPipeline mesh_pipeline, cells_pipeline, outline_pipeline, sky_pipeline, tonemap_pipeline;
 
     sv_image hdr, depth;
     uint32_t width, height;
@@ -59,7 +73,7 @@ typedef struct sv_renderer {
 /* Uploads the scene (geometry, materials, textures, lights) and the probes, builds pipelines for
  * `output_format`. Prints a clear message and returns false on failure (call destroy anyway). */
 bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, const sv_probes *probes,
-                        VkFormat output_format, float fallback_radiance);
+                        VkFormat output_format, const sv_renderer_desc *desc);
 /* (Re)creates the HDR and depth targets at width x height. */
 bool sv_renderer_resize(sv_renderer *r, uint32_t width, uint32_t height);
 /* Records one frame. The caller has waited for the previous frame (the frame uniform is written

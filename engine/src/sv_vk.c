@@ -316,13 +316,18 @@ void sv_buffer_destroy(sv_context *ctx, sv_buffer *b) {
 
 bool sv_image_create(sv_context *ctx, uint32_t width, uint32_t height, VkFormat format,
                      VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out) {
+    return sv_image_create_mips(ctx, width, height, 1, format, usage, aspect, out);
+}
+
+bool sv_image_create_mips(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, VkFormat format,
+                          VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out) {
     memset(out, 0, sizeof(*out));
     VkImageCreateInfo info = {
         .sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO,
         .imageType = VK_IMAGE_TYPE_2D,
         .format = format,
         .extent = {width, height, 1},
-        .mipLevels = 1,
+        .mipLevels = mip_levels,
         .arrayLayers = 1,
         .samples = VK_SAMPLE_COUNT_1_BIT,
         .tiling = VK_IMAGE_TILING_OPTIMAL,
@@ -343,9 +348,10 @@ bool sv_image_create(sv_context *ctx, uint32_t width, uint32_t height, VkFormat 
         .image = out->image,
         .viewType = VK_IMAGE_VIEW_TYPE_2D,
         .format = format,
-        .subresourceRange = {aspect, 0, 1, 0, 1},
+        .subresourceRange = {aspect, 0, mip_levels, 0, 1},
     };
     VK_CHECK(vkCreateImageView(ctx->device, &view, NULL, &out->view));
+    out->mip_levels = mip_levels;
     out->format = format;
     out->width = width;
     out->height = height;
@@ -406,7 +412,7 @@ void sv_image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags asp
         .srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
         .dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
         .image = image,
-        .subresourceRange = {aspect, 0, 1, 0, 1},
+        .subresourceRange = {aspect, 0, VK_REMAINING_MIP_LEVELS, 0, 1},
     };
     vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 0, NULL, 0, NULL, 1, &b);
 }

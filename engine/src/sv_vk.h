@@ -71,6 +71,7 @@ typedef struct sv_image {
     VkImageView view;
     VkFormat format;
     uint32_t width, height;
+    uint32_t mip_levels;
 } sv_image;
 
 /* Host-visible coherent buffer (mapped) when host_visible, else device-local. size 0 is bumped
@@ -84,6 +85,9 @@ void sv_buffer_destroy(sv_context *ctx, sv_buffer *b);
 
 bool sv_image_create(sv_context *ctx, uint32_t width, uint32_t height, VkFormat format,
                      VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out);
+/* Same with `mip_levels` levels (the view covers all of them). */
+bool sv_image_create_mips(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, VkFormat format,
+                          VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out);
 void sv_image_destroy(sv_context *ctx, sv_image *img);
 
 /* One-shot command buffer: begin, (record), end + submit + wait. */

@@ -148,7 +148,7 @@ static bool write_screenshot(const char *path, const uint8_t *bgra_or_rgba, bool
     return ok;
 }
 
-int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes) {
+int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky) {
     int rc = 1;
     sv_context ctx = {0};
     sv_renderer r = {0};
@@ -185,7 +185,8 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes) {
         goto done;
     }
     if (!create_swapchain(&ctx, win, space, &sc)) goto done;
-    if (!sv_renderer_create(&r, &ctx, scene, probes, sc.format, opt->fallback_radiance) ||
+    sv_renderer_desc desc = sv_app_renderer_desc(opt, sky);
+    if (!sv_renderer_create(&r, &ctx, scene, probes, sc.format, &desc) ||
         !sv_renderer_resize(&r, sc.extent.width, sc.extent.height))
         goto done;
 
@@ -216,7 +217,7 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes) {
     uint32_t selected = 0, frame = 0;
     double last = sv_now_ms(), title_time = last, ms_avg = 0.0;
     double mouse_x = 0, mouse_y = 0;
-    bool dragging = false, prev_p = false, prev_c = false, prev_n = false;
+    bool dragging = false, prev_p = false, prev_c = false, prev_n = false, prev_m = false;
     while (!glfwWindowShouldClose(win)) {
         glfwPollEvents();
         double now = sv_now_ms();
@@ -227,7 +228,14 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes) {
 
         /* Toggles on key press edges. */
         bool p = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS, c = glfwGetKey(win, GLFW_KEY_C) == GLFW_PRESS;
-        bool n = glfwGetKey(win, GLFW_KEY_N) == GLFW_PRESS;
+        bool n = glfwGetKey(win, GLFW_KEY_N) == GLFW_PRESS, m = glfwGetKey(win, GLFW_KEY_M) == GLFW_PRESS;
+        /* M cycles the probe mode: per material -> per object -> per pixel -> off -> per material. */
+        if (m && !prev_m)
+            view.probe_mode = view.probe_mode == SV_PROBE_MODE_MATERIAL ? SV_PROBE_MODE_OBJECT
+                              : view.probe_mode == SV_PROBE_MODE_OBJECT ? SV_PROBE_MODE_PIXEL
+                              : view.probe_mode == SV_PROBE_MODE_PIXEL  ? SV_PROBE_MODE_OFF
+                                                                        : SV_PROBE_MODE_MATERIAL;
+        prev_m = m;
         if (p && !prev_p) view.debug_mode = view.debug_mode == SV_DEBUG_PROBE_COLOR ? SV_DEBUG_NONE : SV_DEBUG_PROBE_COLOR;
         if (c && !prev_c) view.show_cells = !view.show_cells;
         if (n && !prev_n && scene->object_count) selected = (selected + 1) % scene->object_count;
@@ -285,9 +293,10 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes) {
         if (now - title_time > 250.0 && scene->object_count) {
             char title[256];
             const sv_object *o = &scene->objects[selected];
-            snprintf(title, sizeof(title), "schnee-view - %.2f ms (%.0f fps) - %s%s - object '%s' probe %u", ms_avg,
+            static const char *modes[] = {"probes off", "per object", "per pixel", "per material"};
+            snprintf(title, sizeof(title), "schnee-view - %.2f ms (%.0f fps) - %s%s, %s - object '%s' probe %u", ms_avg,
                      1000.0 / ms_avg, view.debug_mode == SV_DEBUG_PROBE_COLOR ? "probe colours" : "shaded",
-                     view.show_cells ? " + cells" : "", o->name, o->probe);
+                     view.show_cells ? " + probe view" : "", modes[view.probe_mode & 3u], o->name, o->probe);
             glfwSetWindowTitle(win, title);
             title_time = now;
         }

@@ -74,6 +74,25 @@ def cube(half=0.5):
             np.zeros((len(pos), 2), np.float32), np.array(idx, np.uint32))
 
 
+def quad(size_u, size_v, normal_axis=1, sign=1.0):
+    """A two-triangle rectangle centred on the origin, normal along +/- axis `normal_axis`,
+    extents size_u, size_v along the next two axes (cyclic), CCW seen from the normal side."""
+    n = np.zeros(3)
+    n[normal_axis] = sign
+    u = np.zeros(3)
+    u[(normal_axis + 1) % 3] = 0.5 * size_u
+    v = np.zeros(3)
+    v[(normal_axis + 2) % 3] = 0.5 * size_v
+    pos = np.array([-u - v, u - v, u + v, -u + v])
+    idx = [0, 1, 2, 0, 2, 3] if np.dot(np.cross(u, v), n) > 0 else [0, 2, 1, 0, 3, 2]
+    return (pos.astype(np.float32), np.tile(n, (4, 1)).astype(np.float32),
+            np.zeros((4, 2), np.float32), np.array(idx, np.uint32))
+
+
+ROT_LOOK_DOWN = (-0.7071067811865476, 0.0, 0.0, 0.7071067811865476)  # camera -Z -> world -Y, up -> -Z
+ROT_LOOK_POS_X = (0.0, -0.7071067811865476, 0.0, 0.7071067811865476)  # camera -Z -> world +X, up +Y
+
+
 class GltfBuilder:
     """Accumulates meshes, nodes, materials into one glTF 2.0 document with one buffer."""
 
@@ -106,16 +125,18 @@ class GltfBuilder:
         return len(self.doc["accessors"]) - 1
 
     def material(self, name, base_color=(1, 1, 1, 1), sh_scale=None, ambient_term=None, emissive=(0, 0, 0),
-                 metallic=0.0, roughness=1.0):
+                 metallic=0.0, roughness=1.0, probe_mode=None):
         m = {"name": name, "pbrMetallicRoughness": {"baseColorFactor": list(base_color),
                                                      "metallicFactor": metallic, "roughnessFactor": roughness},
              "emissiveFactor": list(emissive)}
-        if sh_scale is not None or ambient_term is not None:
+        if sh_scale is not None or ambient_term is not None or probe_mode is not None:
             ext = {}
             if sh_scale is not None:
                 ext["shScale"] = sh_scale
             if ambient_term is not None:
                 ext["ambientTerm"] = ambient_term
+            if probe_mode is not None:
+                ext["probeMode"] = probe_mode
             m["extensions"] = {"VULKAN_SCHNEE_materials": ext}
             self._use("VULKAN_SCHNEE_materials")
         self.doc["materials"].append(m)
@@ -155,9 +176,17 @@ class GltfBuilder:
             {"name": name, "type": "perspective", "perspective": {"yfov": yfov, "znear": znear, "zfar": zfar}})
         return len(self.doc["cameras"]) - 1
 
-    def probe_grids(self, entries):
-        self.doc["scenes"][0].setdefault("extensions", {})["VULKAN_SCHNEE_engine_properties"] = {
-            "shProbeGrids": entries}
+    def ortho_camera(self, name, ymag, xmag=None, znear=0.01, zfar=100.0):
+        self.doc.setdefault("cameras", []).append(
+            {"name": name, "type": "orthographic",
+             "orthographic": {"xmag": xmag or ymag, "ymag": ymag, "znear": znear, "zfar": zfar}})
+        return len(self.doc["cameras"]) - 1
+
+    def probe_grids(self, entries, sky=None):
+        props = {"shProbeGrids": entries}
+        if sky is not None:
+            props["sky"] = sky
+        self.doc["scenes"][0].setdefault("extensions", {})["VULKAN_SCHNEE_engine_properties"] = props
         self._use("VULKAN_SCHNEE_engine_properties")
 
     def light(self, name, type_, color=(1, 1, 1), intensity=1.0):

@@ -1,0 +1,23 @@
+#version 450
+// Probe view: the 12 edges of every occupied grid cell as a line list (24 vertices per instance,
+// no vertex buffer). The instance buffer is the cell list of probe_cells.vert; probe.y = grid.
+#extension GL_GOOGLE_include_directive : require
+#define SV_SCENE_BINDINGS
+#include "gpu_types.glsl"
+
+struct sv_gpu_cell { vec4 center_radius; uvec4 probe; };
+layout(std430, set = 0, binding = 5) readonly buffer CellBlock { sv_gpu_cell cells[]; };
+
+const ivec2 EDGES[12] = ivec2[](ivec2(0, 1), ivec2(2, 3), ivec2(4, 5), ivec2(6, 7), ivec2(0, 2), ivec2(1, 3),
+                                ivec2(4, 6), ivec2(5, 7), ivec2(0, 4), ivec2(1, 5), ivec2(2, 6), ivec2(3, 7));
+
+void main() {
+    sv_gpu_cell c = cells[gl_InstanceIndex];
+    sv_gpu_grid g = grids[c.probe.y];
+    int e = gl_VertexIndex / 2;
+    int corner = (gl_VertexIndex & 1) == 0 ? EDGES[e].x : EDGES[e].y;
+    vec3 s = vec3(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1) - 0.5;
+    float h = g.origin_spacing.w;
+    vec3 p = c.center_radius.xyz + h * (s.x * g.axes[0].xyz + s.y * g.axes[1].xyz + s.z * g.axes[2].xyz);
+    gl_Position = frame.view_proj * vec4(p, 1.0);
+}

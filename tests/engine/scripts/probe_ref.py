@@ -1,0 +1,116 @@
+"""CPU (numpy) reference of schnee-view's probe lighting, written from the documents, not the shaders.
+
+- SH basis and irradiance: DESIGN.md §3 (bands 0..2).
+- Per-pixel interpolation: docs/engine.md "Per-pixel probes" — trilinear weights over the 8
+  neighbouring cell centres (indices clamped to the grid), times validity, times the back-face
+  weight smoothstep(-0.1, 0.1, dot(c - p, n) / spacing); cells of -1 skipped, weights
+  renormalised; all weights 0 -> the cell holding p; first grid whose box holds p wins.
+- Equirect mapping: DESIGN.md §3 (Blender d = (e.x, -e.z, e.y)).
+"""
+import numpy as np
+
+A_L2 = np.array([np.pi] + [2 * np.pi / 3] * 3 + [np.pi / 4] * 5)
+
+
+def sh_basis_l2(n):
+    x, y, z = n[..., 0], n[..., 1], n[..., 2]
+    return np.stack([
+        np.full_like(x, 0.282094792),
+        0.488602512 * y, 0.488602512 * z, 0.488602512 * x,
+        1.092548431 * x * y, 1.092548431 * y * z, 0.315391565 * (3 * z * z - 1),
+        1.092548431 * x * z, 0.546274215 * (x * x - y * y)], axis=-1)
+
+
+def irradiance(coeffs, n):
+    """E(n) for L2 radiance coefficients coeffs (9, 3); n (..., 3) unit."""
+    return np.einsum("...i,i,ic->...c", sh_basis_l2(np.asarray(n, float)), A_L2, np.asarray(coeffs, float)[:9])
+
+
+def uniform_coeffs(radiance):
+    """Radiance SH of a uniform environment: L_00 = L * Y0 * 4 pi."""
+    c = np.zeros((9, 3))
+    c[0] = np.asarray(radiance, float) * 0.282094792 * 4 * np.pi
+    return c
+
+
+def smoothstep(e0, e1, x):
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3 - 2 * t)
+
+
+def grid_irradiance(p, n, grid, origin, spacing, coeffs, validity=None):
+    """Per-pixel E(n) at points p (N, 3) with normals n (N, 3) for one axis-aligned grid
+    (grid: int (Z, Y, X) of probe indices / -1, coeffs (count, 9, 3)). Returns (E (N, 3), held (N,))."""
+    p = np.asarray(p, float)
+    n = np.asarray(n, float)
+    Z, Y, X = grid.shape
+    dims = np.array([X, Y, Z])
+    validity = np.ones(len(coeffs)) if validity is None else np.asarray(validity, float)
+    u = (p - np.asarray(origin, float)) / spacing
+    held = np.all((u >= 0) & (u < dims), axis=1)
+    c = u - 0.5
+    i0 = np.floor(c).astype(int)
+    f = c - i0
+    e = np.zeros((len(p), 3))
+    wsum = np.zeros(len(p))
+    for k in range(8):
+        o = np.array([k & 1, (k >> 1) & 1, (k >> 2) & 1])
+        ci = np.clip(i0 + o, 0, dims - 1)
+        idx = grid[ci[:, 2], ci[:, 1], ci[:, 0]]
+        w = np.prod(np.where(o == 1, f, 1 - f), axis=1)
+        centre = np.asarray(origin, float) + (ci + 0.5) * spacing
+        t = np.einsum("ij,ij->i", centre - p, n) / spacing
+        w = w * smoothstep(-0.1, 0.1, t) * np.where(idx >= 0, validity[np.maximum(idx, 0)], 0.0)
+        w = np.where(idx >= 0, w, 0.0)
+        ek = np.stack([irradiance(coeffs[j], n[i]) if j >= 0 else np.zeros(3) for i, j in enumerate(idx)])
+        e += w[:, None] * ek
+        wsum += w
+    out = np.where(wsum[:, None] > 1e-6, e / np.maximum(wsum, 1e-30)[:, None], 0.0)
+    # Every weight 0: the cell holding p alone (the per-object rule).
+    cell = np.clip(np.floor(u).astype(int), 0, dims - 1)
+    own = grid[cell[:, 2], cell[:, 1], cell[:, 0]]
+    for i in np.nonzero(held & (wsum <= 1e-6))[0]:
+        out[i] = irradiance(coeffs[own[i]], n[i]) if own[i] >= 0 else 0.0
+    held = held & ((wsum > 1e-6) | (own >= 0))
+    return out, held
+
+
+def sky_uv(d):
+    """Equirect (u, v) in [0, 1] of engine-space unit directions d (..., 3)."""
+    phi = np.arctan2(-d[..., 2], d[..., 0])
+    return (np.pi - phi) / (2 * np.pi), np.arccos(np.clip(d[..., 1], -1, 1)) / np.pi
+
+
+def sample_equirect(img, d):
+    """Bilinear lookup (u wraps, v clamps) of an (H, W, 3) equirect image, as a GPU sampler does."""
+    h, w = img.shape[:2]
+    u, v = sky_uv(d)
+    x = u * w - 0.5
+    y = v * h - 0.5
+    x0 = np.floor(x).astype(int)
+    y0 = np.floor(y).astype(int)
+    tx, ty = (x - x0)[..., None], (y - y0)[..., None]
+    out = 0
+    for dy in (0, 1):
+        for dx in (0, 1):
+            xi = (x0 + dx) % w
+            yi = np.clip(y0 + dy, 0, h - 1)
+            wgt = (tx if dx else 1 - tx) * (ty if dy else 1 - ty)
+            out = out + wgt * img[yi, xi]
+    return out
+
+
+def equirect_dirs(w, h):
+    """Engine-space direction of each texel centre of a w x h panorama (DESIGN.md §3)."""
+    i, r = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+    phi = np.pi - 2 * np.pi * i / w
+    th = np.pi * r / h
+    bx, by, bz = np.sin(th) * np.cos(phi), np.sin(th) * np.sin(phi), np.cos(th)
+    return np.stack([bx, bz, -by], axis=-1), (2 * np.pi / w) * (np.cos(th - np.pi / (2 * h)) - np.cos(th + np.pi / (2 * h)))
+
+
+def project_l2(img):
+    """Radiance SH (9, 3) of an equirect image with exact per-pixel solid angles (DESIGN.md §3)."""
+    h, w = img.shape[:2]
+    d, dw = equirect_dirs(w, h)
+    return np.einsum("hwi,hw,hwc->ic", sh_basis_l2(d), dw, img)

@@ -1,0 +1,149 @@
+"""Per-pixel probe lighting (DESIGN.md §7 second mode, docs/engine.md "Per-pixel probes").
+
+Large quads seen by orthographic cameras, so every pixel centre's world point is known exactly.
+Materials are white with shScale 1 and ambientTerm 0, so the EXR pixel is max(E, 0) / π; the
+expected E comes from tests/engine/scripts/probe_ref.py, a numpy implementation of the documented
+interpolation (trilinear, empty cells skipped, renormalised, back-face weights) and of DESIGN.md §3.
+"""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent / "scripts"))
+import probe_ref as ref  # noqa: E402
+import scenegen as sg  # noqa: E402
+import viewer  # noqa: E402
+
+N = 33  # odd: the centre pixel's centre is exactly the camera axis
+FALLBACK = 0.2  # schnee-view's default fallback radiance (docs/engine.md)
+
+
+def random_probes(count, seed):
+    rng = np.random.default_rng(seed)
+    c = rng.normal(0.0, 0.3, (count, 9, 3))
+    c[:, 0] = rng.uniform(1.0, 4.0, (count, 3))  # positive, varied L0
+    return c
+
+
+def write_grid(d, name, coeffs, grid, origin, spacing):
+    (d / "sh_coeffs").mkdir(exist_ok=True)
+    sg.write_shprobe_v1(d / "sh_coeffs" / f"{name}.shprobe", coeffs, grid, origin, spacing)
+    Z, Y, X = grid.shape
+    return sg.grid_entry(name, f"sh_coeffs/{name}.shprobe", len(coeffs), origin, (X, Y, Z), spacing)
+
+
+def down_camera_points(cx, cz, y, mag):
+    """World points of the N x N pixel centres of the look-down ortho camera (ymag = xmag = mag)."""
+    t = (2 * (np.arange(N) + 0.5) / N - 1) * mag
+    xs = cx + t                      # column i -> +x (camera right)
+    zs = cz + t                      # row j (top = 0) -> +z (camera up is -z)
+    X, Zz = np.meshgrid(xs, zs)
+    return np.stack([X, np.full_like(X, y), Zz], axis=-1)
+
+
+# Grid: 4 x 2 x 4 cells of 1 m from the origin, holes in the bottom layer.
+GRID = np.arange(32, dtype=np.int32).reshape(2, 4, 4).transpose(1, 0, 2).copy()  # (Z, Y, X)
+GRID[1, 0, 2] = -1
+GRID[3, 0, 0] = -1
+GRID[2, 0, 3] = -1
+COEFFS = random_probes(32, 11)
+
+
+def floor_scene(d, plane_y, centre, size, mode=None, extra=()):
+    entry = write_grid(d, "probes", COEFFS, GRID, (0, 0, 0), 1.0)
+    b = sg.GltfBuilder()
+    m = b.material("white", sh_scale=1.0, ambient_term=0.0, probe_mode=mode)
+    b.node("Floor", mesh=b.mesh("floor", sg.quad(size, size, 1), m), translation=(centre[0], plane_y, centre[1]))
+    b.node("Camera", camera=b.ortho_camera("top", size / 2), translation=(centre[0], plane_y + 3, centre[1]),
+           rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids([entry])
+    return b.write(d / "floor.gltf")
+
+
+def render(scene, out, *args):
+    viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", N, "--height", N, *args))
+    return viewer.read_image(out)
+
+
+def test_interpolation_equals_cpu_trilinear(tmp_path):
+    # Floor at y = 0.1 over the whole grid and 0.5 m beyond: holes, clamping at the faces, and the
+    # fallback outside the grid. The bottom-layer centres (y = 0.5) are 0.4 spacings above the
+    # floor: back-face weight 1, so this is the plain renormalised trilinear formula.
+    scene = floor_scene(tmp_path, 0.1, (2.0, 2.0), 5.0, mode="pixel")
+    img = render(scene, tmp_path / "pp.exr")
+    p = down_camera_points(2.0, 2.0, 0.1, 2.5).reshape(-1, 3)
+    n = np.tile([0.0, 1.0, 0.0], (len(p), 1))
+    e, held = ref.grid_irradiance(p, n, GRID, (0, 0, 0), 1.0, COEFFS)
+    e[~held] = np.pi * FALLBACK  # outside the grid: fallback probe, E = π·0.2
+    expected = (np.maximum(e, 0) / np.pi).reshape(N, N, 3)
+    # Float32 on the GPU vs float64 here: measured max abs error 1.7e-6 (pixel values up to 1.2).
+    err = np.abs(img - expected)
+    assert err.max() < 1e-4 + 1e-4 * np.abs(expected).max(), f"max abs error {err.max():.3g}"
+    assert held.sum() > 0.5 * N * N and (~held).sum() > 50
+    # The image really varies across the floor (a per-object render is one colour).
+    assert np.ptp(img[held.reshape(N, N)][:, 0]) > 0.3
+
+
+def test_material_mode_cli_override_and_off(tmp_path):
+    scene = floor_scene(tmp_path, 0.1, (2.0, 2.0), 5.0, mode="pixel")
+    by_material = render(scene, tmp_path / "m.exr")
+    forced = render(scene, tmp_path / "f.exr", "--probe-mode", "pixel")
+    assert np.array_equal(by_material, forced)
+    obj = render(scene, tmp_path / "o.exr", "--probe-mode", "object")
+    # Per object: one probe for the whole floor (its centre (2, 0.1, 2) is in cell (2, 0, 2)).
+    assert np.ptp(obj[..., 0]) < 1e-5
+    off = render(scene, tmp_path / "off.exr", "--probe-mode", "off")
+    assert np.allclose(off, FALLBACK, atol=1e-6)  # fallback probe: E/π = 0.2 everywhere
+
+
+def test_half_storage_matches_float(tmp_path):
+    scene = floor_scene(tmp_path, 0.1, (2.0, 2.0), 5.0, mode="pixel")
+    f = render(scene, tmp_path / "f.exr")
+    h = render(scene, tmp_path / "h.exr", "--probe-storage", "half")
+    # binary16 keeps 11 significant bits: relative rounding <= 2^-11 = 4.9e-4 per coefficient.
+    assert np.abs(h - f).max() <= 2e-3 * np.abs(f).max()
+    assert np.abs(h - f).max() > 0  # it really is a different storage
+
+
+def test_centre_agrees_with_per_object(tmp_path):
+    # A 3 m floor at the bottom-layer centre height, centred on the centre of cell (1, 0, 1):
+    # the grid (1 m) is finer than the object. Per object the floor gets probe GRID[1, 0, 1];
+    # per pixel the centre pixel sits exactly on that probe's centre (trilinear weight 1).
+    scene = floor_scene(tmp_path, 0.5, (1.5, 1.5), 3.0)
+    obj = render(scene, tmp_path / "o.exr", "--probe-mode", "object")
+    pix = render(scene, tmp_path / "p.exr", "--probe-mode", "pixel")
+    c = N // 2
+    want = np.maximum(ref.irradiance(COEFFS[GRID[1, 0, 1]], [0, 1, 0]), 0) / np.pi
+    assert np.allclose(obj[c, c], want, rtol=1e-5)
+    assert np.allclose(pix[c, c], want, rtol=1e-4), (pix[c, c], want)
+    # Away from the centre the two modes differ: per pixel follows the neighbouring probes.
+    assert np.abs(pix[0, 0] - obj[0, 0]).max() > 0.05
+
+
+def test_wall_does_not_leak(tmp_path):
+    # A row of four 1 m cells along x; a wall at x = 2 separates a dark room (cells 0, 1: uniform
+    # radiance 0.05) from a bright one (cells 2, 3: radiance 5). The quad is the wall's dark face at
+    # x = 1.99, facing -x, seen from the dark side. Plain trilinear at x = 1.99 would give the bright
+    # probe weight 0.49 (pixel ~2.5); the bright centre (x = 2.5) lies 0.51 spacings behind the
+    # face, so its back-face weight is 0 and the face stays exactly as dark as per object.
+    grid = np.array([[[0, 1, 2, 3]]], np.int32)
+    coeffs = np.stack([ref.uniform_coeffs(r) for r in (0.05, 0.05, 5.0, 5.0)])
+    entry = write_grid(tmp_path, "rooms", coeffs, grid, (0, 0, 0), 1.0)
+    b = sg.GltfBuilder()
+    m = b.material("white", sh_scale=1.0, ambient_term=0.0)
+    b.node("Wall", mesh=b.mesh("wall", sg.quad(1.0, 1.0, 0, -1.0), m), translation=(1.99, 0.5, 0.5))
+    b.node("Camera", camera=b.ortho_camera("side", 0.45), translation=(0.5, 0.5, 0.5), rotation=sg.ROT_LOOK_POS_X)
+    b.probe_grids([entry])
+    scene = b.write(tmp_path / "wall.gltf")
+    obj = render(scene, tmp_path / "o.exr", "--probe-mode", "object")
+    pix = render(scene, tmp_path / "p.exr", "--probe-mode", "pixel")
+    assert np.allclose(obj, 0.05, rtol=1e-5)  # per object: the dark cell (1, 0, 0)
+    assert pix.max() <= obj.max() * (1 + 1e-5), f"per pixel leaks: max {pix.max():.4g} vs {obj.max():.4g}"
+    # The case matters: without the back-face weight the numpy formula gives ~2.5 at the centre.
+    p = np.array([[1.99, 0.5, 0.5]])
+    f = 1.99 - 0.5 - 1  # fractional position between the centres x = 1.5 and 2.5
+    assert (1 - f) * 0.05 + f * 5.0 > 2.0
+    e, _ = ref.grid_irradiance(p, np.array([[-1.0, 0, 0]]), grid, (0, 0, 0), 1.0, coeffs)
+    assert np.allclose(e / np.pi, 0.05, rtol=1e-6)
