@@ -49,7 +49,7 @@ static void fail_msg(const char *what) { fprintf(stderr, "schnee-view: error: %s
 /* ---- geometry ------------------------------------------------------------------------------- */
 
 /* Appends a UV sphere of radius 1 (for the probe-cell view) to the vertex/index arrays. */
-enum { SPHERE_SEG = 16, SPHERE_RINGS = 8 };
+enum { SPHERE_SEG = 32, SPHERE_RINGS = 16 };
 
 static bool upload_geometry(sv_renderer *r, const sv_gltf *g) {
     size_t prims = 0, verts = 0, idx = 0;

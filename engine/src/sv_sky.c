@@ -39,25 +39,30 @@ static float g1_schlick(float x, float k) { return x / (x * (1.0f - k) + k); }
 
 float *sv_brdf_lut(uint32_t size, uint32_t samples) {
     float *lut = malloc((size_t)size * size * 2 * sizeof(float));
-    if (!lut) return NULL;
+    float *hs = malloc((size_t)samples * 3 * sizeof(float)); /* the row's half vectors, n = +z */
+    if (!lut || !hs) {
+        free(lut);
+        free(hs);
+        return NULL;
+    }
     const float n[3] = {0, 0, 1};
     for (uint32_t j = 0; j < size; ++j) {
         float rough = ((float)j + 0.5f) / (float)size;
         float alpha = rough * rough, k = alpha / 2.0f;
+        for (uint32_t s = 0; s < samples; ++s) ggx_half((float)s / (float)samples, radical_inverse(s), alpha, n, hs + 3 * s);
         for (uint32_t i = 0; i < size; ++i) {
             float nv = ((float)i + 0.5f) / (float)size;
             float v[3] = {sqrtf(1.0f - nv * nv), 0.0f, nv};
             double a = 0.0, b = 0.0;
             for (uint32_t s = 0; s < samples; ++s) {
-                float h[3];
-                ggx_half((float)s / (float)samples, radical_inverse(s), alpha, n, h);
+                const float *h = hs + 3 * s;
                 float vh = v[0] * h[0] + v[1] * h[1] + v[2] * h[2];
-                float l[3] = {2 * vh * h[0] - v[0], 2 * vh * h[1] - v[1], 2 * vh * h[2] - v[2]};
-                float nl = l[2], nh = h[2];
+                float nl = 2 * vh * h[2] - v[2], nh = h[2];
                 if (nl <= 0.0f || vh <= 0.0f) continue;
                 float g = g1_schlick(nl, k) * g1_schlick(nv, k);
                 float gv = g * vh / (nh * nv);
-                float fc = powf(1.0f - vh, 5.0f);
+                float x = 1.0f - vh, x2 = x * x;
+                float fc = x2 * x2 * x;
                 a += (1.0 - fc) * gv;
                 b += fc * gv;
             }
@@ -65,6 +70,7 @@ float *sv_brdf_lut(uint32_t size, uint32_t samples) {
             lut[((size_t)j * size + i) * 2 + 1] = (float)(b / samples);
         }
     }
+    free(hs);
     return lut;
 }
 

@@ -18,7 +18,7 @@
 
 #define SV_SKY_MAX_MIPS 7
 #define SV_BRDF_LUT_SIZE 64
-#define SV_BRDF_LUT_SAMPLES 512
+#define SV_BRDF_LUT_SAMPLES 4096
 
 typedef struct sv_sky {
     bool present;

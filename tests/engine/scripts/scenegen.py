@@ -211,3 +211,23 @@ def grid_entry(name, uri, count, origin, dims, spacing, max_band=2):
     return {"name": name, "uri": uri, "probeCount": count, "maxBand": max_band,
             "gridOrigin": list(map(float, origin)), "gridDims": list(map(int, dims)), "gridSpacing": float(spacing),
             "gridAxes": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}
+
+
+def write_exr(path, img):
+    """Writes an (H, W, 3) float image as a 32-bit float EXR: numpy -> PFM -> oiiotool."""
+    import subprocess
+    img = np.asarray(img, np.float32)
+    h, w = img.shape[:2]
+    pfm = Path(str(path) + ".pfm")
+    # PFM: rows bottom to top, little-endian (negative scale).
+    pfm.write_bytes(b"PF\n%d %d\n-1.0\n" % (w, h) + np.ascontiguousarray(img[::-1]).astype("<f4").tobytes())
+    subprocess.run(["oiiotool", str(pfm), "-d", "float", "-o", str(path)], check=True, capture_output=True)
+    pfm.unlink()
+    return Path(path)
+
+
+def sky_entry(uri, sh):
+    """The VULKAN_SCHNEE_engine_properties.sky member (docs/export.md)."""
+    sh = np.asarray(sh, float).reshape(-1, 3)
+    band = int(round(np.sqrt(len(sh)))) - 1
+    return {"uri": uri, "maxBand": band, "sh": [[float(v) for v in row] for row in sh]}
