@@ -58,7 +58,9 @@ bool grid_irradiance(vec3 p_surface, vec3 n, out vec3 e_out) {
         vec3 rel = p - gr.origin_spacing.xyz;
         vec3 u = vec3(dot(rel, gr.axes[0].xyz), dot(rel, gr.axes[1].xyz), dot(rel, gr.axes[2].xyz)) / h;
         ivec3 dims = ivec3(gr.dims.xyz);
-        if (any(lessThan(u, vec3(0.0))) || any(greaterThanEqual(u, vec3(dims)))) continue;
+        // The box holds p with a margin of 1/100 cell: walls and floors modelled exactly on the
+        // grid's faces would otherwise flicker between the grid and the fallback (float noise).
+        if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, vec3(dims) + 0.01))) continue;
         vec3 c = u - 0.5;
         ivec3 i0 = ivec3(floor(c));
         vec3 f = c - vec3(i0);
@@ -95,7 +97,7 @@ bool grid_irradiance(vec3 p_surface, vec3 n, out vec3 e_out) {
             e_out = e / wsum;
             return true;
         }
-        ivec3 cell = clamp(ivec3(floor(u)), ivec3(0), dims - 1);
+        ivec3 cell = clamp(ivec3(floor(u)), ivec3(0), dims - 1); // margin points: the face cell
         int idx = cell_probe[off + uint(cell.x + cell.y * dims.x + cell.z * dims.x * dims.y)];
         if (idx >= 0) {
             uint pi = gr.base.x + uint(idx);

@@ -35,6 +35,9 @@ import numpy as np
 from . import compat, native, render_settings, scene_export
 
 DEFAULT_OUTPUT = "//sh_coeffs/probes.shprobe"
+# The world (sky) alone, captured by a volume bake next to the probe files; the glTF exporter
+# copies it and lists it as VULKAN_SCHNEE_engine_properties.sky (docs/export.md).
+SKY_FILE_NAME = "sky.exr"
 DEBUG_TEXT_NAME = "debug_probe.txt"
 # Where Bake SH at Cursor puts its single-probe file when probes.shprobe holds a full bake:
 # a subfolder, so the glTF exporter (which scans sh_coeffs/*.shprobe) never exports it.
@@ -70,6 +73,8 @@ class BakeSettings:
     default_sh_scale: float = 1.0
     default_ambient: float = 0.1
     output_path: str = DEFAULT_OUTPUT
+    capture_sky: bool = True          # volume bakes also render the world alone to sky.exr
+    sky_resolution: int = 512         # sky.exr width; height = width / 2
 
     @classmethod
     def from_props(cls, props, **overrides) -> "BakeSettings":
@@ -102,6 +107,8 @@ class BakeSettings:
             bad("clamps must be >= 0 (0 = no clamping)")
         if not self.output_path:
             bad("the output path is empty")
+        if self.sky_resolution < 4 or self.sky_resolution % 2:
+            bad(f"Sky Resolution must be an even width >= 4 (got {self.sky_resolution})")
 
 
 @dataclass
@@ -167,6 +174,7 @@ class ProbeBake:
         self._tmpdir = None
         self._t0 = None
         self._closed = False
+        self._sky_exr = None                # rendered sky (temporary folder) until finish()
 
     # ------------------------------------------------------------------ prepare
     @property
@@ -341,12 +349,44 @@ class ProbeBake:
         eta = per / max(self.done, 1) * (self.total - self.done)
         return f"Schnee bake: probe {self.done}/{self.total}, {elapsed:.1f} s elapsed, ~{eta:.0f} s left"
 
+    def capture_sky(self):
+        """Render the world alone (every object hidden from the render) as an equirect panorama of
+        ``sky_resolution`` x ``sky_resolution / 2`` from the probe camera (DESIGN.md §3's mapping).
+        Works for any world node setup, since Cycles renders the world itself. Objects' render
+        visibility is restored right after the render."""
+        s, scene = self.settings, self.scene
+        t0 = time.perf_counter()
+        hidden = [(ob, ob.hide_render) for ob in scene.objects if ob is not self._camera]
+        render = scene.render
+        res = (render.resolution_x, render.resolution_y, render.resolution_percentage)
+        try:
+            for ob, _ in hidden:
+                ob.hide_render = True
+            render.resolution_x, render.resolution_y = s.sky_resolution, s.sky_resolution // 2
+            render.resolution_percentage = 100
+            self._camera.location = (0.0, 0.0, 0.0)
+            bpy.ops.render.render(write_still=False, layer=self.view_layer.name, scene=scene.name)
+            image = bpy.data.images.get("Render Result")
+            if image is None:
+                raise BakeError("Cycles produced no render result for the sky")
+            path = os.path.join(self._tmpdir, SKY_FILE_NAME)
+            image.save_render(path, scene=scene)
+        finally:
+            for ob, was in hidden:
+                if ob.hide_render != was:
+                    ob.hide_render = was
+            render.resolution_x, render.resolution_y, render.resolution_percentage = res
+        self._sky_exr = path
+        self.timings["sky"] = time.perf_counter() - t0
+
     # ------------------------------------------------------------------ end
     def finish(self) -> BakeResult:
         """Write every output file (all or none), restore the scene and return the result."""
         try:
             if self.done < self.total:
                 raise BakeError(f"finish() after {self.done} of {self.total} probes")
+            if self.mode == "VOLUMES" and self.settings.capture_sky and self._sky_exr is None:
+                self.capture_sky()
             files = self._write_outputs()
         finally:
             self._close()
@@ -391,6 +431,11 @@ class ProbeBake:
                                      default_sh_scale=s.default_sh_scale,
                                      default_ambient=s.default_ambient)
                 pending.append((tmp, t.path))
+            if self._sky_exr is not None:
+                final = os.path.join(os.path.dirname(_abspath(s.output_path)), SKY_FILE_NAME)
+                tmp = final + ".partial"
+                shutil.copyfile(self._sky_exr, tmp)
+                pending.append((tmp, final))
             if self.mode == "CURSOR":
                 tmp = self.debug_text_path + ".partial"
                 with open(tmp, "w", encoding="utf-8") as fh:

@@ -11,6 +11,8 @@ it gathers the scene. Contract: DESIGN.md §5; user documentation: docs/export.m
   "VS Movable Diffuse" group node; also gives the glTF material the group's base colour, which the
   exporter cannot see inside a node group.
 - ``gather_tree_filter_tag_hook``: objects of the probe-volume collection are left out.
+- The sky the bake captured (``sh_coeffs/sky.exr`` next to the .blend) is copied likewise and
+  listed as ``VULKAN_SCHNEE_engine_properties.sky`` with its radiance SH (L2, engine space).
 
 Both extensions are optional (``extensionsUsed`` only). The "Export Engine Properties" checkbox
 (Scene.schnee_gltf_export.enabled, on by default) switches off the two extensions and the copy.
@@ -37,6 +39,11 @@ GRID_AXES = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]  # rows: grid X, Y, Z axes; v1 is 
 # Per-export state lives in export_settings under these keys (a fresh dict per export).
 _KEY_GRIDS = "schnee_probe_grids"
 _KEY_WARNINGS = "schnee_warnings"
+_KEY_SKY = "schnee_sky"
+SKY_FILE = "sky.exr"  # bake_core.SKY_FILE_NAME
+SKY_MAX_BAND = 2
+PROBE_MODE_PROPERTY = "schnee_probe_mode"
+PROBE_MODES = ("off", "object", "pixel")
 
 
 # --------------------------------------------------------------------------------------------
@@ -182,7 +189,7 @@ def _copy_atomic(src, dst):
     """Copy ``src`` to ``dst`` through a temporary file in the same folder (never a partial file)."""
     if os.path.exists(dst) and os.path.samefile(src, dst):
         return  # exporting next to the .blend: the file is already where it belongs
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=SH_SUFFIX, dir=os.path.dirname(dst))
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.splitext(dst)[1], dir=os.path.dirname(dst))
     try:
         with os.fdopen(fd, "wb") as out, open(src, "rb") as inp:
             shutil.copyfileobj(inp, out)
@@ -270,15 +277,51 @@ def collect_probe_grids(export_settings):
     return entries
 
 
+def collect_sky(export_settings):
+    """The ``sky`` member (or None): ``sh_coeffs/sky.exr`` next to the .blend, projected to L2
+    radiance SH by the native code (negative texels clamped, as the bake does) and copied next to
+    the export. Cached per export like the grids."""
+    if _KEY_SKY in export_settings:
+        return export_settings[_KEY_SKY]
+    export_settings[_KEY_SKY] = None
+    src_dir = _blend_sh_dir()
+    src = os.path.join(src_dir, SKY_FILE) if src_dir else None
+    if src is None or not os.path.isfile(src):
+        return None
+    try:
+        from . import native
+        sh = native.project_file(src, SKY_MAX_BAND, negative="clamp")
+    except Exception as exc:  # noqa: BLE001 - unreadable image, missing module, ...
+        _warn(export_settings, f"skipped the sky {src}: {exc}")
+        return None
+    dst_dir = os.path.join(os.path.dirname(os.path.abspath(export_settings["gltf_filepath"])), SH_DIR)
+    try:
+        os.makedirs(dst_dir, exist_ok=True)
+        _copy_atomic(src, os.path.join(dst_dir, SKY_FILE))
+    except OSError as exc:
+        _warn(export_settings, f"skipped the sky {src}: cannot copy to {dst_dir}: {exc}")
+        return None
+    sky = {"uri": SH_DIR + "/" + SKY_FILE, "maxBand": SKY_MAX_BAND,
+           "sh": [[_f32(v) for v in row] for row in sh]}
+    export_settings[_KEY_SKY] = sky
+    return sky
+
+
 def material_settings(blender_material):
     """``{"shScale", "ambientTerm"}`` of the material's "VS Movable Diffuse" node, or None."""
     node = nodes.find_movable_diffuse_node(blender_material)
     if node is None:
         return None
-    return {
+    out = {
         "shScale": _f32(node.inputs[nodes.INPUT_SH_SCALE].default_value),
         "ambientTerm": _f32(node.inputs[nodes.INPUT_AMBIENT].default_value),
     }
+    # Probe lighting mode (docs/engine.md): the material's custom property "schnee_probe_mode",
+    # "off" | "object" | "pixel"; absent = the engine's default (object).
+    mode = blender_material.get(PROBE_MODE_PROPERTY) if hasattr(blender_material, "get") else None
+    if isinstance(mode, str) and mode in PROBE_MODES:
+        out["probeMode"] = mode
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -306,14 +349,17 @@ class glTF2ExportUserExtension:
         if not self.enabled:
             return
         grids = collect_probe_grids(export_settings)
+        sky = collect_sky(export_settings)
         if gltf2_scene.extensions is None:
             gltf2_scene.extensions = {}
-        if not grids:
+        if not grids and sky is None:
             gltf2_scene.extensions.pop(EXT_ENGINE, None)
             return
         # A fresh payload per call: replacing (not appending) keeps a repeated call harmless.
-        gltf2_scene.extensions[EXT_ENGINE] = _make_extension(
-            EXT_ENGINE, {"shProbeGrids": copy.deepcopy(grids)})
+        payload = {"shProbeGrids": copy.deepcopy(grids)}
+        if sky is not None:
+            payload["sky"] = copy.deepcopy(sky)
+        gltf2_scene.extensions[EXT_ENGINE] = _make_extension(EXT_ENGINE, payload)
 
     def gather_material_hook(self, gltf2_material, blender_material, export_settings):
         node = nodes.find_movable_diffuse_node(blender_material)

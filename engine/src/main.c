@@ -32,6 +32,7 @@ static void usage(FILE *f) {
             "  --no-sky                 ignore the scene's sky (no background, no specular, constant fallback)\n"
             "  --no-specular            no sky reflections (image-based specular)\n"
             "  --no-renorm              do not scale sky reflections by probe / sky irradiance\n"
+            "  --look FX FY FZ AX AY AZ  camera at F looking at A (0.8 rad vertical fov) instead of the scene's\n"
             "  --write-brdf-lut PATH    write the engine's split-sum BRDF LUT (R = A, G = B) to PATH and exit\n"
             "  --fallback-radiance V    uniform radiance of fallback probe 0 (default %.2f)\n"
             "  --move NODE X Y Z        set a node's translation before rendering (objects are re-assigned)\n"
@@ -159,6 +160,12 @@ static int parse_args(int argc, char **argv, sv_options *o) {
             o->no_specular = true;
         } else if (strcmp(a, "--no-renorm") == 0) {
             o->no_renorm = true;
+        } else if (strcmp(a, "--look") == 0) {
+            NEED(6);
+            for (int k = 0; k < 6; ++k)
+                if (!parse_float(argv[i + 1 + k], k < 3 ? &o->look_from[k] : &o->look_at[k - 3])) BAD_VALUE(argv[i + 1 + k]);
+            o->look = true;
+            i += 6;
         } else if (strcmp(a, "--write-brdf-lut") == 0) {
             NEED(1);
             o->write_brdf_lut = argv[++i];
@@ -223,6 +230,15 @@ bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *
     if (opt->no_specular) v->flags |= SV_FRAME_NO_SPECULAR;
     if (opt->no_renorm) v->flags |= SV_FRAME_NO_RENORM;
     const sv_gltf *g = scene->gltf;
+    if (opt->look) {
+        float up[3] = {0, 1, 0};
+        memcpy(v->camera_pos, opt->look_from, sizeof(v->camera_pos));
+        sv_mat4_look_at(v->camera_pos, opt->look_at, up, v->view);
+        v->yfov = 0.8f;
+        v->znear = 0.05f;
+        v->zfar = 0.0f; /* infinite */
+        return true;
+    }
     int32_t cam = -1;
     if (opt->camera) {
         cam = sv_gltf_find_camera(g, opt->camera);

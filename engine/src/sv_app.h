@@ -40,6 +40,8 @@ typedef struct sv_options {
     bool no_renorm;            /* --no-renorm: sky specular not scaled by probe / sky irradiance */
     bool no_sky;               /* --no-sky: ignore the glTF's sky */
     const char *write_brdf_lut; /* --write-brdf-lut PATH: write the split-sum LUT and exit */
+    bool look;                 /* --look FROM_X FROM_Y FROM_Z AT_X AT_Y AT_Z: free camera (0.8 rad fov) */
+    float look_from[3], look_at[3];
 } sv_options;
 
 /* Camera for the first frame: --camera, else the first glTF camera, else one framing the scene

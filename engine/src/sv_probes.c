@@ -289,7 +289,7 @@ sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, ui
             for (int k = 0; k < 3; ++k)
                 s->center_radius[k] = f->positions ? f->positions[3 * (size_t)p + k] : a[3] > 0 ? a[k] / a[3] : 0.0f;
             /* A probe no cell maps to and without a position has nowhere to be drawn: radius 0. */
-            s->center_radius[3] = (f->positions || a[3] > 0) ? 0.2f * f->grid_spacing : 0.0f;
+            s->center_radius[3] = (f->positions || a[3] > 0) ? 0.1f * f->grid_spacing : 0.0f;
             s->probe[0] = pi;
             s->probe[1] = g;
         }

@@ -63,7 +63,7 @@ typedef struct sv_gpu_cell {
 _Static_assert(sizeof(sv_gpu_cell) == 32, "sv_gpu_cell must match probe_cells.vert");
 
 /* One sphere per probe (at its v2 position, else the mean centre of the cells that map to it;
- * radius 0.2 x the grid spacing), then one entry per occupied cell (its centre, for the
+ * radius 0.1 x the grid spacing), then one entry per occupied cell (its centre, for the
  * outlines). Caller frees. */
 sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, uint32_t *cell_count);
 

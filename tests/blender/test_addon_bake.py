@@ -157,8 +157,9 @@ def test_bake_py_per_volume_files(scenes, tmp_path):
     blend = copy_blend(scenes, "two_volumes.blend", tmp_path)
     proc = bake_cli(blend, "--min-cell-size", 2, "--max-cell-size", 2, "--panorama-resolution", 16,
                     "--samples", 1, "--per-volume-files", "on", check=True)
-    files = sorted(p.name for p in (tmp_path / "sh_coeffs").iterdir())
+    files = sorted(p.name for p in (tmp_path / "sh_coeffs").iterdir() if p.suffix == ".shprobe")
     assert files == ["East.shprobe", "West_Wing.shprobe"], proc.stdout
+    assert (tmp_path / "sh_coeffs" / "sky.exr").is_file()  # one sky for all volumes (issue 6)
     for name in files:
         f = native.read_shprobe(str(tmp_path / "sh_coeffs" / name))
         assert f.probe_count == 4 and tuple(f.grid_dims) == (2, 1, 2)

@@ -11,7 +11,7 @@ import probe_ref as ref  # noqa: E402
 import scenegen as sg  # noqa: E402
 import viewer  # noqa: E402
 
-N = 121
+N = 241
 MAG = 1.5
 CX, CZ = 1.5, 1.0
 OUTLINE = np.array([0.9, 0.75, 0.2])  # shaders/probe_outline.frag
@@ -46,7 +46,7 @@ def test_spheres_show_each_probes_irradiance(tmp_path):
     viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", N, "--height", N, "--probe-view"))
     img = viewer.read_image(out)
     X, Z = pixel_xz()
-    r = 0.2  # 0.2 x spacing (docs/engine.md)
+    r = 0.1  # 0.1 x spacing (docs/engine.md)
     # Probe 0 maps three cells: one sphere at their mean centre (1.5, 0.5, 0.5); probe 1 at (0.5, 0.5, 1.5).
     for probe, (cx, cz) in [(0, (1.5, 0.5)), (1, (0.5, 1.5))]:
         dx, dz = X - cx, Z - cz

@@ -2,7 +2,8 @@
 
 - SH basis and irradiance: DESIGN.md §3 (bands 0..2).
 - Per-pixel interpolation: docs/engine.md "Per-pixel probes" — trilinear weights over the 8
-  neighbouring cell centres (indices clamped to the grid), times validity, times the back-face
+  neighbouring cell centres (indices clamped to the grid; the box holds p with a 0.01-cell
+  margin), times validity, times the back-face
   weight smoothstep(-0.1, 0.1, dot(c - p, n) / spacing); cells of -1 skipped, weights
   renormalised; all weights 0 -> the cell holding p; first grid whose box holds p wins.
 - Equirect mapping: DESIGN.md §3 (Blender d = (e.x, -e.z, e.y)).
@@ -47,7 +48,7 @@ def grid_irradiance(p, n, grid, origin, spacing, coeffs, validity=None):
     dims = np.array([X, Y, Z])
     validity = np.ones(len(coeffs)) if validity is None else np.asarray(validity, float)
     u = (p - np.asarray(origin, float)) / spacing
-    held = np.all((u >= 0) & (u < dims), axis=1)
+    held = np.all((u >= -0.01) & (u <= dims + 0.01), axis=1)  # 1/100-cell margin (docs/engine.md)
     c = u - 0.5
     i0 = np.floor(c).astype(int)
     f = c - i0
