@@ -147,3 +147,12 @@ def test_wall_does_not_leak(tmp_path):
     assert (1 - f) * 0.05 + f * 5.0 > 2.0
     e, _ = ref.grid_irradiance(p, np.array([[-1.0, 0, 0]]), grid, (0, 0, 0), 1.0, coeffs)
     assert np.allclose(e / np.pi, 0.05, rtol=1e-6)
+
+
+def test_bad_probe_mode_is_a_clear_error(tmp_path):
+    scene = floor_scene(tmp_path, 0.1, (2.0, 2.0), 5.0, mode="everywhere")
+    proc = viewer.run(scene, "--headless", "--output", tmp_path / "x.exr")
+    assert proc.returncode == 1
+    assert "probeMode: 'everywhere' is not off, object or pixel" in proc.stderr
+    proc = viewer.run(scene, "--headless", "--output", tmp_path / "x.exr", "--probe-mode", "sometimes")
+    assert proc.returncode == 2 and "bad value 'sometimes' for --probe-mode" in proc.stderr
