@@ -32,6 +32,9 @@ def build(hdri="sunset.exr"):
     lib.hdri_world(hdri)
     walls = lib.collection("Room")
     wall_mat = lib.diffuse_material("Plaster", (0.8, 0.78, 0.75))
+    # Large static surfaces sample the probe grid per pixel (docs/engine.md, probe modes): one
+    # probe per wall would light a whole wall with the light at its centre.
+    wall_mat["schnee_probe_mode"] = "pixel"
     lib.room_walls(ROOM_MIN, ROOM_MAX, coll=walls, material=wall_mat, window=WINDOW)
     furn = lib.collection("Furniture")
     wood = lib.diffuse_material("Wood", (0.45, 0.25, 0.12))

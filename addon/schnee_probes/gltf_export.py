@@ -307,21 +307,24 @@ def collect_sky(export_settings):
     return sky
 
 
-def material_settings(blender_material):
-    """``{"shScale", "ambientTerm"}`` of the material's "VS Movable Diffuse" node, or None."""
+def material_settings(blender_material, export_settings=None):
+    """``VULKAN_SCHNEE_materials`` of a material, or None when it has nothing to say:
+    ``shScale``/``ambientTerm`` from its "VS Movable Diffuse" node, ``probeMode`` from its custom
+    property (any material: a large static wall samples the grid per pixel without being movable)."""
+    out = {}
     node = nodes.find_movable_diffuse_node(blender_material)
-    if node is None:
-        return None
-    out = {
-        "shScale": _f32(node.inputs[nodes.INPUT_SH_SCALE].default_value),
-        "ambientTerm": _f32(node.inputs[nodes.INPUT_AMBIENT].default_value),
-    }
+    if node is not None:
+        out["shScale"] = _f32(node.inputs[nodes.INPUT_SH_SCALE].default_value)
+        out["ambientTerm"] = _f32(node.inputs[nodes.INPUT_AMBIENT].default_value)
     # Probe lighting mode (docs/engine.md): the material's custom property "schnee_probe_mode",
     # "off" | "object" | "pixel"; absent = the engine's default (object).
     mode = blender_material.get(PROBE_MODE_PROPERTY) if hasattr(blender_material, "get") else None
     if isinstance(mode, str) and mode in PROBE_MODES:
         out["probeMode"] = mode
-    return out
+    elif mode is not None and export_settings is not None:
+        _warn(export_settings, f"material '{blender_material.name}': custom property "
+              f"{PROBE_MODE_PROPERTY} = {mode!r} is not one of {', '.join(PROBE_MODES)}; ignored")
+    return out or None
 
 
 # --------------------------------------------------------------------------------------------
@@ -363,16 +366,16 @@ class glTF2ExportUserExtension:
 
     def gather_material_hook(self, gltf2_material, blender_material, export_settings):
         node = nodes.find_movable_diffuse_node(blender_material)
-        if node is None:
-            return
-        if nodes.feeds_active_output(node):
+        if node is not None and nodes.feeds_active_output(node):
             _export_base_color(gltf2_material, node, blender_material, export_settings)
         if not self.enabled:
             return
+        settings = material_settings(blender_material, export_settings)
+        if settings is None:
+            return
         if gltf2_material.extensions is None:
             gltf2_material.extensions = {}
-        gltf2_material.extensions[EXT_MATERIALS] = _make_extension(
-            EXT_MATERIALS, material_settings(blender_material))
+        gltf2_material.extensions[EXT_MATERIALS] = _make_extension(EXT_MATERIALS, settings)
 
 
 def _export_base_color(gltf2_material, node, blender_material, export_settings):

@@ -151,6 +151,12 @@ def test_materials_carry_sh_settings_and_base_color(exported, fmt):
     assert "baseColorFactor" not in tex["pbrMetallicRoughness"]
     # A plain Principled material gets no Schnee extension.
     assert MATERIAL_EXT not in by_name["Plain"].get("extensions", {})
+    # probeMode from the material's custom property, on a plain and on a movable material; a value
+    # outside off/object/pixel is left out (and warned about, see the warnings test).
+    assert by_name["PlainPixel"]["extensions"][MATERIAL_EXT] == {"probeMode": "pixel"}
+    assert by_name["MovObject"]["extensions"][MATERIAL_EXT] == {
+        "shScale": 1.5, "ambientTerm": 0.2, "probeMode": "object"}  # shortest float32 repr
+    assert MATERIAL_EXT not in by_name["PlainBadMode"].get("extensions", {})
 
 
 @pytest.mark.parametrize("fmt", sorted(OUTPUTS) + ["off"])
@@ -274,3 +280,10 @@ def test_blender_reimports_the_exports(exported, tmp_path):
         assert {"MovingA", "MovingB", "MovingC", "Static", "VolumeChildProp"} <= set(res["objects"])
         assert not set(res["objects"]) & VOLUME_OBJECTS
         np.testing.assert_allclose(res["materials"]["MovA"], MATERIALS["MovA"][2], atol=1e-6)
+
+
+def test_unknown_probe_mode_is_warned_about(exported):
+    lines = [line for line in exported["log"].splitlines()
+             if "WARNING" in line and "PlainBadMode" in line]
+    assert lines, "no warning for the material with schnee_probe_mode = 'everywhere'"
+    assert "'everywhere' is not one of off, object, pixel" in lines[0]

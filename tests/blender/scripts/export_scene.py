@@ -67,7 +67,21 @@ plain = bpy.data.materials.new("Plain")
 plain.use_nodes = True
 plain.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.1, 0.7, 0.2, 1.0)
 
+# probeMode comes from a custom property on any material (docs/export.md): a plain material
+# carrying it, a movable one carrying it, and one with a value the engine does not know.
+plain_pixel = plain.copy()
+plain_pixel.name = "PlainPixel"
+plain_pixel["schnee_probe_mode"] = "pixel"
+mov_object = nodes.make_movable_diffuse_material("MovObject", sh_scale=1.5, ambient=0.2)
+mov_object["schnee_probe_mode"] = "object"
+plain_bad = plain.copy()
+plain_bad.name = "PlainBadMode"
+plain_bad["schnee_probe_mode"] = "everywhere"
+
 root = scene.collection
+add_cube("Wall", (4, 4, 0), root, plain_pixel)
+add_cube("MovingObject", (-4, 4, 0), root, mov_object)
+add_cube("BadMode", (4, -4, 0), root, plain_bad)
 add_cube("MovingA", (2, 0, 0), root, mat_a)
 add_cube("MovingB", (-2, 0, 0), root, mat_b)
 add_cube("MovingC", (0, 3, 0), root, mat_c)
