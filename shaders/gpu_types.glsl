@@ -57,7 +57,7 @@ struct sv_gpu_light {
     vec4 position_range;
     vec4 direction_type;
     vec4 color;
-    vec4 spot;
+    vec4 spot; // x = angle scale, y = angle offset, z = 1 baked / 0 realtime (VULKAN_SCHNEE_light.mode)
 };
 
 #ifdef SV_SCENE_BINDINGS

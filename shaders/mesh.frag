@@ -39,10 +39,13 @@ void main() {
     // probeMode unless --probe-mode overrides it.
     uint mode = frame.probe_mode == SV_PROBE_MODE_MATERIAL ? m.probe_mode : frame.probe_mode;
     vec3 e_probe;
+    bool probe_lit; // E came from a baked probe rather than the fallback probe 0 (for baked lights)
     if (mode == SV_PROBE_MODE_PIXEL) {
-        if (!grid_irradiance(v_world, n, e_probe)) e_probe = probe_scale(0u) * probe_irradiance(0u, n);
+        probe_lit = grid_irradiance(v_world, n, e_probe);
+        if (!probe_lit) e_probe = probe_scale(0u) * probe_irradiance(0u, n);
     } else {
         uint index = mode == SV_PROBE_MODE_OFF ? 0u : draw.probe_index;
+        probe_lit = index != 0u;
         e_probe = probe_scale(index) * probe_irradiance(index, n);
     }
     vec3 color = albedo * (m.sh_scale * max(e_probe, vec3(0.0)) / SH_PI + m.ambient_term);
@@ -51,7 +54,7 @@ void main() {
         color += sky_specular(v_world, n, albedo, m.metallic, m.roughness, e_probe);
 
     if ((frame.flags & SV_FRAME_NO_DIRECT) == 0u)
-        color += direct_light(v_world, n, albedo, m.metallic, m.roughness);
+        color += direct_light(v_world, n, albedo, m.metallic, m.roughness, probe_lit);
 
     vec3 emissive = m.emissive.rgb;
     if (m.emissive_texture >= 0) emissive *= texture(emissive_tex, v_uv).rgb;

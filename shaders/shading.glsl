@@ -150,7 +150,11 @@ vec3 probe_color(uint index) {
 
 // Direct light of the KHR_lights_punctual lights: Lambert diffuse plus a normalised Blinn-Phong
 // lobe (exponent from roughness, Schlick-free F0 = mix(0.04, albedo, metallic)).
-vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness) {
+// probe_lit: the surface's probe term came from a baked probe (not the fallback probe 0). The bake
+// rendered a baked light (VULKAN_SCHNEE_light.mode "baked") into those probes, direct and bounced,
+// so adding its direct term there would count it twice: it is skipped. Where the fallback lights
+// the surface (probe mode off, or outside every grid) no probe holds the light and it is added.
+vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, bool probe_lit) {
     vec3 v = normalize(frame.camera_pos.xyz - p);
     vec3 f0 = mix(vec3(0.04), albedo, metallic);
     float r = clamp(roughness, 0.05, 1.0);
@@ -158,6 +162,7 @@ vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness) 
     vec3 sum = vec3(0.0);
     for (uint i = 0u; i < frame.light_count; ++i) {
         sv_gpu_light light = lights[i];
+        if (probe_lit && light.spot.z > 0.5) continue;
         uint type = uint(light.direction_type.w);
         vec3 l;
         float atten = 1.0;

@@ -1341,21 +1341,37 @@ static bool parse_lights(ctx_ *c, const cJSON *root)
     c->g->light_count = (uint32_t)count;
     uint32_t i = 0;
     cJSON_ArrayForEach(j, arr) {
-        char path[80], sub[96];
+        char path[80], sub[160];
         snprintf(path, sizeof path, "KHR_lights_punctual.lights[%u]", i);
         if (!cJSON_IsObject(j)) {
             fail(c, SV_GLTF_ERROR_FORMAT, "%s: expected an object, got %s", path, type_of(j));
             return false;
         }
         sv_gltf_light *l = &c->g->lights[i];
-        const cJSON *type, *spot;
+        const cJSON *type, *spot, *lext, *schnee = NULL, *mode = NULL;
         l->color[0] = l->color[1] = l->color[2] = 1.0f;
         if (!get_string(c, j, "name", path, &l->name) || !get_typed(c, j, "type", path, cJSON_String, &type) ||
             !get_floats(c, j, "color", path, 3, l->color, NULL) ||
             !get_float(c, j, "intensity", path, false, 1.0f, 0.0, FLT_MAX, &l->intensity) ||
             !get_float(c, j, "range", path, false, 0.0f, 1e-30, FLT_MAX, &l->range) ||
-            !get_typed(c, j, "spot", path, cJSON_Object, &spot))
+            !get_typed(c, j, "spot", path, cJSON_Object, &spot) ||
+            !get_typed(c, j, "extensions", path, cJSON_Object, &lext))
             return false;
+        /* VULKAN_SCHNEE_light.mode (docs/export.md): absent = realtime, since a glTF from another
+         * tool has no baked probes that hold the light. The message names the light, as a user
+         * knows it by name rather than by index. */
+        l->mode = SV_GLTF_LIGHT_MODE_REALTIME;
+        snprintf(sub, sizeof sub, "%s ('%.24s').extensions", path, l->name);
+        if (lext && !get_typed(c, lext, "VULKAN_SCHNEE_light", sub, cJSON_Object, &schnee)) return false;
+        snprintf(sub, sizeof sub, "%s ('%.24s').extensions.VULKAN_SCHNEE_light", path, l->name);
+        if (schnee && !get_typed(c, schnee, "mode", sub, cJSON_String, &mode)) return false;
+        if (mode) {
+            if (strcmp(mode->valuestring, "baked") == 0) l->mode = SV_GLTF_LIGHT_MODE_BAKED;
+            else if (strcmp(mode->valuestring, "realtime") != 0) {
+                fail(c, SV_GLTF_ERROR_FORMAT, "%s.mode: '%.40s' is not baked or realtime", sub, mode->valuestring);
+                return false;
+            }
+        }
         const char *t = type ? type->valuestring : "";
         if (strcmp(t, "directional") == 0) l->type = SV_GLTF_LIGHT_DIRECTIONAL;
         else if (strcmp(t, "point") == 0) l->type = SV_GLTF_LIGHT_POINT;
@@ -1798,7 +1814,7 @@ static bool check_asset(ctx_ *c, const cJSON *root)
     if (!get_typed(c, root, "extensionsRequired", "(root)", cJSON_Array, &req)) return false;
     static const char *supported[] = {"KHR_lights_punctual", "KHR_materials_emissive_strength",
                                       "KHR_mesh_quantization", "VULKAN_SCHNEE_engine_properties",
-                                      "VULKAN_SCHNEE_materials"};
+                                      "VULKAN_SCHNEE_materials", "VULKAN_SCHNEE_light"};
     const cJSON *e;
     uint32_t i = 0;
     if (req) cJSON_ArrayForEach(e, req) {

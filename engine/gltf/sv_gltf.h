@@ -197,9 +197,18 @@ typedef enum sv_gltf_light_type {
     SV_GLTF_LIGHT_SPOT,
 } sv_gltf_light_type;
 
+/* extensions.VULKAN_SCHNEE_light.mode of a light (docs/export.md, docs/engine.md): whether the
+ * bake already holds the light. A light without the extension is realtime (a glTF from another
+ * tool has no baked probes holding its light). */
+typedef enum sv_gltf_light_mode {
+    SV_GLTF_LIGHT_MODE_REALTIME = 0, /* "realtime": left out of the bake; always direct light */
+    SV_GLTF_LIGHT_MODE_BAKED,        /* "baked": in the probes; direct light only where no probe lights a surface */
+} sv_gltf_light_mode;
+
 typedef struct sv_gltf_light {
     char *name;
     sv_gltf_light_type type;
+    sv_gltf_light_mode mode; /* VULKAN_SCHNEE_light.mode; realtime when absent */
     float color[3];          /* linear RGB, default (1,1,1) */
     float intensity;         /* directional: lux; point/spot: candela; default 1 */
     float range;             /* metres, 0 = infinite (the default) */

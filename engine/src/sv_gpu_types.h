@@ -113,7 +113,9 @@ typedef struct sv_gpu_light {
     float position_range[4];  /* xyz world position, w = range (0 = infinite) */
     float direction_type[4];  /* xyz unit direction the light points to, w = type (0 dir, 1 point, 2 spot) */
     float color[4];           /* rgb = colour * intensity (lux for directional, candela otherwise) */
-    float spot[4];            /* x = angle scale, y = angle offset (KHR_lights_punctual spot formula) */
+    float spot[4];            /* x = angle scale, y = angle offset (KHR_lights_punctual spot formula),
+                                 z = 1 for a baked light (VULKAN_SCHNEE_light.mode; no direct term where
+                                 a baked probe lights the surface), 0 realtime */
 } sv_gpu_light;
 static_assert(sizeof(sv_gpu_light) == 64, "sv_gpu_light must match gpu_types.glsl");
 

@@ -267,6 +267,7 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g) {
         float scale = 1.0f / fmaxf(0.001f, cosf(s->inner_cone_angle) - cosf(s->outer_cone_angle));
         l[i].spot[0] = scale;
         l[i].spot[1] = -cosf(s->outer_cone_angle) * scale;
+        l[i].spot[2] = s->mode == SV_GLTF_LIGHT_MODE_BAKED ? 1.0f : 0.0f;
     }
     r->light_count = n;
     bool ok = sv_buffer_create_with_data(r->ctx, l, (n ? n : 1) * sizeof(*l), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->lights);

@@ -7,6 +7,8 @@
   weight smoothstep(-0.1, 0.1, dot(c - p, n) / spacing); cells of -1 skipped, weights
   renormalised; all weights 0 -> the cell holding p; first grid whose box holds p wins.
 - Equirect mapping: DESIGN.md §3 (Blender d = (e.x, -e.z, e.y)).
+- Direct light of a point light: docs/engine.md "Shading" (Lambert + normalised Blinn-Phong,
+  range window, 1/d^2).
 """
 import numpy as np
 
@@ -115,3 +117,29 @@ def project_l2(img):
     h, w = img.shape[:2]
     d, dw = equirect_dirs(w, h)
     return np.einsum("hwi,hw,hwc->ic", sh_basis_l2(d), dw, img)
+
+
+def point_light_direct(p, n, cam, albedo, light_pos, radiance, metallic=0.0, roughness=1.0, range_=0.0):
+    """docs/engine.md "Shading": [(1 - metallic) base/pi + F0 (s+8)/(8 pi) (n.h)^s] * radiance * atten * (n.l)
+    for a point light of intensity*colour `radiance` (candela) at light_pos; atten = 1/d^2 times the
+    range window clamp(1 - (d/range)^4, 0, 1); s = max(2/r^4 - 2, 1), r = max(roughness, 0.05);
+    F0 = mix(0.04, base, metallic). p, n: (..., 3) positions and unit normals; cam: eye position."""
+    p, n = np.asarray(p, float), np.asarray(n, float)
+    albedo, radiance = np.asarray(albedo, float), np.asarray(radiance, float)
+    d = np.asarray(light_pos, float) - p
+    dist2 = np.maximum((d * d).sum(-1), 1e-8)
+    l = d / np.sqrt(dist2)[..., None]
+    atten = 1.0 / dist2
+    if range_ > 0:
+        atten = atten * np.clip(1.0 - (dist2 / range_ ** 2) ** 2, 0.0, 1.0)
+    v = np.asarray(cam, float) - p
+    v /= np.linalg.norm(v, axis=-1, keepdims=True)
+    h = l + v
+    h /= np.linalg.norm(h, axis=-1, keepdims=True)
+    r = np.clip(roughness, 0.05, 1.0)
+    s = max(2.0 / r ** 4 - 2.0, 1.0)
+    f0 = 0.04 * (1 - metallic) + albedo * metallic
+    nl = np.maximum((n * l).sum(-1), 0.0)
+    spec = (s + 8) / (8 * np.pi) * np.maximum((n * h).sum(-1), 0.0) ** s
+    brdf = (1 - metallic) * albedo / np.pi + f0 * spec[..., None]
+    return brdf * radiance * (atten * nl)[..., None]

@@ -189,11 +189,24 @@ class GltfBuilder:
         self.doc["scenes"][0].setdefault("extensions", {})["VULKAN_SCHNEE_engine_properties"] = props
         self._use("VULKAN_SCHNEE_engine_properties")
 
-    def light(self, name, type_, color=(1, 1, 1), intensity=1.0):
+    def light(self, name, type_, color=(1, 1, 1), intensity=1.0, schnee_mode=None, range_=None):
+        """A KHR_lights_punctual light; schnee_mode ("baked", "realtime" or any string) adds
+        extensions.VULKAN_SCHNEE_light = {"mode": schnee_mode} (docs/export.md)."""
         ext = self.doc.setdefault("extensions", {}).setdefault("KHR_lights_punctual", {"lights": []})
-        ext["lights"].append({"name": name, "type": type_, "color": list(color), "intensity": intensity})
+        light = {"name": name, "type": type_, "color": list(color), "intensity": intensity}
+        if range_ is not None:
+            light["range"] = float(range_)
+        if schnee_mode is not None:
+            light["extensions"] = {"VULKAN_SCHNEE_light": {"mode": schnee_mode}}
+            self._use("VULKAN_SCHNEE_light")
+        ext["lights"].append(light)
         self._use("KHR_lights_punctual")
         return len(ext["lights"]) - 1
+
+    def light_node(self, name, light, translation=None, rotation=None):
+        """A node carrying light index `light` (KHR_lights_punctual)."""
+        return self.node(name, translation=translation, rotation=rotation,
+                         extensions={"KHR_lights_punctual": {"light": light}})
 
     def _use(self, ext):
         used = self.doc.setdefault("extensionsUsed", [])
