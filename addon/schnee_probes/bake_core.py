@@ -60,8 +60,8 @@ class BakeSettings:
     max_cell_size: float = 16.0
     panorama_resolution: int = 128
     max_band: int = 2
-    samples: int = 64
-    max_bounces: int = 12
+    samples: int = 32          # measured: bench/results/sweep.md (error vs time per setting)
+    max_bounces: int = 16
     clamp_direct: float = 0.0
     clamp_indirect: float = 10.0
     pixel_filter: str = 'BOX'

@@ -2,7 +2,7 @@
 
 Property names equal the fields of :class:`bake_core.BakeSettings` and the ``bake.py`` options.
 Defaults and their time/error trade are documented in docs/user-guide.md (figures measured with
-bench/bench_bake.py).
+bench/sweep/run.py, report bench/results/sweep.md).
 """
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
@@ -34,13 +34,15 @@ class SchneeProbeSettings(bpy.types.PropertyGroup):
 
     # Settings that trade time against error.
     samples: IntProperty(
-        name="Samples", default=64, min=1, soft_max=4096,
+        name="Samples", default=32, min=1, soft_max=4096,
         description="Cycles samples per panorama pixel: render time grows linearly, noise falls "
-                    "as 1/sqrt(samples)")
+                    "as 1/sqrt(samples) (measured: 32 is within noise of 64-128 indoors; raise it "
+                    "for skies with a small, very bright sun)")
     max_bounces: IntProperty(
-        name="Bounces", default=12, min=0, max=64,
+        name="Bounces", default=16, min=0, max=64,
         description="Light bounces (total, diffuse and glossy): fewer is faster but darker indoors "
-                    "(light missing ≈ albedo^bounces; default room: 4 lose 30 %, 8 lose 13 %, 12 lose 6 %)")
+                    "(light missing ≈ albedo^bounces; bright room: 4 lose 27 %, 8 lose 13 %, "
+                    "12 lose 6 %, 16 lose 3 %); outdoors 4 are enough")
     clamp_direct: FloatProperty(
         name="Clamp Direct", default=0.0, min=0.0,
         description="Clamp of direct-light samples (0 = off); clamping trades fireflies for bias")

@@ -12,6 +12,10 @@ import metrics
 # indirect light of a bright room; outdoors the sky is smooth and cheap, so ask for 3 %.
 TARGETS = {"interior": 0.05, "courtyard": 0.03, "sky_forest": 0.03, "sky_courtyard": 0.01}
 SWEEP_SCENES = ("interior", "courtyard", "sky_forest", "sky_courtyard")
+# The add-on's defaults chosen from this sweep (bake_core.BakeSettings / properties.py); the reduced
+# sweep test checks that a default bake really uses them. Rows with these settings are starred.
+SHIPPED = dict(panorama_resolution=128, samples=32, max_bounces=16, clamp_indirect=10.0,
+               pixel_filter="BOX", filter_width=1.0)
 TITLES = {"interior": "Interior (closed room, panel, window)", "courtyard": "Open courtyard",
           "sky_forest": "Sky only, forest.exr (small sun, peak 1010)",
           "sky_courtyard": "Sky only, courtyard.exr (smooth, peak 55)", "sun": "Sun of 1e5"}
@@ -31,6 +35,11 @@ def _settings_text(st):
     return (f"{st['panorama_resolution']}×{st['panorama_resolution'] // 2}, {st['samples']} spp, "
             f"{st['max_bounces']} b, clamp {st['clamp_indirect']:g}, "
             f"{'box' if st['pixel_filter'] == 'BOX' else 'B-H'} {st['filter_width']:g}")
+
+
+def is_shipped(r):
+    st = r.get("settings") or {}
+    return all(st.get(k) == v for k, v in SHIPPED.items())
 
 
 def _rows(sc):
@@ -91,8 +100,7 @@ def plot(res, front, path):
         fx = [fr[l]["s_per_probe"] for l in front[name]]
         fy = [100 * _err(fr[l]) for l in front[name]]
         ax.plot(fx, fy, "-o", color=col, ms=4, label=f"{TITLES[name]} (Pareto front)")
-        d = fr.get("defaults")
-        if d:
+        for d in (r for r in rows if is_shipped(r)):
             ax.scatter([d["s_per_probe"]], [100 * _err(d)], marker="*", s=180, color=col,
                        edgecolor="k", zorder=5)
     ax.set_xscale("log")
@@ -175,19 +183,22 @@ def write(res, folder):
         if not sc:
             continue
         say(f"## {TITLES[name]}\n")
-        say(f"{len(sc['spec']['probes'])} fixed probes. Pareto-optimal rows are marked **P**; the "
-            "shipped defaults row is `defaults`.\n")
+        say(f"{len(sc['spec']['probes'])} fixed probes. Pareto-optimal rows are marked **P**; ★ marks "
+            "the settings the add-on now ships (chosen from this sweep); `defaults` is a bake with "
+            "the add-on's defaults at the time of the run.\n")
         say("| setting | s/probe | sync | trace | EXR+proj | rel RMS L2 | rel max L2 | |")
         say("|---|---|---|---|---|---|---|---|")
         for r in sorted(_rows(sc), key=lambda r: r["s_per_probe"]):
             mark = "**P**" if r["label"] in front[name] else ""
             if r["label"] == "defaults":
-                mark = "defaults: " + _settings_text(r["settings"])
+                mark += " add-on defaults when run: " + _settings_text(r["settings"])
+            if is_shipped(r):
+                mark += " ★ shipped defaults"
             say(f"| {r['label']} | {_s(r['s_per_probe'], 2)} | {_s(r['sync'], 2)} | {_s(r['trace'], 2)} | "
                 f"{_s(r['exr_and_projection'], 4)} | {_pct(_err(r))} | {_pct(_errmax(r))} | {mark} |")
-        d = next((r for r in _rows(sc) if r["label"] == "defaults"), None)
+        d = next((r for r in _rows(sc) if is_shipped(r)), None)
         if d and d.get("vs_L4"):
-            say("\nMax SH Band, from the defaults bake (the projection of one render at L = 4, "
+            say(f"\nMax SH Band, from the ★ bake ({d['label']}; the projection of one render at L = 4, "
                 "truncated; the band does not change render time):\n")
             say("| L | rel RMS vs ref at same L | rel RMS vs ref at L = 4 (incl. truncation) | .shprobe bytes/probe (version) |")
             say("|---|---|---|---|")
@@ -283,6 +294,15 @@ def write(res, folder):
         else:
             say(f"| {TITLES[name]} | {_pct(TARGETS[name], 0)} | {r['label']} ({_settings_text(r['settings'])}) | "
                 f"{_s(r['s_per_probe'], 2)} | {_pct(_err(r))} |")
+    say("")
+    say("Shipped defaults (★): " + _settings_text(SHIPPED) + ", Min/Max Cell 0.5/16 m, L = 2. "
+        "Measured at these settings:\n")
+    for name in SWEEP_SCENES:
+        sc = res["scenes"].get(name)
+        d = next((r for r in _rows(sc) if is_shipped(r)), None) if sc else None
+        if d:
+            say(f"- {name}: {_pct(_err(d))} relative RMS (worst direction {_pct(_errmax(d))}), "
+                f"{_s(d['s_per_probe'], 2)} s per probe; Pareto point: {'yes' if d['label'] in front[name] else 'no'}.")
     say("")
     with open(os.path.join(folder, "sweep.md"), "w", encoding="utf-8") as fh:
         fh.write("\n".join(md) + "\n")

@@ -132,9 +132,14 @@ def run_scene(scene, offset, jobs, workdir, log=print):
             log(line.rstrip())
     if proc.wait() != 0:
         raise RuntimeError(f"worker failed on {scene} ({' '.join(cmd)}):\n{''.join(tail)}")
-    log(f"{scene}: {len(jobs)} jobs in {time.perf_counter() - t:.0f} s")
+    seconds = time.perf_counter() - t
+    log(f"{scene}: {len(jobs)} jobs in {seconds:.0f} s")
     with open(out_path, encoding="utf-8") as fh:
-        return json.load(fh)
+        doc = json.load(fh)
+    doc["seconds"] = seconds
+    with open(out_path, "w", encoding="utf-8") as fh:  # kept for --analyse-only
+        json.dump(doc, fh)
+    return doc
 
 
 # ---------------------------------------------------------------- analysis
@@ -275,7 +280,7 @@ def analyse(docs):
         if "far:seed0" in jobs:
             sc["far"] = {k: jobs[k]["coeffs"] for k in ("far:seed0", "far:seed1") if k in jobs}
             for jid, res in jobs.items():
-                if jid.startswith("place:") and "error" not in res:
+                if jid.startswith("place:") and "probe_count" in res:
                     sc["far_placement"] = {"probes": res["probe_count"], "grid": res["grid_dims"]}
     _far(out)
     _sun(out)
@@ -370,7 +375,7 @@ if __name__ == "__main__":
         docs[scene] = run_scene(scene, offset, jobs, workdir)
     result = analyse(docs)
     result["shprobe_bytes"] = shprobe_bytes()
-    result["sweep_seconds"] = time.perf_counter() - t0
+    result["sweep_seconds"] = sum(d.get("seconds", 0.0) for d in docs.values())
     result["command"] = "/usr/bin/python3 bench/sweep/run.py --full"
     import report  # noqa: E402  (bench/sweep/report.py)
     report.write(result, RESULTS)

@@ -82,7 +82,8 @@ def _sky(hdri):
         _world(hdri)
         # The light is the same everywhere; the volume only gives the bake somewhere to place probes.
         lib.probe_volume("SkyVolume", *_shift([(-2.0, -2.0, 0.0), (2.0, 2.0, 2.0)], offset))
-        # Eight probes: each is an independent noise sample of the same light.
+        # With one Cycles seed every probe of a sky-only scene renders the same panorama (the light
+        # does not depend on position), so the sky error is one noise sample per setting.
         probes = [(-1.0, -1.0, 0.5), (1.0, 0.5, 1.5), (0.5, -1.5, 1.0), (-1.5, 1.5, 0.25),
                   (0.0, 0.0, 1.0), (1.5, 1.5, 1.75), (-0.5, 0.5, 0.75), (1.0, -1.0, 1.25)]
         return SceneSpec("", hdri, probes=probes, samples=[])
