@@ -32,7 +32,7 @@ from typing import List, Optional, Sequence
 import bpy
 import numpy as np
 
-from . import compat, native, render_settings, scene_export
+from . import compat, light_modes, native, render_settings, scene_export
 
 DEFAULT_OUTPUT = "//sh_coeffs/probes.shprobe"
 # The world (sky) alone, captured by a volume bake next to the probe files; the glTF exporter
@@ -175,6 +175,7 @@ class ProbeBake:
         self._t0 = None
         self._closed = False
         self._sky_exr = None                # rendered sky (temporary folder) until finish()
+        self._realtime_lights = []          # lamps hidden from the probe renders (light_modes.py)
 
     # ------------------------------------------------------------------ prepare
     @property
@@ -186,6 +187,7 @@ class ProbeBake:
         self._t0 = time.perf_counter()
         s = self.settings
         s.validate()
+        self._realtime_lights = self._check_light_modes()
         min_w, min_h = native.min_panorama_size(s.max_band)
         if s.panorama_resolution < min_w or s.panorama_resolution // 2 < min_h:
             raise BakeError(f"Panorama Resolution {s.panorama_resolution} is too small for Max SH Band "
@@ -199,6 +201,24 @@ class ProbeBake:
                             "geometry. Check the probe volumes or use a smaller Min Cell Size.")
         self.coeffs = np.zeros((self.total, native.sh_count(s.max_band), 3))
         self._setup_render()
+
+    def _check_light_modes(self):
+        """The lamps marked realtime (``schnee_light_mode``, light_modes.py); refuses a bad value
+        before anything changes."""
+        realtime = []
+        for ob in compat.light_objects(self.scene):
+            try:
+                mode = light_modes.light_mode(ob)
+            except light_modes.LightModeError as exc:
+                raise BakeError(f"{exc}: set it in the Schnee Engine panel "
+                                "(Light Mode) or remove the property") from exc
+            if mode == light_modes.REALTIME:
+                realtime.append(ob)
+                if ob.data.type == 'AREA':
+                    self.messages.append(f"Light '{ob.name}' is realtime but an area light, which "
+                                         "glTF cannot export: its light reaches neither the probes "
+                                         "nor the engine")
+        return realtime
 
     def _volume_objects(self):
         name = self.settings.volume_collection
@@ -300,6 +320,11 @@ class ProbeBake:
         for ob in lights:
             if compat.has_visible_camera(ob):
                 ob.visible_camera = s.lights_visible
+        # Realtime lamps are the engine's direct light (VULKAN_SCHNEE_light): the probes must not
+        # hold them too, so they are left out of every panorama render. hide_render of every lamp
+        # was recorded by the SceneState above and is restored on success, error and cancel.
+        for ob in self._realtime_lights:
+            ob.hide_render = True
 
         cam_data = bpy.data.cameras.new("SchneeProbeCamera")
         compat.set_equirectangular(cam_data)

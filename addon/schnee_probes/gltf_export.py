@@ -11,11 +11,13 @@ it gathers the scene. Contract: DESIGN.md §5; user documentation: docs/export.m
   "VS Movable Diffuse" group node; also gives the glTF material the group's base colour, which the
   exporter cannot see inside a node group.
 - ``gather_tree_filter_tag_hook``: objects of the probe-volume collection are left out.
+- ``gather_node_hook``: each exported punctual light gets ``extensions.VULKAN_SCHNEE_light =
+  {"mode": "baked" | "realtime"}`` from its object's ``schnee_light_mode`` (light_modes.py).
 - The sky the bake captured (``sh_coeffs/sky.exr`` next to the .blend) is copied likewise and
   listed as ``VULKAN_SCHNEE_engine_properties.sky`` with its radiance SH (L2, engine space).
 
-Both extensions are optional (``extensionsUsed`` only). The "Export Engine Properties" checkbox
-(Scene.schnee_gltf_export.enabled, on by default) switches off the two extensions and the copy.
+The extensions are optional (``extensionsUsed`` only). The "Export Engine Properties" checkbox
+(Scene.schnee_gltf_export.enabled, on by default) switches off the extensions and the copy.
 Every hook is idempotent: the exporter may call the material hook twice for one material.
 """
 import copy
@@ -27,10 +29,11 @@ import urllib.parse
 
 import bpy
 
-from . import nodes
+from . import light_modes, nodes
 
 EXT_ENGINE = "VULKAN_SCHNEE_engine_properties"
 EXT_MATERIALS = "VULKAN_SCHNEE_materials"
+EXT_LIGHT = "VULKAN_SCHNEE_light"
 SH_DIR = "sh_coeffs"
 SH_SUFFIX = ".shprobe"
 DEFAULT_VOLUME_COLLECTION = "ProbeVolumes"
@@ -363,6 +366,34 @@ class glTF2ExportUserExtension:
         if sky is not None:
             payload["sky"] = copy.deepcopy(sky)
         gltf2_scene.extensions[EXT_ENGINE] = _make_extension(EXT_ENGINE, payload)
+
+    def gather_node_hook(self, gltf2_node, blender_object, export_settings):
+        """The light mode of a lamp's node: VULKAN_SCHNEE_light inside its KHR_lights_punctual light.
+
+        Blender 3.4 has no hook for the light itself; the node hook sees it as the node's
+        ``KHR_lights_punctual`` extension, whose ``light`` member wraps the light dict until the
+        exporter moves it into the root ``lights`` list (deduplicated by value)."""
+        if not self.enabled or blender_object is None or getattr(blender_object, "type", None) != 'LIGHT':
+            return
+        khr = (gltf2_node.extensions or {}).get("KHR_lights_punctual")
+        ref = getattr(khr, "extension", None)
+        ref = ref.get("light") if isinstance(ref, dict) else None
+        if ref is None or not isinstance(getattr(ref, "extension", None), dict):
+            return  # not exported as a punctual light (area lights, "Punctual Lights" off)
+        try:
+            mode = light_modes.light_mode(blender_object)
+        except light_modes.LightModeError as exc:
+            # The bake refuses such a value; an export still writes a valid file and says why.
+            _warn(export_settings, f"{exc}; exported as '{light_modes.DEFAULT}'")
+            mode = light_modes.DEFAULT
+        # The exporter caches one light dict per light datablock and shares it between objects;
+        # a copy per node lets two objects of one datablock differ (they become two lights, the
+        # same ones again when equal). Replacing the member keeps a repeated call harmless.
+        light = dict(ref.extension)
+        extensions = dict(light.get("extensions") or {})
+        extensions[EXT_LIGHT] = _make_extension(EXT_LIGHT, {"mode": mode})
+        light["extensions"] = extensions
+        ref.extension = light
 
     def gather_material_hook(self, gltf2_material, blender_material, export_settings):
         node = nodes.find_movable_diffuse_node(blender_material)

@@ -1,8 +1,10 @@
-"""3D Viewport > Sidebar (N) > Schnee Engine: the bake buttons, the settings and the last result."""
+"""3D Viewport > Sidebar (N) > Schnee Engine: the bake buttons, the settings, the last result and
+the active lamp's light mode (baked into the probes or realtime in the engine, light_modes.py)."""
 import os
 
 import bpy
 
+from . import light_modes
 from .operators import _draw_settings
 
 
@@ -46,6 +48,73 @@ class VIEW3D_PT_schnee_probes_last(bpy.types.Panel):
         col.label(text=props.last_message)
 
 
-classes = (VIEW3D_PT_schnee_probes, VIEW3D_PT_schnee_probes_last)
+class SCHNEE_OT_set_light_mode(bpy.types.Operator):
+    """Baked: the lamp lights objects only through the probes. Realtime: left out of the probe
+    renders; the engine adds it as direct light"""
+    bl_idname = "schnee.set_light_mode"
+    bl_label = "Set Light Mode"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    mode: bpy.props.EnumProperty(
+        name="Mode",
+        items=((light_modes.BAKED, "Baked", "Lit through the probes only (the bake renders it)"),
+               (light_modes.REALTIME, "Realtime", "Left out of the probe renders; the engine adds "
+                                                  "it as direct light")))
+
+    @classmethod
+    def poll(cls, context):
+        return any(ob.type == 'LIGHT' for ob in _target_lights(context))
+
+    def execute(self, context):
+        # The custom property is the contract (bake, export, scripts); the panel only writes it.
+        for ob in _target_lights(context):
+            ob[light_modes.PROPERTY] = self.mode
+        return {'FINISHED'}
+
+
+def _target_lights(context):
+    """The active lamp and every selected lamp: one click sets several lamps."""
+    obs = list(getattr(context, "selected_objects", None) or [])
+    active = getattr(context, "active_object", None)
+    if active is not None and active not in obs:
+        obs.append(active)
+    return [ob for ob in obs if ob.type == 'LIGHT']
+
+
+class VIEW3D_PT_schnee_light(bpy.types.Panel):
+    bl_label = "Light Mode"
+    bl_idname = "VIEW3D_PT_schnee_light"
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "Schnee Engine"
+    bl_parent_id = "VIEW3D_PT_schnee_probes"
+
+    @classmethod
+    def poll(cls, context):
+        ob = context.active_object
+        return ob is not None and ob.type == 'LIGHT'
+
+    def draw(self, context):
+        ob = context.active_object
+        col = self.layout.column(align=True)
+        col.label(text=ob.name, icon='LIGHT')
+        try:
+            mode = light_modes.light_mode(ob)
+        except light_modes.LightModeError:
+            mode = None
+            col.label(text=f"Unknown {light_modes.PROPERTY}: {ob.get(light_modes.PROPERTY)!r}", icon='ERROR')
+        row = col.row(align=True)
+        for value, text in ((light_modes.BAKED, "Baked"), (light_modes.REALTIME, "Realtime")):
+            row.operator(SCHNEE_OT_set_light_mode.bl_idname, text=text, depress=mode == value).mode = value
+        if mode == light_modes.BAKED:
+            col.label(text="In the probes; no direct light where probes light")
+        elif mode == light_modes.REALTIME:
+            col.label(text="Not in the probes; engine direct light")
+            if ob.data.type == 'AREA':
+                col.label(text="glTF cannot export area lights", icon='ERROR')
+
+
+classes = (VIEW3D_PT_schnee_probes, VIEW3D_PT_schnee_probes_last, SCHNEE_OT_set_light_mode,
+           VIEW3D_PT_schnee_light)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,0 +1,70 @@
+"""Light modes in the glTF export: ``blender -b --factory-startup -P lights_export.py -- OUT_DIR``.
+
+Builds a cube and lamps of every punctual type, with and without ``schnee_light_mode``, two lamp
+objects sharing one light datablock with different modes, one with a bad value, and an area
+lamp (not a glTF punctual light); exports OUT_DIR/on/scene.gltf (checkbox on) and
+OUT_DIR/off/scene.gltf (checkbox off), both with Punctual Lights on. Emits the expected mode
+per lamp object.
+"""
+import os
+import sys
+
+import addon_utils
+import bpy
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import addon_common as common  # noqa: E402
+
+# The add-on must be enabled (in preferences) for the exporter to find its user extension.
+addon_utils.enable("io_scene_gltf2", default_set=True)
+assert addon_utils.enable("schnee_probes", default_set=True) is not None
+
+# name: (light type, datablock name, schnee_light_mode or None, location)
+LAMPS = {
+    "PlainPoint": ('POINT', "PlainPointData", None, (2, 0, 2)),
+    "BakedPoint": ('POINT', "BakedPointData", "baked", (-2, 0, 2)),
+    "RealtimeSpot": ('SPOT', "SpotData", "realtime", (0, 2, 3)),
+    "RealtimeSun": ('SUN', "SunData", "realtime", (0, 0, 5)),
+    "TwinBaked": ('POINT', "TwinData", "baked", (1, 1, 1)),
+    "TwinRealtime": ('POINT', "TwinData", "realtime", (-1, -1, 1)),
+    "BadMode": ('POINT', "BadData", "Realtime", (0, -2, 2)),
+    "AreaRealtime": ('AREA', "AreaData", "realtime", (0, 0, 4)),
+}
+
+
+def build():
+    for ob in list(bpy.data.objects):
+        bpy.data.objects.remove(ob)
+    scene = bpy.context.scene
+    mesh = bpy.data.meshes.new("Cube")
+    verts = [(x, y, z) for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)]
+    mesh.from_pydata(verts, [], [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
+    mesh.update()
+    scene.collection.objects.link(bpy.data.objects.new("Cube", mesh))
+    for name, (kind, data_name, mode, loc) in LAMPS.items():
+        data = bpy.data.lights.get(data_name) or bpy.data.lights.new(data_name, kind)
+        ob = bpy.data.objects.new(name, data)
+        ob.location = loc
+        if mode is not None:
+            ob["schnee_light_mode"] = mode
+        scene.collection.objects.link(ob)
+    return scene
+
+
+def export(scene, path, enabled):
+    scene.schnee_gltf_export.enabled = enabled
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    bpy.ops.export_scene.gltf(filepath=path, export_format="GLTF_SEPARATE", export_lights=True)
+    scene.schnee_gltf_export.enabled = True
+
+
+def main():
+    out = common.args()[0]
+    scene = build()
+    export(scene, os.path.join(out, "on", "scene.gltf"), True)
+    export(scene, os.path.join(out, "off", "scene.gltf"), False)
+    common.emit(lamps={name: {"data": v[1], "mode": v[2], "type": v[0]} for name, v in LAMPS.items()})
+
+
+if __name__ == "__main__":
+    main()
