@@ -79,3 +79,40 @@ def pareto(points):
             front.append(i)
             best = points[i][1]
     return front
+
+
+def interpolate_trilinear(f, points):
+    """Per-pixel mode of the engine at points (docs/engine.md, shaders/shading.glsl): trilinear over
+    the 8 grid cells around each point, cells with no probe skipped and the weights renormalised;
+    no weight at all falls back to the cell holding the point. No surface normal here (a point in
+    space), so the engine's back-face weight does not apply. Returns (N, C, 3) or None per point."""
+    dims = np.array(f.grid_dims)
+    origin, spacing = np.array(f.grid_origin, dtype=np.float64), float(f.grid_spacing)
+    grid = np.asarray(f.grid).reshape(dims[2], dims[1], dims[0])  # [z, y, x]
+    coeffs = np.asarray(f.coeffs, dtype=np.float64)
+    validity = np.asarray(getattr(f, "validity", None) if getattr(f, "validity", None) is not None
+                          else np.ones(len(coeffs)), dtype=np.float64)
+    out = []
+    for p, own in zip(points, f.lookup(points)):
+        u = (np.asarray(p) - origin) / spacing - 0.5
+        i0 = np.floor(u).astype(int)
+        t = u - i0
+        acc, wsum = np.zeros(coeffs.shape[1:]), 0.0
+        for dx in (0, 1):
+            for dy in (0, 1):
+                for dz in (0, 1):
+                    c = i0 + (dx, dy, dz)
+                    if (c < 0).any() or (c >= dims).any():
+                        continue
+                    idx = grid[c[2], c[1], c[0]]
+                    if idx < 0:
+                        continue
+                    w = ((t[0] if dx else 1 - t[0]) * (t[1] if dy else 1 - t[1])
+                         * (t[2] if dz else 1 - t[2])) * validity[idx]
+                    acc += w * coeffs[idx]
+                    wsum += w
+        if wsum > 0:
+            out.append((acc / wsum).tolist())
+        else:
+            out.append(coeffs[own].tolist() if own >= 0 else None)
+    return out

@@ -212,7 +212,10 @@ def write(res, folder):
         "each sample point is looked up as the engine does for a movable object (`ShProbeFile.lookup`: "
         "the probe of the grid cell containing the point) and that probe's irradiance is compared with "
         "the reference probe baked AT the point. *exact* = the same quality baked at the point itself "
-        "(no placement error), so the difference to it is the placement error.\n")
+        "(no placement error), so the difference to it is the placement error. *per pixel* is the "
+        "engine's per-pixel mode at the same points: trilinear between the 8 surrounding probes, "
+        "empty cells skipped and weights renormalised (bench/sweep/worker.py mirrors "
+        "shaders/shading.glsl, without the surface back-face weight a point in space has no use for).\n")
     for name in ("interior", "courtyard"):
         sc = res["scenes"].get(name)
         if not sc or not sc.get("placement"):
@@ -220,13 +223,14 @@ def write(res, folder):
         ex = sc["placement_exact"]["rel_rms_mean"]
         say(f"**{name}** ({len(sc['spec']['samples'])} sample points; baked at the points themselves: "
             f"{_pct(ex)})\n")
-        say("| placement | Min/Max cell | probes | grid | file | bake s | error at points (mean) | worst point | worst direction | mean distance point→probe |")
-        say("|---|---|---|---|---|---|---|---|---|---|")
+        say("| placement | Min/Max cell | probes | grid | file | bake s | error at points (mean) | worst point | worst direction | mean distance point→probe | per pixel: mean | per pixel: worst point |")
+        say("|---|---|---|---|---|---|---|---|---|---|---|---|")
         for p in sorted(sc["placement"], key=lambda p: p["bake_seconds"]):
             say(f"| {p['kind']} | {p['min']:g} / {p['max']:g} m | {p['probes']} | "
                 f"{'×'.join(str(v) for v in p['grid'])} | {p['file_bytes']} B | {p['bake_seconds']:.0f} | "
                 f"{_pct(p['rel_rms_mean'])} | {_pct(p['rel_rms_max'])} | {_pct(p['rel_max_max'])} | "
-                f"{np.nanmean(p['probe_distance']):.2f} m |")
+                f"{np.nanmean(p['probe_distance']):.2f} m | {_pct(p.get('interp_rel_rms_mean', math.nan))} | "
+                f"{_pct(p.get('interp_rel_rms_max', math.nan))} |")
         say("")
         worst = max(sc["placement"], key=lambda p: p["rel_rms_mean"])
         say(f"Per-point errors of the worst placement ({worst['kind']} {worst['min']:g}/{worst['max']:g} m): "

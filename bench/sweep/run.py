@@ -268,6 +268,9 @@ def analyse(docs):
                         for i, cf in enumerate(res["lookup_coeffs"])]
                 dist = [float(np.linalg.norm(np.subtract(p, doc["scene"]["samples"][i]))) if p else math.nan
                         for i, p in enumerate(res["lookup_positions"])]
+                # Per-pixel mode of the engine (trilinear between probes) at the same points.
+                ierrs = [metrics.errors(np.asarray(cf), ref_s[i], 2) if cf is not None else (math.nan, math.nan)
+                         for i, cf in enumerate(res.get("interp_coeffs", []))]
                 t = np.asarray(res["times"])
                 sc["placement"].append({
                     "min": mn, "max": mx, "kind": "uniform grid" if mn == mx else "octree",
@@ -276,7 +279,9 @@ def analyse(docs):
                     "rel_rms_mean": float(np.nanmean([e[0] for e in errs])),
                     "rel_rms_max": float(np.nanmax([e[0] for e in errs])),
                     "rel_max_max": float(np.nanmax([e[1] for e in errs])),
-                    "per_point": [e[0] for e in errs], "probe_distance": dist})
+                    "per_point": [e[0] for e in errs], "probe_distance": dist,
+                    "interp_rel_rms_mean": float(np.nanmean([e[0] for e in ierrs])) if ierrs else math.nan,
+                    "interp_rel_rms_max": float(np.nanmax([e[0] for e in ierrs])) if ierrs else math.nan})
         if "far:seed0" in jobs:
             sc["far"] = {k: jobs[k]["coeffs"] for k in ("far:seed0", "far:seed1") if k in jobs}
             for jid, res in jobs.items():

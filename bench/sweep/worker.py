@@ -28,6 +28,7 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 _REPO = os.path.dirname(os.path.dirname(_HERE))
 sys.path.insert(0, _HERE)
 sys.path.insert(0, os.path.join(_REPO, "addon"))
+import metrics  # noqa: E402
 import scenes  # noqa: E402
 import schnee_probes  # noqa: E402
 from schnee_probes import bake_core, native, scene_export  # noqa: E402
@@ -99,7 +100,8 @@ def run_placement(job, spec, tmp):
             "lookup": idx.tolist(),
             "lookup_coeffs": [np.asarray(f.coeffs[i], dtype=np.float64).tolist() if i >= 0 else None
                               for i in idx],
-            "lookup_positions": [bake.positions[i].tolist() if i >= 0 else None for i in idx]}
+            "lookup_positions": [bake.positions[i].tolist() if i >= 0 else None for i in idx],
+            "interp_coeffs": metrics.interpolate_trilinear(f, samples) if len(samples) else []}
 
 
 def main():
