@@ -380,8 +380,9 @@ static void test_cameras_and_lights(void)
         "{'type':'orthographic','orthographic':{'xmag':2,'ymag':1,'znear':0,'zfar':50}}],"
         "'extensionsUsed':['KHR_lights_punctual'],'extensionsRequired':['KHR_lights_punctual'],"
         "'extensions':{'KHR_lights_punctual':{'lights':["
-        "{'name':'Sun','type':'directional','color':[1,0.9,0.8],'intensity':3},"
-        "{'type':'point','range':10},"
+        "{'name':'Sun','type':'directional','color':[1,0.9,0.8],'intensity':3,"
+        "'extensions':{'VULKAN_SCHNEE_light':{'mode':'baked'}}},"
+        "{'type':'point','range':10,'extensions':{'VULKAN_SCHNEE_light':{'mode':'realtime'}}},"
         "{'type':'spot','intensity':100,'spot':{'innerConeAngle':0.2,'outerConeAngle':0.5}}]}}}";
     sv_gltf *g = load_json(json, NULL, NULL);
     TU_REQUIRE(g);
@@ -422,6 +423,10 @@ static void test_cameras_and_lights(void)
     TU_CHECK_NEAR(spot->inner_cone_angle, 0.2f, 0);
     TU_CHECK_NEAR(spot->outer_cone_angle, 0.5f, 0);
     TU_CHECK_NEAR(g->lights[0].outer_cone_angle, PI / 4, 1e-7); /* spec default */
+    /* VULKAN_SCHNEE_light.mode as written; absent = realtime (docs/export.md). */
+    TU_CHECK_EQ_INT(sun->mode, SV_GLTF_LIGHT_MODE_BAKED);
+    TU_CHECK_EQ_INT(pt->mode, SV_GLTF_LIGHT_MODE_REALTIME);
+    TU_CHECK_EQ_INT(spot->mode, SV_GLTF_LIGHT_MODE_REALTIME);
     const sv_gltf_light_instance *li = &g->light_instances[0];
     TU_CHECK_EQ_INT(li->node, 3);
     TU_CHECK_NEAR(li->position[0], 4, 0);

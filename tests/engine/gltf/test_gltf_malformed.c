@@ -188,6 +188,12 @@ static const bad_case CASES[] = {
      SV_GLTF_ERROR_FORMAT, "cameras[0].orthographic: xmag and ymag must not be zero"},
     {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'area'}]}}}", SV_GLTF_ERROR_FORMAT,
      "KHR_lights_punctual.lights[0].type: 'area' is not directional, point or spot"},
+    {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'point','name':'Fill',"
+     "'extensions':{'VULKAN_SCHNEE_light':{'mode':'sometimes'}}}]}}}", SV_GLTF_ERROR_FORMAT,
+     "'sometimes' is not baked or realtime"},
+    {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'point',"
+     "'extensions':{'VULKAN_SCHNEE_light':{'mode':1}}}]}}}", SV_GLTF_ERROR_FORMAT,
+     "VULKAN_SCHNEE_light.mode"},
     {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'spot','spot':{'innerConeAngle':0.5,'outerConeAngle':0.4}}]}}}",
      SV_GLTF_ERROR_FORMAT, "KHR_lights_punctual.lights[0].spot: innerConeAngle 0.5 is not less than outerConeAngle 0.4"},
     {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'point','intensity':-1}]}}}",
