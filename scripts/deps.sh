@@ -8,6 +8,7 @@ APT_PACKAGES=(
   build-essential cmake ninja-build pkg-config clang libclang-rt-14-dev
   libembree-dev libopenimageio-dev openimageio-tools
   python3 python3-dev python3-numpy python3-pytest python3-matplotlib
+  python3-pip python3-setuptools python3-wheel
   blender
   libvulkan-dev glslc mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
   libcjson-dev libglfw3-dev xvfb xauth
