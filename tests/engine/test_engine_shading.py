@@ -14,6 +14,8 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent / "scripts"))
 import scenegen as sg  # noqa: E402
 import viewer  # noqa: E402
+# DESIGN.md §3 basis (l <= 2) and irradiance in numpy, written from the document (scripts/probe_ref.py).
+from probe_ref import irradiance  # noqa: E402
 
 W = H = 64
 YFOV = 0.9
@@ -32,21 +34,6 @@ COEFFS[5] = [-0.15, 0.2, 0.1]
 COEFFS[6] = [-0.2, 0.1, 0.15]
 COEFFS[7] = [0.12, -0.08, 0.3]
 COEFFS[8] = [0.1, -0.1, 0.05]
-
-
-def sh_basis_l2(n):
-    """DESIGN.md §3 basis (l <= 2), engine space, n: (..., 3) unit vectors."""
-    x, y, z = n[..., 0], n[..., 1], n[..., 2]
-    return np.stack([
-        np.full_like(x, 0.282094792),
-        0.488602512 * y, 0.488602512 * z, 0.488602512 * x,
-        1.092548431 * x * y, 1.092548431 * y * z, 0.315391565 * (3 * z * z - 1),
-        1.092548431 * x * z, 0.546274215 * (x * x - y * y)], axis=-1)
-
-
-def irradiance(coeffs, n):
-    a = np.array([np.pi] + [2 * np.pi / 3] * 3 + [np.pi / 4] * 5)
-    return np.einsum("...i,i,ic->...c", sh_basis_l2(n), a, coeffs)
 
 
 def sphere_normals():
