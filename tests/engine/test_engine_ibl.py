@@ -79,20 +79,6 @@ def sphere_setup(material):
     return build
 
 
-def sphere_normals(W, H, yfov, cam_z):
-    i, j = np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5)
-    t = np.tan(yfov / 2)
-    d = np.stack([(2 * i / W - 1) * t * (W / H), (1 - 2 * j / H) * t, -np.ones_like(i)], axis=-1)
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    o = np.array([0.0, 0.0, cam_z])
-    b = d @ o
-    disc = b * b - (o @ o - 1.0)
-    hit = disc > 0
-    s = -b - np.sqrt(np.where(hit, disc, 0.0))
-    p = o + s[..., None] * d
-    return p, hit, -(p * d).sum(-1)
-
-
 def test_fallback_probe_is_the_sky_sh(tmp_path):
     # No grid: the sphere gets probe 0, which is the sky's SH from the glTF entry (not the
     # constant 0.2). Specular off, so the pixel is DESIGN.md §3's diffuse formula.
@@ -105,7 +91,7 @@ def test_fallback_probe_is_the_sky_sh(tmp_path):
     out = tmp_path / "fb.exr"
     viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", W, "--height", H, "--no-specular"))
     got = viewer.read_image(out)
-    p, hit, facing = sphere_normals(W, H, 0.9, 3.0)
+    p, hit, facing = ref.sphere_normals(W, H, 0.9, 3.0)
     inner = hit & (facing > 0.3)
     want = albedo * (sh_scale * np.maximum(ref.irradiance(ref.project_l2(img), p[inner]), 0) / np.pi + ambient)
     # Same bound as test_engine_shading (tessellated normals, 96 x 48 sphere): 0.5 %.
@@ -174,7 +160,7 @@ def mirror_scene(d, probe_radiance=None, sky_radiance=2.0):
 
 def test_sky_specular_scaled_by_probe_irradiance(tmp_path):
     W = H = 32
-    p, hit, facing = sphere_normals(W, H, 0.9, 3.0)
+    p, hit, facing = ref.sphere_normals(W, H, 0.9, 3.0)
     inner = hit & (facing > 0.3)
     renders = {}
     for name, probe in [("open", None), ("dark", 0.5), ("bright", 4.0)]:

@@ -15,6 +15,7 @@ sys.path.insert(0, str(Path(__file__).parent / "scripts"))
 import scenegen as sg  # noqa: E402
 import viewer  # noqa: E402
 # DESIGN.md §3 basis (l <= 2) and irradiance in numpy, written from the document (scripts/probe_ref.py).
+import probe_ref  # noqa: E402
 from probe_ref import irradiance  # noqa: E402
 
 W = H = 64
@@ -37,18 +38,7 @@ COEFFS[8] = [0.1, -0.1, 0.05]
 
 
 def sphere_normals():
-    """Per pixel: unit normal of the analytic sphere hit by the pixel-centre ray, and n·(-ray)."""
-    i, j = np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5)
-    t = np.tan(YFOV / 2)
-    d = np.stack([(2 * i / W - 1) * t * (W / H), (1 - 2 * j / H) * t, -np.ones_like(i)], axis=-1)
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    o = np.array([0.0, 0.0, CAM_Z])
-    b = d @ o
-    disc = b * b - (o @ o - 1.0)
-    hit = disc > 0
-    s = -b - np.sqrt(np.where(hit, disc, 0.0))
-    p = o + s[..., None] * d
-    return p, hit, -(p * d).sum(-1)
+    return probe_ref.sphere_normals(W, H, YFOV, CAM_Z)
 
 
 @pytest.fixture(scope="module")

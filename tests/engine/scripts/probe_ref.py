@@ -143,3 +143,20 @@ def point_light_direct(p, n, cam, albedo, light_pos, radiance, metallic=0.0, rou
     spec = (s + 8) / (8 * np.pi) * np.maximum((n * h).sum(-1), 0.0) ** s
     brdf = (1 - metallic) * albedo / np.pi + f0 * spec[..., None]
     return brdf * radiance * (atten * nl)[..., None]
+
+
+def sphere_normals(W, H, yfov, cam_z):
+    """Unit sphere at the origin seen by a camera at (0, 0, cam_z) looking down −Z (vertical fov
+    yfov, W×H pixels): per pixel the hit point (= its normal), whether the pixel-centre ray hits,
+    and n·(−ray)."""
+    i, j = np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5)
+    t = np.tan(yfov / 2)
+    d = np.stack([(2 * i / W - 1) * t * (W / H), (1 - 2 * j / H) * t, -np.ones_like(i)], axis=-1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    o = np.array([0.0, 0.0, cam_z])
+    b = d @ o
+    disc = b * b - (o @ o - 1.0)
+    hit = disc > 0
+    s = -b - np.sqrt(np.where(hit, disc, 0.0))
+    p = o + s[..., None] * d
+    return p, hit, -(p * d).sum(-1)
