@@ -14,6 +14,8 @@
 #define SV_PROBE_MODE_PIXEL 2u
 #define SV_PROBE_MODE_MATERIAL 3u
 
+#define SV_DRAW_MIRRORED 1u
+
 #define SV_FRAME_NO_DIRECT 1u
 #define SV_FRAME_SKY 2u
 #define SV_FRAME_NO_SPECULAR 4u
@@ -100,7 +102,7 @@ layout(push_constant, std430) uniform DrawBlock {
     uint material_index;
     uint probe_index;
     uint object_index;
-    uint pad;
+    uint flags; // SV_DRAW_MIRRORED: det(model 3x3) < 0, front faces wind clockwise (glTF)
 } draw;
 #endif
 

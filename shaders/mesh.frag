@@ -14,7 +14,10 @@ layout(location = 0) out vec4 out_color;
 
 void main() {
     vec3 n = normalize(v_normal);
-    if (!gl_FrontFacing) n = -n; // planes and open meshes are lit from the side we see
+    // The pipeline's front face is CCW; glTF makes a node whose world matrix has a negative
+    // determinant (a mirror) wind clockwise, so for those the rasteriser's "front" is the back.
+    bool front = gl_FrontFacing != ((draw.flags & SV_DRAW_MIRRORED) != 0u);
+    if (!front) n = -n; // planes and open meshes are lit from the side we see
     if (frame.debug_mode == SV_DEBUG_PROBE_INDEX) {
         out_color = vec4(float(draw.probe_index), 0.0, 0.0, 1.0);
         return;

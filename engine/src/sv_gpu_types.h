@@ -54,6 +54,8 @@ typedef struct sv_gpu_frame {
 } sv_gpu_frame;
 static_assert(sizeof(sv_gpu_frame) == 176, "sv_gpu_frame must match gpu_types.glsl");
 
+#define SV_DRAW_MIRRORED 1u
+
 /* Per-draw push constants (std430), one draw per mesh primitive of an object. */
 typedef struct sv_gpu_draw {
     float model[16];         /* column-major object -> world */
@@ -61,7 +63,7 @@ typedef struct sv_gpu_draw {
     uint32_t material_index;
     uint32_t probe_index;    /* index into the probe buffer (0 = fallback) */
     uint32_t object_index;
-    uint32_t pad_;
+    uint32_t flags;          /* SV_DRAW_MIRRORED: det(model 3x3) < 0, clockwise front faces (glTF) */
 } sv_gpu_draw;
 static_assert(sizeof(sv_gpu_draw) == 128, "sv_gpu_draw must fit the guaranteed 128-byte push range");
 

@@ -857,6 +857,10 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
         normal_matrix(obj->world, draw.normal_matrix);
         draw.probe_index = obj->probe;
         draw.object_index = o;
+        const float *w = obj->world; /* column-major: det of the upper 3x3 */
+        float det = w[0] * (w[5] * w[10] - w[9] * w[6]) - w[4] * (w[1] * w[10] - w[9] * w[2]) +
+                    w[8] * (w[1] * w[6] - w[5] * w[2]);
+        draw.flags = det < 0.0f ? SV_DRAW_MIRRORED : 0u;
         const sv_gltf_mesh *mesh = &g->meshes[obj->mesh];
         for (uint32_t p = 0; p < mesh->primitive_count; ++p) {
             uint32_t pi = r->mesh_prim_base[obj->mesh] + p;

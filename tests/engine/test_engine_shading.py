@@ -144,3 +144,38 @@ def test_band4_probe_matches_core_cpu_evaluator(tmp_path):
     assert np.abs(expected - band2_only).max() > 0.02  # band 4 changes the image measurably
     err = np.abs(img[interior] - expected)
     assert np.all(err <= 1e-4 + 3e-3 * np.abs(expected)), f"max abs error {err.max():.4g}"
+
+
+def _sphere_gltf(d, scale):
+    (d / "sh_coeffs").mkdir(exist_ok=True)
+    sg.write_shprobe_v1(d / "sh_coeffs" / "probes.shprobe", COEFFS[None], np.zeros((1, 1, 1), np.int32),
+                        (-2, -2, -2), 4.0)
+    b = sg.GltfBuilder()
+    m = b.material("sphere", base_color=(*ALBEDO, 1), sh_scale=SH_SCALE, ambient_term=AMBIENT)
+    b.node("Sphere", mesh=b.mesh("sphere", sg.uv_sphere(1.0, 192, 96), m), scale=[float(s) for s in scale])
+    b.node("Camera", camera=b.camera("cam", YFOV), translation=(0, 0, CAM_Z))
+    b.probe_grids([sg.grid_entry("probes", "sh_coeffs/probes.shprobe", 1, (-2, -2, -2), (1, 1, 1), 4.0)])
+    return b.write(d / f"sphere_{'m' if scale[0] < 0 else 'p'}.gltf")
+
+
+def test_mirrored_node_matches_plain(tmp_path):
+    # glTF 2.0 §3.7.4: a node whose world matrix has a negative determinant has clockwise front
+    # faces. The UV sphere is symmetric under x -> -x, so scale [-1, 1, 1] draws the same surface with
+    # reversed winding (and normals mirrored back outward by the normal matrix); before the per-draw
+    # mirror flag the shader flipped every visible normal (max abs diff 0.87 between the two EXRs).
+    imgs = []
+    for scale in ((1, 1, 1), (-1, 1, 1)):
+        out = tmp_path / f"s{scale[0]}.exr"
+        viewer.check(viewer.run(_sphere_gltf(tmp_path, scale), "--headless", "--output", out,
+                                "--width", W, "--height", H))
+        imgs.append(viewer.read_image(out))
+    plain, mirrored = imgs
+    p, hit, facing = sphere_normals()
+    interior = hit & (facing > 0.3)
+    # Same pixels up to float noise: the mirrored mesh's vertices land on the same positions (the
+    # sphere's x -> -x symmetry is exact up to the float32 sin/cos of its generator): 1e-5 absolute.
+    assert np.abs(plain[interior] - mirrored[interior]).max() <= 1e-5
+    # And both equal the numpy reference (tolerance of test_sphere_pixels_equal_cpu_evaluation).
+    expected = ALBEDO * (SH_SCALE * np.maximum(irradiance(COEFFS, p), 0.0) / np.pi + AMBIENT)
+    err = np.abs(mirrored[interior] - expected[interior])
+    assert np.all(err <= 1e-4 + 3e-3 * np.abs(expected[interior])), f"max abs error {err.max():.4g}"
