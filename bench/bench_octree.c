@@ -3,7 +3,12 @@
  * up to ~1M scene triangles, at the default cell sizes (0.5 m / 16 m). Prints the time of each stage
  * (taken from the progress callback's stage changes) and the counts.
  *
- *   build/native/../bench_octree [threads=2] [triangles=1000000] [min_cell=0.5]
+ *   build/native/bench_octree [threads=2] [triangles=1000000] [min_cell=0.5]
+ *   build/native/bench_octree [threads=2] 10000,100000,300000,1000000 [min_cell=0.5]
+ *
+ * A comma-separated triangle list is a sweep: one scene and one placement per count, in one run,
+ * printed as a Markdown table (stage seconds, process CPU seconds, probes, pruned leaf centres).
+ * "solid test" is the pruning stage (leaf centres inside solid geometry are dropped).
  *
  * Results: bench/results/octree.md. Deterministic input (fixed xorshift seed).
  */
@@ -13,6 +18,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <time.h>
 
 static double now(void)
@@ -120,6 +126,14 @@ static void icosphere(mesh *m, const double c[3], double r, int level)
     for (int i = 0; i < 20; i++) sphere_tri(m, c, r, v[f[i][0]], v[f[i][1]], v[f[i][2]], level);
 }
 
+static double cpu_seconds(void)
+{
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+           (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
+}
+
 static uint64_t rng = 0x9E3779B97F4A7C15ull;
 static double urand(void)
 {
@@ -149,13 +163,17 @@ static bool on_progress(void *user, double fraction, const char *stage)
     return true;
 }
 
-int main(int argc, char **argv)
-{
-    uint32_t threads = argc > 1 ? (uint32_t)atoi(argv[1]) : 2;
-    long target = argc > 2 ? atol(argv[2]) : 1000000;
-    double min_cell = argc > 3 ? atof(argv[3]) : 0.5;
-    const double W = 48, H = 12, D = 48, T = 0.2;
+/* Stages reported as table columns, in the order pb_placement_build reports them. */
+static const char *const sweep_stages[] = {"checking meshes", "building BVH", "octree", "solid test",
+                                           "occupancy grid", "nearest probe"};
+#define SWEEP_STAGES (sizeof sweep_stages / sizeof sweep_stages[0])
 
+/* Builds the scene for `target` triangles and places probes once. table = false prints the
+ * original per-stage listing, true one Markdown table row. Returns 0 on success. */
+static int run_one(uint32_t threads, long target, double min_cell, bool table)
+{
+    const double W = 48, H = 12, D = 48, T = 0.2;
+    rng = 0x9E3779B97F4A7C15ull; /* same spheres, in the same order, for every count */
     mesh vol = {0}, geo = {0};
     box(&vol, 0, 0, 0, W, H, D);
     box(&geo, -T, -T, -T, W + T, 0, D + T);
@@ -186,28 +204,80 @@ int main(int argc, char **argv)
     d.progress_user = &log;
     pb_placement *p = NULL;
     pb_error err = {0};
+    double c0 = cpu_seconds();
     double t0 = now();
     pb_result r = pb_placement_build(&d, &p, &err);
     double t1 = now();
+    double c1 = cpu_seconds();
     if (r != PB_SUCCESS) {
         fprintf(stderr, "pb_placement_build: %s: %s\n", pb_result_string(r), err.message);
+        free(vol.pos);
+        free(vol.idx);
+        free(geo.pos);
+        free(geo.idx);
         return 1;
     }
-    printf("scene: %u triangles (%d icospheres + hall), %u vertices; threads %u; min cell %g m\n",
-           geo.nt, spheres, geo.nv, threads, min_cell);
-    printf("result: %u probes, %llu leaves, %llu pruned, grid %u x %u x %u\n", p->probe_count,
-           (unsigned long long)p->leaf_count, (unsigned long long)p->pruned_count, p->grid_dims[0],
-           p->grid_dims[1], p->grid_dims[2]);
-    for (int i = 0; i < log.n; i++) {
-        double end = i + 1 < log.n ? log.t[i + 1] : t1;
-        if (strcmp(log.stage[i], "done") == 0) continue;
-        printf("  %-16s %8.3f s\n", log.stage[i], end - log.t[i]);
+    if (!table) {
+        printf("scene: %u triangles (%d icospheres + hall), %u vertices; threads %u; min cell %g m\n",
+               geo.nt, spheres, geo.nv, threads, min_cell);
+        printf("result: %u probes, %llu leaves, %llu pruned, grid %u x %u x %u\n", p->probe_count,
+               (unsigned long long)p->leaf_count, (unsigned long long)p->pruned_count,
+               p->grid_dims[0], p->grid_dims[1], p->grid_dims[2]);
+        for (int i = 0; i < log.n; i++) {
+            double end = i + 1 < log.n ? log.t[i + 1] : t1;
+            if (strcmp(log.stage[i], "done") == 0) continue;
+            printf("  %-16s %8.3f s\n", log.stage[i], end - log.t[i]);
+        }
+        printf("  %-16s %8.3f s\n", "total", t1 - t0);
+        printf("  %-16s %8.3f s\n", "process CPU", c1 - c0);
+    } else {
+        printf("| %u | %u | %llu | %llu |", geo.nt, p->probe_count,
+               (unsigned long long)p->leaf_count, (unsigned long long)p->pruned_count);
+        for (size_t k = 0; k < SWEEP_STAGES; k++) {
+            double sec = -1.0;
+            for (int i = 0; i < log.n; i++)
+                if (strcmp(log.stage[i], sweep_stages[k]) == 0)
+                    sec = (i + 1 < log.n ? log.t[i + 1] : t1) - log.t[i];
+            if (sec < 0)
+                printf(" — |");
+            else
+                printf(" %.3f |", sec);
+        }
+        printf(" **%.3f** | %.3f |\n", t1 - t0, c1 - c0);
+        fflush(stdout);
     }
-    printf("  %-16s %8.3f s\n", "total", t1 - t0);
     pb_placement_destroy(p);
     free(vol.pos);
     free(vol.idx);
     free(geo.pos);
     free(geo.idx);
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    uint32_t threads = argc > 1 ? (uint32_t)atoi(argv[1]) : 2;
+    const char *counts = argc > 2 ? argv[2] : "1000000";
+    double min_cell = argc > 3 ? atof(argv[3]) : 0.5;
+    if (!strchr(counts, ',')) return run_one(threads, atol(counts), min_cell, false);
+
+    printf("threads %u, min cell %g m, max cell 16 m, 64 solid-test rays per leaf centre\n\n",
+           threads, min_cell);
+    printf("| triangles | probes | leaves | pruned |");
+    for (size_t k = 0; k < SWEEP_STAGES; k++) printf(" %s (s) |", sweep_stages[k]);
+    printf(" total wall (s) | process CPU (s) |\n|---|---|---|---|");
+    for (size_t k = 0; k < SWEEP_STAGES + 2; k++) printf("---|");
+    printf("\n");
+    fflush(stdout);
+    for (const char *c = counts; *c;) {
+        char *end = NULL;
+        long n = strtol(c, &end, 10);
+        if (end == c || n <= 0) {
+            fprintf(stderr, "bad triangle count list: %s\n", counts);
+            return 2;
+        }
+        if (run_one(threads, n, min_cell, true) != 0) return 1;
+        c = *end == ',' ? end + 1 : end;
+    }
     return 0;
 }
