@@ -50,16 +50,23 @@ float sh_lambert_band(uint l) {
     return -SH_PI / 24.0;
 }
 
-// Irradiance E(n) = sum_l A_l sum_m L_lm Y_lm(n), RGB, for coefficients coeffs[0..(L+1)^2).
-vec3 sh_irradiance(uint max_band, vec3 coeffs[25], vec3 n) {
-    float Y[25];
-    sh_eval_basis(max_band, n, Y);
+// sum_l A_l sum_m L_lm Y_lm for a precomputed basis Y (sh_eval_basis) and coefficients
+// coeffs[0..(L+1)^2): the one irradiance sum of the engine (sh_irradiance and the probe lookups
+// of shading.glsl both end here).
+vec3 sh_irradiance_basis(uint max_band, float Y[25], vec3 coeffs[25]) {
     vec3 e = vec3(0.0);
     for (uint l = 0u; l <= max_band; ++l) {
         float a = sh_lambert_band(l);
         for (uint i = l * l; i < (l + 1u) * (l + 1u); ++i) e += a * Y[i] * coeffs[i];
     }
     return e;
+}
+
+// Irradiance E(n) = sum_l A_l sum_m L_lm Y_lm(n), RGB, for coefficients coeffs[0..(L+1)^2).
+vec3 sh_irradiance(uint max_band, vec3 coeffs[25], vec3 n) {
+    float Y[25];
+    sh_eval_basis(max_band, n, Y);
+    return sh_irradiance_basis(max_band, Y, coeffs);
 }
 
 #endif

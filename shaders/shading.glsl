@@ -22,23 +22,26 @@ vec3 probe_coeff(uint index, uint i) {
     return probes[index].sh[i].xyz;
 }
 
-// sum_i A_l(i) Y_i L_i of probe `index` for a precomputed basis Y (bands <= band).
-vec3 probe_irradiance_basis(uint index, uint band, float Y[25]) {
-    vec3 e = vec3(0.0);
-    for (uint l = 0u; l <= band; ++l) {
-        float a = sh_lambert_band(l);
-        for (uint i = l * l; i < (l + 1u) * (l + 1u); ++i) e += a * Y[i] * probe_coeff(index, i);
-    }
-    return e;
+// The first (band+1)^2 coefficients of probe `index` (the rest 0).
+void probe_coeffs(uint index, uint band, out vec3 c[25]) {
+    for (uint i = 0u; i < 25u; ++i) c[i] = i < (band + 1u) * (band + 1u) ? probe_coeff(index, i) : vec3(0.0);
 }
 
-// Irradiance E(n) of probe `index` (DESIGN.md §3), not clamped: sh_irradiance() of sh.glsl,
-// reading the coefficients straight from the buffer and only the bands the probe has.
+// sum_i A_l(i) Y_i L_i of probe `index` for a precomputed basis Y (bands <= band):
+// sh_irradiance_basis() of sh.glsl on the probe's coefficients.
+vec3 probe_irradiance_basis(uint index, uint band, float Y[25]) {
+    vec3 c[25];
+    probe_coeffs(index, band, c);
+    return sh_irradiance_basis(band, Y, c);
+}
+
+// Irradiance E(n) of probe `index` (DESIGN.md §3), not clamped: sh_irradiance() of sh.glsl on
+// the probe's coefficients, only the bands the probe has.
 vec3 probe_irradiance(uint index, vec3 n) {
     uint band = probe_band(index);
-    float Y[25];
-    sh_eval_basis(band, n, Y);
-    return probe_irradiance_basis(index, band, Y);
+    vec3 c[25];
+    probe_coeffs(index, band, c);
+    return sh_irradiance(band, c, n);
 }
 
 // Per-pixel probe lighting (DESIGN.md §7, docs/engine.md "Per-pixel probes"): the first grid
