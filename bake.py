@@ -17,8 +17,9 @@ import argparse
 import os
 import sys
 import time
+import traceback
 
-EXIT_USAGE, EXIT_BAKE, EXIT_ADDON, EXIT_INTERRUPT = 2, 3, 4, 130
+EXIT_UNEXPECTED, EXIT_USAGE, EXIT_BAKE, EXIT_ADDON, EXIT_INTERRUPT = 1, 2, 3, 4, 130
 
 
 def _fail(code, message):
@@ -91,6 +92,24 @@ def _bool(text):
 
 
 def main():
+    """Run the bake; every failure leaves through :func:`_fail` with its documented exit code.
+
+    Blender ignores an uncaught exception of a ``-P`` script (exit status 0 unless it was started
+    with ``--python-exit-code``), so anything unexpected is caught here and becomes exit 1.
+    """
+    try:
+        _main()
+    except SystemExit:
+        raise
+    except KeyboardInterrupt:
+        _fail(EXIT_INTERRUPT, "interrupted; existing files are unchanged")
+    except Exception as exc:  # noqa: BLE001  (the traceback is printed; the status must not be 0)
+        traceback.print_exc()
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        _fail(EXIT_UNEXPECTED, f"unexpected {type(exc).__name__}" + (f": {reason}" if reason else ""))
+
+
+def _main():
     import bpy
 
     addon, bake_core, native = _import_addon()
@@ -126,6 +145,8 @@ def main():
         _fail(EXIT_BAKE, str(exc))
     except native.SchneeError as exc:
         _fail(EXIT_BAKE, f"native core: {exc}")
+    except OSError as exc:  # bake_core turns its own file errors into BakeError; this is a backstop
+        _fail(EXIT_BAKE, f"cannot write {getattr(exc, 'filename', None) or 'the output'}: {exc}")
     except KeyboardInterrupt:
         _fail(EXIT_INTERRUPT, "interrupted; existing files are unchanged")
     for msg in result.messages:

@@ -121,6 +121,7 @@ class _Target:
     grid_dims: tuple
     grid_origin: tuple
     grid_spacing: float
+    validity: Optional[np.ndarray] = None  # (P,) float32 1 - solid-test back-face ratio; None = all 1
 
 
 @dataclass
@@ -246,7 +247,14 @@ class ProbeBake:
             if len(tris) == 0:
                 raise BakeError(f"Probe volume '{name}' has no faces: a volume must be a closed mesh")
         exclude = frozenset(ob.name for ob in objects)
-        geometry = scene_export.gather_geometry(depsgraph, exclude)
+        # Solid geometry as Cycles renders it, not as the viewport shows it (render_settings.py).
+        coll = bpy.data.collections.get(s.volume_collection)
+        evaluation = render_settings.RenderEvaluation(self.scene, self.view_layer,
+                                                      keep=exclude | {coll.name})
+        with evaluation as render_depsgraph:
+            geometry = scene_export.gather_geometry(render_depsgraph, exclude)
+        if evaluation.failed:
+            self.log("Schnee: could not restore " + ", ".join(evaluation.failed))
         self.log(f"Schnee: {len(volumes)} volume(s), {len(geometry)} geometry mesh(es), "
                  f"{sum(len(g[2]) for g in geometry)} triangles")
 
@@ -284,8 +292,10 @@ class ProbeBake:
             if len(pl.positions) == 0:
                 raise BakeError(f"No probe could be placed in '{name}': every candidate position is "
                                 "inside solid geometry")
+            validity = np.clip(1.0 - np.asarray(pl.backface_ratio, dtype=np.float32), 0.0, 1.0)
             self.targets.append(_Target(path, name, index, np.asarray(pl.grid, dtype=np.int32),
-                                        tuple(pl.grid_dims), tuple(pl.grid_origin), float(pl.grid_spacing)))
+                                        tuple(pl.grid_dims), tuple(pl.grid_origin), float(pl.grid_spacing),
+                                        validity.astype(np.float32)))
         self.timings["placement"] = time.perf_counter() - t
         self.positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
 
@@ -444,25 +454,47 @@ class ProbeBake:
             self.log("Schnee: could not restore " + ", ".join(failed))
 
     def _write_outputs(self):
-        """Write all targets to temporary names, then rename them into place together."""
+        """Write all targets to temporary names, then rename them into place one after another.
+
+        The temporary names are unique per bake (``<name>.<pid>-<random>.partial`` beside the final
+        file), so two bakes writing to the same folder at once never share one. A failure while
+        writing removes every temporary file and leaves all final files unchanged. The renames are
+        not one atomic step: should a later rename fail (a full disk does not, a permission change
+        between two renames could), the files already renamed are new and the rest keep their old
+        contents; the error names the file. Every OS error is raised as :class:`BakeError`.
+        """
         s = self.settings
+        tag = f"{os.getpid()}-{os.urandom(4).hex()}"
         pending = []  # (tmp, final)
+
+        def tmp_name(final):
+            return f"{final}.{tag}.partial"
+
+        current = None
         try:
             for t in self.targets:
+                current = t.path
                 os.makedirs(os.path.dirname(t.path), exist_ok=True)
-                tmp = t.path + ".partial"
-                native.write_shprobe(tmp, self.coeffs[t.probe_render_index].astype(np.float32),
-                                     t.grid, t.grid_dims, t.grid_origin, t.grid_spacing,
+                tmp = tmp_name(t.path)
+                coeffs = self.coeffs[t.probe_render_index].astype(np.float32)
+                extra = {}
+                if s.max_band > 2:
+                    # Version 2 anyway (DESIGN.md §4): carry what placement knows. L <= 2 stays v1.
+                    extra = dict(positions=self.positions[t.probe_render_index].astype(np.float32),
+                                 validity=t.validity)
+                native.write_shprobe(tmp, coeffs, t.grid, t.grid_dims, t.grid_origin, t.grid_spacing,
                                      default_sh_scale=s.default_sh_scale,
-                                     default_ambient=s.default_ambient)
+                                     default_ambient=s.default_ambient, **extra)
                 pending.append((tmp, t.path))
             if self._sky_exr is not None:
                 final = os.path.join(os.path.dirname(_abspath(s.output_path)), SKY_FILE_NAME)
-                tmp = final + ".partial"
+                current = final
+                tmp = tmp_name(final)
                 shutil.copyfile(self._sky_exr, tmp)
                 pending.append((tmp, final))
             if self.mode == "CURSOR":
-                tmp = self.debug_text_path + ".partial"
+                current = self.debug_text_path
+                tmp = tmp_name(self.debug_text_path)
                 with open(tmp, "w", encoding="utf-8") as fh:
                     fh.write(debug_text(self.cursor, self.positions[0], self.coeffs[0], s))
                 pending.append((tmp, self.debug_text_path))
@@ -470,12 +502,25 @@ class ProbeBake:
             for tmp, _ in pending:
                 _remove_quietly(tmp)
             raise BakeError(f"Writing the probe file failed: {exc}") from exc
+        except OSError as exc:
+            for tmp, _ in pending:
+                _remove_quietly(tmp)
+            if current is not None:
+                _remove_quietly(tmp_name(current))
+            raise BakeError(f"Cannot write {current}: {exc}") from exc
         except BaseException:
             for tmp, _ in pending:
                 _remove_quietly(tmp)
             raise
-        for tmp, final in pending:
-            os.replace(tmp, final)
+        for i, (tmp, final) in enumerate(pending):
+            try:
+                os.replace(tmp, final)
+            except OSError as exc:
+                for t, _ in pending[i:]:
+                    _remove_quietly(t)
+                done = [f for _, f in pending[:i]]
+                raise BakeError(f"Cannot write {final}: {exc}"
+                                + (f" (already replaced: {', '.join(done)})" if done else "")) from exc
         return [final for _, final in pending]
 
     def run(self, progress=None) -> BakeResult:

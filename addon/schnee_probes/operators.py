@@ -78,7 +78,7 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
             return self._run_blocking(bake, props)
         try:
             bake.prepare()
-        except BakeError as exc:
+        except (BakeError, OSError) as exc:
             bake.cancel()
             _record(props, message=str(exc))
             self.report({'ERROR'}, str(exc))
@@ -100,7 +100,7 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
             print("\r" + b.progress_line(), end="", flush=True)
         try:
             result = bake.run(progress)
-        except BakeError as exc:
+        except (BakeError, OSError) as exc:
             print()
             _record(props, message=str(exc))
             self.report({'ERROR'}, str(exc))
@@ -186,7 +186,7 @@ class SCHNEE_OT_bake_sh_cursor(bpy.types.Operator):
                          mode="CURSOR", cursor=tuple(context.scene.cursor.location))
         try:
             result = bake.run()
-        except BakeError as exc:
+        except (BakeError, OSError) as exc:
             _record(props, message=str(exc))
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}

@@ -159,3 +159,91 @@ def apply_bake_settings(scene, view_layer, settings):
     c.seed = settings.seed
     c.use_animated_seed = False
     view_layer.samples = 0  # 0 = use the scene's sample count
+
+
+class _Overrides:
+    """Attribute writes recorded with their old values, undone in reverse order by :meth:`restore`
+    (the same contract as :class:`SceneState`: record first, change, put back what differs)."""
+
+    def __init__(self):
+        self._undo = []  # (setter, old value, label)
+
+    def set(self, struct, ident, value, label):
+        old = getattr(struct, ident)
+        if old != value:
+            self._undo.append((lambda v, s=struct, i=ident: setattr(s, i, v), old, label))
+            setattr(struct, ident, value)
+
+    def hide(self, ob, view_layer, value):
+        old = ob.hide_get(view_layer=view_layer)
+        if old != value:
+            self._undo.append((lambda v, o=ob: o.hide_set(v, view_layer=view_layer), old,
+                               f"object[{ob.name}].hide"))
+            ob.hide_set(value, view_layer=view_layer)
+
+    def restore(self):
+        """Undo every write; returns the labels of those that failed."""
+        failed = []
+        for setter, old, label in reversed(self._undo):
+            try:
+                setter(old)
+            except (ReferenceError, AttributeError, TypeError, ValueError, RuntimeError):
+                failed.append(label)
+        self._undo.clear()
+        return failed
+
+
+# Modifiers whose viewport level differs from the render level.
+_LEVEL_MODIFIERS = {'SUBSURF', 'MULTIRES'}
+
+
+class RenderEvaluation:
+    """``with RenderEvaluation(scene, view_layer, keep=...) as depsgraph:`` the evaluated depsgraph
+    with the viewport made to match the render: what Cycles renders is what placement sees.
+
+    Blender 3.4's Python API offers only the viewport depsgraph, which drops objects and
+    collections hidden in the viewport (monitor icon, or the eye of an object) and evaluates
+    modifiers with their viewport switch and level. For the duration of the block, every collection
+    and object of the scene gets ``hide_viewport = hide_render``, render-visible objects are
+    un-hidden (eye), each modifier gets ``show_viewport = show_render`` and subdivision/multires
+    ``levels = render_levels``. Everything changed is recorded first and put back on exit (success
+    or error), and the depsgraph is re-evaluated. Objects and collections named in ``keep`` are
+    left alone (the probe volumes, read before the block).
+    """
+
+    def __init__(self, scene, view_layer, keep=frozenset()):
+        self.scene = scene
+        self.view_layer = view_layer
+        self.keep = frozenset(keep)
+        self.failed = []
+        self._overrides = _Overrides()
+
+    def __enter__(self):
+        o, keep = self._overrides, self.keep
+        try:
+            for coll in self.scene.collection.children_recursive:
+                if coll.name not in keep:
+                    o.set(coll, "hide_viewport", coll.hide_render, f"collection[{coll.name}].hide_viewport")
+            in_layer = set(self.view_layer.objects.keys())
+            for ob in self.scene.objects:
+                if ob.name in keep:
+                    continue
+                o.set(ob, "hide_viewport", ob.hide_render, f"object[{ob.name}].hide_viewport")
+                if ob.name in in_layer and not ob.hide_render:
+                    o.hide(ob, self.view_layer, False)
+                for mod in ob.modifiers:
+                    label = f"object[{ob.name}].modifiers[{mod.name}]"
+                    o.set(mod, "show_viewport", mod.show_render, label + ".show_viewport")
+                    if mod.type in _LEVEL_MODIFIERS:
+                        o.set(mod, "levels", mod.render_levels, label + ".levels")
+        except BaseException:
+            self.failed = o.restore()
+            raise
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        depsgraph.update()
+        return depsgraph
+
+    def __exit__(self, *exc):
+        self.failed = self._overrides.restore()
+        bpy.context.evaluated_depsgraph_get().update()
+        return False

@@ -7,6 +7,7 @@ more, as noted per test).
 """
 import json
 import os
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +46,8 @@ def result_of(proc):
 def scenes(tmp_path_factory):
     out = tmp_path_factory.mktemp("addon_scenes")
     proc = run_blender(SCRIPTS / "addon_make_scenes.py", out)
-    return out, result_of(proc)["furniture"]
+    r = result_of(proc)
+    return out, r["furniture"], r["render_only"]
 
 
 def copy_blend(scenes, name, dest):
@@ -135,6 +137,23 @@ def test_room_default_octree_keeps_probes_out_of_furniture(scenes):
     assert r["grid_valid"] == 256
 
 
+def test_placement_sees_render_only_solids(scenes):
+    # render_only.blend (addon_make_scenes.py): sky volume 4 x 4 x 2 m at 1 m cells = 32 cell
+    # centres; three 1 m solids that only the render sees (hidden in the viewport, hidden with the
+    # eye, stacked by a render-only Array modifier) each hold one centre -> 29 probes, none inside.
+    # Evaluated as the viewport shows it, all 32 would stay.
+    proc = run_blender(SCRIPTS / "addon_placement.py", 1.0, 1.0, blend=scenes[0] / "render_only.blend")
+    r = result_of(proc)
+    pos = np.array(r["positions"])
+    assert not _inside_any(pos, scenes[2]).any()
+    assert r["count"] == 32 - 3
+    # Viewport flags, modifier switches and collection flags are back as they were.
+    assert r["state_after"] == r["state_before"]
+    assert r["state_before"]["ViewportHidden"][0] is True
+    assert r["state_before"]["EyeHidden"][1] is True
+    assert r["state_before"]["RenderArray"][2][0][1] is False
+
+
 # ---------------------------------------------------------------------------------- headless
 def test_bake_py_room(scenes, tmp_path):
     from schnee_probes import native
@@ -180,6 +199,37 @@ def test_bake_py_bad_option_exits_2(scenes, tmp_path):
     proc = bake_cli(copy_blend(scenes, "sky.blend", tmp_path), "--max-band", "7")
     assert proc.returncode == 2
     assert "invalid choice" in proc.stderr
+
+
+def test_bake_py_unwritable_output_exits_3_naming_the_path(tmp_path):
+    # The output folder is a regular file: makedirs fails with FileExistsError. Blender ignores
+    # an uncaught script exception (exit 0), so bake.py must turn it into its documented exit 3.
+    blocker = tmp_path / "afile"
+    blocker.write_text("not a folder")
+    out = blocker / "probes.shprobe"
+    proc = bake_cli(None, "--cursor", 0, 0, 3, "--panorama-resolution", 16, "--samples", 1,
+                    "--output", out)
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    last = proc.stderr.strip().splitlines()[-1]
+    assert last.startswith("bake.py: error: Cannot write ") and str(out) in last, last
+    assert "Traceback" not in proc.stderr  # an expected failure: one line, no traceback
+    assert blocker.read_text() == "not a folder"
+    assert not list(tmp_path.glob("**/*.partial"))
+
+
+def test_bake_py_unexpected_exception_exits_1(tmp_path):
+    # addon_inject_error.py makes ProbeBake.run raise a RuntimeError. Run without
+    # --python-exit-code (Blender's default, which would report 0): bake.py itself must exit 1.
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(REPO / "addon") + os.pathsep + env.get("PYTHONPATH", "")
+    cmd = ["blender", "-b", "--factory-startup", "-P", str(SCRIPTS / "addon_inject_error.py"),
+           "-P", str(BAKE_PY), "--", "--cursor", "0", "0", "3", "--output", str(tmp_path / "p.shprobe")]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "Traceback" in proc.stderr
+    last = proc.stderr.strip().splitlines()[-1]
+    assert last == "bake.py: error: unexpected RuntimeError: injected unexpected failure", last
+    assert not (tmp_path / "p.shprobe").exists()
 
 
 # -------------------------------------------------------------------------------- bad input

@@ -8,6 +8,9 @@ room.blend       4 x 4 x 2 m room (Blender x, y in -2..2, z in 0..2), solid wall
 sky.blend        sky only (courtyard.exr) with one 4 x 4 x 2 m volume, no geometry.
 missing_collection.blend, empty_collection.blend, non_mesh.blend, open_volume.blend: bad input.
 two_volumes.blend  sky.blend with the volume renamed "West Wing" and a second one, "East", beside it.
+render_only.blend  sky.blend plus three 1 m solids inside the volume that only the render sees (see
+                 RENDER_ONLY): one hidden in the viewport (monitor icon), one hidden with the eye,
+                 and one 0.25 m slab whose render-only Array modifier stacks it to 1 m.
 """
 import os
 import sys
@@ -23,6 +26,11 @@ ROOM_MIN, ROOM_MAX = (-2.0, -2.0, 0.0), (2.0, 2.0, 2.0)
 # Where the two furniture boxes end up (Blender world space), for the tests' inside checks.
 FURNITURE = {"BoxInstanced": ((-2.0, -2.0, 0.0), (-1.0, -1.0, 1.0)),
              "BoxArray": ((1.0, 0.0, 0.0), (2.0, 1.0, 1.0))}
+
+# render_only.blend: Blender-space boxes of the render-only solids (after modifiers).
+RENDER_ONLY = {"ViewportHidden": ((-2.0, -2.0, 0.0), (-1.0, -1.0, 1.0)),
+               "EyeHidden": ((-2.0, 1.0, 0.0), (-1.0, 2.0, 1.0)),
+               "RenderArray": ((1.0, 0.0, 0.0), (2.0, 1.0, 1.0))}
 
 
 def room():
@@ -53,6 +61,21 @@ def sky():
     lib.clear_scene()
     lib.hdri_world("courtyard.exr")
     lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 2.0))
+
+
+def render_only():
+    sky()
+    coll = lib.collection("Props")
+    lo, hi = RENDER_ONLY["ViewportHidden"]
+    lib.box("ViewportHidden", lo, hi, coll).hide_viewport = True
+    lo, hi = RENDER_ONLY["EyeHidden"]
+    lib.box("EyeHidden", lo, hi, coll).hide_set(True)
+    lo, hi = RENDER_ONLY["RenderArray"]
+    slab = lib.box("RenderArray", lo, (hi[0], hi[1], lo[2] + 0.25), coll)
+    mod = slab.modifiers.new("Array", 'ARRAY')
+    mod.count = 4
+    mod.relative_offset_displace = (0.0, 0.0, 1.0)
+    mod.show_viewport = False  # render only: the slab's 1 m cell centre (z 0.5) is inside only then
 
 
 def main():
@@ -89,7 +112,10 @@ def main():
     bpy.data.objects["SkyVolume"].name = "West Wing"
     lib.probe_volume("East", (2.0, -2.0, 0.0), (6.0, 2.0, 2.0))
     lib.save(os.path.join(out, "two_volumes.blend"))
-    common.emit(furniture=FURNITURE)
+
+    render_only()
+    lib.save(os.path.join(out, "render_only.blend"))
+    common.emit(furniture=FURNITURE, render_only=RENDER_ONLY)
 
 
 main()

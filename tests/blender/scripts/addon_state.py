@@ -65,6 +65,14 @@ def snapshot():
         for ident in ("hide_render", "hide_viewport", "visible_camera", "location", "rotation_euler"):
             v = getattr(ob, ident)
             out[f"object[{ob.name}].{ident}"] = tuple(v) if not isinstance(v, bool) else v
+        if ob.name in bpy.context.view_layer.objects:
+            out[f"object[{ob.name}].hide_get"] = ob.hide_get()
+        for mod in ob.modifiers:  # placement evaluates modifiers as rendered, then puts them back
+            for ident in ("show_viewport", "show_render", "levels", "render_levels"):
+                if hasattr(mod, ident):
+                    out[f"object[{ob.name}].modifiers[{mod.name}].{ident}"] = getattr(mod, ident)
+    for coll in bpy.data.collections:
+        out[f"collection[{coll.name}].hide_viewport"] = coll.hide_viewport
     for cam in bpy.data.cameras:
         walk(cam, f"camera[{cam.name}]", out)
     return out
@@ -109,6 +117,23 @@ def make_odd_settings():
     light.location = (0.0, 0.0, 1.0)
     light.visible_camera = False
     scene.collection.objects.link(light)
+    # Render-only geometry far outside the volume: placement switches its viewport flags and
+    # modifiers to the render's for a moment (render_settings.RenderEvaluation).
+    coll = bpy.data.collections.new("UserProps")
+    scene.collection.children.link(coll)
+    coll.hide_viewport = True
+    for name, z in (("UserHidden", 20.0), ("UserEyeHidden", 23.0)):
+        mesh = bpy.data.meshes.new(name)
+        mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)], [], [(0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)])
+        ob = bpy.data.objects.new(name, mesh)
+        ob.location = (0.0, 0.0, z)
+        scene.collection.objects.link(ob)
+        sub = ob.modifiers.new("Subdiv", 'SUBSURF')
+        sub.levels, sub.render_levels = 0, 2
+        arr = ob.modifiers.new("Array", 'ARRAY')
+        arr.show_viewport = False
+    bpy.data.objects["UserHidden"].hide_viewport = True
+    bpy.data.objects["UserEyeHidden"].hide_set(True)
 
 
 def main():
