@@ -184,6 +184,37 @@ def test_bake_py_per_volume_files(scenes, tmp_path):
         assert f.probe_count == 4 and tuple(f.grid_dims) == (2, 1, 2)
 
 
+def test_bake_py_band_4_writes_v2_with_positions_and_validity(scenes, tmp_path):
+    # L = 4 needs file version 2 anyway (DESIGN.md §4), so the bake stores what placement knows.
+    # sky.blend: 4 x 4 x 2 m volume (Blender -2..2, -2..2, 0..2) at 2 m cells -> probes at the
+    # cell centres Blender (±1, ±1, 1) = engine (x, z, -y) = (±1, 1, ∓1); no geometry, so no ray
+    # hits a back face and validity = 1 - 0 exactly.
+    from schnee_probes import native
+    blend = copy_blend(scenes, "sky.blend", tmp_path)
+    bake_cli(blend, "--min-cell-size", 2, "--max-cell-size", 2, "--panorama-resolution", 20,
+             "--samples", 1, "--max-band", 4, check=True)
+    f = native.read_shprobe(str(tmp_path / "sh_coeffs" / "probes.shprobe"))
+    assert f.version == 2 and f.max_band == 4 and f.probe_count == 4
+    expected = sorted((x, 1.0, -y) for x in (-1.0, 1.0) for y in (-1.0, 1.0))
+    got = sorted(map(tuple, f.positions.astype(np.float64)))
+    np.testing.assert_allclose(got, expected, atol=1e-6)  # float32 of exact cell centres
+    assert f.validity.shape == (4,)
+    assert ((f.validity >= 0) & (f.validity <= 1)).all()
+    np.testing.assert_array_equal(f.validity, 1.0)
+    # Each stored position is the centre of the grid cell that maps to that probe.
+    np.testing.assert_array_equal(f.lookup(f.positions.astype(np.float64)), np.arange(4))
+
+
+def test_bake_py_band_2_stays_version_1(scenes, tmp_path):
+    # L <= 2 keeps the smaller version 1 layout (DESIGN.md §4): no positions stored.
+    from schnee_probes import native
+    blend = copy_blend(scenes, "sky.blend", tmp_path)
+    bake_cli(blend, "--min-cell-size", 2, "--max-cell-size", 2, "--panorama-resolution", 16,
+             "--samples", 1, "--max-band", 2, check=True)
+    f = native.read_shprobe(str(tmp_path / "sh_coeffs" / "probes.shprobe"))
+    assert f.version == 1 and f.positions is None
+
+
 def test_bake_py_help_lists_every_setting():
     proc = run_blender(BAKE_PY, "--help", check=True)
     # One option per BakeSettings field (bake_core.py) plus --cursor.
