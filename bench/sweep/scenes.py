@@ -37,6 +37,7 @@ SUN_RADIANCE = 1.0e5
 SUN_RADIUS = 0.05
 SUN_CENTRE = (1.2, 1.0, 1.8)     # 1.75 m from SUN_PROBE
 SUN_PROBE = (0.0, 0.0, 1.0)
+SUN_PROBE2 = (0.4, -0.3, 1.2)    # a second probe (1.64 m from the sphere): two noise samples per row
 
 
 @dataclass
@@ -47,6 +48,24 @@ class SceneSpec:
     samples: List[Vec]                # sample points between probes (where movables sit)
     placement: List[Tuple[float, float]] = field(default_factory=list)  # (min, max) cell sizes studied
     offset: Vec = (0.0, 0.0, 0.0)
+
+
+N_SAMPLES = 32  # sample points per volume of the placement study
+
+
+def seeded_samples(fixed, lo, hi, avoid, n=N_SAMPLES, seed=7, margin=0.15):
+    """``fixed`` points plus seeded uniform points in the box ``lo``..``hi`` (Blender space, before
+    the offset) up to ``n``, none within ``margin`` of a box in ``avoid`` (solid geometry: a movable
+    cannot stand inside a table). Deterministic: the same points in every run and in the tests."""
+    import random
+    rng = random.Random(seed)
+    out = list(fixed)
+    while len(out) < n:
+        p = tuple(round(rng.uniform(lo[i], hi[i]), 3) for i in range(3))
+        if any(all(a[i] - margin <= p[i] <= b[i] + margin for i in range(3)) for a, b in avoid):
+            continue
+        out.append(p)
+    return out
 
 
 def _shift(points, offset):
@@ -82,8 +101,8 @@ def _sky(hdri):
         _world(hdri)
         # The light is the same everywhere; the volume only gives the bake somewhere to place probes.
         lib.probe_volume("SkyVolume", *_shift([(-2.0, -2.0, 0.0), (2.0, 2.0, 2.0)], offset))
-        # With one Cycles seed every probe of a sky-only scene renders the same panorama (the light
-        # does not depend on position), so the sky error is one noise sample per setting.
+        # The light does not depend on position: the probes differ only by their Cycles seed
+        # (worker.py gives each probe its own), so a row is the mean of 8 noise samples.
         probes = [(-1.0, -1.0, 0.5), (1.0, 0.5, 1.5), (0.5, -1.5, 1.0), (-1.5, 1.5, 0.25),
                   (0.0, 0.0, 1.0), (1.5, 1.5, 1.75), (-0.5, 0.5, 0.75), (1.0, -1.0, 1.25)]
         return SceneSpec("", hdri, probes=probes, samples=[])
@@ -107,7 +126,9 @@ def _interior(offset):
     # under the panel, next to the table, the middle. Sample points: where movables would stand,
     # between those centres.
     probes = [(0.5, 1.5, 1.25), (-0.5, -0.5, 1.75), (-1.5, -0.5, 0.75), (0.5, -0.5, 0.75)]
-    samples = [(0.2, 1.2, 1.4), (-0.3, 0.6, 0.9), (1.3, -1.1, 0.5), (-1.2, 0.3, 1.6)]
+    samples = seeded_samples([(0.2, 1.2, 1.4), (-0.3, 0.6, 0.9), (1.3, -1.1, 0.5), (-1.2, 0.3, 1.6)],
+                             (-1.85, -1.85, 0.15), (1.85, 1.85, 2.35),
+                             [((-1.6, -1.6, 0.0), (-0.6, -0.9, 0.75)), ((-0.5, -1.2, 2.45), (0.5, -0.7, 2.5))])
     return SceneSpec("", "courtyard.exr", probes, samples, placement=[(1.0, 4.0), (2.0, 8.0)])
 
 
@@ -124,8 +145,9 @@ def _courtyard(offset):
     # the octree refines around the pillar and at the wings' faces only.
     lib.probe_volume("YardVolume", *_shift([(-4.0, -4.0, 0.5), (6.0, 6.0, 4.5)], offset))
     probes = [(-3.0, -3.0, 1.0), (4.0, 4.0, 2.5), (2.5, 0.5, 1.0), (-1.0, 3.0, 3.5)]
-    samples = [(-3.4, 2.2, 1.2), (0.3, -3.1, 1.0), (3.6, 1.6, 0.9), (2.9, 4.8, 1.7),
-               (-1.7, -0.6, 2.6), (0.6, 2.4, 1.3)]
+    samples = seeded_samples([(-3.4, 2.2, 1.2), (0.3, -3.1, 1.0), (3.6, 1.6, 0.9), (2.9, 4.8, 1.7),
+                              (-1.7, -0.6, 2.6), (0.6, 2.4, 1.3)],
+                             (-3.9, -3.9, 0.6), (5.9, 5.9, 4.4), [((1.0, 1.0, 0.0), (2.0, 2.0, 3.0))])
     return SceneSpec("", "forest.exr", probes, samples, placement=[(1.0, 2.0), (1.0, 4.0), (2.0, 8.0)])
 
 
@@ -145,7 +167,7 @@ def _sun(offset):
     nt.links.new(em.outputs["Emission"], out.inputs["Surface"])
     sphere.data.materials.append(mat)
     lib.probe_volume("SunVolume", *_shift([(-0.5, -0.5, 0.5), (0.5, 0.5, 1.5)], offset))
-    return SceneSpec("", "courtyard.exr", probes=[SUN_PROBE], samples=[])
+    return SceneSpec("", "courtyard.exr", probes=[SUN_PROBE, SUN_PROBE2], samples=[])
 
 
 def sun_direction_and_solid_angle():

@@ -49,11 +49,18 @@ def _say(msg):
     sys.stderr.flush()
 
 
-def _stepped(bake):
-    """Step ``bake`` to the end; per-probe (render, write_exr, project) seconds."""
+def _stepped(bake, seed=0):
+    """Step ``bake`` to the end; per-probe (render, write_exr, project) seconds.
+
+    Each probe gets its own Cycles seed ``seed * 1000 + i``: the stepper applies one seed in
+    ``prepare`` (render_settings.apply_bake_settings), so with it every probe of a sky-only scene
+    would render the same noise and a row would hold one noise sample however many probes it has.
+    Set on the scene after the stepper's override, before each render."""
     rows = []
     while bake.done < bake.total:
         before = dict(bake.timings)
+        bake.scene.cycles.seed = seed * 1000 + bake.done
+        bake.scene.update_tag()  # a property change alone does not reach a persistent Cycles session
         bake.step()
         rows.append([bake.timings[k] - before[k] for k in ("render", "write_exr", "project")])
     return rows
@@ -71,7 +78,7 @@ def run_fixed(job, spec, tmp):
         # The cursor bake's stepper with our positions: same render settings, camera and projection.
         bake.positions = eng
         bake.coeffs = np.zeros((len(eng), native.sh_count(s.max_band), 3))
-        rows = _stepped(bake)
+        rows = _stepped(bake, s.seed)
         return {"coeffs": bake.coeffs.tolist(), "times": rows, "positions": eng.tolist(),
                 "settings_effective": dataclasses.asdict(s)}
     finally:
@@ -85,7 +92,7 @@ def run_placement(job, spec, tmp):
     t0 = time.perf_counter()
     try:
         bake.prepare()
-        rows = _stepped(bake)
+        rows = _stepped(bake, s.seed)
         result = bake.finish()
     except BaseException:
         bake.cancel()
