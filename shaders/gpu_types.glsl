@@ -52,7 +52,7 @@ struct sv_gpu_grid {
     vec4 origin_spacing;
     vec4 axes[3];
     uvec4 dims;   // w = offset into the cell buffer
-    uvec4 base;   // x = probe-buffer index of the grid's probe 0
+    uvec4 base;   // x = probe-buffer index of the grid's probe 0, y = offset of its visibility masks in cell_probe
 };
 
 struct sv_gpu_light {
@@ -85,6 +85,7 @@ layout(std430, set = 0, binding = 1) readonly buffer MaterialBlock { sv_gpu_mate
 layout(std430, set = 0, binding = 2) readonly buffer ProbeBlock { sv_gpu_probe probes[]; };
 layout(std430, set = 0, binding = 3) readonly buffer LightBlock { sv_gpu_light lights[]; };
 layout(std430, set = 0, binding = 6) readonly buffer GridBlock { sv_gpu_grid grids[]; };
+// Cell -> probe indices of every grid, then one neighbour-visibility mask per cell (grids[g].base.y).
 layout(std430, set = 0, binding = 7) readonly buffer CellIndexBlock { int cell_probe[]; };
 layout(std430, set = 0, binding = 8) readonly buffer ProbeHalfBlock { sv_gpu_probe_half probes_half[]; };
 // Sky: equirect radiance, mip k = GGX prefiltered at roughness k / (mips - 1); BRDF LUT (NoV, roughness).

@@ -49,7 +49,9 @@ vec3 probe_irradiance(uint index, vec3 n) {
 // the centres of the 8 neighbouring cells (indices clamped at the grid's faces). A neighbour gets
 // weight  trilinear * validity * backface, where backface = smoothstep(-0.1, 0.1, dot(c - p, n) / spacing)
 // is ~0 for a probe centre c behind the surface's tangent plane (the anti-leak measure); empty
-// cells (-1) are skipped and the weights renormalised. When every weight is 0 the cell holding
+// cells (-1) are skipped and the weights renormalised. A neighbour is also dropped when the cell
+// holding p + 0.01 spacing * n (the "home" cell, on the lit side of the surface) cannot see it: its
+// visibility mask (Embree segments between cell centres, computed at load) has the bit clear. When every weight is 0 the cell holding
 // p is used alone (the per-object rule); when that is empty too, the next grid is tried.
 // Returns E(n) including each probe's own scale; false when no grid holds p.
 bool grid_irradiance(vec3 p_surface, vec3 n, out vec3 e_out) {
@@ -68,6 +70,10 @@ bool grid_irradiance(vec3 p_surface, vec3 n, out vec3 e_out) {
         ivec3 i0 = ivec3(floor(c));
         vec3 f = c - vec3(i0);
         uint off = gr.dims.w;
+        vec3 rel_h = rel + n * (0.01 * h);
+        ivec3 home = clamp(ivec3(floor(vec3(dot(rel_h, gr.axes[0].xyz), dot(rel_h, gr.axes[1].xyz),
+                                              dot(rel_h, gr.axes[2].xyz)) / h)), ivec3(0), dims - 1);
+        uint vis = uint(cell_probe[gr.base.y + uint(home.x + home.y * dims.x + home.z * dims.x * dims.y)]);
         uint band = 0u;
         float Y[25];
         // Probes of one grid share the band: evaluate the basis once.
@@ -79,6 +85,9 @@ bool grid_irradiance(vec3 p_surface, vec3 n, out vec3 e_out) {
             ivec3 ci = clamp(i0 + o, ivec3(0), dims - 1);
             int idx = cell_probe[off + uint(ci.x + ci.y * dims.x + ci.z * dims.x * dims.y)];
             if (idx < 0) continue;
+            ivec3 d = ci - home; // in {-1, 0, 1}^3 but for float edge cases (then: no information)
+            if (all(lessThanEqual(abs(d), ivec3(1))) && (vis & (1u << uint(d.x + 1 + 3 * (d.y + 1) + 9 * (d.z + 1)))) == 0u)
+                continue;
             vec3 w3 = mix(1.0 - f, f, vec3(o));
             float w = w3.x * w3.y * w3.z;
             vec3 centre_local = (vec3(ci) + 0.5) * h;

@@ -5,8 +5,12 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
+
+#include <embree3/rtcore.h>
 
 #include "schnee/pb_sh.h"
+#include "sv_math.h"
 
 static bool differs(float a, float b) { return fabsf(a - b) > 1e-5f * fmaxf(1.0f, fmaxf(fabsf(a), fabsf(b))); }
 
@@ -195,8 +199,118 @@ sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t coun
     return out;
 }
 
-bool sv_probes_gpu_grids(const sv_probes *probes, sv_gpu_grid **grids_out, int32_t **cells_out,
-                         uint32_t *cell_count) {
+static double sv_probes_now_ms(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+/* World-space centre of cell (x, y, z) of file f. */
+static void cell_centre(const pb_shprobe *f, const float *ax, int x, int y, int z, float out[3]) {
+    float h = f->grid_spacing, l[3] = {(x + 0.5f) * h, (y + 0.5f) * h, (z + 0.5f) * h};
+    for (int k = 0; k < 3; ++k) out[k] = f->grid_origin[k] + l[0] * ax[0 * 3 + k] + l[1] * ax[1 * 3 + k] + l[2] * ax[2 * 3 + k];
+}
+
+/* Embree scene of every object's triangles in world space (the load-time transforms); NULL when
+ * the scene has no triangles. */
+static RTCScene build_occluders(RTCDevice dev, const sv_scene *scene, size_t *tri_count) {
+    RTCScene rs = rtcNewScene(dev);
+    const sv_gltf *g = scene->gltf;
+    *tri_count = 0;
+    for (uint32_t o = 0; o < scene->object_count; ++o) {
+        const sv_object *obj = &scene->objects[o];
+        const sv_gltf_mesh *mesh = &g->meshes[obj->mesh];
+        for (uint32_t p = 0; p < mesh->primitive_count; ++p) {
+            const sv_gltf_primitive *pr = &mesh->primitives[p];
+            if (pr->index_count < 3 || !pr->vertex_count) continue;
+            RTCGeometry geo = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+            float *v = rtcSetNewGeometryBuffer(geo, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                               pr->vertex_count);
+            uint32_t *ix = rtcSetNewGeometryBuffer(geo, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                   3 * sizeof(uint32_t), pr->index_count / 3);
+            if (!v || !ix) {
+                rtcReleaseGeometry(geo);
+                continue;
+            }
+            for (uint32_t k = 0; k < pr->vertex_count; ++k) sv_mat4_point(obj->world, pr->positions + 3 * (size_t)k, v + 3 * (size_t)k);
+            memcpy(ix, pr->indices, (size_t)(pr->index_count / 3) * 3 * sizeof(uint32_t));
+            rtcCommitGeometry(geo);
+            rtcAttachGeometry(rs, geo);
+            rtcReleaseGeometry(geo);
+            *tri_count += pr->index_count / 3;
+        }
+    }
+    rtcCommitScene(rs);
+    return rs;
+}
+
+/* Neighbour visibility masks, one uint32 per cell in the layout of the concatenated cell grids:
+ * bit (dx+1) + 3(dy+1) + 9(dz+1) (d in {-1,0,1}^3; bit 13 = the cell itself, always set) is set
+ * when the segment between the centres of the cell and of its neighbour at offset d crosses no
+ * scene triangle (Embree occlusion ray, both sides). Empty cells, and cells whose neighbour is
+ * empty or outside the grid, keep the bit set (no information, no change to the weights). */
+static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene, size_t n) {
+    uint32_t *masks = malloc((n ? n : 1) * sizeof(uint32_t));
+    if (!masks) return NULL;
+    for (size_t i = 0; i < n; ++i) masks[i] = (1u << 27) - 1u;
+    if (!scene || !scene->object_count) return masks;
+    double t0 = sv_probes_now_ms();
+    RTCDevice dev = rtcNewDevice(NULL);
+    if (!dev) {
+        fprintf(stderr, "schnee-view: warning: Embree device failed; per-pixel probes without visibility masks\n");
+        return masks;
+    }
+    size_t tris = 0, rays = 0;
+    RTCScene rs = build_occluders(dev, scene, &tris);
+    size_t off = 0;
+    for (uint32_t g = 0; g < probes->grid_count && tris; ++g) {
+        const pb_shprobe *f = probes->grids[g].file;
+        const float *ax = file_axes(f);
+        int X = (int)f->grid_dims[0], Y = (int)f->grid_dims[1], Z = (int)f->grid_dims[2];
+        float eps = 1e-4f;
+        for (int z = 0; z < Z; ++z)
+            for (int y = 0; y < Y; ++y)
+                for (int x = 0; x < X; ++x) {
+                    size_t ci = (size_t)x + (size_t)X * ((size_t)y + (size_t)Y * z);
+                    if (f->grid[ci] < 0) continue;
+                    float a[3];
+                    cell_centre(f, ax, x, y, z, a);
+                    /* Each pair once: the 13 offsets after the centre in bit order, both cells' bits. */
+                    for (int k = 14; k < 27; ++k) {
+                        int dx = k % 3 - 1, dy = (k / 3) % 3 - 1, dz = k / 9 - 1;
+                        int nx = x + dx, ny = y + dy, nz = z + dz;
+                        if (nx < 0 || ny < 0 || nz < 0 || nx >= X || ny >= Y || nz >= Z) continue;
+                        size_t cj = (size_t)nx + (size_t)X * ((size_t)ny + (size_t)Y * nz);
+                        if (f->grid[cj] < 0) continue;
+                        float b[3];
+                        cell_centre(f, ax, nx, ny, nz, b);
+                        struct RTCRay ray = {0};
+                        ray.org_x = a[0], ray.org_y = a[1], ray.org_z = a[2];
+                        ray.dir_x = b[0] - a[0], ray.dir_y = b[1] - a[1], ray.dir_z = b[2] - a[2];
+                        ray.tnear = eps;
+                        ray.tfar = 1.0f - eps;
+                        ray.mask = 0xFFFFFFFFu;
+                        struct RTCIntersectContext ctx;
+                        rtcInitIntersectContext(&ctx);
+                        rtcOccluded1(rs, &ctx, &ray);
+                        ++rays;
+                        if (ray.tfar < 0.0f) { /* occluded: -inf */
+                            masks[off + ci] &= ~(1u << k);
+                            masks[off + cj] &= ~(1u << (26 - k)); /* the opposite offset */
+                        }
+                    }
+                }
+        off += (size_t)X * Y * Z;
+    }
+    rtcReleaseScene(rs);
+    rtcReleaseDevice(dev);
+    fprintf(stderr, "schnee-view: probe visibility masks: %zu segment(s) against %zu triangle(s) in %.1f ms\n",
+            rays, tris, sv_probes_now_ms() - t0);
+    return masks;
+}
+
+bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_grid **grids_out,
+                         int32_t **cells_out, uint32_t *cell_count) {
     size_t n = 0;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         const pb_shprobe *f = probes->grids[g].file;
@@ -205,15 +319,17 @@ bool sv_probes_gpu_grids(const sv_probes *probes, sv_gpu_grid **grids_out, int32
     *grids_out = NULL;
     *cells_out = NULL;
     *cell_count = 0;
-    if (n > UINT32_MAX) {
-        fprintf(stderr, "schnee-view: error: probe grids have more than 2^32 cells in total\n");
+    if (2 * n > UINT32_MAX) {
+        fprintf(stderr, "schnee-view: error: probe grids have more than 2^31 cells in total\n");
         return false;
     }
     sv_gpu_grid *grids = calloc(probes->grid_count ? probes->grid_count : 1, sizeof(*grids));
-    int32_t *cells = calloc(n ? n : 1, sizeof(int32_t));
-    if (!grids || !cells) {
+    int32_t *cells = calloc(n ? 2 * n : 1, sizeof(int32_t));
+    uint32_t *masks = visibility_masks(probes, scene, n);
+    if (!grids || !cells || !masks) {
         free(grids);
         free(cells);
+        free(masks);
         fprintf(stderr, "schnee-view: error: out of memory for the probe grids\n");
         return false;
     }
@@ -229,13 +345,16 @@ bool sv_probes_gpu_grids(const sv_probes *probes, sv_gpu_grid **grids_out, int32
         for (int k = 0; k < 3; ++k) d->dims[k] = f->grid_dims[k];
         d->dims[3] = (uint32_t)off;
         d->base[0] = probes->grids[g].base;
+        d->base[1] = (uint32_t)(n + off); /* the grid's visibility masks follow all cell indices */
         size_t cn = (size_t)f->grid_dims[0] * f->grid_dims[1] * f->grid_dims[2];
         memcpy(cells + off, f->grid, cn * sizeof(int32_t));
+        memcpy(cells + n + off, masks + off, cn * sizeof(uint32_t));
         off += cn;
     }
+    free(masks);
     *grids_out = grids;
     *cells_out = cells;
-    *cell_count = (uint32_t)n;
+    *cell_count = (uint32_t)(2 * n);
     return true;
 }
 

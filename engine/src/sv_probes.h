@@ -51,9 +51,13 @@ sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t coun
 /* IEEE 754 binary16 of a float (round to nearest even), as GLSL's packHalf2x16 stores it. */
 uint16_t sv_half_from_float(float f);
 
-/* Per-pixel sampling data: one sv_gpu_grid per grid and the concatenated occupancy grids
- * (*cell_count int32). Caller frees both. */
-bool sv_probes_gpu_grids(const sv_probes *probes, sv_gpu_grid **grids, int32_t **cells, uint32_t *cell_count);
+/* Per-pixel sampling data: one sv_gpu_grid per grid and the concatenated occupancy grids (n
+ * int32 cell -> probe indices) followed by one neighbour-visibility mask per cell (n uint32, grid
+ * g's at base[1]; *cell_count = 2n). The masks come from Embree occlusion rays between cell centres
+ * through `scene`'s triangles at their current transforms (NULL: every neighbour visible); see
+ * docs/engine.md "Per-pixel probes". Caller frees both. */
+bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_grid **grids, int32_t **cells,
+                         uint32_t *cell_count);
 
 /* Probe view instances: centre + radius, probe[0] = probe-buffer index, probe[1] = grid index. */
 typedef struct sv_gpu_cell {

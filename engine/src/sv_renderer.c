@@ -275,7 +275,7 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g) {
     return ok;
 }
 
-static bool upload_probes(sv_renderer *r, const sv_probes *probes, const sv_renderer_desc *desc) {
+static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, const sv_renderer_desc *desc) {
     const sv_sky *sky = desc->sky && desc->sky->present ? desc->sky : NULL;
     sv_gpu_probe *p = sv_probes_pack(probes, desc->fallback_radiance, sky ? sky->sh : NULL, sky ? sky->max_band : 0);
     sv_gpu_probe_half *ph = p && desc->half_probes ? sv_probes_pack_half(p, probes->total) : NULL;
@@ -285,7 +285,7 @@ static bool upload_probes(sv_renderer *r, const sv_probes *probes, const sv_rend
     int32_t *cell_index = NULL;
     bool ok = p && cells && (!desc->half_probes || ph);
     if (!ok) fail_msg("out of memory packing probes");
-    ok = ok && sv_probes_gpu_grids(probes, &grids, &cell_index, &grid_cells);
+    ok = ok && sv_probes_gpu_grids(probes, scene, &grids, &cell_index, &grid_cells);
     /* Only the storage in use holds the probes; the other binding gets one zero entry. */
     static const sv_gpu_probe zero_probe;
     static const sv_gpu_probe_half zero_half;
@@ -702,7 +702,7 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
     r->encode_srgb = output_format != VK_FORMAT_B8G8R8A8_SRGB && output_format != VK_FORMAT_R8G8B8A8_SRGB;
     const sv_gltf *g = scene->gltf;
     if (!upload_geometry(r, g) || !upload_materials(r, g) || !upload_textures(r, g) || !upload_lights(r, g) ||
-        !upload_probes(r, probes, desc) || !upload_sky(r, desc->sky))
+        !upload_probes(r, scene, probes, desc) || !upload_sky(r, desc->sky))
         return false;
     if (!sv_buffer_create(ctx, sizeof(sv_gpu_frame), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true, &r->frame)) return false;
     r->material_count = g->material_count + 1;

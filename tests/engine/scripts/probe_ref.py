@@ -6,6 +6,8 @@
   margin), times validity, times the back-face
   weight smoothstep(-0.1, 0.1, dot(c - p, n) / spacing); cells of -1 skipped, weights
   renormalised; all weights 0 -> the cell holding p; first grid whose box holds p wins.
+- Not modelled: the engine's visibility masks (docs/engine.md step 3): compare only scenes where no
+  triangle crosses a segment between neighbouring cell centres (then every bit is set).
 - Equirect mapping: DESIGN.md §3 (Blender d = (e.x, -e.z, e.y)).
 - Direct light of a point light: docs/engine.md "Shading" (Lambert + normalised Blinn-Phong,
   range window, 1/d^2).
