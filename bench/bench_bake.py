@@ -2,12 +2,15 @@
 write, EXR read and SH projection; plus error against a high-sample reference for the settings that
 trade time for error (samples, bounces, pixel filter, panorama resolution).
 
-    blender -b --factory-startup -P bench/bench_bake.py -- [--probes 8] [--ref-samples 512]
-        [--error-probes 2] [--quick]
+    blender -b --factory-startup -P bench/bench_bake.py -- [--probes 5] [--repeats 3]
+        [--ref-samples 512] [--error-probes 2] [--quick]
 
-Writes a Markdown table to stdout (bench/results/bake.md holds the last run). Sync vs tracing: each
-probe is rendered at 1 sample and at the tested count with persistent data on; the 1-sample render
-is sync + one sample, so tracing = (t_N - t_1) * N / (N - 1) and sync = t_N - tracing.
+Writes Markdown tables to stdout (bench/results/bake.md holds the last run). Sync vs tracing: each
+probe is rendered at 1 sample and at the default count with persistent data on; the 1-sample render
+is sync + one sample, so tracing = (t_N - t_1) * N / (N - 1) and sync = t_N - tracing (medians over
+probes). Persistent data OFF is run in the same rounds, interleaved with ON, --repeats times; its
+per-probe sync is estimated as t_OFF - tracing. EXR read = native.project_file (OpenImageIO read +
+projection) - native.project_equirect on the same pixels (projection alone).
 """
 import argparse
 import os
@@ -27,7 +30,9 @@ import schnee_probes  # noqa: E402
 from schnee_probes import bake_core, native, scene_export  # noqa: E402
 
 p = argparse.ArgumentParser()
-p.add_argument("--probes", type=int, default=8, help="probes timed (spread over the placement)")
+p.add_argument("--probes", type=int, default=5, help="probes per timed run (spread over the placement; "
+               "the first is the setup probe)")
+p.add_argument("--repeats", type=int, default=3, help="interleaved rounds of persistent data on/off")
 p.add_argument("--ref-samples", type=int, default=512)
 p.add_argument("--error-probes", type=int, default=2)
 p.add_argument("--quick", action="store_true", help="skip the error sweep")
@@ -54,69 +59,92 @@ say(f"Default room (scenes/make_default_scene.py), default settings: {len(positi
 pick = positions[np.linspace(0, len(positions) - 1, a.probes).astype(int)]
 
 
-def run(settings, probes, keep=None):
-    """Render ``probes`` (engine positions) with ``settings``; per-probe stage times and coeffs."""
+def run(settings, probes, split=None):
+    """Render ``probes`` (engine positions) with ``settings``; per-probe stage times and coeffs.
+    With ``split`` (a list), native.project_file is timed alone and the same EXR is then loaded
+    (untimed, through bpy) and projected again with native.project_equirect, so that EXR read =
+    project_file - project_equirect; one (t_file, t_project) pair per probe is appended."""
     b = bake_core.ProbeBake(scene, layer, settings, mode="CURSOR", cursor=(0, 0, 1), log=lambda s: None)
     b.prepare()
     b.positions = np.asarray(probes)
     b.coeffs = np.zeros((len(probes), native.sh_count(settings.max_band), 3))
     rows = []
+    orig = native.project_file
+
+    def timed(path, *x, **k):
+        t = time.perf_counter()
+        res = orig(path, *x, **k)
+        t_file = time.perf_counter() - t
+        im = bpy.data.images.load(path)
+        w, h = im.size
+        px = np.empty(w * h * 4, np.float32)
+        im.pixels.foreach_get(px)
+        bpy.data.images.remove(im)
+        img = px.reshape(h, w, 4)[::-1, :, :3].copy()
+        t = time.perf_counter()
+        native.project_equirect(img, settings.max_band, negative="clamp")
+        split.append((t_file, time.perf_counter() - t))
+        return res
     try:
         while b.done < b.total:
             before = dict(b.timings)
-            if keep is not None:
-                orig = native.project_file
-
-                def grab(path, *x, **k):
-                    im = bpy.data.images.load(path)
-                    w, h = im.size
-                    px = np.empty(w * h * 4, np.float32)
-                    im.pixels.foreach_get(px)
-                    bpy.data.images.remove(im)
-                    img = px.reshape(h, w, 4)[::-1, :, :3].copy()
-                    t2 = time.perf_counter()
-                    native.project_equirect(img, settings.max_band, negative="clamp")
-                    keep.append(time.perf_counter() - t2)
-                    return orig(path, *x, **k)
-                native.project_file = grab
+            if split is not None:
+                native.project_file = timed
             try:
                 b.step()
             finally:
-                if keep is not None:
-                    native.project_file = orig
+                native.project_file = orig
             rows.append({k: b.timings[k] - before[k] for k in ("render", "write_exr", "project")})
         return rows, b.coeffs.copy()
     finally:
         b.cancel()
 
 
-# Timing split at the default settings.
+# Timing split at the default settings, persistent data on and off interleaved a.repeats times.
+# Per run: the first probe pays the scene upload (setup); the others are summarised by their median.
 s_def = bake_core.BakeSettings()
 s_one = bake_core.BakeSettings(samples=1)
-proj_only = []
-rows_n, _ = run(s_def, pick, keep=proj_only)
-rows_1, _ = run(s_one, pick)
-rows_np, _ = run(bake_core.BakeSettings(persistent_data=False), pick[:3])
-# Skip the first probe of each run: it pays the full scene upload once.
-tn = np.array([r["render"] for r in rows_n[1:]])
-t1 = np.array([r["render"] for r in rows_1[1:]])
+s_off = bake_core.BakeSettings(persistent_data=False)
 n = s_def.samples
-trace = (tn - t1) * n / (n - 1)
-sync = tn - trace
-wr = np.mean([r["write_exr"] for r in rows_n[1:]])
-pf = np.mean([r["project"] for r in rows_n[1:]])
-pe = np.mean(proj_only[1:])
-say(f"Seconds per probe at the defaults ({s_def.panorama_resolution}x{s_def.panorama_resolution // 2}, "
-    f"{s_def.samples} spp, {s_def.max_bounces} bounces, box 1 px), mean over {len(tn)} probes "
-    f"(first probe excluded; it took {rows_n[0]['render']:.2f} s to render incl. the initial upload):\n")
-say("| stage | s/probe |\n|---|---|")
-say(f"| scene sync (persistent data on; noise-level when near 0) | {np.mean(sync):.3f} |")
-say(f"| path tracing | {np.mean(trace):.3f} |")
-say(f"| EXR write (Render Result -> 32-bit EXR) | {wr:.4f} |")
-say(f"| EXR read + SH projection (native.project_file) | {pf:.4f} |")
-say(f"| of which SH projection alone (native.project_equirect) | {pe:.5f} |")
-say(f"| total | {np.mean(tn) + wr + pf:.3f} |")
-say(f"| render with persistent data OFF (for comparison) | {np.mean([r['render'] for r in rows_np[1:]]):.3f} |\n")
+load0 = os.getloadavg()
+runs = []
+for rep in range(a.repeats):
+    split = []
+    on, _ = run(s_def, pick, split=split)
+    one, _ = run(s_one, pick)
+    off, _ = run(s_off, pick)
+    med = lambda rows, k="render": float(np.median([r[k] for r in rows[1:]]))  # noqa: E731
+    trace = (med(on) - med(one)) * n / (n - 1)
+    runs.append({
+        "on_first": on[0]["render"], "off_first": off[0]["render"],
+        "on": med(on), "off": med(off), "one": med(one), "trace": trace,
+        "sync_on": med(on) - trace, "sync_off": med(off) - trace,
+        "write": med(on, "write_exr"),
+        "read": float(np.median([f - p for f, p in split[1:]])),
+        "proj": float(np.median([p for f, p in split[1:]])),
+    })
+load1 = os.getloadavg()
+settings_txt = (f"{s_def.panorama_resolution}x{s_def.panorama_resolution // 2}, {s_def.samples} spp, "
+                f"{s_def.max_bounces} bounces, box {s_def.filter_width:g} px")
+say(f"Seconds per probe at the current defaults ({settings_txt}); {a.repeats} rounds, each "
+    f"round = persistent data ON at {n} spp, ON at 1 spp, OFF at {n} spp, {len(pick)} probes per run; "
+    f"per run the median over probes 2..{len(pick)}, the first probe (scene upload) listed apart. "
+    f"Load average (1 min) {load0[0]:.1f} before, {load1[0]:.1f} after.\n")
+say("| round | first probe ON (setup) | first probe OFF | scene sync ON | path tracing | EXR write "
+    "| EXR read | SH projection | render ON | render OFF | sync OFF (= OFF - tracing) |")
+say("|---|---|---|---|---|---|---|---|---|---|---|")
+for i, r in enumerate(runs, 1):
+    say(f"| {i} | {r['on_first']:.2f} | {r['off_first']:.2f} | {r['sync_on']:.3f} | {r['trace']:.3f} "
+        f"| {r['write']:.4f} | {r['read']:.4f} | {r['proj']:.5f} | {r['on']:.3f} | {r['off']:.3f} "
+        f"| {r['sync_off']:.3f} |")
+m = {k: float(np.median([r[k] for r in runs])) for k in runs[0]}
+say(f"| **median** | **{m['on_first']:.2f}** | **{m['off_first']:.2f}** | **{m['sync_on']:.3f}** "
+    f"| **{m['trace']:.3f}** | **{m['write']:.4f}** | **{m['read']:.4f}** | **{m['proj']:.5f}** "
+    f"| **{m['on']:.3f}** | **{m['off']:.3f}** | **{m['sync_off']:.3f}** |\n")
+diffs = [r["off"] - r["on"] for r in runs]
+say("Persistent data OFF minus ON, per round: " + ", ".join(f"{d:+.3f}" for d in diffs)
+    + f" s/probe (OFF slower in {sum(d > 0 for d in diffs)} of {len(diffs)} rounds; "
+    f"median {np.median(diffs):+.3f} s).\n")
 
 if not a.quick:
     probes = pick[1: 1 + a.error_probes]
