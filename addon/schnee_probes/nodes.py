@@ -181,9 +181,112 @@ def feeds_active_output(node):
     return False
 
 
+# Object types that can hold materials and evaluate to a mesh (scene_export.MESH_LIKE).
+_MATERIAL_OBJECTS = {'MESH', 'CURVE', 'SURFACE', 'FONT', 'META'}
+
+
+def _surface_color(material):
+    """Base colour of the shader currently feeding the active output's Surface, if it has an
+    unlinked colour input (Principled "Base Color", Diffuse "Color"); else None."""
+    out = material.node_tree.get_output_node('ALL') if material.node_tree else None
+    if out is None or not out.inputs["Surface"].is_linked:
+        return None
+    shader = out.inputs["Surface"].links[0].from_node
+    for name in (INPUT_BASE_COLOR, "Color"):
+        sock = shader.inputs.get(name)
+        if sock is not None and not sock.is_linked and getattr(sock, "type", "") == 'RGBA':
+            return tuple(sock.default_value)
+    return None
+
+
+def add_movable_diffuse_node(material):
+    """Add a "VS Movable Diffuse" group node to ``material`` and connect it to the Surface of the
+    active Material Output (created if missing), replacing the previous surface link. The previous
+    shader stays in the tree, unlinked; its unlinked base colour is copied. Returns the node."""
+    group = ensure_node_group()
+    material.use_nodes = True
+    tree = material.node_tree
+    out = tree.get_output_node('ALL')
+    if out is None:
+        out = tree.nodes.new("ShaderNodeOutputMaterial")
+        out.location = (300, 0)
+    color = _surface_color(material)
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    node.label = GROUP_NAME
+    node.location = (out.location.x - 250, out.location.y - 200)
+    if color is not None:
+        node.inputs[INPUT_BASE_COLOR].default_value = color
+    node.inputs[INPUT_SH_SCALE].default_value = DEFAULT_SH_SCALE
+    node.inputs[INPUT_AMBIENT].default_value = DEFAULT_AMBIENT
+    for link in list(out.inputs["Surface"].links):
+        tree.links.remove(link)
+    tree.links.new(node.outputs[OUTPUT_BSDF], out.inputs["Surface"])
+    for n in tree.nodes:
+        n.select = False
+    node.select = True
+    tree.nodes.active = node
+    return node
+
+
+def _target_material(context):
+    """(material or None, object or None): the shader editor's material, else the active
+    object's active material."""
+    space = getattr(context, "space_data", None)
+    if getattr(space, "type", "") == 'NODE_EDITOR' and getattr(space, "tree_type", "") == "ShaderNodeTree":
+        if isinstance(space.id, bpy.types.Material):
+            return space.id, context.object
+    ob = context.object
+    if ob is None or ob.type not in _MATERIAL_OBJECTS:
+        return None, None
+    return ob.active_material, ob
+
+
+class SCHNEE_OT_add_movable_diffuse(bpy.types.Operator):
+    """Make the active material "VS Movable Diffuse" (the engine's SH-lit diffuse with SH Scale and
+    Ambient Term): adds the group node wired to the Material Output, or a new material when the
+    object has none"""
+    bl_idname = "schnee.add_movable_diffuse"
+    bl_label = "VS Movable Diffuse"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        material, ob = _target_material(context)
+        return material is not None or ob is not None
+
+    def execute(self, context):
+        material, ob = _target_material(context)
+        if material is None:
+            material = make_movable_diffuse_material(f"{ob.name} Movable Diffuse")
+            if ob.material_slots and ob.active_material_index < len(ob.material_slots):
+                ob.material_slots[ob.active_material_index].material = material
+            else:
+                ob.data.materials.append(material)
+                ob.active_material_index = len(ob.material_slots) - 1
+            self.report({'INFO'}, f"New material '{material.name}' on '{ob.name}'")
+            return {'FINISHED'}
+        add_movable_diffuse_node(material)
+        self.report({'INFO'}, f"'{material.name}' now uses {GROUP_NAME}")
+        return {'FINISHED'}
+
+
+def draw_add_menu(self, context):
+    """Shader editor > Add menu entry (appended to NODE_MT_add; other node trees see nothing)."""
+    if getattr(context.space_data, "tree_type", "") != "ShaderNodeTree":
+        return
+    layout = self.layout
+    layout.separator()
+    layout.operator(SCHNEE_OT_add_movable_diffuse.bl_idname, icon='NODE_MATERIAL')
+
+
 def register():
-    pass  # node groups live in .blend data; nothing to register with Blender
+    # The node group itself lives in .blend data (ensure_node_group); only the operator and the
+    # Add-menu entry are registered.
+    bpy.utils.register_class(SCHNEE_OT_add_movable_diffuse)
+    bpy.types.NODE_MT_add.append(draw_add_menu)
 
 
 def unregister():
-    pass
+    bpy.types.NODE_MT_add.remove(draw_add_menu)
+    bpy.utils.unregister_class(SCHNEE_OT_add_movable_diffuse)

@@ -22,6 +22,8 @@ class VIEW3D_PT_schnee_probes(bpy.types.Panel):
         col.scale_y = 1.3
         col.operator("schnee.bake_sh_volumes", icon='LIGHTPROBE_GRID')
         col.operator("schnee.bake_sh_cursor", icon='PIVOT_CURSOR')
+        row = layout.row()
+        row.operator("schnee.add_movable_diffuse", text="Movable Diffuse Material", icon='NODE_MATERIAL')
         layout.use_property_split = True
         layout.use_property_decorate = False
         _draw_settings(layout, props)
