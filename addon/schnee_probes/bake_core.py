@@ -253,6 +253,9 @@ class ProbeBake:
                                                       keep=exclude | {coll.name})
         with evaluation as render_depsgraph:
             geometry = scene_export.gather_geometry(render_depsgraph, exclude)
+        if evaluation.skipped:
+            self.messages.append("Placement could not match the viewport to the render for "
+                                 + ", ".join(evaluation.skipped) + " (read-only data)")
         if evaluation.failed:
             self.log("Schnee: could not restore " + ", ".join(evaluation.failed))
         self.log(f"Schnee: {len(volumes)} volume(s), {len(geometry)} geometry mesh(es), "

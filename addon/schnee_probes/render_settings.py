@@ -167,19 +167,28 @@ class _Overrides:
 
     def __init__(self):
         self._undo = []  # (setter, old value, label)
+        self.skipped = []  # labels of writes Blender refused (e.g. linked library data)
 
     def set(self, struct, ident, value, label):
         old = getattr(struct, ident)
         if old != value:
+            try:
+                setattr(struct, ident, value)
+            except (AttributeError, TypeError, ValueError, RuntimeError):
+                self.skipped.append(label)
+                return
             self._undo.append((lambda v, s=struct, i=ident: setattr(s, i, v), old, label))
-            setattr(struct, ident, value)
 
     def hide(self, ob, view_layer, value):
         old = ob.hide_get(view_layer=view_layer)
         if old != value:
+            try:
+                ob.hide_set(value, view_layer=view_layer)
+            except RuntimeError:
+                self.skipped.append(f"object[{ob.name}].hide")
+                return
             self._undo.append((lambda v, o=ob: o.hide_set(v, view_layer=view_layer), old,
                                f"object[{ob.name}].hide"))
-            ob.hide_set(value, view_layer=view_layer)
 
     def restore(self):
         """Undo every write; returns the labels of those that failed."""
@@ -217,6 +226,11 @@ class RenderEvaluation:
         self.keep = frozenset(keep)
         self.failed = []
         self._overrides = _Overrides()
+
+    @property
+    def skipped(self):
+        """Labels of the overrides Blender refused (linked library data); those stay as they are."""
+        return list(self._overrides.skipped)
 
     def __enter__(self):
         o, keep = self._overrides, self.keep
