@@ -35,6 +35,7 @@ static void usage(FILE *f) {
             "  --no-renorm              do not scale sky reflections by probe / sky irradiance\n"
             "  --look FX FY FZ AX AY AZ  camera at F looking at A (0.8 rad vertical fov) instead of the scene's\n"
             "  --write-brdf-lut PATH    write the engine's split-sum BRDF LUT (R = A, G = B) to PATH and exit\n"
+            "  --write-sky-mips PREFIX  write the scene sky's GGX-prefiltered mips as PREFIX<level>.exr and exit\n"
             "  --fallback-radiance V    uniform radiance of fallback probe 0 (default %.2f)\n"
             "  --move NODE X Y Z        set a node's translation before rendering (objects are re-assigned)\n"
             "  --print-assignments      print each object's probe index and exit status as usual\n"
@@ -72,8 +73,10 @@ static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out) {
 }
 
 /* Returns 0 on success, 2 on a usage error (message printed). */
-static int parse_args(int argc, char **argv, sv_options *o) {
+/* write_sky_mips: --write-sky-mips PREFIX (a one-shot dump, kept out of sv_options), else NULL. */
+static int parse_args(int argc, char **argv, sv_options *o, const char **write_sky_mips) {
     memset(o, 0, sizeof(*o));
+    *write_sky_mips = NULL;
     o->width = 960;
     o->height = 540;
     o->exposure = 1.0f;
@@ -170,6 +173,9 @@ static int parse_args(int argc, char **argv, sv_options *o) {
         } else if (strcmp(a, "--write-brdf-lut") == 0) {
             NEED(1);
             o->write_brdf_lut = argv[++i];
+        } else if (strcmp(a, "--write-sky-mips") == 0) {
+            NEED(1);
+            *write_sky_mips = argv[++i];
         } else if (strcmp(a, "--fallback-radiance") == 0) {
             NEED(1);
             if (!parse_float(next, &o->fallback_radiance) || o->fallback_radiance < 0) BAD_VALUE(next);
@@ -210,6 +216,10 @@ static int parse_args(int argc, char **argv, sv_options *o) {
     }
     if (!o->scene_path && !o->write_brdf_lut) {
         usage(stderr);
+        return 2;
+    }
+    if (*write_sky_mips && (!o->scene_path || o->no_sky)) {
+        fprintf(stderr, "schnee-view: error: --write-sky-mips needs a scene with a sky (and no --no-sky)\n");
         return 2;
     }
     if (o->headless && !o->output && !o->print_assignments) {
@@ -341,9 +351,38 @@ static int write_brdf_lut(const char *path) {
     return rc;
 }
 
+/* --write-sky-mips: each level of the chain the renderer uploads, RGB, as PREFIX<level>.exr
+ * (level 0 = the sky image, level k = GGX-prefiltered at roughness k / (mip_count - 1)). */
+static int write_sky_mips(const sv_sky *sky, const char *prefix) {
+    for (uint32_t l = 0; l < sky->mip_count; ++l) {
+        size_t n = (size_t)sky->width[l] * sky->height[l];
+        float *rgb = malloc(n * 3 * sizeof(float));
+        size_t len = strlen(prefix) + 16;
+        char *path = malloc(len);
+        if (!rgb || !path) {
+            free(rgb);
+            free(path);
+            fprintf(stderr, "schnee-view: error: out of memory writing the sky mips\n");
+            return 1;
+        }
+        snprintf(path, len, "%s%u.exr", prefix, l);
+        for (size_t t = 0; t < n; ++t)
+            for (int c = 0; c < 3; ++c) rgb[t * 3 + c] = sky->rgba[l][t * 4 + c];
+        pb_error err = {0};
+        bool ok = pb_image_write(path, sky->width[l], sky->height[l], 3, rgb, &err) == PB_SUCCESS;
+        if (!ok) fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", path, err.message);
+        else fprintf(stderr, "schnee-view: wrote %s (%ux%u)\n", path, sky->width[l], sky->height[l]);
+        free(rgb);
+        free(path);
+        if (!ok) return 1;
+    }
+    return 0;
+}
+
 int main(int argc, char **argv) {
     sv_options opt;
-    int rc = parse_args(argc, argv, &opt);
+    const char *sky_mips_prefix;
+    int rc = parse_args(argc, argv, &opt, &sky_mips_prefix);
     if (rc) return rc;
     if (opt.write_brdf_lut) return write_brdf_lut(opt.write_brdf_lut);
 
@@ -371,6 +410,14 @@ int main(int argc, char **argv) {
         if (sky.present)
             fprintf(stderr, "schnee-view: sky %s: %ux%u, %u prefiltered mip(s), band %u; %.1f ms\n",
                     scene.gltf->sky.path, sky.width[0], sky.height[0], sky.mip_count, sky.max_band, sv_now_ms() - ts);
+    }
+    if (sky_mips_prefix) {
+        if (sky.present) rc = write_sky_mips(&sky, sky_mips_prefix);
+        else {
+            fprintf(stderr, "schnee-view: error: --write-sky-mips: %s has no sky\n", opt.scene_path);
+            rc = 1;
+        }
+        goto done;
     }
     sv_probes_assign(&probes, &scene);
     for (uint32_t i = 0; i < opt.move_count; ++i) {
