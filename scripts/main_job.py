@@ -20,7 +20,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 
 # Coarse settings so the main job finishes in about a minute on a 2-core machine. The full
-# defaults (Min Cell 0.5 m, 128 px, 32 spp, 16 bounces) are what `--full` bakes.
+# defaults (Min Cell 0.5 m, 128 px, 32 spp, 32 bounces) are what `--full` bakes.
 PREVIEW_BAKE = ["--min-cell-size", "1.0", "--max-cell-size", "4", "--panorama-resolution", "64",
                 "--samples", "16", "--max-bounces", "6"]
 

@@ -61,7 +61,7 @@ class BakeSettings:
     panorama_resolution: int = 128
     max_band: int = 2
     samples: int = 32          # measured: bench/results/sweep.md (error vs time per setting)
-    max_bounces: int = 16
+    max_bounces: int = 32
     clamp_direct: float = 0.0
     clamp_indirect: float = 10.0
     pixel_filter: str = 'BOX'

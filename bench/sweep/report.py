@@ -14,7 +14,7 @@ TARGETS = {"interior": 0.05, "courtyard": 0.03, "sky_forest": 0.03, "sky_courtya
 SWEEP_SCENES = ("interior", "courtyard", "sky_forest", "sky_courtyard")
 # The add-on's defaults chosen from this sweep (bake_core.BakeSettings / properties.py); the reduced
 # sweep test checks that a default bake really uses them. Rows with these settings are starred.
-SHIPPED = dict(panorama_resolution=128, samples=32, max_bounces=16, clamp_indirect=10.0,
+SHIPPED = dict(panorama_resolution=128, samples=32, max_bounces=32, clamp_indirect=10.0,
                pixel_filter="BOX", filter_width=1.0)
 TITLES = {"interior": "Interior (closed room, panel, window)", "courtyard": "Open courtyard",
           "sky_forest": "Sky only, forest.exr (small sun, peak 1010)",
