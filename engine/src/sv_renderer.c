@@ -170,6 +170,26 @@ static bool upload_materials(sv_renderer *r, const sv_gltf *g) {
     return ok;
 }
 
+/* Copies `regions` of a filled staging buffer into `out` (all its levels go UNDEFINED → transfer
+ * → shader-read), blocking, then frees the staging buffer. Shared by every sampled-image upload. */
+static bool copy_staging_to_image(sv_renderer *r, sv_buffer *staging, sv_image *out,
+                                  const VkBufferImageCopy *regions, uint32_t count) {
+    VkCommandBuffer cmd = sv_begin_one_shot(r->ctx);
+    bool ok = cmd != VK_NULL_HANDLE;
+    if (ok) {
+        sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, 0,
+                         VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+        vkCmdCopyBufferToImage(cmd, staging->buffer, out->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, count, regions);
+        sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
+        ok = sv_end_one_shot(r->ctx, cmd);
+    }
+    sv_buffer_destroy(r->ctx, staging);
+    return ok;
+}
+
 /* Uploads RGBA8 sRGB pixels into a sampled image (blocking). */
 static bool upload_rgba8(sv_renderer *r, const uint8_t *pixels, uint32_t w, uint32_t h, sv_image *out) {
     if (!sv_image_create(r->ctx, w, h, VK_FORMAT_R8G8B8A8_SRGB,
@@ -179,24 +199,11 @@ static bool upload_rgba8(sv_renderer *r, const uint8_t *pixels, uint32_t w, uint
     if (!sv_buffer_create(r->ctx, (VkDeviceSize)w * h * 4, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true, &staging))
         return false;
     memcpy(staging.mapped, pixels, (size_t)w * h * 4);
-    VkCommandBuffer cmd = sv_begin_one_shot(r->ctx);
-    bool ok = cmd != VK_NULL_HANDLE;
-    if (ok) {
-        sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
-                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, 0,
-                         VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
-        VkBufferImageCopy region = {
-            .imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
-            .imageExtent = {w, h, 1},
-        };
-        vkCmdCopyBufferToImage(cmd, staging.buffer, out->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
-        sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                         VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
-        ok = sv_end_one_shot(r->ctx, cmd);
-    }
-    sv_buffer_destroy(r->ctx, &staging);
-    return ok;
+    VkBufferImageCopy region = {
+        .imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
+        .imageExtent = {w, h, 1},
+    };
+    return copy_staging_to_image(r, &staging, out, &region, 1);
 }
 
 /* Reads a glTF image through OpenImageIO (embedded bytes go through a temporary file, since the
@@ -343,20 +350,7 @@ static bool upload_float_image(sv_renderer *r, VkFormat format, uint32_t texel_b
         };
         off += bytes;
     }
-    VkCommandBuffer cmd = sv_begin_one_shot(r->ctx);
-    bool ok = cmd != VK_NULL_HANDLE;
-    if (ok) {
-        sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
-                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, 0,
-                         VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
-        vkCmdCopyBufferToImage(cmd, staging.buffer, out->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, count, regions);
-        sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                         VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
-        ok = sv_end_one_shot(r->ctx, cmd);
-    }
-    sv_buffer_destroy(r->ctx, &staging);
-    return ok;
+    return copy_staging_to_image(r, &staging, out, regions, count);
 }
 
 /* Sky mips (or a 1x1 black stand-in) and the BRDF LUT (always: the binding must hold an image). */
