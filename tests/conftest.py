@@ -40,6 +40,20 @@ def run_blender(script, *args, blend=None, timeout=900, check=True, env=None):
     return proc
 
 
+def native_ready():
+    """True when the built native module imports and answers (cmake --build build)."""
+    try:
+        from schnee_probes import native
+        native.min_panorama_size(2)
+        return True
+    except Exception:
+        return False
+
+
+requires_native = pytest.mark.skipif(not native_ready(),
+                                     reason="native module not built (cmake --build build)")
+
+
 @pytest.fixture
 def blender():
     return run_blender

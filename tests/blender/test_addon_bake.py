@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import REPO, run_blender
+from conftest import REPO, requires_native, run_blender
 
 SCRIPTS = Path(__file__).resolve().parent / "scripts"
 BAKE_PY = REPO / "bake.py"
@@ -24,16 +24,7 @@ def parse_results(stdout):
     return [json.loads(line[7:]) for line in stdout.splitlines() if line.startswith("RESULT ")]
 
 
-def _native_ready():
-    try:
-        from schnee_probes import native
-        native.min_panorama_size(2)
-        return True
-    except Exception:
-        return False
-
-
-pytestmark = pytest.mark.skipif(not _native_ready(), reason="native module not built (cmake --build build)")
+pytestmark = requires_native
 
 
 def result_of(proc):

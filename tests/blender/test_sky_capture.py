@@ -13,22 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import REPO, run_blender
+from conftest import REPO, requires_native, run_blender
 
 SCRIPTS = Path(__file__).resolve().parent / "scripts"
 sys.path.insert(0, str(REPO / "tests" / "engine" / "scripts"))
 
 
-def _native_ready():
-    try:
-        from schnee_probes import native
-        native.min_panorama_size(2)
-        return True
-    except Exception:
-        return False
-
-
-pytestmark = pytest.mark.skipif(not _native_ready(), reason="native module not built (cmake --build build)")
+pytestmark = requires_native
 
 
 @pytest.fixture(scope="module")
