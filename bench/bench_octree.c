@@ -71,10 +71,8 @@ static void tri(mesh *m, uint32_t a, uint32_t b, uint32_t c)
 static void box(mesh *m, double x0, double y0, double z0, double x1, double y1, double z1)
 {
     uint32_t v[8];
-    for (int i = 0; i < 8; i++)
-        v[i] = vtx(m, (i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? z1 : z0);
-    static const int f[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4},
-                                {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+    for (int i = 0; i < 8; i++) v[i] = vtx(m, (i & 1) ? x1 : x0, (i & 2) ? y1 : y0, (i & 4) ? z1 : z0);
+    static const int f[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
     for (int k = 0; k < 6; k++) {
         tri(m, v[f[k][0]], v[f[k][1]], v[f[k][2]]);
         tri(m, v[f[k][0]], v[f[k][2]], v[f[k][3]]);
@@ -83,8 +81,8 @@ static void box(mesh *m, double x0, double y0, double z0, double x1, double y1, 
 
 /* Icosphere triangle, subdivided `level` times, vertices projected on the sphere (outward,
  * counter-clockwise). Vertices are not shared between triangles: the solid test needs no sharing. */
-static void sphere_tri(mesh *m, const double c[3], double r, const double a[3], const double b[3],
-                       const double d[3], int level)
+static void sphere_tri(mesh *m, const double c[3], double r, const double a[3], const double b[3], const double d[3],
+                       int level)
 {
     if (level == 0) {
         uint32_t i0 = vtx(m, c[0] + r * a[0], c[1] + r * a[1], c[2] + r * a[2]);
@@ -115,10 +113,9 @@ static void icosphere(mesh *m, const double c[3], double r, int level)
     const double t = (1.0 + sqrt(5.0)) / 2.0;
     double v[12][3] = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
                        {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
-    static const int f[20][3] = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
-                                 {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-                                 {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
-                                 {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+    static const int f[20][3] = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                 {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                                 {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
     for (int i = 0; i < 12; i++) {
         double l = sqrt(v[i][0] * v[i][0] + v[i][1] * v[i][1] + v[i][2] * v[i][2]);
         for (int k = 0; k < 3; k++) v[i][k] /= l;
@@ -130,8 +127,8 @@ static double cpu_seconds(void)
 {
     struct rusage ru;
     getrusage(RUSAGE_SELF, &ru);
-    return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
-           (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
+    return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_sec +
+           1e-6 * (double)ru.ru_stime.tv_usec;
 }
 
 static uint64_t rng = 0x9E3779B97F4A7C15ull;
@@ -164,8 +161,8 @@ static bool on_progress(void *user, double fraction, const char *stage)
 }
 
 /* Stages reported as table columns, in the order pb_placement_build reports them. */
-static const char *const sweep_stages[] = {"checking meshes", "building BVH", "octree", "solid test",
-                                           "occupancy grid", "nearest probe"};
+static const char *const sweep_stages[] = {"checking meshes", "building BVH",   "octree",
+                                           "solid test",      "occupancy grid", "nearest probe"};
 #define SWEEP_STAGES (sizeof sweep_stages / sizeof sweep_stages[0])
 
 /* Builds the scene for `target` triangles and places probes once. table = false prints the
@@ -185,8 +182,7 @@ static int run_one(uint32_t threads, long target, double min_cell, bool table)
     int spheres = 0;
     while ((long)geo.nt + 1280 <= target) {
         double r = 0.3 + 1.2 * urand();
-        double c[3] = {r + (W - 2 * r) * urand(), r + (H - 2 * r) * urand(),
-                       r + (D - 2 * r) * urand()};
+        double c[3] = {r + (W - 2 * r) * urand(), r + (H - 2 * r) * urand(), r + (D - 2 * r) * urand()};
         icosphere(&geo, c, r, 3);
         spheres++;
     }
@@ -218,11 +214,11 @@ static int run_one(uint32_t threads, long target, double min_cell, bool table)
         return 1;
     }
     if (!table) {
-        printf("scene: %u triangles (%d icospheres + hall), %u vertices; threads %u; min cell %g m\n",
-               geo.nt, spheres, geo.nv, threads, min_cell);
+        printf("scene: %u triangles (%d icospheres + hall), %u vertices; threads %u; min cell %g m\n", geo.nt, spheres,
+               geo.nv, threads, min_cell);
         printf("result: %u probes, %llu leaves, %llu pruned, grid %u x %u x %u\n", p->probe_count,
-               (unsigned long long)p->leaf_count, (unsigned long long)p->pruned_count,
-               p->grid_dims[0], p->grid_dims[1], p->grid_dims[2]);
+               (unsigned long long)p->leaf_count, (unsigned long long)p->pruned_count, p->grid_dims[0], p->grid_dims[1],
+               p->grid_dims[2]);
         for (int i = 0; i < log.n; i++) {
             double end = i + 1 < log.n ? log.t[i + 1] : t1;
             if (strcmp(log.stage[i], "done") == 0) continue;
@@ -231,13 +227,12 @@ static int run_one(uint32_t threads, long target, double min_cell, bool table)
         printf("  %-16s %8.3f s\n", "total", t1 - t0);
         printf("  %-16s %8.3f s\n", "process CPU", c1 - c0);
     } else {
-        printf("| %u | %u | %llu | %llu |", geo.nt, p->probe_count,
-               (unsigned long long)p->leaf_count, (unsigned long long)p->pruned_count);
+        printf("| %u | %u | %llu | %llu |", geo.nt, p->probe_count, (unsigned long long)p->leaf_count,
+               (unsigned long long)p->pruned_count);
         for (size_t k = 0; k < SWEEP_STAGES; k++) {
             double sec = -1.0;
             for (int i = 0; i < log.n; i++)
-                if (strcmp(log.stage[i], sweep_stages[k]) == 0)
-                    sec = (i + 1 < log.n ? log.t[i + 1] : t1) - log.t[i];
+                if (strcmp(log.stage[i], sweep_stages[k]) == 0) sec = (i + 1 < log.n ? log.t[i + 1] : t1) - log.t[i];
             if (sec < 0)
                 printf(" — |");
             else
@@ -261,8 +256,7 @@ int main(int argc, char **argv)
     double min_cell = argc > 3 ? atof(argv[3]) : 0.5;
     if (!strchr(counts, ',')) return run_one(threads, atol(counts), min_cell, false);
 
-    printf("threads %u, min cell %g m, max cell 16 m, 64 solid-test rays per leaf centre\n\n",
-           threads, min_cell);
+    printf("threads %u, min cell %g m, max cell 16 m, 64 solid-test rays per leaf centre\n\n", threads, min_cell);
     printf("| triangles | probes | leaves | pruned |");
     for (size_t k = 0; k < SWEEP_STAGES; k++) printf(" %s (s) |", sweep_stages[k]);
     printf(" total wall (s) | process CPU (s) |\n|---|---|---|---|");

@@ -63,8 +63,7 @@ int main(int argc, char **argv)
     fclose(f);
     printf("probes %u band %u grid %u^3 version %u: %.1f MB, write %.3f s (%.0f MB/s), read+validate "
            "%.3f s (%.0f MB/s), header %.1f us\n",
-           probes, band, edge, r_hdr.version, mb, best_w, mb / best_w, best_r, mb / best_r,
-           (t4 - t3) * 1e6);
+           probes, band, edge, r_hdr.version, mb, best_w, mb / best_w, best_r, mb / best_r, (t4 - t3) * 1e6);
     remove(path);
     pb_shprobe_destroy(p);
     return 0;

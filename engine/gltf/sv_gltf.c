@@ -15,11 +15,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define GLB_MAGIC 0x46546C67u      /* "glTF" */
+#define GLB_MAGIC      0x46546C67u /* "glTF" */
 #define GLB_CHUNK_JSON 0x4E4F534Au /* "JSON" */
-#define GLB_CHUNK_BIN 0x004E4942u  /* "BIN\0" */
-#define MAX_WARNINGS 200u
-#define SV_PI 3.14159265358979323846
+#define GLB_CHUNK_BIN  0x004E4942u /* "BIN\0" */
+#define MAX_WARNINGS   200u
+#define SV_PI          3.14159265358979323846
 
 enum { CT_BYTE = 5120, CT_UBYTE = 5121, CT_SHORT = 5122, CT_USHORT = 5123, CT_UINT = 5125, CT_FLOAT = 5126 };
 
@@ -116,8 +116,7 @@ static void warn(ctx_ *c, const char *fmt, ...)
 static bool take_budget(ctx_ *c, uint64_t bytes, const char *what)
 {
     if (bytes > c->budget) {
-        fail(c, SV_GLTF_ERROR_TOO_LARGE,
-             "%s: needs %llu bytes, over the max_decoded_bytes limit (%llu)", what,
+        fail(c, SV_GLTF_ERROR_TOO_LARGE, "%s: needs %llu bytes, over the max_decoded_bytes limit (%llu)", what,
              (unsigned long long)bytes, (unsigned long long)c->desc.max_decoded_bytes);
         return false;
     }
@@ -184,23 +183,21 @@ static const char *type_of(const cJSON *j)
     return "invalid";
 }
 
-static const cJSON *get(const cJSON *obj, const char *key)
-{
-    return cJSON_GetObjectItemCaseSensitive(obj, key);
-}
+static const cJSON *get(const cJSON *obj, const char *key) { return cJSON_GetObjectItemCaseSensitive(obj, key); }
 
 /* Optional object member of a given kind: absent → *out NULL, wrong kind → error. */
-static bool get_typed(ctx_ *c, const cJSON *obj, const char *key, const char *path, int kind,
-                      const cJSON **out)
+static bool get_typed(ctx_ *c, const cJSON *obj, const char *key, const char *path, int kind, const cJSON **out)
 {
     const cJSON *j = get(obj, key);
     *out = NULL;
     if (!j) return true;
-    bool ok = kind == cJSON_Array ? cJSON_IsArray(j) : kind == cJSON_Object ? cJSON_IsObject(j)
-                                                                          : cJSON_IsString(j);
+    bool ok = kind == cJSON_Array ? cJSON_IsArray(j) : kind == cJSON_Object ? cJSON_IsObject(j) : cJSON_IsString(j);
     if (!ok) {
         fail(c, SV_GLTF_ERROR_FORMAT, "%s.%s: expected %s, got %s", path, key,
-             kind == cJSON_Array ? "an array" : kind == cJSON_Object ? "an object" : "a string", type_of(j));
+             kind == cJSON_Array    ? "an array"
+             : kind == cJSON_Object ? "an object"
+                                    : "a string",
+             type_of(j));
         return false;
     }
     *out = j;
@@ -208,8 +205,8 @@ static bool get_typed(ctx_ *c, const cJSON *obj, const char *key, const char *pa
 }
 
 /* Integer member in [lo, hi]; absent → def (or error when required). */
-static bool get_uint(ctx_ *c, const cJSON *obj, const char *key, const char *path, bool required,
-                     uint64_t def, uint64_t lo, uint64_t hi, uint64_t *out)
+static bool get_uint(ctx_ *c, const cJSON *obj, const char *key, const char *path, bool required, uint64_t def,
+                     uint64_t lo, uint64_t hi, uint64_t *out)
 {
     const cJSON *j = get(obj, key);
     *out = def;
@@ -224,8 +221,8 @@ static bool get_uint(ctx_ *c, const cJSON *obj, const char *key, const char *pat
         return false;
     }
     if (!(v >= (double)lo && v <= (double)hi)) {
-        fail(c, SV_GLTF_ERROR_FORMAT, "%s.%s: %.17g out of range [%llu, %llu]", path, key, v,
-             (unsigned long long)lo, (unsigned long long)hi);
+        fail(c, SV_GLTF_ERROR_FORMAT, "%s.%s: %.17g out of range [%llu, %llu]", path, key, v, (unsigned long long)lo,
+             (unsigned long long)hi);
         return false;
     }
     *out = (uint64_t)v;
@@ -233,8 +230,8 @@ static bool get_uint(ctx_ *c, const cJSON *obj, const char *key, const char *pat
 }
 
 /* Index member referring to one of `count` `plural`; absent → -1 (or error when required). */
-static bool get_index(ctx_ *c, const cJSON *obj, const char *key, const char *path, bool required,
-                      uint32_t count, const char *plural, int32_t *out)
+static bool get_index(ctx_ *c, const cJSON *obj, const char *key, const char *path, bool required, uint32_t count,
+                      const char *plural, int32_t *out)
 {
     const cJSON *j = get(obj, key);
     *out = -1;
@@ -257,8 +254,8 @@ static bool get_index(ctx_ *c, const cJSON *obj, const char *key, const char *pa
 }
 
 /* Finite number member in [lo, hi]; absent → def (or error when required). */
-static bool get_float(ctx_ *c, const cJSON *obj, const char *key, const char *path, bool required,
-                      float def, double lo, double hi, float *out)
+static bool get_float(ctx_ *c, const cJSON *obj, const char *key, const char *path, bool required, float def, double lo,
+                      double hi, float *out)
 {
     const cJSON *j = get(obj, key);
     *out = def;
@@ -289,7 +286,8 @@ static bool floats_of(ctx_ *c, const cJSON *j, const char *where, uint32_t n, fl
     }
     uint32_t i = 0;
     const cJSON *e;
-    cJSON_ArrayForEach(e, j) {
+    cJSON_ArrayForEach(e, j)
+    {
         if (!cJSON_IsNumber(e) || !isfinite(e->valuedouble) || fabs(e->valuedouble) > FLT_MAX) {
             fail(c, SV_GLTF_ERROR_FORMAT, "%s[%u]: expected a finite number, got %s", where, i,
                  cJSON_IsNumber(e) ? "a non-finite one" : type_of(e));
@@ -301,8 +299,8 @@ static bool floats_of(ctx_ *c, const cJSON *j, const char *where, uint32_t n, fl
 }
 
 /* Array member of exactly n finite numbers; absent → out untouched (defaults already there). */
-static bool get_floats(ctx_ *c, const cJSON *obj, const char *key, const char *path, uint32_t n,
-                       float *out, bool *present)
+static bool get_floats(ctx_ *c, const cJSON *obj, const char *key, const char *path, uint32_t n, float *out,
+                       bool *present)
 {
     const cJSON *j = get(obj, key);
     if (present) *present = j != NULL;
@@ -345,7 +343,8 @@ static bool top_array(ctx_ *c, const cJSON *root, const char *key, const cJSON *
         *count = n > 0 ? (uint32_t)n : 0;
         const cJSON *e;
         uint32_t i = 0;
-        cJSON_ArrayForEach(e, *arr) {
+        cJSON_ArrayForEach(e, *arr)
+        {
             if (!cJSON_IsObject(e)) {
                 fail(c, SV_GLTF_ERROR_FORMAT, "%s[%u]: expected an object, got %s", key, i, type_of(e));
                 return false;
@@ -360,8 +359,7 @@ static bool top_array(ctx_ *c, const cJSON *root, const char *key, const cJSON *
 
 /* Reads up to `want` bytes (or the whole file when want == 0) of path; fails with a message about
  * `what`. *out is malloc'ed. */
-static bool read_file(ctx_ *c, const char *path, uint64_t want, const char *what, uint8_t **out,
-                      uint64_t *out_size)
+static bool read_file(ctx_ *c, const char *path, uint64_t want, const char *what, uint8_t **out, uint64_t *out_size)
 {
     *out = NULL;
     FILE *f = fopen(path, "rb");
@@ -416,8 +414,7 @@ static char *resolve_uri(ctx_ *c, const char *uri, const char *what)
         return NULL;
     }
     if (!c->g->base_dir) {
-        fail(c, SV_GLTF_ERROR_UNSUPPORTED, "%s: external URI '%.200s' but no base directory was given",
-             what, uri);
+        fail(c, SV_GLTF_ERROR_UNSUPPORTED, "%s: external URI '%.200s' but no base directory was given", what, uri);
         return NULL;
     }
     char *decoded = svg_percent_decode(uri);
@@ -437,8 +434,8 @@ static char *resolve_uri(ctx_ *c, const char *uri, const char *what)
 }
 
 /* Decodes a base64 data: URI into an owned blob. */
-static bool decode_data_uri(ctx_ *c, const char *uri, const char *what, const uint8_t **data,
-                            uint64_t *size, char **mime_out)
+static bool decode_data_uri(ctx_ *c, const char *uri, const char *what, const uint8_t **data, uint64_t *size,
+                            char **mime_out)
 {
     const char *mime, *payload;
     size_t mime_len;
@@ -480,7 +477,8 @@ static bool parse_buffers(ctx_ *c, const cJSON *root)
     c->buf_size = xcalloc(c, c->buf_count, sizeof *c->buf_size);
     if (!c->buf_data || !c->buf_size) return false;
     uint32_t i = 0;
-    cJSON_ArrayForEach(b, arr) {
+    cJSON_ArrayForEach(b, arr)
+    {
         char path[48];
         snprintf(path, sizeof path, "buffers[%u]", i);
         uint64_t len;
@@ -494,8 +492,8 @@ static bool parse_buffers(ctx_ *c, const cJSON *root)
                 return false;
             }
             if (c->glb_bin_size < len || c->glb_bin_size - len > 3) {
-                fail(c, SV_GLTF_ERROR_FORMAT, "%s: byteLength %llu does not match the GLB BIN chunk (%zu bytes)",
-                     path, (unsigned long long)len, c->glb_bin_size);
+                fail(c, SV_GLTF_ERROR_FORMAT, "%s: byteLength %llu does not match the GLB BIN chunk (%zu bytes)", path,
+                     (unsigned long long)len, c->glb_bin_size);
                 return false;
             }
             c->buf_data[i] = c->glb_bin;
@@ -530,7 +528,8 @@ static bool parse_views(ctx_ *c, const cJSON *root)
     c->views = xcalloc(c, c->view_count, sizeof *c->views);
     if (!c->views) return false;
     uint32_t i = 0;
-    cJSON_ArrayForEach(v, arr) {
+    cJSON_ArrayForEach(v, arr)
+    {
         char path[48];
         snprintf(path, sizeof path, "bufferViews[%u]", i);
         view_ *w = &c->views[i];
@@ -550,10 +549,8 @@ static bool parse_views(ctx_ *c, const cJSON *root)
         w->stride = (uint32_t)stride;
         uint64_t size = c->buf_size[buffer];
         if (w->offset > size || w->length > size - w->offset) {
-            fail(c, SV_GLTF_ERROR_FORMAT,
-                 "%s: byteOffset %llu + byteLength %llu exceeds buffer %d (%llu bytes)", path,
-                 (unsigned long long)w->offset, (unsigned long long)w->length, buffer,
-                 (unsigned long long)size);
+            fail(c, SV_GLTF_ERROR_FORMAT, "%s: byteOffset %llu + byteLength %llu exceeds buffer %d (%llu bytes)", path,
+                 (unsigned long long)w->offset, (unsigned long long)w->length, buffer, (unsigned long long)size);
             return false;
         }
         i++;
@@ -564,9 +561,12 @@ static bool parse_views(ctx_ *c, const cJSON *root)
 static uint32_t comp_size(uint32_t ct)
 {
     switch (ct) {
-    case CT_BYTE: case CT_UBYTE: return 1;
-    case CT_SHORT: case CT_USHORT: return 2;
-    case CT_UINT: case CT_FLOAT: return 4;
+    case CT_BYTE:
+    case CT_UBYTE: return 1;
+    case CT_SHORT:
+    case CT_USHORT: return 2;
+    case CT_UINT:
+    case CT_FLOAT: return 4;
     default: return 0;
     }
 }
@@ -576,10 +576,8 @@ static bool check_in_view(ctx_ *c, const char *path, uint32_t view, uint64_t off
 {
     uint64_t len = c->views[view].length;
     if (offset > len || size > len - offset) {
-        fail(c, SV_GLTF_ERROR_FORMAT,
-             "%s: needs bytes [%llu, %llu) of bufferView %u, which has %llu bytes", path,
-             (unsigned long long)offset, (unsigned long long)(offset + size), view,
-             (unsigned long long)len);
+        fail(c, SV_GLTF_ERROR_FORMAT, "%s: needs bytes [%llu, %llu) of bufferView %u, which has %llu bytes", path,
+             (unsigned long long)offset, (unsigned long long)(offset + size), view, (unsigned long long)len);
         return false;
     }
     return true;
@@ -592,8 +590,7 @@ static bool parse_sparse(ctx_ *c, accessor_ *a, const cJSON *sp, const char *apa
     uint64_t count, ct;
     const cJSON *idx, *val;
     if (!get_uint(c, sp, "count", path, true, 0, 1, a->count, &count) ||
-        !get_typed(c, sp, "indices", path, cJSON_Object, &idx) ||
-        !get_typed(c, sp, "values", path, cJSON_Object, &val))
+        !get_typed(c, sp, "indices", path, cJSON_Object, &idx) || !get_typed(c, sp, "values", path, cJSON_Object, &val))
         return false;
     if (!idx || !val) {
         fail(c, SV_GLTF_ERROR_FORMAT, "%s: %s missing", path, idx ? "values" : "indices");
@@ -624,7 +621,11 @@ static bool parse_sparse(ctx_ *c, accessor_ *a, const cJSON *sp, const char *apa
 
 static bool parse_accessors(ctx_ *c, const cJSON *root)
 {
-    static const struct { const char *name; uint32_t ncomp; bool matrix; } types[] = {
+    static const struct {
+        const char *name;
+        uint32_t ncomp;
+        bool matrix;
+    } types[] = {
         {"SCALAR", 1, false}, {"VEC2", 2, false}, {"VEC3", 3, false}, {"VEC4", 4, false},
         {"MAT2", 4, true},    {"MAT3", 9, true},  {"MAT4", 16, true},
     };
@@ -633,7 +634,8 @@ static bool parse_accessors(ctx_ *c, const cJSON *root)
     c->accs = xcalloc(c, c->acc_count, sizeof *c->accs);
     if (!c->accs) return false;
     uint32_t i = 0;
-    cJSON_ArrayForEach(j, arr) {
+    cJSON_ArrayForEach(j, arr)
+    {
         char path[48];
         snprintf(path, sizeof path, "accessors[%u]", i);
         accessor_ *a = &c->accs[i];
@@ -644,8 +646,7 @@ static bool parse_accessors(ctx_ *c, const cJSON *root)
             !get_uint(c, j, "componentType", path, true, 0, 0, UINT32_MAX, &ct) ||
             !get_uint(c, j, "count", path, true, 0, 1, UINT32_MAX, &count) ||
             !get_bool(c, j, "normalized", path, false, &a->normalized) ||
-            !get_typed(c, j, "type", path, cJSON_String, &type) ||
-            !get_typed(c, j, "sparse", path, cJSON_Object, &sp))
+            !get_typed(c, j, "type", path, cJSON_String, &type) || !get_typed(c, j, "sparse", path, cJSON_Object, &sp))
             return false;
         a->ct = (uint32_t)ct;
         a->count = (uint32_t)count;
@@ -689,14 +690,15 @@ static bool parse_accessors(ctx_ *c, const cJSON *root)
         } else {
             const view_ *v = &c->views[a->view];
             if (a->offset % a->comp_size) {
-                fail(c, SV_GLTF_ERROR_FORMAT, "%s: byteOffset %llu is not a multiple of the component size %u",
-                     path, (unsigned long long)a->offset, a->comp_size);
+                fail(c, SV_GLTF_ERROR_FORMAT, "%s: byteOffset %llu is not a multiple of the component size %u", path,
+                     (unsigned long long)a->offset, a->comp_size);
                 return false;
             }
             a->stride = v->stride ? v->stride : a->elem_size;
             if (a->stride < a->elem_size) {
-                fail(c, SV_GLTF_ERROR_FORMAT, "%s: bufferView %d byteStride %u is smaller than the element (%llu bytes)",
-                     path, a->view, v->stride, (unsigned long long)a->elem_size);
+                fail(c, SV_GLTF_ERROR_FORMAT,
+                     "%s: bufferView %d byteStride %u is smaller than the element (%llu bytes)", path, a->view,
+                     v->stride, (unsigned long long)a->elem_size);
                 return false;
             }
             /* count <= 2^32 and stride <= 252: no overflow in 64 bits. */
@@ -713,12 +715,32 @@ static bool parse_accessors(ctx_ *c, const cJSON *root)
 static double read_comp(const uint8_t *p, uint32_t ct, bool norm)
 {
     switch (ct) {
-    case CT_BYTE: { int8_t v; memcpy(&v, p, 1); return norm ? fmax(v / 127.0, -1.0) : v; }
+    case CT_BYTE: {
+        int8_t v;
+        memcpy(&v, p, 1);
+        return norm ? fmax(v / 127.0, -1.0) : v;
+    }
     case CT_UBYTE: return norm ? p[0] / 255.0 : p[0];
-    case CT_SHORT: { int16_t v; memcpy(&v, p, 2); return norm ? fmax(v / 32767.0, -1.0) : v; }
-    case CT_USHORT: { uint16_t v; memcpy(&v, p, 2); return norm ? v / 65535.0 : v; }
-    case CT_UINT: { uint32_t v; memcpy(&v, p, 4); return v; }
-    default: { float v; memcpy(&v, p, 4); return v; }
+    case CT_SHORT: {
+        int16_t v;
+        memcpy(&v, p, 2);
+        return norm ? fmax(v / 32767.0, -1.0) : v;
+    }
+    case CT_USHORT: {
+        uint16_t v;
+        memcpy(&v, p, 2);
+        return norm ? v / 65535.0 : v;
+    }
+    case CT_UINT: {
+        uint32_t v;
+        memcpy(&v, p, 4);
+        return v;
+    }
+    default: {
+        float v;
+        memcpy(&v, p, 4);
+        return v;
+    }
     }
 }
 
@@ -730,8 +752,8 @@ static const uint8_t *view_ptr(const ctx_ *c, uint32_t view, uint64_t offset)
 
 /* Decodes accessor `ai` into out (count * out_ncomp floats, or uint32 when outu). Source components
  * beyond out_ncomp never exist (callers check the type); missing ones are filled with `fill`. */
-static bool decode_accessor(ctx_ *c, uint32_t ai, const char *path, uint32_t out_ncomp, float fill,
-                            float *outf, uint32_t *outu)
+static bool decode_accessor(ctx_ *c, uint32_t ai, const char *path, uint32_t out_ncomp, float fill, float *outf,
+                            uint32_t *outu)
 {
     const accessor_ *a = &c->accs[ai];
     uint32_t n = a->ncomp;
@@ -739,11 +761,13 @@ static bool decode_accessor(ctx_ *c, uint32_t ai, const char *path, uint32_t out
         for (uint32_t k = 0; k < out_ncomp; k++) {
             double v = k < n ? 0.0 : fill;
             if (k < n && a->view >= 0)
-                v = read_comp(view_ptr(c, (uint32_t)a->view, a->offset + (uint64_t)i * a->stride +
-                                                                (uint64_t)k * a->comp_size),
-                              a->ct, a->normalized);
-            if (outu) outu[(uint64_t)i * out_ncomp + k] = (uint32_t)v;
-            else outf[(uint64_t)i * out_ncomp + k] = (float)v;
+                v = read_comp(
+                    view_ptr(c, (uint32_t)a->view, a->offset + (uint64_t)i * a->stride + (uint64_t)k * a->comp_size),
+                    a->ct, a->normalized);
+            if (outu)
+                outu[(uint64_t)i * out_ncomp + k] = (uint32_t)v;
+            else
+                outf[(uint64_t)i * out_ncomp + k] = (float)v;
         }
     }
     if (a->sparse) {
@@ -754,17 +778,18 @@ static bool decode_accessor(ctx_ *c, uint32_t ai, const char *path, uint32_t out
         for (uint32_t s = 0; s < a->sp_count; s++) {
             uint64_t idx = (uint64_t)read_comp(ip + (uint64_t)s * isz, a->sp_idx_ct, false);
             if (idx >= a->count || (s > 0 && idx <= prev)) {
-                fail(c, SV_GLTF_ERROR_FORMAT,
-                     "%s: accessors[%u].sparse.indices[%u] = %llu is %s", path, ai, s,
+                fail(c, SV_GLTF_ERROR_FORMAT, "%s: accessors[%u].sparse.indices[%u] = %llu is %s", path, ai, s,
                      (unsigned long long)idx, idx >= a->count ? "out of range" : "not increasing");
                 return false;
             }
             prev = idx;
             for (uint32_t k = 0; k < n && k < out_ncomp; k++) {
-                double v = read_comp(vp + (uint64_t)s * a->elem_size + (uint64_t)k * a->comp_size, a->ct,
-                                     a->normalized);
-                if (outu) outu[idx * out_ncomp + k] = (uint32_t)v;
-                else outf[idx * out_ncomp + k] = (float)v;
+                double v =
+                    read_comp(vp + (uint64_t)s * a->elem_size + (uint64_t)k * a->comp_size, a->ct, a->normalized);
+                if (outu)
+                    outu[idx * out_ncomp + k] = (uint32_t)v;
+                else
+                    outf[idx * out_ncomp + k] = (float)v;
             }
         }
     }
@@ -790,7 +815,8 @@ static bool parse_samplers(ctx_ *c, const cJSON *root)
     if (!c->g->samplers) return false;
     c->g->sampler_count = count;
     uint32_t i = 0;
-    cJSON_ArrayForEach(j, arr) {
+    cJSON_ArrayForEach(j, arr)
+    {
         char path[48];
         snprintf(path, sizeof path, "samplers[%u]", i);
         sv_gltf_sampler *s = &c->g->samplers[i];
@@ -832,7 +858,8 @@ static bool parse_images(ctx_ *c, const cJSON *root)
     if (!c->g->images) return false;
     c->g->image_count = count;
     uint32_t i = 0;
-    cJSON_ArrayForEach(j, arr) {
+    cJSON_ArrayForEach(j, arr)
+    {
         char path[48];
         snprintf(path, sizeof path, "images[%u]", i);
         sv_gltf_image *im = &c->g->images[i];
@@ -884,7 +911,8 @@ static bool parse_textures(ctx_ *c, const cJSON *root)
     if (!c->g->textures) return false;
     c->g->texture_count = count;
     uint32_t i = 0;
-    cJSON_ArrayForEach(j, arr) {
+    cJSON_ArrayForEach(j, arr)
+    {
         char path[48];
         snprintf(path, sizeof path, "textures[%u]", i);
         sv_gltf_texture *t = &c->g->textures[i];
@@ -898,8 +926,8 @@ static bool parse_textures(ctx_ *c, const cJSON *root)
     return true;
 }
 
-static bool parse_texref(ctx_ *c, const cJSON *obj, const char *key, const char *path,
-                         const char *scale_key, sv_gltf_texture_ref *ref)
+static bool parse_texref(ctx_ *c, const cJSON *obj, const char *key, const char *path, const char *scale_key,
+                         sv_gltf_texture_ref *ref)
 {
     const cJSON *j;
     ref->texture = -1;
@@ -928,7 +956,8 @@ static bool parse_materials(ctx_ *c, const cJSON *root)
     if (!c->g->materials) return false;
     c->g->material_count = count;
     uint32_t i = 0;
-    cJSON_ArrayForEach(j, arr) {
+    cJSON_ArrayForEach(j, arr)
+    {
         char path[48], pbr_path[80], ext_path[80];
         snprintf(path, sizeof path, "materials[%u]", i);
         snprintf(pbr_path, sizeof pbr_path, "%s.pbrMetallicRoughness", path);
@@ -955,13 +984,14 @@ static bool parse_materials(ctx_ *c, const cJSON *root)
                     !get_float(c, pbr, "metallicFactor", pbr_path, false, 1.0f, 0.0, 1.0, &m->metallic_factor) ||
                     !get_float(c, pbr, "roughnessFactor", pbr_path, false, 1.0f, 0.0, 1.0, &m->roughness_factor) ||
                     !parse_texref(c, pbr, "baseColorTexture", pbr_path, NULL, &m->base_color_texture) ||
-                    !parse_texref(c, pbr, "metallicRoughnessTexture", pbr_path, NULL,
-                                  &m->metallic_roughness_texture)))
+                    !parse_texref(c, pbr, "metallicRoughnessTexture", pbr_path, NULL, &m->metallic_roughness_texture)))
             return false;
         m->alpha_mode = SV_GLTF_ALPHA_OPAQUE;
         if (alpha) {
-            if (strcmp(alpha->valuestring, "MASK") == 0) m->alpha_mode = SV_GLTF_ALPHA_MASK;
-            else if (strcmp(alpha->valuestring, "BLEND") == 0) m->alpha_mode = SV_GLTF_ALPHA_BLEND;
+            if (strcmp(alpha->valuestring, "MASK") == 0)
+                m->alpha_mode = SV_GLTF_ALPHA_MASK;
+            else if (strcmp(alpha->valuestring, "BLEND") == 0)
+                m->alpha_mode = SV_GLTF_ALPHA_BLEND;
             else if (strcmp(alpha->valuestring, "OPAQUE") != 0) {
                 fail(c, SV_GLTF_ERROR_FORMAT, "%s.alphaMode: '%.40s' is not OPAQUE, MASK or BLEND", path,
                      alpha->valuestring);
@@ -991,8 +1021,10 @@ static bool parse_materials(ctx_ *c, const cJSON *root)
                 !get_typed(c, schnee, "probeMode", p, cJSON_String, &mode))
                 return false;
             if (mode) {
-                if (strcmp(mode->valuestring, "off") == 0) m->probe_mode = SV_GLTF_PROBE_MODE_OFF;
-                else if (strcmp(mode->valuestring, "pixel") == 0) m->probe_mode = SV_GLTF_PROBE_MODE_PIXEL;
+                if (strcmp(mode->valuestring, "off") == 0)
+                    m->probe_mode = SV_GLTF_PROBE_MODE_OFF;
+                else if (strcmp(mode->valuestring, "pixel") == 0)
+                    m->probe_mode = SV_GLTF_PROBE_MODE_PIXEL;
                 else if (strcmp(mode->valuestring, "object") != 0) {
                     fail(c, SV_GLTF_ERROR_FORMAT, "%s.probeMode: '%.40s' is not off, object or pixel", p,
                          mode->valuestring);
@@ -1008,8 +1040,8 @@ static bool parse_materials(ctx_ *c, const cJSON *root)
 /* ---------------------------------------------------------------- meshes */
 
 /* Attribute accessor → freshly allocated float array of vertex_count * out_ncomp. */
-static bool decode_attribute(ctx_ *c, const cJSON *attrs, const char *key, const char *ppath,
-                             uint32_t want_ncomp, uint32_t alt_ncomp, uint32_t vertex_count, float **out)
+static bool decode_attribute(ctx_ *c, const cJSON *attrs, const char *key, const char *ppath, uint32_t want_ncomp,
+                             uint32_t alt_ncomp, uint32_t vertex_count, float **out)
 {
     int32_t ai;
     char path[128];
@@ -1039,7 +1071,8 @@ static bool unweld(ctx_ *c, float **arr, uint32_t ncomp, const uint32_t *idx, ui
     if (!*arr) return true;
     float *na = alloc_data(c, (uint64_t)n * ncomp, sizeof(float), what);
     if (!na) return false;
-    for (uint32_t i = 0; i < n; i++) memcpy(na + (uint64_t)i * ncomp, *arr + (uint64_t)idx[i] * ncomp, ncomp * sizeof(float));
+    for (uint32_t i = 0; i < n; i++)
+        memcpy(na + (uint64_t)i * ncomp, *arr + (uint64_t)idx[i] * ncomp, ncomp * sizeof(float));
     free(*arr);
     *arr = na;
     return true;
@@ -1078,7 +1111,7 @@ static bool make_flat_normals(ctx_ *c, sv_gltf_primitive *p, const char *path)
 /* Decodes one primitive. Returns false on error; *skip set when it is left out with a warning. */
 static bool parse_primitive(ctx_ *c, const cJSON *j, const char *path, sv_gltf_primitive *p, bool *skip)
 {
-    static const char *mode_names[] = {"POINTS", "LINES", "LINE_LOOP", "LINE_STRIP",
+    static const char *mode_names[] = {"POINTS",    "LINES",          "LINE_LOOP",   "LINE_STRIP",
                                        "TRIANGLES", "TRIANGLE_STRIP", "TRIANGLE_FAN"};
     const cJSON *attrs;
     uint64_t mode;
@@ -1098,8 +1131,7 @@ static bool parse_primitive(ctx_ *c, const cJSON *j, const char *path, sv_gltf_p
     if (!get_index(c, attrs, "POSITION", apath, false, c->acc_count, "accessors", &pos_ai)) return false;
     if (mode < 4) {
         if (c->desc.non_triangles_are_errors) {
-            fail(c, SV_GLTF_ERROR_UNSUPPORTED, "%s: mode %s is not supported (triangles only)", path,
-                 mode_names[mode]);
+            fail(c, SV_GLTF_ERROR_UNSUPPORTED, "%s: mode %s is not supported (triangles only)", path, mode_names[mode]);
             return false;
         }
         warn(c, "%s: mode %s skipped (triangles only)", path, mode_names[mode]);
@@ -1130,8 +1162,8 @@ static bool parse_primitive(ctx_ *c, const cJSON *j, const char *path, sv_gltf_p
         const accessor_ *a = &c->accs[idx_ai];
         if (a->ncomp != 1 || a->is_matrix || a->normalized ||
             (a->ct != CT_UBYTE && a->ct != CT_USHORT && a->ct != CT_UINT)) {
-            fail(c, SV_GLTF_ERROR_FORMAT,
-                 "%s: accessor %d must be a SCALAR of unsigned byte/short/int, not normalized", ipath, idx_ai);
+            fail(c, SV_GLTF_ERROR_FORMAT, "%s: accessor %d must be a SCALAR of unsigned byte/short/int, not normalized",
+                 ipath, idx_ai);
             return false;
         }
         n = a->count;
@@ -1142,8 +1174,8 @@ static bool parse_primitive(ctx_ *c, const cJSON *j, const char *path, sv_gltf_p
         }
         for (uint32_t i = 0; i < n; i++)
             if (src[i] >= vc) {
-                fail(c, SV_GLTF_ERROR_FORMAT, "%s: index %u at position %u is out of range (%u vertices)",
-                     ipath, src[i], i, vc);
+                fail(c, SV_GLTF_ERROR_FORMAT, "%s: index %u at position %u is out of range (%u vertices)", ipath,
+                     src[i], i, vc);
                 free(src);
                 return false;
             }
@@ -1219,7 +1251,8 @@ static bool parse_meshes(ctx_ *c, const cJSON *root)
     if (!c->g->meshes) return false;
     c->g->mesh_count = count;
     uint32_t i = 0;
-    cJSON_ArrayForEach(j, arr) {
+    cJSON_ArrayForEach(j, arr)
+    {
         char path[48];
         snprintf(path, sizeof path, "meshes[%u]", i);
         sv_gltf_mesh *m = &c->g->meshes[i];
@@ -1228,8 +1261,7 @@ static bool parse_meshes(ctx_ *c, const cJSON *root)
             m->aabb_max[k] = -FLT_MAX;
         }
         const cJSON *prims, *pj;
-        if (!get_string(c, j, "name", path, &m->name) ||
-            !get_typed(c, j, "primitives", path, cJSON_Array, &prims))
+        if (!get_string(c, j, "name", path, &m->name) || !get_typed(c, j, "primitives", path, cJSON_Array, &prims))
             return false;
         int np = prims ? cJSON_GetArraySize(prims) : 0;
         if (np <= 0) {
@@ -1239,7 +1271,8 @@ static bool parse_meshes(ctx_ *c, const cJSON *root)
         m->primitives = xcalloc(c, (uint64_t)np, sizeof *m->primitives);
         if (!m->primitives) return false;
         uint32_t pi = 0;
-        cJSON_ArrayForEach(pj, prims) {
+        cJSON_ArrayForEach(pj, prims)
+        {
             char ppath[80];
             snprintf(ppath, sizeof ppath, "%s.primitives[%u]", path, pi++);
             if (!cJSON_IsObject(pj)) {
@@ -1277,7 +1310,8 @@ static bool parse_cameras(ctx_ *c, const cJSON *root)
     if (!c->g->cameras) return false;
     c->g->camera_count = count;
     uint32_t i = 0;
-    cJSON_ArrayForEach(j, arr) {
+    cJSON_ArrayForEach(j, arr)
+    {
         char path[48], sub[80];
         snprintf(path, sizeof path, "cameras[%u]", i);
         sv_gltf_camera *cam = &c->g->cameras[i];
@@ -1289,14 +1323,15 @@ static bool parse_cameras(ctx_ *c, const cJSON *root)
         bool is_persp = type && strcmp(type->valuestring, "perspective") == 0;
         bool is_ortho = type && strcmp(type->valuestring, "orthographic") == 0;
         if (!is_persp && !is_ortho) {
-            if (!type) fail(c, SV_GLTF_ERROR_FORMAT, "%s.type: missing", path);
-            else fail(c, SV_GLTF_ERROR_FORMAT, "%s.type: '%.40s' is not perspective or orthographic", path,
-                      type->valuestring);
+            if (!type)
+                fail(c, SV_GLTF_ERROR_FORMAT, "%s.type: missing", path);
+            else
+                fail(c, SV_GLTF_ERROR_FORMAT, "%s.type: '%.40s' is not perspective or orthographic", path,
+                     type->valuestring);
             return false;
         }
         if ((is_persp && !persp) || (is_ortho && !ortho)) {
-            fail(c, SV_GLTF_ERROR_FORMAT, "%s: type %s but no '%s' object", path, type->valuestring,
-                 type->valuestring);
+            fail(c, SV_GLTF_ERROR_FORMAT, "%s: type %s but no '%s' object", path, type->valuestring, type->valuestring);
             return false;
         }
         snprintf(sub, sizeof sub, "%s.%s", path, type->valuestring);
@@ -1340,7 +1375,8 @@ static bool parse_lights(ctx_ *c, const cJSON *root)
     if (!c->g->lights) return false;
     c->g->light_count = (uint32_t)count;
     uint32_t i = 0;
-    cJSON_ArrayForEach(j, arr) {
+    cJSON_ArrayForEach(j, arr)
+    {
         char path[80], sub[160];
         snprintf(path, sizeof path, "KHR_lights_punctual.lights[%u]", i);
         if (!cJSON_IsObject(j)) {
@@ -1366,16 +1402,20 @@ static bool parse_lights(ctx_ *c, const cJSON *root)
         snprintf(sub, sizeof sub, "%s ('%.24s').extensions.VULKAN_SCHNEE_light", path, l->name);
         if (schnee && !get_typed(c, schnee, "mode", sub, cJSON_String, &mode)) return false;
         if (mode) {
-            if (strcmp(mode->valuestring, "baked") == 0) l->mode = SV_GLTF_LIGHT_MODE_BAKED;
+            if (strcmp(mode->valuestring, "baked") == 0)
+                l->mode = SV_GLTF_LIGHT_MODE_BAKED;
             else if (strcmp(mode->valuestring, "realtime") != 0) {
                 fail(c, SV_GLTF_ERROR_FORMAT, "%s.mode: '%.40s' is not baked or realtime", sub, mode->valuestring);
                 return false;
             }
         }
         const char *t = type ? type->valuestring : "";
-        if (strcmp(t, "directional") == 0) l->type = SV_GLTF_LIGHT_DIRECTIONAL;
-        else if (strcmp(t, "point") == 0) l->type = SV_GLTF_LIGHT_POINT;
-        else if (strcmp(t, "spot") == 0) l->type = SV_GLTF_LIGHT_SPOT;
+        if (strcmp(t, "directional") == 0)
+            l->type = SV_GLTF_LIGHT_DIRECTIONAL;
+        else if (strcmp(t, "point") == 0)
+            l->type = SV_GLTF_LIGHT_POINT;
+        else if (strcmp(t, "spot") == 0)
+            l->type = SV_GLTF_LIGHT_SPOT;
         else {
             fail(c, SV_GLTF_ERROR_FORMAT, "%s.type: '%.40s' is not directional, point or spot", path, t);
             return false;
@@ -1416,7 +1456,8 @@ static bool parse_nodes(ctx_ *c, const cJSON *root)
     g->node_count = count;
     for (uint32_t i = 0; i < count; i++) g->nodes[i].parent = -1;
     uint32_t i = 0;
-    cJSON_ArrayForEach(j, arr) {
+    cJSON_ArrayForEach(j, arr)
+    {
         char path[48];
         snprintf(path, sizeof path, "nodes[%u]", i);
         sv_gltf_node *n = &g->nodes[i];
@@ -1463,11 +1504,12 @@ static bool parse_nodes(ctx_ *c, const cJSON *root)
             n->children = xcalloc(c, (uint64_t)nc, sizeof *n->children);
             if (!n->children) return false;
             const cJSON *e;
-            cJSON_ArrayForEach(e, children) {
+            cJSON_ArrayForEach(e, children)
+            {
                 double v = cJSON_IsNumber(e) ? e->valuedouble : -1.0;
                 if (!(v >= 0.0 && v < (double)count && v == floor(v))) {
-                    fail(c, SV_GLTF_ERROR_FORMAT, "%s.children[%u]: not a node index (%u nodes)", path,
-                         n->child_count, count);
+                    fail(c, SV_GLTF_ERROR_FORMAT, "%s.children[%u]: not a node index (%u nodes)", path, n->child_count,
+                         count);
                     return false;
                 }
                 uint32_t ch = (uint32_t)v;
@@ -1525,8 +1567,8 @@ static bool parse_nodes(ctx_ *c, const cJSON *root)
 
 /* One shProbeGrids entry, checked on a scratch context so that a bad entry becomes a warning.
  * Fills pg's scalars; *uri and *name point into the JSON. */
-static bool check_probe_grid(ctx_ *c, const cJSON *j, const char *gpath, sv_gltf_probe_grid *pg,
-                             const char **uri, const char **name)
+static bool check_probe_grid(ctx_ *c, const cJSON *j, const char *gpath, sv_gltf_probe_grid *pg, const char **uri,
+                             const char **name)
 {
     const cJSON *u = NULL, *nm = NULL, *axes = NULL;
     uint64_t count = 0, band = 0;
@@ -1565,7 +1607,8 @@ static bool check_probe_grid(ctx_ *c, const cJSON *j, const char *gpath, sv_gltf
         }
         const cJSON *row;
         int r = 0;
-        cJSON_ArrayForEach(row, axes) {
+        cJSON_ArrayForEach(row, axes)
+        {
             char where[192];
             snprintf(where, sizeof where, "%s.gridAxes[%d]", gpath, r);
             if (!floats_of(c, row, where, 3, pg->grid_axes[r])) return false;
@@ -1598,12 +1641,13 @@ static bool check_sky(ctx_ *c, const cJSON *j, const char *path, sv_gltf_sky *sk
     }
     uint32_t n = (uint32_t)((band + 1) * (band + 1));
     if (cJSON_GetArraySize(sh) != (int)n) {
-        fail(c, SV_GLTF_ERROR_FORMAT, "%s.sh: expected %u RGB triples for maxBand %u, got %d", path, n,
-             (unsigned)band, cJSON_GetArraySize(sh));
+        fail(c, SV_GLTF_ERROR_FORMAT, "%s.sh: expected %u RGB triples for maxBand %u, got %d", path, n, (unsigned)band,
+             cJSON_GetArraySize(sh));
         return false;
     }
     uint32_t i = 0;
-    cJSON_ArrayForEach(e, sh) {
+    cJSON_ArrayForEach(e, sh)
+    {
         char where[192];
         snprintf(where, sizeof where, "%s.sh[%u]", path, i);
         if (!floats_of(c, e, where, 3, sky->sh[i])) return false;
@@ -1654,7 +1698,8 @@ static bool parse_probe_grids(ctx_ *c, const cJSON *scene, const char *spath)
     c->g->probe_grids = xcalloc(c, (uint64_t)cJSON_GetArraySize(grids), sizeof *c->g->probe_grids);
     if (!c->g->probe_grids) return false;
     uint32_t i = 0;
-    cJSON_ArrayForEach(j, grids) {
+    cJSON_ArrayForEach(j, grids)
+    {
         char gpath[160];
         snprintf(gpath, sizeof gpath, "%s.shProbeGrids[%u]", path, i++);
         /* A bad entry is skipped with a warning (the engine then falls back to probe 0 there);
@@ -1767,27 +1812,28 @@ static bool parse_scene(ctx_ *c, const cJSON *root)
     const cJSON *e;
     uint32_t r = 0;
     bool ok = true;
-    if (nodes) cJSON_ArrayForEach(e, nodes) {
-        double v = cJSON_IsNumber(e) ? e->valuedouble : -1.0;
-        if (!(v >= 0.0 && v < (double)g->node_count && v == floor(v))) {
-            fail(c, SV_GLTF_ERROR_FORMAT, "%s.nodes[%u]: not a node index (%u nodes)", spath, r, g->node_count);
-            ok = false;
-            break;
+    if (nodes) cJSON_ArrayForEach(e, nodes)
+        {
+            double v = cJSON_IsNumber(e) ? e->valuedouble : -1.0;
+            if (!(v >= 0.0 && v < (double)g->node_count && v == floor(v))) {
+                fail(c, SV_GLTF_ERROR_FORMAT, "%s.nodes[%u]: not a node index (%u nodes)", spath, r, g->node_count);
+                ok = false;
+                break;
+            }
+            uint32_t ni = (uint32_t)v;
+            if (g->nodes[ni].parent >= 0 || listed[ni]) {
+                fail(c, SV_GLTF_ERROR_FORMAT, "%s.nodes[%u]: node %u %s", spath, r, ni,
+                     listed[ni] ? "is listed twice" : "is not a root node (it has a parent)");
+                ok = false;
+                break;
+            }
+            listed[ni] = true;
+            if (!add_instances(c, ni)) {
+                ok = false;
+                break;
+            }
+            r++;
         }
-        uint32_t ni = (uint32_t)v;
-        if (g->nodes[ni].parent >= 0 || listed[ni]) {
-            fail(c, SV_GLTF_ERROR_FORMAT, "%s.nodes[%u]: node %u %s", spath, r, ni,
-                 listed[ni] ? "is listed twice" : "is not a root node (it has a parent)");
-            ok = false;
-            break;
-        }
-        listed[ni] = true;
-        if (!add_instances(c, ni)) {
-            ok = false;
-            break;
-        }
-        r++;
-    }
     free(listed);
     return ok && parse_probe_grids(c, scene, spath);
 }
@@ -1812,24 +1858,26 @@ static bool check_asset(ctx_ *c, const cJSON *root)
         return false;
     }
     if (!get_typed(c, root, "extensionsRequired", "(root)", cJSON_Array, &req)) return false;
-    static const char *supported[] = {"KHR_lights_punctual", "KHR_materials_emissive_strength",
-                                      "KHR_mesh_quantization", "VULKAN_SCHNEE_engine_properties",
+    static const char *supported[] = {"KHR_lights_punctual",     "KHR_materials_emissive_strength",
+                                      "KHR_mesh_quantization",   "VULKAN_SCHNEE_engine_properties",
                                       "VULKAN_SCHNEE_materials", "VULKAN_SCHNEE_light"};
     const cJSON *e;
     uint32_t i = 0;
-    if (req) cJSON_ArrayForEach(e, req) {
-        if (!cJSON_IsString(e)) {
-            fail(c, SV_GLTF_ERROR_FORMAT, "extensionsRequired[%u]: expected a string", i);
-            return false;
+    if (req) cJSON_ArrayForEach(e, req)
+        {
+            if (!cJSON_IsString(e)) {
+                fail(c, SV_GLTF_ERROR_FORMAT, "extensionsRequired[%u]: expected a string", i);
+                return false;
+            }
+            bool ok = false;
+            for (size_t k = 0; k < sizeof supported / sizeof supported[0]; k++)
+                ok |= strcmp(e->valuestring, supported[k]) == 0;
+            if (!ok) {
+                fail(c, SV_GLTF_ERROR_UNSUPPORTED, "extensionsRequired: '%.60s' is not supported", e->valuestring);
+                return false;
+            }
+            i++;
         }
-        bool ok = false;
-        for (size_t k = 0; k < sizeof supported / sizeof supported[0]; k++) ok |= strcmp(e->valuestring, supported[k]) == 0;
-        if (!ok) {
-            fail(c, SV_GLTF_ERROR_UNSUPPORTED, "extensionsRequired: '%.60s' is not supported", e->valuestring);
-            return false;
-        }
-        i++;
-    }
     return true;
 }
 
@@ -1921,10 +1969,10 @@ static bool load_document(ctx_ *c, const uint8_t *data, size_t size)
         fail(c, SV_GLTF_ERROR_FORMAT, "glTF: the JSON root is not an object");
         ok = false;
     }
-    ok = ok && check_asset(c, root) && parse_buffers(c, root) && parse_views(c, root) &&
-         parse_accessors(c, root) && parse_samplers(c, root) && parse_images(c, root) &&
-         parse_textures(c, root) && parse_materials(c, root) && parse_meshes(c, root) &&
-         parse_cameras(c, root) && parse_lights(c, root) && parse_nodes(c, root) && parse_scene(c, root);
+    ok = ok && check_asset(c, root) && parse_buffers(c, root) && parse_views(c, root) && parse_accessors(c, root) &&
+         parse_samplers(c, root) && parse_images(c, root) && parse_textures(c, root) && parse_materials(c, root) &&
+         parse_meshes(c, root) && parse_cameras(c, root) && parse_lights(c, root) && parse_nodes(c, root) &&
+         parse_scene(c, root);
     cJSON_Delete(root);
     free(text);
     return ok;
@@ -1970,8 +2018,8 @@ static sv_gltf_result load(const uint8_t *data, size_t size, uint8_t *owned, con
     return SV_GLTF_SUCCESS;
 }
 
-sv_gltf_result sv_gltf_load_memory(const void *data, size_t size, const sv_gltf_desc *desc,
-                                   sv_gltf **out, sv_gltf_error *err)
+sv_gltf_result sv_gltf_load_memory(const void *data, size_t size, const sv_gltf_desc *desc, sv_gltf **out,
+                                   sv_gltf_error *err)
 {
     ctx_ c = {0};
     c.err = err;
@@ -1984,8 +2032,7 @@ sv_gltf_result sv_gltf_load_memory(const void *data, size_t size, const sv_gltf_
     return load(copy, size, copy, desc ? desc->base_dir : NULL, desc, out, err, size);
 }
 
-sv_gltf_result sv_gltf_load_file(const char *path, const sv_gltf_desc *desc, sv_gltf **out,
-                                 sv_gltf_error *err)
+sv_gltf_result sv_gltf_load_file(const char *path, const sv_gltf_desc *desc, sv_gltf **out, sv_gltf_error *err)
 {
     ctx_ c = {0};
     c.err = err;

@@ -53,14 +53,14 @@ typedef struct sv_gltf_error {
 
 /* Load options. Zero-initialised = defaults. */
 typedef struct sv_gltf_desc {
-    const char *base_dir;       /* sv_gltf_load_memory only: folder that relative URIs (buffers,
+    const char *base_dir;          /* sv_gltf_load_memory only: folder that relative URIs (buffers,
                                    images, probe grids) resolve against. NULL = external buffers
                                    are refused (SV_GLTF_ERROR_UNSUPPORTED), image and probe-grid
                                    paths stay NULL with a warning; data: URIs and GLB chunks still
                                    work. sv_gltf_load_file uses the file's own folder. */
-    uint64_t max_decoded_bytes; /* cap on all buffers read + all decoded arrays together;
+    uint64_t max_decoded_bytes;    /* cap on all buffers read + all decoded arrays together;
                                    0 = 4 GiB. Exceeding it is SV_GLTF_ERROR_TOO_LARGE. */
-    bool keep_shared_normals;   /* default false: a primitive without NORMAL gets flat normals
+    bool keep_shared_normals;      /* default false: a primitive without NORMAL gets flat normals
                                    (vertices un-welded per triangle, as the glTF spec requires);
                                    true: normals stay NULL and the renderer decides. */
     bool non_triangles_are_errors; /* default false: POINTS/LINES* primitives are skipped with a
@@ -90,24 +90,24 @@ typedef enum sv_gltf_probe_mode {
 
 typedef struct sv_gltf_material {
     char *name;
-    float base_color_factor[4];          /* linear RGBA, default (1,1,1,1) */
-    sv_gltf_texture_ref base_color_texture; /* sRGB-encoded texture */
-    float metallic_factor;               /* default 1 */
-    float roughness_factor;              /* default 1 */
+    float base_color_factor[4];                     /* linear RGBA, default (1,1,1,1) */
+    sv_gltf_texture_ref base_color_texture;         /* sRGB-encoded texture */
+    float metallic_factor;                          /* default 1 */
+    float roughness_factor;                         /* default 1 */
     sv_gltf_texture_ref metallic_roughness_texture; /* G = roughness, B = metallic */
     sv_gltf_texture_ref normal_texture;
     sv_gltf_texture_ref occlusion_texture;
-    float emissive_factor[3];            /* linear RGB, default (0,0,0) */
-    float emissive_strength;             /* KHR_materials_emissive_strength, default 1 */
+    float emissive_factor[3]; /* linear RGB, default (0,0,0) */
+    float emissive_strength;  /* KHR_materials_emissive_strength, default 1 */
     sv_gltf_texture_ref emissive_texture;
-    sv_gltf_alpha_mode alpha_mode;       /* default OPAQUE */
-    float alpha_cutoff;                  /* default 0.5 (used only by MASK) */
-    bool double_sided;                   /* default false */
+    sv_gltf_alpha_mode alpha_mode; /* default OPAQUE */
+    float alpha_cutoff;            /* default 0.5 (used only by MASK) */
+    bool double_sided;             /* default false */
     /* extensions.VULKAN_SCHNEE_materials (DESIGN.md §5). */
-    bool has_schnee;                     /* the extension object is present */
-    float sh_scale;                      /* default 1.0 */
-    float ambient_term;                  /* default 0.1 */
-    sv_gltf_probe_mode probe_mode;       /* VULKAN_SCHNEE_materials.probeMode, default OBJECT */
+    bool has_schnee;               /* the extension object is present */
+    float sh_scale;                /* default 1.0 */
+    float ambient_term;            /* default 0.1 */
+    sv_gltf_probe_mode probe_mode; /* VULKAN_SCHNEE_materials.probeMode, default OBJECT */
 } sv_gltf_material;
 
 typedef struct sv_gltf_sampler {
@@ -119,12 +119,12 @@ typedef struct sv_gltf_sampler {
 
 typedef struct sv_gltf_image {
     char *name;
-    char *path;            /* resolved file path of an external image (percent-decoded uri, relative
+    char *path;          /* resolved file path of an external image (percent-decoded uri, relative
                               to the glTF's folder), or NULL when the image is embedded (or, loaded
                               from memory without desc.base_dir, unresolved: a warning says so) */
-    const uint8_t *data;   /* embedded bytes (bufferView or data: URI), or NULL; owned by the handle */
-    size_t size;           /* bytes at data */
-    char *mime_type;       /* "image/png", "image/jpeg", ... or "" when not given */
+    const uint8_t *data; /* embedded bytes (bufferView or data: URI), or NULL; owned by the handle */
+    size_t size;         /* bytes at data */
+    char *mime_type;     /* "image/png", "image/jpeg", ... or "" when not given */
 } sv_gltf_image;
 
 typedef struct sv_gltf_texture {
@@ -137,17 +137,17 @@ typedef struct sv_gltf_texture {
  * normalized integer attributes are converted to float per the glTF spec. */
 typedef struct sv_gltf_primitive {
     uint32_t vertex_count;
-    float *positions;      /* xyz, mesh-local, always present */
-    float *normals;        /* xyz, or NULL when absent and desc.keep_shared_normals */
-    bool normals_generated;/* normals were computed (flat) because the file had none */
-    float *tangents;       /* xyzw (w = bitangent sign), or NULL */
-    float *texcoords0;     /* uv, or NULL */
-    float *texcoords1;     /* uv, or NULL */
-    float *colors0;        /* rgba linear (RGB sources get a = 1), or NULL */
-    uint32_t index_count;  /* multiple of 3 */
-    uint32_t *indices;     /* always present (0..n-1 generated when the file has none); each < vertex_count */
-    int32_t material;      /* index into materials, or -1 = default material */
-    float aabb_min[3];     /* mesh-local bounds of the decoded positions */
+    float *positions;       /* xyz, mesh-local, always present */
+    float *normals;         /* xyz, or NULL when absent and desc.keep_shared_normals */
+    bool normals_generated; /* normals were computed (flat) because the file had none */
+    float *tangents;        /* xyzw (w = bitangent sign), or NULL */
+    float *texcoords0;      /* uv, or NULL */
+    float *texcoords1;      /* uv, or NULL */
+    float *colors0;         /* rgba linear (RGB sources get a = 1), or NULL */
+    uint32_t index_count;   /* multiple of 3 */
+    uint32_t *indices;      /* always present (0..n-1 generated when the file has none); each < vertex_count */
+    int32_t material;       /* index into materials, or -1 = default material */
+    float aabb_min[3];      /* mesh-local bounds of the decoded positions */
     float aabb_max[3];
 } sv_gltf_primitive;
 
@@ -155,25 +155,25 @@ typedef struct sv_gltf_mesh {
     char *name;
     sv_gltf_primitive *primitives; /* only triangle primitives that decoded; may be 0 of them */
     uint32_t primitive_count;
-    float aabb_min[3];             /* union of the primitives' bounds (min > max when empty) */
+    float aabb_min[3]; /* union of the primitives' bounds (min > max when empty) */
     float aabb_max[3];
 } sv_gltf_mesh;
 
 typedef struct sv_gltf_node {
     char *name;
-    int32_t parent;        /* -1 for a root */
-    uint32_t *children;    /* child node indices */
+    int32_t parent;     /* -1 for a root */
+    uint32_t *children; /* child node indices */
     uint32_t child_count;
-    int32_t mesh;          /* -1 none */
-    int32_t camera;        /* -1 none */
-    int32_t light;         /* KHR_lights_punctual light index, -1 none */
-    float translation[3];  /* TRS as in the file (identity when the node uses "matrix") */
-    float rotation[4];     /* unit quaternion x, y, z, w */
+    int32_t mesh;         /* -1 none */
+    int32_t camera;       /* -1 none */
+    int32_t light;        /* KHR_lights_punctual light index, -1 none */
+    float translation[3]; /* TRS as in the file (identity when the node uses "matrix") */
+    float rotation[4];    /* unit quaternion x, y, z, w */
     float scale[3];
-    bool has_matrix;       /* the file gave "matrix" instead of TRS */
-    float local[16];       /* local transform (from matrix or T*R*S), column-major */
-    float world[16];       /* parent chain product, column-major; computed for every node */
-    bool in_scene;         /* reachable from the default scene */
+    bool has_matrix; /* the file gave "matrix" instead of TRS */
+    float local[16]; /* local transform (from matrix or T*R*S), column-major */
+    float world[16]; /* parent chain product, column-major; computed for every node */
+    bool in_scene;   /* reachable from the default scene */
 } sv_gltf_node;
 
 typedef enum sv_gltf_camera_type {
@@ -220,38 +220,38 @@ typedef struct sv_gltf_light {
 typedef struct sv_gltf_mesh_instance {
     uint32_t node;
     uint32_t mesh;
-    float world[16];     /* = nodes[node].world */
-    float aabb_min[3];   /* world-space AABB of the mesh's bounds under world (8 corners transformed) */
+    float world[16];   /* = nodes[node].world */
+    float aabb_min[3]; /* world-space AABB of the mesh's bounds under world (8 corners transformed) */
     float aabb_max[3];
 } sv_gltf_mesh_instance;
 
 typedef struct sv_gltf_camera_instance {
     uint32_t node;
     uint32_t camera;
-    float world[16];     /* camera-to-world; the camera looks along its local -Z, up +Y */
+    float world[16]; /* camera-to-world; the camera looks along its local -Z, up +Y */
 } sv_gltf_camera_instance;
 
 typedef struct sv_gltf_light_instance {
     uint32_t node;
     uint32_t light;
     float world[16];
-    float position[3];   /* world-space origin of the node */
-    float direction[3];  /* world-space unit direction the light points (node's local -Z) */
+    float position[3];  /* world-space origin of the node */
+    float direction[3]; /* world-space unit direction the light points (node's local -Z) */
 } sv_gltf_light_instance;
 
 /* scenes[scene].extensions.VULKAN_SCHNEE_engine_properties.shProbeGrids[i] (DESIGN.md §5).
  * An entry with a missing or mistyped field is skipped with a warning (see docs/gltf-loader.md). */
 typedef struct sv_gltf_probe_grid {
-    char *name;             /* "" when absent */
-    char *uri;              /* as written in the file */
-    char *path;             /* uri resolved against the glTF's folder (percent-decoded); NULL when
+    char *name; /* "" when absent */
+    char *uri;  /* as written in the file */
+    char *path; /* uri resolved against the glTF's folder (percent-decoded); NULL when
                                loaded from memory without desc.base_dir (a warning says so) */
     uint32_t probe_count;
     uint32_t max_band;
     float grid_origin[3];
     uint32_t grid_dims[3];
     float grid_spacing;
-    float grid_axes[3][3];  /* rows = X, Y, Z axis; identity when absent */
+    float grid_axes[3][3]; /* rows = X, Y, Z axis; identity when absent */
 } sv_gltf_probe_grid;
 
 /* scenes[scene].extensions.VULKAN_SCHNEE_engine_properties.sky (docs/export.md): the world
@@ -259,37 +259,50 @@ typedef struct sv_gltf_probe_grid {
  * entry is skipped with a warning, like a bad grid entry. */
 typedef struct sv_gltf_sky {
     bool present;
-    char *uri;              /* as written */
-    char *path;             /* resolved like a grid's uri (NULL without a base directory) */
-    uint32_t max_band;      /* 0..4, the band of sh */
-    float sh[25][3];        /* radiance projection L_i, RGB; entries past the band are 0 */
+    char *uri;         /* as written */
+    char *path;        /* resolved like a grid's uri (NULL without a base directory) */
+    uint32_t max_band; /* 0..4, the band of sh */
+    float sh[25][3];   /* radiance projection L_i, RGB; entries past the band are 0 */
 } sv_gltf_sky;
 
 typedef struct sv_gltf {
-    int32_t scene;          /* default scene ("scene", else 0), -1 when the file has no scenes */
+    int32_t scene; /* default scene ("scene", else 0), -1 when the file has no scenes */
     char *scene_name;
 
-    sv_gltf_mesh *meshes;             uint32_t mesh_count;
-    sv_gltf_material *materials;      uint32_t material_count;
-    sv_gltf_texture *textures;        uint32_t texture_count;
-    sv_gltf_image *images;            uint32_t image_count;
-    sv_gltf_sampler *samplers;        uint32_t sampler_count;
-    sv_gltf_node *nodes;              uint32_t node_count;
-    sv_gltf_camera *cameras;          uint32_t camera_count;
-    sv_gltf_light *lights;            uint32_t light_count;
+    sv_gltf_mesh *meshes;
+    uint32_t mesh_count;
+    sv_gltf_material *materials;
+    uint32_t material_count;
+    sv_gltf_texture *textures;
+    uint32_t texture_count;
+    sv_gltf_image *images;
+    uint32_t image_count;
+    sv_gltf_sampler *samplers;
+    uint32_t sampler_count;
+    sv_gltf_node *nodes;
+    uint32_t node_count;
+    sv_gltf_camera *cameras;
+    uint32_t camera_count;
+    sv_gltf_light *lights;
+    uint32_t light_count;
 
     /* Flattened default scene, in depth-first node order. */
-    sv_gltf_mesh_instance *mesh_instances;     uint32_t mesh_instance_count;
-    sv_gltf_camera_instance *camera_instances; uint32_t camera_instance_count;
-    sv_gltf_light_instance *light_instances;   uint32_t light_instance_count;
-    float scene_aabb_min[3];          /* union of mesh_instances' AABBs (min > max when none) */
+    sv_gltf_mesh_instance *mesh_instances;
+    uint32_t mesh_instance_count;
+    sv_gltf_camera_instance *camera_instances;
+    uint32_t camera_instance_count;
+    sv_gltf_light_instance *light_instances;
+    uint32_t light_instance_count;
+    float scene_aabb_min[3]; /* union of mesh_instances' AABBs (min > max when none) */
     float scene_aabb_max[3];
 
-    sv_gltf_probe_grid *probe_grids;  uint32_t probe_grid_count;
+    sv_gltf_probe_grid *probe_grids;
+    uint32_t probe_grid_count;
     sv_gltf_sky sky;
 
-    char **warnings;                  uint32_t warning_count; /* non-fatal, e.g. skipped primitives */
-    char *base_dir;                   /* folder URIs were resolved against, or NULL */
+    char **warnings;
+    uint32_t warning_count; /* non-fatal, e.g. skipped primitives */
+    char *base_dir;         /* folder URIs were resolved against, or NULL */
 
     struct sv_gltf_internal_ *internal_; /* private: owned buffers */
 } sv_gltf;
@@ -297,13 +310,12 @@ typedef struct sv_gltf {
 /* Loads a .gltf (JSON; buffers from external files or data: URIs) or .glb (detected by its magic,
  * not the extension). On success *out owns everything; on failure *out is NULL and err (if non-NULL)
  * holds the first error. */
-sv_gltf_result sv_gltf_load_file(const char *path, const sv_gltf_desc *desc, sv_gltf **out,
-                                 sv_gltf_error *err);
+sv_gltf_result sv_gltf_load_file(const char *path, const sv_gltf_desc *desc, sv_gltf **out, sv_gltf_error *err);
 
 /* Same from bytes in memory (JSON or GLB, detected by magic). The bytes are copied as needed;
  * the caller may free them afterwards. External URIs need desc->base_dir. */
-sv_gltf_result sv_gltf_load_memory(const void *data, size_t size, const sv_gltf_desc *desc,
-                                   sv_gltf **out, sv_gltf_error *err);
+sv_gltf_result sv_gltf_load_memory(const void *data, size_t size, const sv_gltf_desc *desc, sv_gltf **out,
+                                   sv_gltf_error *err);
 
 /* Frees the handle and everything it owns. NULL is allowed. */
 void sv_gltf_free(sv_gltf *gltf);

@@ -12,9 +12,12 @@ static void print_str(const char *s)
     putchar('"');
     for (; *s; s++) {
         unsigned char ch = (unsigned char)*s;
-        if (ch == '"' || ch == '\\') printf("\\%c", ch);
-        else if (ch < 0x20) printf("\\u%04x", ch);
-        else putchar(ch);
+        if (ch == '"' || ch == '\\')
+            printf("\\%c", ch);
+        else if (ch < 0x20)
+            printf("\\u%04x", ch);
+        else
+            putchar(ch);
     }
     putchar('"');
 }
@@ -92,8 +95,8 @@ int main(int argc, char **argv)
         print_vec(m->emissive_factor, 3);
         printf(", \"alpha_mode\": %d, \"double_sided\": %s, \"has_schnee\": %s, \"sh_scale\": %.9g, "
                "\"ambient_term\": %.9g}",
-               (int)m->alpha_mode, m->double_sided ? "true" : "false", m->has_schnee ? "true" : "false",
-               m->sh_scale, m->ambient_term);
+               (int)m->alpha_mode, m->double_sided ? "true" : "false", m->has_schnee ? "true" : "false", m->sh_scale,
+               m->ambient_term);
     }
     printf("\n  ],\n  \"cameras\": [");
     for (uint32_t i = 0; i < g->camera_instance_count; i++) {

@@ -25,8 +25,7 @@ bool svg_base64_decode(const char *text, size_t len, uint8_t **out, size_t *out_
 
 /* Splits a "data:[mediatype][;base64],payload" URI: mime (may be empty) and payload pointers into
  * uri. Returns false when uri is not a data URI; *is_base64 tells the encoding. */
-bool svg_parse_data_uri(const char *uri, const char **mime, size_t *mime_len, const char **payload,
-                        bool *is_base64);
+bool svg_parse_data_uri(const char *uri, const char **mime, size_t *mime_len, const char **payload, bool *is_base64);
 
 /* True when uri starts with a scheme ("http:", "file:", ...) other than data:. */
 bool svg_uri_has_scheme(const char *uri, char *scheme_out, size_t scheme_cap);
@@ -42,7 +41,6 @@ void svg_mat4_identity(float m[16]);
 void svg_mat4_mul(float out[16], const float a[16], const float b[16]); /* out = a * b */
 void svg_mat4_from_trs(float m[16], const float t[3], const float r[4], const float s[3]);
 /* World AABB of a local box under m (Arvo's method: exact bounds of the 8 transformed corners). */
-void svg_aabb_transform(const float m[16], const float lmin[3], const float lmax[3], float wmin[3],
-                        float wmax[3]);
+void svg_aabb_transform(const float m[16], const float lmin[3], const float lmax[3], float wmin[3], float wmax[3]);
 
 #endif

@@ -85,8 +85,7 @@ bool svg_base64_decode(const char *text, size_t len, uint8_t **out, size_t *out_
     return true;
 }
 
-bool svg_parse_data_uri(const char *uri, const char **mime, size_t *mime_len, const char **payload,
-                        bool *is_base64)
+bool svg_parse_data_uri(const char *uri, const char **mime, size_t *mime_len, const char **payload, bool *is_base64)
 {
     if (strncmp(uri, "data:", 5) != 0) return false;
     const char *comma = strchr(uri + 5, ',');
@@ -183,8 +182,7 @@ void svg_mat4_from_trs(float m[16], const float t[3], const float q[4], const fl
     m[15] = 1.0f;
 }
 
-void svg_aabb_transform(const float m[16], const float lmin[3], const float lmax[3], float wmin[3],
-                        float wmax[3])
+void svg_aabb_transform(const float m[16], const float lmin[3], const float lmax[3], float wmin[3], float wmax[3])
 {
     for (int r = 0; r < 3; r++) {
         double lo = m[12 + r], hi = m[12 + r];

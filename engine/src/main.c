@@ -12,49 +12,53 @@
 #include "sv_app.h"
 #include "sv_math.h"
 
-static void usage(FILE *f) {
-    fprintf(f,
-            "usage: schnee-view SCENE.gltf|.glb [options]\n"
-            "  --headless               render offscreen and write --output (no window)\n"
-            "  --output PATH            headless output: .png/.jpg (tone mapped, sRGB) or .exr (linear, before tone mapping)\n"
-            "  --width W --height H     frame size (default 960x540)\n"
-            "  --camera NAME            camera node or camera name (default: first camera, else frame the scene)\n"
-            "  --exposure E             linear exposure multiplier before tone mapping (default 1)\n"
-            "  --tonemap neutral|aces|none  operator (default neutral = Khronos PBR Neutral); --no-tonemap = none\n"
-            "  --debug none|probe-color|probe-index|normals  debug view (probe-index writes the index in R)\n"
-            "  --no-direct              skip KHR_lights_punctual direct light, baked or realtime (probe + ambient\n"
-            "                           + emission only; a baked light adds direct light only where no probe lights)\n"
-            "  --probe-view             probe view: a small sphere per probe shaded with its SH + grid cell outlines\n"
-            "                           (--probe-cells is the same)\n"
-            "  --probe-mode off|object|pixel|material  probe lighting for every material (default material =\n"
-            "                           each material's VULKAN_SCHNEE_materials.probeMode, itself default object)\n"
-            "  --probe-storage float|half  GPU storage of the SH coefficients (default float)\n"
-            "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
-            "  --no-sky                 ignore the scene's sky (no background, no specular, constant fallback)\n"
-            "  --no-specular            no sky reflections (image-based specular)\n"
-            "  --no-renorm              do not scale sky reflections by probe / sky irradiance\n"
-            "  --look FX FY FZ AX AY AZ  camera at F looking at A (0.8 rad vertical fov) instead of the scene's\n"
-            "  --write-brdf-lut PATH    write the engine's split-sum BRDF LUT (R = A, G = B) to PATH and exit\n"
-            "  --write-sky-mips PREFIX  write the scene sky's GGX-prefiltered mips as PREFIX<level>.exr and exit\n"
-            "  --fallback-radiance V    uniform radiance of fallback probe 0 (default %.2f)\n"
-            "  --move NODE X Y Z        set a node's translation before rendering (objects are re-assigned)\n"
-            "  --print-assignments      print each object's probe index and exit status as usual\n"
-            "  --validation             enable VK_LAYER_KHRONOS_validation; any message fails the run (exit 3)\n"
-            "  --frames N               headless: frames to render and time; window: quit after N frames\n"
-            "  --screenshot PATH        window: write the last frame presented to PATH\n"
-            "window keys: WASD/QE move, right mouse drag looks, Shift faster, P probe colours, C probe view,\n"
-            "             M probe mode (material/object/pixel/off),\n"
-            "             N next object, J/L/I/K/U/O move it (its probe is re-queried), Esc quits\n",
-            SV_FALLBACK_RADIANCE);
+static void usage(FILE *f)
+{
+    fprintf(
+        f,
+        "usage: schnee-view SCENE.gltf|.glb [options]\n"
+        "  --headless               render offscreen and write --output (no window)\n"
+        "  --output PATH            headless output: .png/.jpg (tone mapped, sRGB) or .exr (linear, before tone mapping)\n"
+        "  --width W --height H     frame size (default 960x540)\n"
+        "  --camera NAME            camera node or camera name (default: first camera, else frame the scene)\n"
+        "  --exposure E             linear exposure multiplier before tone mapping (default 1)\n"
+        "  --tonemap neutral|aces|none  operator (default neutral = Khronos PBR Neutral); --no-tonemap = none\n"
+        "  --debug none|probe-color|probe-index|normals  debug view (probe-index writes the index in R)\n"
+        "  --no-direct              skip KHR_lights_punctual direct light, baked or realtime (probe + ambient\n"
+        "                           + emission only; a baked light adds direct light only where no probe lights)\n"
+        "  --probe-view             probe view: a small sphere per probe shaded with its SH + grid cell outlines\n"
+        "                           (--probe-cells is the same)\n"
+        "  --probe-mode off|object|pixel|material  probe lighting for every material (default material =\n"
+        "                           each material's VULKAN_SCHNEE_materials.probeMode, itself default object)\n"
+        "  --probe-storage float|half  GPU storage of the SH coefficients (default float)\n"
+        "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
+        "  --no-sky                 ignore the scene's sky (no background, no specular, constant fallback)\n"
+        "  --no-specular            no sky reflections (image-based specular)\n"
+        "  --no-renorm              do not scale sky reflections by probe / sky irradiance\n"
+        "  --look FX FY FZ AX AY AZ  camera at F looking at A (0.8 rad vertical fov) instead of the scene's\n"
+        "  --write-brdf-lut PATH    write the engine's split-sum BRDF LUT (R = A, G = B) to PATH and exit\n"
+        "  --write-sky-mips PREFIX  write the scene sky's GGX-prefiltered mips as PREFIX<level>.exr and exit\n"
+        "  --fallback-radiance V    uniform radiance of fallback probe 0 (default %.2f)\n"
+        "  --move NODE X Y Z        set a node's translation before rendering (objects are re-assigned)\n"
+        "  --print-assignments      print each object's probe index and exit status as usual\n"
+        "  --validation             enable VK_LAYER_KHRONOS_validation; any message fails the run (exit 3)\n"
+        "  --frames N               headless: frames to render and time; window: quit after N frames\n"
+        "  --screenshot PATH        window: write the last frame presented to PATH\n"
+        "window keys: WASD/QE move, right mouse drag looks, Shift faster, P probe colours, C probe view,\n"
+        "             M probe mode (material/object/pixel/off),\n"
+        "             N next object, J/L/I/K/U/O move it (its probe is re-queried), Esc quits\n",
+        SV_FALLBACK_RADIANCE);
 }
 
-double sv_now_ms(void) {
+double sv_now_ms(void)
+{
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
 }
 
-static bool parse_float(const char *s, float *out) {
+static bool parse_float(const char *s, float *out)
+{
     char *end = NULL;
     errno = 0;
     double v = strtod(s, &end);
@@ -63,7 +67,8 @@ static bool parse_float(const char *s, float *out) {
     return true;
 }
 
-static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out) {
+static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out)
+{
     char *end = NULL;
     errno = 0;
     unsigned long v = strtoul(s, &end, 10);
@@ -74,7 +79,8 @@ static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out) {
 
 /* Returns 0 on success, 2 on a usage error (message printed). */
 /* write_sky_mips: --write-sky-mips PREFIX (a one-shot dump, kept out of sv_options), else NULL. */
-static int parse_args(int argc, char **argv, sv_options *o, const char **write_sky_mips) {
+static int parse_args(int argc, char **argv, sv_options *o, const char **write_sky_mips)
+{
     memset(o, 0, sizeof(*o));
     *write_sky_mips = NULL;
     o->width = 960;
@@ -86,15 +92,15 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *next = i + 1 < argc ? argv[i + 1] : NULL;
-#define NEED(n)                                                                   \
-    if (i + (n) >= argc) {                                                        \
-        fprintf(stderr, "schnee-view: error: %s needs %d value(s)\n", a, (n));    \
-        return 2;                                                                 \
+#define NEED(n)                                                                                                        \
+    if (i + (n) >= argc) {                                                                                             \
+        fprintf(stderr, "schnee-view: error: %s needs %d value(s)\n", a, (n));                                         \
+        return 2;                                                                                                      \
     }
-#define BAD_VALUE(v)                                                              \
-    do {                                                                          \
-        fprintf(stderr, "schnee-view: error: bad value '%s' for %s\n", (v), a);   \
-        return 2;                                                                 \
+#define BAD_VALUE(v)                                                                                                   \
+    do {                                                                                                               \
+        fprintf(stderr, "schnee-view: error: bad value '%s' for %s\n", (v), a);                                        \
+        return 2;                                                                                                      \
     } while (0)
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
@@ -122,20 +128,29 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
         } else if (strcmp(a, "--tonemap") == 0) {
             NEED(1);
             ++i;
-            if (strcmp(next, "neutral") == 0) o->tonemap = SV_TONEMAP_PBR_NEUTRAL;
-            else if (strcmp(next, "aces") == 0) o->tonemap = SV_TONEMAP_ACES;
-            else if (strcmp(next, "none") == 0) o->tonemap = SV_TONEMAP_NONE;
-            else BAD_VALUE(next);
+            if (strcmp(next, "neutral") == 0)
+                o->tonemap = SV_TONEMAP_PBR_NEUTRAL;
+            else if (strcmp(next, "aces") == 0)
+                o->tonemap = SV_TONEMAP_ACES;
+            else if (strcmp(next, "none") == 0)
+                o->tonemap = SV_TONEMAP_NONE;
+            else
+                BAD_VALUE(next);
         } else if (strcmp(a, "--no-tonemap") == 0) {
             o->tonemap = SV_TONEMAP_NONE;
         } else if (strcmp(a, "--debug") == 0) {
             NEED(1);
             ++i;
-            if (strcmp(next, "none") == 0) o->debug_mode = SV_DEBUG_NONE;
-            else if (strcmp(next, "probe-color") == 0) o->debug_mode = SV_DEBUG_PROBE_COLOR;
-            else if (strcmp(next, "probe-index") == 0) o->debug_mode = SV_DEBUG_PROBE_INDEX;
-            else if (strcmp(next, "normals") == 0) o->debug_mode = SV_DEBUG_NORMALS;
-            else BAD_VALUE(next);
+            if (strcmp(next, "none") == 0)
+                o->debug_mode = SV_DEBUG_NONE;
+            else if (strcmp(next, "probe-color") == 0)
+                o->debug_mode = SV_DEBUG_PROBE_COLOR;
+            else if (strcmp(next, "probe-index") == 0)
+                o->debug_mode = SV_DEBUG_PROBE_INDEX;
+            else if (strcmp(next, "normals") == 0)
+                o->debug_mode = SV_DEBUG_NORMALS;
+            else
+                BAD_VALUE(next);
         } else if (strcmp(a, "--no-direct") == 0) {
             o->no_direct = true;
         } else if (strcmp(a, "--probe-cells") == 0 || strcmp(a, "--probe-view") == 0) {
@@ -143,17 +158,25 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
         } else if (strcmp(a, "--probe-mode") == 0) {
             NEED(1);
             ++i;
-            if (strcmp(next, "off") == 0) o->probe_mode = SV_PROBE_MODE_OFF;
-            else if (strcmp(next, "object") == 0) o->probe_mode = SV_PROBE_MODE_OBJECT;
-            else if (strcmp(next, "pixel") == 0) o->probe_mode = SV_PROBE_MODE_PIXEL;
-            else if (strcmp(next, "material") == 0) o->probe_mode = SV_PROBE_MODE_MATERIAL;
-            else BAD_VALUE(next);
+            if (strcmp(next, "off") == 0)
+                o->probe_mode = SV_PROBE_MODE_OFF;
+            else if (strcmp(next, "object") == 0)
+                o->probe_mode = SV_PROBE_MODE_OBJECT;
+            else if (strcmp(next, "pixel") == 0)
+                o->probe_mode = SV_PROBE_MODE_PIXEL;
+            else if (strcmp(next, "material") == 0)
+                o->probe_mode = SV_PROBE_MODE_MATERIAL;
+            else
+                BAD_VALUE(next);
         } else if (strcmp(a, "--probe-storage") == 0) {
             NEED(1);
             ++i;
-            if (strcmp(next, "float") == 0) o->half_probes = false;
-            else if (strcmp(next, "half") == 0) o->half_probes = true;
-            else BAD_VALUE(next);
+            if (strcmp(next, "float") == 0)
+                o->half_probes = false;
+            else if (strcmp(next, "half") == 0)
+                o->half_probes = true;
+            else
+                BAD_VALUE(next);
         } else if (strcmp(a, "--normal-bias") == 0) {
             NEED(1);
             if (!parse_float(next, &o->normal_bias) || o->normal_bias < 0 || o->normal_bias > 1) BAD_VALUE(next);
@@ -167,7 +190,8 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
         } else if (strcmp(a, "--look") == 0) {
             NEED(6);
             for (int k = 0; k < 6; ++k)
-                if (!parse_float(argv[i + 1 + k], k < 3 ? &o->look_from[k] : &o->look_at[k - 3])) BAD_VALUE(argv[i + 1 + k]);
+                if (!parse_float(argv[i + 1 + k], k < 3 ? &o->look_from[k] : &o->look_at[k - 3]))
+                    BAD_VALUE(argv[i + 1 + k]);
             o->look = true;
             i += 6;
         } else if (strcmp(a, "--write-brdf-lut") == 0) {
@@ -229,7 +253,8 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
     return 0;
 }
 
-bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *v) {
+bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *v)
+{
     memset(v, 0, sizeof(*v));
     v->exposure = opt->exposure;
     v->tonemap = opt->tonemap;
@@ -302,7 +327,8 @@ bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *
     return true;
 }
 
-void sv_app_print_assignments(const sv_scene *scene) {
+void sv_app_print_assignments(const sv_scene *scene)
+{
     for (uint32_t i = 0; i < scene->object_count; ++i) {
         const sv_object *o = &scene->objects[i];
         printf("object %u '%s' probe %u center (%g, %g, %g)\n", i, o->name, o->probe,
@@ -312,7 +338,8 @@ void sv_app_print_assignments(const sv_scene *scene) {
     fflush(stdout);
 }
 
-bool sv_app_validation_clean(const sv_context *ctx) {
+bool sv_app_validation_clean(const sv_context *ctx)
+{
     if (!ctx->validation) return true;
     if (ctx->validation_errors || ctx->validation_warnings) {
         fprintf(stderr, "schnee-view: error: validation reported %u error(s) and %u warning(s)\n",
@@ -322,7 +349,8 @@ bool sv_app_validation_clean(const sv_context *ctx) {
     return true;
 }
 
-sv_renderer_desc sv_app_renderer_desc(const sv_options *opt, const sv_sky *sky) {
+sv_renderer_desc sv_app_renderer_desc(const sv_options *opt, const sv_sky *sky)
+{
     sv_renderer_desc d = {0};
     d.fallback_radiance = opt->fallback_radiance;
     d.half_probes = opt->half_probes;
@@ -331,7 +359,8 @@ sv_renderer_desc sv_app_renderer_desc(const sv_options *opt, const sv_sky *sky) 
 }
 
 /* --write-brdf-lut: the table the renderer uploads, as an image (R = A, G = B, B = 0). */
-static int write_brdf_lut(const char *path) {
+static int write_brdf_lut(const char *path)
+{
     float *lut = sv_brdf_lut(SV_BRDF_LUT_SIZE, SV_BRDF_LUT_SAMPLES);
     float *rgb = malloc((size_t)SV_BRDF_LUT_SIZE * SV_BRDF_LUT_SIZE * 3 * sizeof(float));
     int rc = 1;
@@ -343,8 +372,10 @@ static int write_brdf_lut(const char *path) {
             rgb[t * 3 + 2] = 0.0f;
         }
         pb_error err = {0};
-        if (pb_image_write(path, SV_BRDF_LUT_SIZE, SV_BRDF_LUT_SIZE, 3, rgb, &err) == PB_SUCCESS) rc = 0;
-        else fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", path, err.message);
+        if (pb_image_write(path, SV_BRDF_LUT_SIZE, SV_BRDF_LUT_SIZE, 3, rgb, &err) == PB_SUCCESS)
+            rc = 0;
+        else
+            fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", path, err.message);
     }
     free(lut);
     free(rgb);
@@ -353,7 +384,8 @@ static int write_brdf_lut(const char *path) {
 
 /* --write-sky-mips: each level of the chain the renderer uploads, RGB, as PREFIX<level>.exr
  * (level 0 = the sky image, level k = GGX-prefiltered at roughness k / (mip_count - 1)). */
-static int write_sky_mips(const sv_sky *sky, const char *prefix) {
+static int write_sky_mips(const sv_sky *sky, const char *prefix)
+{
     for (uint32_t l = 0; l < sky->mip_count; ++l) {
         size_t n = (size_t)sky->width[l] * sky->height[l];
         float *rgb = malloc(n * 3 * sizeof(float));
@@ -370,8 +402,10 @@ static int write_sky_mips(const sv_sky *sky, const char *prefix) {
             for (int c = 0; c < 3; ++c) rgb[t * 3 + c] = sky->rgba[l][t * 4 + c];
         pb_error err = {0};
         bool ok = pb_image_write(path, sky->width[l], sky->height[l], 3, rgb, &err) == PB_SUCCESS;
-        if (!ok) fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", path, err.message);
-        else fprintf(stderr, "schnee-view: wrote %s (%ux%u)\n", path, sky->width[l], sky->height[l]);
+        if (!ok)
+            fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", path, err.message);
+        else
+            fprintf(stderr, "schnee-view: wrote %s (%ux%u)\n", path, sky->width[l], sky->height[l]);
         free(rgb);
         free(path);
         if (!ok) return 1;
@@ -379,7 +413,8 @@ static int write_sky_mips(const sv_sky *sky, const char *prefix) {
     return 0;
 }
 
-int main(int argc, char **argv) {
+int main(int argc, char **argv)
+{
     sv_options opt;
     const char *sky_mips_prefix;
     int rc = parse_args(argc, argv, &opt, &sky_mips_prefix);
@@ -396,8 +431,9 @@ int main(int argc, char **argv) {
         return 1;
     }
     double t2 = sv_now_ms();
-    fprintf(stderr, "schnee-view: loaded %s: %u object(s), %u probe grid(s), %u probe(s) + fallback; "
-                    "scene %.1f ms, probes %.1f ms\n",
+    fprintf(stderr,
+            "schnee-view: loaded %s: %u object(s), %u probe grid(s), %u probe(s) + fallback; "
+            "scene %.1f ms, probes %.1f ms\n",
             opt.scene_path, scene.object_count, probes.grid_count, probes.total - 1, t1 - t0, t2 - t1);
 
     sv_sky sky = {0};
@@ -412,7 +448,8 @@ int main(int argc, char **argv) {
                     scene.gltf->sky.path, sky.width[0], sky.height[0], sky.mip_count, sky.max_band, sv_now_ms() - ts);
     }
     if (sky_mips_prefix) {
-        if (sky.present) rc = write_sky_mips(&sky, sky_mips_prefix);
+        if (sky.present)
+            rc = write_sky_mips(&sky, sky_mips_prefix);
         else {
             fprintf(stderr, "schnee-view: error: --write-sky-mips: %s has no sky\n", opt.scene_path);
             rc = 1;

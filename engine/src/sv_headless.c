@@ -7,18 +7,20 @@
 #include "schnee/pb_image.h"
 #include "sv_app.h"
 
-static bool ends_with_exr(const char *path) {
+static bool ends_with_exr(const char *path)
+{
     size_t n = strlen(path);
     return n >= 4 && strcasecmp(path + n - 4, ".exr") == 0;
 }
 
 /* Records a copy of `image` (in `layout`) into `buffer`, then returns the image to `layout`. */
 static void record_readback(VkCommandBuffer cmd, VkImage image, VkImageLayout layout, uint32_t w, uint32_t h,
-                            VkBuffer buffer) {
+                            VkBuffer buffer)
+{
     if (layout != VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL)
         sv_image_barrier(cmd, image, VK_IMAGE_ASPECT_COLOR_BIT, layout, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                         VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                         VK_ACCESS_TRANSFER_READ_BIT);
+                         VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT,
+                         VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT);
     VkBufferImageCopy region = {.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1}, .imageExtent = {w, h, 1}};
     vkCmdCopyImageToBuffer(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, buffer, 1, &region);
     VkBufferMemoryBarrier b = {
@@ -33,7 +35,8 @@ static void record_readback(VkCommandBuffer cmd, VkImage image, VkImageLayout la
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 0, NULL, 1, &b, 0, NULL);
 }
 
-static bool submit_and_wait(sv_context *ctx, VkCommandBuffer cmd, VkFence fence) {
+static bool submit_and_wait(sv_context *ctx, VkCommandBuffer cmd, VkFence fence)
+{
     VkSubmitInfo submit = {.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO, .commandBufferCount = 1, .pCommandBuffers = &cmd};
     VK_CHECK(vkResetFences(ctx->device, 1, &fence));
     VK_CHECK(vkQueueSubmit(ctx->queue, 1, &submit, fence));
@@ -43,7 +46,8 @@ fail:
     return false;
 }
 
-int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky) {
+int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky)
+{
     sv_context ctx = {0};
     sv_renderer r = {0};
     sv_image out = {0};
@@ -61,13 +65,13 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
         goto done;
     double t1 = sv_now_ms();
     sv_renderer_desc desc = sv_app_renderer_desc(opt, sky);
-    if (!sv_renderer_create(&r, &ctx, scene, probes, VK_FORMAT_R8G8B8A8_SRGB, &desc) ||
-        !sv_renderer_resize(&r, w, h))
+    if (!sv_renderer_create(&r, &ctx, scene, probes, VK_FORMAT_R8G8B8A8_SRGB, &desc) || !sv_renderer_resize(&r, w, h))
         goto done;
     if (!sv_image_create(&ctx, w, h, VK_FORMAT_R8G8B8A8_SRGB,
-                         VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
-                         &out) ||
-        !sv_buffer_create(&ctx, (VkDeviceSize)w * h * (exr ? 16 : 4), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true, &readback))
+                         VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                         VK_IMAGE_ASPECT_COLOR_BIT, &out) ||
+        !sv_buffer_create(&ctx, (VkDeviceSize)w * h * (exr ? 16 : 4), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true,
+                          &readback))
         goto done;
     double t2 = sv_now_ms();
     fprintf(stderr, "schnee-view: device %s; Vulkan setup %.1f ms, scene upload %.1f ms\n", ctx.properties.deviceName,
@@ -107,8 +111,10 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
         frame_total += ms;
         if (ms < frame_min) frame_min = ms;
     }
-    fprintf(stderr, "schnee-view: %u frame(s) at %ux%u: mean %.2f ms, min %.2f ms (submit to fence, incl. readback on the last)\n",
-            frames, w, h, frame_total / frames, frame_min);
+    fprintf(
+        stderr,
+        "schnee-view: %u frame(s) at %ux%u: mean %.2f ms, min %.2f ms (submit to fence, incl. readback on the last)\n",
+        frames, w, h, frame_total / frames, frame_min);
 
     /* Drop alpha: PNG/EXR outputs are RGB. 8-bit readback holds sRGB-encoded bytes already. */
     pixels = malloc((size_t)w * h * 3 * sizeof(float));

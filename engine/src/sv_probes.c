@@ -15,7 +15,8 @@
 static bool differs(float a, float b) { return fabsf(a - b) > 1e-5f * fmaxf(1.0f, fmaxf(fabsf(a), fabsf(b))); }
 
 /* The file's grid axes (rows X, Y, Z); all-zero (never set) means identity. */
-static const float *file_axes(const pb_shprobe *f) {
+static const float *file_axes(const pb_shprobe *f)
+{
     static const float identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
     for (int i = 0; i < 9; ++i)
         if (f->grid_axes[i] != 0.0f) return f->grid_axes;
@@ -23,44 +24,55 @@ static const float *file_axes(const pb_shprobe *f) {
 }
 
 /* Warns about every field where the glTF entry disagrees with the file it names. */
-static void check_entry(const sv_gltf_probe_grid *e, const pb_shprobe *f, uint32_t index) {
+static void check_entry(const sv_gltf_probe_grid *e, const pb_shprobe *f, uint32_t index)
+{
     const char *n = e->name[0] ? e->name : e->uri;
     if (e->probe_count != f->probe_count)
-        fprintf(stderr, "schnee-view: warning: shProbeGrids[%u] '%s': probeCount %u but the file has %u (using the file)\n",
+        fprintf(stderr,
+                "schnee-view: warning: shProbeGrids[%u] '%s': probeCount %u but the file has %u (using the file)\n",
                 index, n, e->probe_count, f->probe_count);
     if (e->max_band != f->max_band)
-        fprintf(stderr, "schnee-view: warning: shProbeGrids[%u] '%s': maxBand %u but the file has %u (using the file)\n",
-                index, n, e->max_band, f->max_band);
+        fprintf(stderr,
+                "schnee-view: warning: shProbeGrids[%u] '%s': maxBand %u but the file has %u (using the file)\n", index,
+                n, e->max_band, f->max_band);
     for (int k = 0; k < 3; ++k) {
         if (e->grid_dims[k] != f->grid_dims[k]) {
-            fprintf(stderr, "schnee-view: warning: shProbeGrids[%u] '%s': gridDims (%u, %u, %u) but the file has (%u, %u, %u) (using the file)\n",
-                    index, n, e->grid_dims[0], e->grid_dims[1], e->grid_dims[2], f->grid_dims[0], f->grid_dims[1],
-                    f->grid_dims[2]);
+            fprintf(
+                stderr,
+                "schnee-view: warning: shProbeGrids[%u] '%s': gridDims (%u, %u, %u) but the file has (%u, %u, %u) (using the file)\n",
+                index, n, e->grid_dims[0], e->grid_dims[1], e->grid_dims[2], f->grid_dims[0], f->grid_dims[1],
+                f->grid_dims[2]);
             break;
         }
     }
     for (int k = 0; k < 3; ++k) {
         if (differs(e->grid_origin[k], f->grid_origin[k])) {
-            fprintf(stderr, "schnee-view: warning: shProbeGrids[%u] '%s': gridOrigin (%g, %g, %g) but the file has (%g, %g, %g) (using the file)\n",
-                    index, n, e->grid_origin[0], e->grid_origin[1], e->grid_origin[2], f->grid_origin[0],
-                    f->grid_origin[1], f->grid_origin[2]);
+            fprintf(
+                stderr,
+                "schnee-view: warning: shProbeGrids[%u] '%s': gridOrigin (%g, %g, %g) but the file has (%g, %g, %g) (using the file)\n",
+                index, n, e->grid_origin[0], e->grid_origin[1], e->grid_origin[2], f->grid_origin[0], f->grid_origin[1],
+                f->grid_origin[2]);
             break;
         }
     }
     if (differs(e->grid_spacing, f->grid_spacing))
-        fprintf(stderr, "schnee-view: warning: shProbeGrids[%u] '%s': gridSpacing %g but the file has %g (using the file)\n",
+        fprintf(stderr,
+                "schnee-view: warning: shProbeGrids[%u] '%s': gridSpacing %g but the file has %g (using the file)\n",
                 index, n, e->grid_spacing, f->grid_spacing);
     const float *axes = file_axes(f);
     for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c)
             if (differs(e->grid_axes[r][c], axes[r * 3 + c])) {
-                fprintf(stderr, "schnee-view: warning: shProbeGrids[%u] '%s': gridAxes differ from the file's "
-                                "(using the file)\n", index, n);
+                fprintf(stderr,
+                        "schnee-view: warning: shProbeGrids[%u] '%s': gridAxes differ from the file's "
+                        "(using the file)\n",
+                        index, n);
                 return;
             }
 }
 
-bool sv_probes_load(const sv_gltf *gltf, sv_probes *out) {
+bool sv_probes_load(const sv_gltf *gltf, sv_probes *out)
+{
     memset(out, 0, sizeof(*out));
     out->total = 1;
     if (gltf->probe_grid_count == 0) return true;
@@ -95,21 +107,25 @@ bool sv_probes_load(const sv_gltf *gltf, sv_probes *out) {
     return true;
 }
 
-void sv_probes_destroy(sv_probes *probes) {
+void sv_probes_destroy(sv_probes *probes)
+{
     for (uint32_t i = 0; i < probes->grid_count; ++i) pb_shprobe_destroy(probes->grids[i].file);
     free(probes->grids);
     memset(probes, 0, sizeof(*probes));
 }
 
-uint32_t sv_probes_lookup(const sv_probes *probes, const float point[3]) {
+uint32_t sv_probes_lookup(const sv_probes *probes, const float point[3])
+{
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         int32_t idx = pb_shprobe_lookup(probes->grids[g].file, point);
-        if (idx >= 0 && (uint32_t)idx < probes->grids[g].file->probe_count) return probes->grids[g].base + (uint32_t)idx;
+        if (idx >= 0 && (uint32_t)idx < probes->grids[g].file->probe_count)
+            return probes->grids[g].base + (uint32_t)idx;
     }
     return 0;
 }
 
-uint32_t sv_probes_assign(const sv_probes *probes, sv_scene *scene) {
+uint32_t sv_probes_assign(const sv_probes *probes, sv_scene *scene)
+{
     uint32_t n = 0;
     for (uint32_t i = 0; i < scene->object_count; ++i) {
         sv_object *o = &scene->objects[i];
@@ -128,7 +144,8 @@ uint32_t sv_probes_assign(const sv_probes *probes, sv_scene *scene) {
 }
 
 sv_gpu_probe *sv_probes_pack(const sv_probes *probes, float fallback_radiance, const float (*sky_sh)[3],
-                             uint32_t sky_band) {
+                             uint32_t sky_band)
+{
     sv_gpu_probe *out = calloc(probes->total, sizeof(sv_gpu_probe));
     if (!out) return NULL;
     out[0].params[1] = 1.0f;
@@ -159,14 +176,15 @@ sv_gpu_probe *sv_probes_pack(const sv_probes *probes, float fallback_radiance, c
     return out;
 }
 
-uint16_t sv_half_from_float(float f) {
+uint16_t sv_half_from_float(float f)
+{
     uint32_t x;
     memcpy(&x, &f, 4);
     uint32_t sign = (x >> 16) & 0x8000u, e = (x >> 23) & 0xFFu, m = x & 0x7FFFFFu;
     if (e == 0xFFu) return (uint16_t)(sign | 0x7C00u | (m ? 0x200u : 0u));
     int32_t he = (int32_t)e - 127 + 15;
     if (he >= 31) return (uint16_t)(sign | 0x7C00u); /* overflow: inf */
-    if (he <= 0) {                                     /* subnormal or zero */
+    if (he <= 0) {                                   /* subnormal or zero */
         if (he < -10) return (uint16_t)sign;
         m |= 0x800000u;
         uint32_t shift = (uint32_t)(14 - he);
@@ -180,11 +198,13 @@ uint16_t sv_half_from_float(float f) {
     return (uint16_t)h;
 }
 
-static uint32_t pack2(float a, float b) {
+static uint32_t pack2(float a, float b)
+{
     return (uint32_t)sv_half_from_float(a) | ((uint32_t)sv_half_from_float(b) << 16);
 }
 
-sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t count) {
+sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t count)
+{
     sv_gpu_probe_half *out = calloc(count ? count : 1, sizeof(*out));
     if (!out) return NULL;
     for (uint32_t p = 0; p < count; ++p) {
@@ -199,21 +219,25 @@ sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t coun
     return out;
 }
 
-static double sv_probes_now_ms(void) {
+static double sv_probes_now_ms(void)
+{
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 
 /* World-space centre of cell (x, y, z) of file f. */
-static void cell_centre(const pb_shprobe *f, const float *ax, int x, int y, int z, float out[3]) {
+static void cell_centre(const pb_shprobe *f, const float *ax, int x, int y, int z, float out[3])
+{
     float h = f->grid_spacing, l[3] = {(x + 0.5f) * h, (y + 0.5f) * h, (z + 0.5f) * h};
-    for (int k = 0; k < 3; ++k) out[k] = f->grid_origin[k] + l[0] * ax[0 * 3 + k] + l[1] * ax[1 * 3 + k] + l[2] * ax[2 * 3 + k];
+    for (int k = 0; k < 3; ++k)
+        out[k] = f->grid_origin[k] + l[0] * ax[0 * 3 + k] + l[1] * ax[1 * 3 + k] + l[2] * ax[2 * 3 + k];
 }
 
 /* Embree scene of every object's triangles in world space (the load-time transforms); NULL when
  * the scene has no triangles. */
-static RTCScene build_occluders(RTCDevice dev, const sv_scene *scene, size_t *tri_count) {
+static RTCScene build_occluders(RTCDevice dev, const sv_scene *scene, size_t *tri_count)
+{
     RTCScene rs = rtcNewScene(dev);
     const sv_gltf *g = scene->gltf;
     *tri_count = 0;
@@ -232,7 +256,8 @@ static RTCScene build_occluders(RTCDevice dev, const sv_scene *scene, size_t *tr
                 rtcReleaseGeometry(geo);
                 continue;
             }
-            for (uint32_t k = 0; k < pr->vertex_count; ++k) sv_mat4_point(obj->world, pr->positions + 3 * (size_t)k, v + 3 * (size_t)k);
+            for (uint32_t k = 0; k < pr->vertex_count; ++k)
+                sv_mat4_point(obj->world, pr->positions + 3 * (size_t)k, v + 3 * (size_t)k);
             memcpy(ix, pr->indices, (size_t)(pr->index_count / 3) * 3 * sizeof(uint32_t));
             rtcCommitGeometry(geo);
             rtcAttachGeometry(rs, geo);
@@ -249,7 +274,8 @@ static RTCScene build_occluders(RTCDevice dev, const sv_scene *scene, size_t *tr
  * when the segment between the centres of the cell and of its neighbour at offset d crosses no
  * scene triangle (Embree occlusion ray, both sides). Empty cells, and cells whose neighbour is
  * empty or outside the grid, keep the bit set (no information, no change to the weights). */
-static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene, size_t n) {
+static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene, size_t n)
+{
     uint32_t *masks = malloc((n ? n : 1) * sizeof(uint32_t));
     if (!masks) return NULL;
     for (size_t i = 0; i < n; ++i) masks[i] = (1u << 27) - 1u;
@@ -304,13 +330,14 @@ static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene
     }
     rtcReleaseScene(rs);
     rtcReleaseDevice(dev);
-    fprintf(stderr, "schnee-view: probe visibility masks: %zu segment(s) against %zu triangle(s) in %.1f ms\n",
-            rays, tris, sv_probes_now_ms() - t0);
+    fprintf(stderr, "schnee-view: probe visibility masks: %zu segment(s) against %zu triangle(s) in %.1f ms\n", rays,
+            tris, sv_probes_now_ms() - t0);
     return masks;
 }
 
-bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_grid **grids_out,
-                         int32_t **cells_out, uint32_t *cell_count) {
+bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_grid **grids_out, int32_t **cells_out,
+                         uint32_t *cell_count)
+{
     size_t n = 0;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         const pb_shprobe *f = probes->grids[g].file;
@@ -358,7 +385,8 @@ bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_
     return true;
 }
 
-sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, uint32_t *cell_count) {
+sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, uint32_t *cell_count)
+{
     size_t n = 0;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         const pb_shprobe *f = probes->grids[g].file;

@@ -20,14 +20,14 @@
 
 typedef struct sv_probe_grid {
     pb_shprobe *file;
-    uint32_t base;        /* buffer index of the grid's probe 0 */
-    const char *name;     /* entry name (owned by the glTF) */
+    uint32_t base;    /* buffer index of the grid's probe 0 */
+    const char *name; /* entry name (owned by the glTF) */
 } sv_probe_grid;
 
 typedef struct sv_probes {
     sv_probe_grid *grids;
     uint32_t grid_count;
-    uint32_t total;       /* probes in the buffer, fallback included (>= 1) */
+    uint32_t total; /* probes in the buffer, fallback included (>= 1) */
 } sv_probes;
 
 /* Reads every grid of the scene. A file that cannot be read or is malformed is an error (message

@@ -51,7 +51,8 @@ static void fail_msg(const char *what) { fprintf(stderr, "schnee-view: error: %s
 /* Appends a UV sphere of radius 1 (for the probe-cell view) to the vertex/index arrays. */
 enum { SPHERE_SEG = 32, SPHERE_RINGS = 16 };
 
-static bool upload_geometry(sv_renderer *r, const sv_gltf *g) {
+static bool upload_geometry(sv_renderer *r, const sv_gltf *g)
+{
     size_t prims = 0, verts = 0, idx = 0;
     for (uint32_t m = 0; m < g->mesh_count; ++m) {
         prims += g->meshes[m].primitive_count;
@@ -90,10 +91,14 @@ static bool upload_geometry(sv_renderer *r, const sv_gltf *g) {
             for (uint32_t k = 0; k < pr->vertex_count; ++k) {
                 float *d = v + (vo + k) * SV_VERTEX_FLOATS;
                 memcpy(d, pr->positions + 3 * (size_t)k, 3 * sizeof(float));
-                if (pr->normals) memcpy(d + 3, pr->normals + 3 * (size_t)k, 3 * sizeof(float));
-                else d[3] = 0, d[4] = 1, d[5] = 0;
-                if (pr->texcoords0) memcpy(d + 6, pr->texcoords0 + 2 * (size_t)k, 2 * sizeof(float));
-                else d[6] = d[7] = 0;
+                if (pr->normals)
+                    memcpy(d + 3, pr->normals + 3 * (size_t)k, 3 * sizeof(float));
+                else
+                    d[3] = 0, d[4] = 1, d[5] = 0;
+                if (pr->texcoords0)
+                    memcpy(d + 6, pr->texcoords0 + 2 * (size_t)k, 2 * sizeof(float));
+                else
+                    d[6] = d[7] = 0;
             }
             memcpy(ix + io, pr->indices, pr->index_count * sizeof(uint32_t));
             vo += pr->vertex_count;
@@ -131,13 +136,15 @@ done:
 
 /* ---- materials, textures, lights, probes ----------------------------------------------------- */
 
-static int32_t texture_slot(const sv_gltf *g, const sv_gltf_texture_ref *ref) {
+static int32_t texture_slot(const sv_gltf *g, const sv_gltf_texture_ref *ref)
+{
     if (ref->texture < 0 || (uint32_t)ref->texture >= g->texture_count) return -1;
     if (g->textures[ref->texture].image < 0) return -1;
     return ref->texture;
 }
 
-static bool upload_materials(sv_renderer *r, const sv_gltf *g) {
+static bool upload_materials(sv_renderer *r, const sv_gltf *g)
+{
     uint32_t n = g->material_count + 1; /* + the glTF default material */
     sv_gpu_material *m = calloc(n, sizeof(*m));
     if (!m) return false;
@@ -172,8 +179,9 @@ static bool upload_materials(sv_renderer *r, const sv_gltf *g) {
 
 /* Copies `regions` of a filled staging buffer into `out` (all its levels go UNDEFINED → transfer
  * → shader-read), blocking, then frees the staging buffer. Shared by every sampled-image upload. */
-static bool copy_staging_to_image(sv_renderer *r, sv_buffer *staging, sv_image *out,
-                                  const VkBufferImageCopy *regions, uint32_t count) {
+static bool copy_staging_to_image(sv_renderer *r, sv_buffer *staging, sv_image *out, const VkBufferImageCopy *regions,
+                                  uint32_t count)
+{
     VkCommandBuffer cmd = sv_begin_one_shot(r->ctx);
     bool ok = cmd != VK_NULL_HANDLE;
     if (ok) {
@@ -183,7 +191,8 @@ static bool copy_staging_to_image(sv_renderer *r, sv_buffer *staging, sv_image *
         vkCmdCopyBufferToImage(cmd, staging->buffer, out->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, count, regions);
         sv_image_barrier(cmd, out->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
                          VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                         VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
+                         VK_ACCESS_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
+                         VK_ACCESS_SHADER_READ_BIT);
         ok = sv_end_one_shot(r->ctx, cmd);
     }
     sv_buffer_destroy(r->ctx, staging);
@@ -191,7 +200,8 @@ static bool copy_staging_to_image(sv_renderer *r, sv_buffer *staging, sv_image *
 }
 
 /* Uploads RGBA8 sRGB pixels into a sampled image (blocking). */
-static bool upload_rgba8(sv_renderer *r, const uint8_t *pixels, uint32_t w, uint32_t h, sv_image *out) {
+static bool upload_rgba8(sv_renderer *r, const uint8_t *pixels, uint32_t w, uint32_t h, sv_image *out)
+{
     if (!sv_image_create(r->ctx, w, h, VK_FORMAT_R8G8B8A8_SRGB,
                          VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT, out))
         return false;
@@ -208,7 +218,8 @@ static bool upload_rgba8(sv_renderer *r, const uint8_t *pixels, uint32_t w, uint
 
 /* Reads a glTF image through OpenImageIO (embedded bytes go through a temporary file, since the
  * core's image API takes paths). Returns false with a warning; the caller then uses white. */
-static bool read_gltf_image(const sv_gltf_image *img, pb_image *out) {
+static bool read_gltf_image(const sv_gltf_image *img, pb_image *out)
+{
     pb_error err = {0};
     if (img->path) {
         if (pb_image_read(img->path, out, &err) == PB_SUCCESS) return true;
@@ -229,7 +240,8 @@ static bool read_gltf_image(const sv_gltf_image *img, pb_image *out) {
     return ok;
 }
 
-static bool upload_textures(sv_renderer *r, const sv_gltf *g) {
+static bool upload_textures(sv_renderer *r, const sv_gltf *g)
+{
     const uint8_t white[4] = {255, 255, 255, 255};
     if (!upload_rgba8(r, white, 1, 1, &r->white)) return false;
     r->textures = calloc(g->texture_count ? g->texture_count : 1, sizeof(sv_image));
@@ -245,7 +257,9 @@ static bool upload_textures(sv_renderer *r, const sv_gltf *g) {
         for (size_t i = 0; ok && i < n; ++i)
             for (uint32_t c = 0; c < 4; ++c) {
                 /* Grey images replicate their channel; a missing alpha is opaque. */
-                float f = c == 3 ? (img.channels == 4 ? img.pixels[i * 4 + 3] : img.channels == 2 ? img.pixels[i * 2 + 1] : 1.0f)
+                float f = c == 3 ? (img.channels == 4   ? img.pixels[i * 4 + 3]
+                                    : img.channels == 2 ? img.pixels[i * 2 + 1]
+                                                        : 1.0f)
                                  : img.pixels[i * img.channels + (img.channels >= 3 ? c : 0)];
                 f = f < 0 ? 0 : f > 1 ? 1 : f;
                 px[i * 4 + c] = (uint8_t)lrintf(f * 255.0f);
@@ -258,7 +272,8 @@ static bool upload_textures(sv_renderer *r, const sv_gltf *g) {
     return true;
 }
 
-static bool upload_lights(sv_renderer *r, const sv_gltf *g) {
+static bool upload_lights(sv_renderer *r, const sv_gltf *g)
+{
     uint32_t n = g->light_instance_count;
     sv_gpu_light *l = calloc(n ? n : 1, sizeof(*l));
     if (!l) return false;
@@ -268,7 +283,9 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g) {
         memcpy(l[i].position_range, li->position, 3 * sizeof(float));
         l[i].position_range[3] = s->range;
         memcpy(l[i].direction_type, li->direction, 3 * sizeof(float));
-        l[i].direction_type[3] = s->type == SV_GLTF_LIGHT_DIRECTIONAL ? 0.0f : s->type == SV_GLTF_LIGHT_POINT ? 1.0f : 2.0f;
+        l[i].direction_type[3] = s->type == SV_GLTF_LIGHT_DIRECTIONAL ? 0.0f
+                                 : s->type == SV_GLTF_LIGHT_POINT     ? 1.0f
+                                                                      : 2.0f;
         for (int c = 0; c < 3; ++c) l[i].color[c] = s->color[c] * s->intensity;
         /* KHR_lights_punctual: scale = 1 / max(0.001, cos(inner) - cos(outer)), offset = -cos(outer) * scale. */
         float scale = 1.0f / fmaxf(0.001f, cosf(s->inner_cone_angle) - cosf(s->outer_cone_angle));
@@ -277,12 +294,14 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g) {
         l[i].spot[2] = s->mode == SV_GLTF_LIGHT_MODE_BAKED ? 1.0f : 0.0f;
     }
     r->light_count = n;
-    bool ok = sv_buffer_create_with_data(r->ctx, l, (n ? n : 1) * sizeof(*l), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->lights);
+    bool ok =
+        sv_buffer_create_with_data(r->ctx, l, (n ? n : 1) * sizeof(*l), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->lights);
     free(l);
     return ok;
 }
 
-static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, const sv_renderer_desc *desc) {
+static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, const sv_renderer_desc *desc)
+{
     const sv_sky *sky = desc->sky && desc->sky->present ? desc->sky : NULL;
     sv_gpu_probe *p = sv_probes_pack(probes, desc->fallback_radiance, sky ? sky->sh : NULL, sky ? sky->max_band : 0);
     sv_gpu_probe_half *ph = p && desc->half_probes ? sv_probes_pack_half(p, probes->total) : NULL;
@@ -324,7 +343,8 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
 /* Uploads float texel data (levels[l]: width>>l x height>>l texels of texel_bytes) into a sampled
  * image with `count` mip levels (blocking). */
 static bool upload_float_image(sv_renderer *r, VkFormat format, uint32_t texel_bytes, const float *const *levels,
-                               const uint32_t *widths, const uint32_t *heights, uint32_t count, sv_image *out) {
+                               const uint32_t *widths, const uint32_t *heights, uint32_t count, sv_image *out)
+{
     VkFormatProperties fp;
     vkGetPhysicalDeviceFormatProperties(r->ctx->physical, format, &fp);
     if (!(fp.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT)) {
@@ -332,7 +352,8 @@ static bool upload_float_image(sv_renderer *r, VkFormat format, uint32_t texel_b
         return false;
     }
     if (!sv_image_create_mips(r->ctx, widths[0], heights[0], count, format,
-                              VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT, out))
+                              VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT,
+                              out))
         return false;
     VkDeviceSize total = 0;
     for (uint32_t l = 0; l < count; ++l) total += (VkDeviceSize)widths[l] * heights[l] * texel_bytes;
@@ -354,7 +375,8 @@ static bool upload_float_image(sv_renderer *r, VkFormat format, uint32_t texel_b
 }
 
 /* Sky mips (or a 1x1 black stand-in) and the BRDF LUT (always: the binding must hold an image). */
-static bool upload_sky(sv_renderer *r, const sv_sky *sky) {
+static bool upload_sky(sv_renderer *r, const sv_sky *sky)
+{
     r->has_sky = sky && sky->present;
     bool ok;
     if (r->has_sky) {
@@ -381,7 +403,8 @@ static bool upload_sky(sv_renderer *r, const sv_sky *sky) {
 
 /* ---- descriptors and pipelines -------------------------------------------------------------- */
 
-static bool create_descriptors(sv_renderer *r, const sv_gltf *g) {
+static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
+{
     VkDevice dev = r->ctx->device;
     VkSamplerCreateInfo si = {
         .sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
@@ -433,7 +456,8 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g) {
     li.bindingCount = 2;
     li.pBindings = mat_b;
     VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->material_set_layout));
-    VkDescriptorSetLayoutBinding tone_b = {0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL};
+    VkDescriptorSetLayoutBinding tone_b = {0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                                           VK_SHADER_STAGE_FRAGMENT_BIT, NULL};
     li.bindingCount = 1;
     li.pBindings = &tone_b;
     VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->tonemap_set_layout));
@@ -490,14 +514,10 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g) {
     }
 
     VkDescriptorBufferInfo bufs[8] = {
-        {r->frame.buffer, 0, VK_WHOLE_SIZE},
-        {r->materials.buffer, 0, VK_WHOLE_SIZE},
-        {r->probes.buffer, 0, VK_WHOLE_SIZE},
-        {r->lights.buffer, 0, VK_WHOLE_SIZE},
-        {r->cells.buffer, 0, VK_WHOLE_SIZE},
-        {r->grids.buffer, 0, VK_WHOLE_SIZE},
-        {r->cell_index.buffer, 0, VK_WHOLE_SIZE},
-        {r->probes_half.buffer, 0, VK_WHOLE_SIZE},
+        {r->frame.buffer, 0, VK_WHOLE_SIZE},      {r->materials.buffer, 0, VK_WHOLE_SIZE},
+        {r->probes.buffer, 0, VK_WHOLE_SIZE},     {r->lights.buffer, 0, VK_WHOLE_SIZE},
+        {r->cells.buffer, 0, VK_WHOLE_SIZE},      {r->grids.buffer, 0, VK_WHOLE_SIZE},
+        {r->cell_index.buffer, 0, VK_WHOLE_SIZE}, {r->probes_half.buffer, 0, VK_WHOLE_SIZE},
     };
     VkDescriptorImageInfo imgs[2] = {
         {r->sky_sampler, r->sky.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
@@ -527,22 +547,29 @@ typedef struct pipeline_desc {
     size_t fs_size;
     VkPipelineLayout layout;
     VkFormat color_format;
-    VkFormat depth_format; /* VK_FORMAT_UNDEFINED = no depth */
-    uint32_t attribute_count; /* vertex attributes the vertex shader reads (0 = no vertex buffer) */
-    VkPrimitiveTopology topology; /* 0 = triangle list */
-    bool no_depth_test;           /* with a depth attachment: neither test nor write (background) */
+    VkFormat depth_format;            /* VK_FORMAT_UNDEFINED = no depth */
+    uint32_t attribute_count;         /* vertex attributes the vertex shader reads (0 = no vertex buffer) */
+    VkPrimitiveTopology topology;     /* 0 = triangle list */
+    bool no_depth_test;               /* with a depth attachment: neither test nor write (background) */
     const VkSpecializationInfo *spec; /* fragment and vertex stage constants, or NULL */
 } pipeline_desc;
 
-static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d) {
+static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d)
+{
     VkPipeline pipe = VK_NULL_HANDLE;
     VkShaderModule vs = sv_shader_module(ctx, d->vs, d->vs_size);
     VkShaderModule fs = sv_shader_module(ctx, d->fs, d->fs_size);
     if (!vs || !fs) goto fail;
     VkPipelineShaderStageCreateInfo stages[2] = {
-        {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, .stage = VK_SHADER_STAGE_VERTEX_BIT, .module = vs, .pName = "main",
+        {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
+         .stage = VK_SHADER_STAGE_VERTEX_BIT,
+         .module = vs,
+         .pName = "main",
          .pSpecializationInfo = d->spec},
-        {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, .stage = VK_SHADER_STAGE_FRAGMENT_BIT, .module = fs, .pName = "main",
+        {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
+         .stage = VK_SHADER_STAGE_FRAGMENT_BIT,
+         .module = fs,
+         .pName = "main",
          .pSpecializationInfo = d->spec},
     };
     VkVertexInputBindingDescription binding = {0, SV_VERTEX_FLOATS * sizeof(float), VK_VERTEX_INPUT_RATE_VERTEX};
@@ -621,9 +648,11 @@ fail:
     return pipe;
 }
 
-static bool create_pipelines(sv_renderer *r) {
+static bool create_pipelines(sv_renderer *r)
+{
     VkDevice dev = r->ctx->device;
-    VkPushConstantRange scene_push = {VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(sv_gpu_draw)};
+    VkPushConstantRange scene_push = {VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
+                                      sizeof(sv_gpu_draw)};
     VkDescriptorSetLayout set_layouts[2] = {r->scene_set_layout, r->material_set_layout};
     VkPipelineLayoutCreateInfo li = {
         .sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
@@ -643,9 +672,17 @@ static bool create_pipelines(sv_renderer *r) {
     VkBool32 half = r->half_probes ? VK_TRUE : VK_FALSE;
     VkSpecializationMapEntry entry = {0, 0, sizeof(VkBool32)};
     VkSpecializationInfo spec = {1, &entry, sizeof(half), &half};
-    pipeline_desc d = {mesh_vert_spv, sizeof(mesh_vert_spv), mesh_frag_spv, sizeof(mesh_frag_spv),
-                       r->scene_layout, r->hdr_format, r->depth_format, 3, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
-                       false, &spec};
+    pipeline_desc d = {mesh_vert_spv,
+                       sizeof(mesh_vert_spv),
+                       mesh_frag_spv,
+                       sizeof(mesh_frag_spv),
+                       r->scene_layout,
+                       r->hdr_format,
+                       r->depth_format,
+                       3,
+                       VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
+                       false,
+                       &spec};
     r->mesh_pipeline = create_pipeline(r->ctx, &d);
     d.vs = probe_cells_vert_spv;
     d.vs_size = sizeof(probe_cells_vert_spv);
@@ -667,16 +704,25 @@ static bool create_pipelines(sv_renderer *r) {
     d.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
     d.no_depth_test = true;
     r->sky_pipeline = create_pipeline(r->ctx, &d);
-    pipeline_desc t = {fullscreen_vert_spv, sizeof(fullscreen_vert_spv), tonemap_frag_spv, sizeof(tonemap_frag_spv),
-                       r->tonemap_layout, r->output_format, VK_FORMAT_UNDEFINED, 0, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
-                       false, NULL};
+    pipeline_desc t = {fullscreen_vert_spv,
+                       sizeof(fullscreen_vert_spv),
+                       tonemap_frag_spv,
+                       sizeof(tonemap_frag_spv),
+                       r->tonemap_layout,
+                       r->output_format,
+                       VK_FORMAT_UNDEFINED,
+                       0,
+                       VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
+                       false,
+                       NULL};
     r->tonemap_pipeline = create_pipeline(r->ctx, &t);
     return r->mesh_pipeline && r->cells_pipeline && r->outline_pipeline && r->sky_pipeline && r->tonemap_pipeline;
 fail:
     return false;
 }
 
-static VkFormat pick_depth_format(sv_context *ctx) {
+static VkFormat pick_depth_format(sv_context *ctx)
+{
     VkFormat candidates[] = {VK_FORMAT_D32_SFLOAT, VK_FORMAT_X8_D24_UNORM_PACK32, VK_FORMAT_D16_UNORM};
     for (int i = 0; i < 3; ++i) {
         VkFormatProperties p;
@@ -687,7 +733,8 @@ static VkFormat pick_depth_format(sv_context *ctx) {
 }
 
 bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, const sv_probes *probes,
-                        VkFormat output_format, const sv_renderer_desc *desc) {
+                        VkFormat output_format, const sv_renderer_desc *desc)
+{
     memset(r, 0, sizeof(*r));
     r->ctx = ctx;
     r->hdr_format = VK_FORMAT_R32G32B32A32_SFLOAT; /* exact linear values for .exr output */
@@ -703,13 +750,15 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
     return create_descriptors(r, g) && create_pipelines(r);
 }
 
-bool sv_renderer_resize(sv_renderer *r, uint32_t width, uint32_t height) {
+bool sv_renderer_resize(sv_renderer *r, uint32_t width, uint32_t height)
+{
     sv_context *ctx = r->ctx;
     vkDeviceWaitIdle(ctx->device);
     sv_image_destroy(ctx, &r->hdr);
     sv_image_destroy(ctx, &r->depth);
     if (!sv_image_create(ctx, width, height, r->hdr_format,
-                         VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                         VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
+                             VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
                          VK_IMAGE_ASPECT_COLOR_BIT, &r->hdr) ||
         !sv_image_create(ctx, width, height, r->depth_format, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
                          VK_IMAGE_ASPECT_DEPTH_BIT, &r->depth))
@@ -729,7 +778,8 @@ bool sv_renderer_resize(sv_renderer *r, uint32_t width, uint32_t height) {
     return true;
 }
 
-void sv_view_projection(const sv_view *v, float aspect, float m[16]) {
+void sv_view_projection(const sv_view *v, float aspect, float m[16])
+{
     memset(m, 0, 16 * sizeof(float));
     if (v->yfov > 0.0f) {
         float f = 1.0f / tanf(0.5f * v->yfov);
@@ -756,7 +806,8 @@ void sv_view_projection(const sv_view *v, float aspect, float m[16]) {
 }
 
 /* Inverse-transpose of the upper 3x3 as three vec4 columns. */
-static void normal_matrix(const float m[16], float out[12]) {
+static void normal_matrix(const float m[16], float out[12])
+{
     float a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], i = m[10];
     float A = e * i - f * h, B = -(d * i - f * g), C = d * h - e * g;
     float D = -(b * i - c * h), E = a * i - c * g, F = -(a * h - b * g);
@@ -772,7 +823,8 @@ static void normal_matrix(const float m[16], float out[12]) {
 }
 
 void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene, const sv_view *view,
-                        VkImage out_image, VkImageView out_view, VkImageLayout out_final) {
+                        VkImage out_image, VkImageView out_view, VkImageLayout out_final)
+{
     sv_gpu_frame frame = {0};
     float proj[16];
     sv_view_projection(view, (float)r->width / (float)r->height, proj);
@@ -790,7 +842,8 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     memcpy(r->frame.mapped, &frame, sizeof(frame));
 
     sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
-                     VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
+                     VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                     VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
                      VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT);
     sv_image_barrier(cmd, r->depth.image, VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                      VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
@@ -889,7 +942,8 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
 
     sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
                      VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT,
-                     VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
+                     VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
+                     VK_ACCESS_SHADER_READ_BIT);
     sv_image_barrier(cmd, out_image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                      VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT, 0,
                      VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT);
@@ -911,15 +965,17 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     vkCmdPushConstants(cmd, r->tonemap_layout, VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(tm), &tm);
     vkCmdDraw(cmd, 3, 1, 0, 0);
     vkCmdEndRendering(cmd);
-    VkPipelineStageFlags dst_stage = out_final == VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL ? VK_PIPELINE_STAGE_TRANSFER_BIT
-                                                                                       : VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT;
+    VkPipelineStageFlags dst_stage = out_final == VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL
+                                         ? VK_PIPELINE_STAGE_TRANSFER_BIT
+                                         : VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT;
     VkAccessFlags dst_access = out_final == VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL ? VK_ACCESS_TRANSFER_READ_BIT : 0;
     sv_image_barrier(cmd, out_image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, out_final,
                      VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT, dst_stage,
                      dst_access);
 }
 
-void sv_renderer_destroy(sv_renderer *r) {
+void sv_renderer_destroy(sv_renderer *r)
+{
     sv_context *ctx = r->ctx;
     if (!ctx || !ctx->device) return;
     VkDevice dev = ctx->device;
@@ -947,8 +1003,8 @@ void sv_renderer_destroy(sv_renderer *r) {
     sv_image_destroy(ctx, &r->white);
     sv_image_destroy(ctx, &r->hdr);
     sv_image_destroy(ctx, &r->depth);
-    sv_buffer *bufs[] = {&r->vertices, &r->indices, &r->frame, &r->materials, &r->probes,    &r->probes_half,
-                         &r->lights,   &r->cells,   &r->grids, &r->cell_index};
+    sv_buffer *bufs[] = {&r->vertices,    &r->indices, &r->frame, &r->materials, &r->probes,
+                         &r->probes_half, &r->lights,  &r->cells, &r->grids,     &r->cell_index};
     for (size_t i = 0; i < sizeof(bufs) / sizeof(bufs[0]); ++i) sv_buffer_destroy(ctx, bufs[i]);
     free(r->prim_first_index);
     free(r->prim_index_count);

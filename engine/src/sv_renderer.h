@@ -14,49 +14,49 @@
 #include "sv_vk.h"
 
 typedef struct sv_view {
-    float view[16];         /* world -> camera (camera looks along -Z) */
-    float yfov;             /* radians (perspective); 0 = orthographic with ymag */
-    float ymag, xmag;       /* orthographic half extents */
-    float znear, zfar;      /* zfar 0 = infinite (perspective) */
+    float view[16];    /* world -> camera (camera looks along -Z) */
+    float yfov;        /* radians (perspective); 0 = orthographic with ymag */
+    float ymag, xmag;  /* orthographic half extents */
+    float znear, zfar; /* zfar 0 = infinite (perspective) */
     float camera_pos[3];
-    uint32_t debug_mode;    /* SV_DEBUG_* */
-    uint32_t flags;         /* SV_FRAME_* */
+    uint32_t debug_mode; /* SV_DEBUG_* */
+    uint32_t flags;      /* SV_FRAME_* */
     float exposure;
-    uint32_t tonemap;       /* SV_TONEMAP_* */
-    bool show_cells;        /* probe view: a sphere per probe + the grid cell outlines */
-    uint32_t probe_mode;    /* SV_PROBE_MODE_*, _MATERIAL = each material's own */
-    float normal_bias;      /* per-pixel sample offset along n, in grid spacings (default 0) */
+    uint32_t tonemap;    /* SV_TONEMAP_* */
+    bool show_cells;     /* probe view: a sphere per probe + the grid cell outlines */
+    uint32_t probe_mode; /* SV_PROBE_MODE_*, _MATERIAL = each material's own */
+    float normal_bias;   /* per-pixel sample offset along n, in grid spacings (default 0) */
 } sv_view;
 
 /* What the renderer uploads besides the scene (zero = defaults). */
 typedef struct sv_renderer_desc {
-    float fallback_radiance;  /* uniform radiance of probe 0 when there is no sky */
-    bool half_probes;         /* half-float probe storage (sv_gpu_probe_half) instead of float */
-    const sv_sky *sky;        /* NULL or !present: no background, no specular, constant fallback */
+    float fallback_radiance; /* uniform radiance of probe 0 when there is no sky */
+    bool half_probes;        /* half-float probe storage (sv_gpu_probe_half) instead of float */
+    const sv_sky *sky;       /* NULL or !present: no background, no specular, constant fallback */
 } sv_renderer_desc;
 
 typedef struct sv_renderer {
     sv_context *ctx;
     VkFormat hdr_format, depth_format, output_format;
-    bool encode_srgb;       /* output format is UNORM: the shader applies the sRGB curve */
+    bool encode_srgb; /* output format is UNORM: the shader applies the sRGB curve */
 
     sv_buffer vertices, indices, frame, materials, probes, probes_half, lights, cells, grids, cell_index;
-    uint32_t *prim_first_index;   /* per primitive, flattened over meshes */
+    uint32_t *prim_first_index; /* per primitive, flattened over meshes */
     uint32_t *prim_index_count;
     int32_t *prim_vertex_offset;
     uint32_t *prim_material;
-    uint32_t *mesh_prim_base;     /* per mesh: first flattened primitive */
+    uint32_t *mesh_prim_base; /* per mesh: first flattened primitive */
     uint32_t sphere_first_index, sphere_index_count;
     int32_t sphere_vertex_offset;
     uint32_t light_count, sphere_count, outline_count, probe_count, grid_count;
     bool half_probes;
     bool has_sky;
-    sv_image sky, brdf_lut;       /* prefiltered equirect mips (1x1 black without a sky), split-sum LUT */
+    sv_image sky, brdf_lut; /* prefiltered equirect mips (1x1 black without a sky), split-sum LUT */
     VkSampler sky_sampler, lut_sampler;
 
-    sv_image *textures;           /* per glTF texture (image NULL when it could not be read) */
+    sv_image *textures; /* per glTF texture (image NULL when it could not be read) */
     uint32_t texture_count;
-    sv_image white;               /* bound where a material has no texture */
+    sv_image white; /* bound where a material has no texture */
     VkSampler sampler, hdr_sampler;
     VkDescriptorSetLayout scene_set_layout, material_set_layout, tonemap_set_layout;
     VkDescriptorPool pool;

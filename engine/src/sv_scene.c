@@ -8,15 +8,15 @@
 
 #include "sv_math.h"
 
-static void object_bounds(const sv_gltf_mesh *mesh, const float world[16], float mn[3], float mx[3]) {
+static void object_bounds(const sv_gltf_mesh *mesh, const float world[16], float mn[3], float mx[3])
+{
     for (int k = 0; k < 3; ++k) {
         mn[k] = FLT_MAX;
         mx[k] = -FLT_MAX;
     }
     if (mesh->aabb_min[0] > mesh->aabb_max[0]) return; /* empty mesh */
     for (int c = 0; c < 8; ++c) {
-        float p[3] = {(c & 1) ? mesh->aabb_max[0] : mesh->aabb_min[0],
-                      (c & 2) ? mesh->aabb_max[1] : mesh->aabb_min[1],
+        float p[3] = {(c & 1) ? mesh->aabb_max[0] : mesh->aabb_min[0], (c & 2) ? mesh->aabb_max[1] : mesh->aabb_min[1],
                       (c & 4) ? mesh->aabb_max[2] : mesh->aabb_min[2]};
         float w[3];
         sv_mat4_point(world, p, w);
@@ -27,7 +27,8 @@ static void object_bounds(const sv_gltf_mesh *mesh, const float world[16], float
     }
 }
 
-static void update_scene_bounds(sv_scene *s) {
+static void update_scene_bounds(sv_scene *s)
+{
     for (int k = 0; k < 3; ++k) {
         s->aabb_min[k] = FLT_MAX;
         s->aabb_max[k] = -FLT_MAX;
@@ -39,7 +40,8 @@ static void update_scene_bounds(sv_scene *s) {
         }
 }
 
-bool sv_scene_load(const char *path, sv_scene *out) {
+bool sv_scene_load(const char *path, sv_scene *out)
+{
     memset(out, 0, sizeof(*out));
     sv_gltf_desc desc = {0};
     sv_gltf_error err = {0};
@@ -49,7 +51,8 @@ bool sv_scene_load(const char *path, sv_scene *out) {
         return false;
     }
     sv_gltf *g = out->gltf;
-    for (uint32_t i = 0; i < g->warning_count; ++i) fprintf(stderr, "schnee-view: warning: %s: %s\n", path, g->warnings[i]);
+    for (uint32_t i = 0; i < g->warning_count; ++i)
+        fprintf(stderr, "schnee-view: warning: %s: %s\n", path, g->warnings[i]);
     size_t nodes = g->node_count ? g->node_count : 1;
     out->node_local = calloc(nodes * 16, sizeof(float));
     out->node_world = calloc(nodes * 16, sizeof(float));
@@ -78,7 +81,8 @@ bool sv_scene_load(const char *path, sv_scene *out) {
     return true;
 }
 
-void sv_scene_destroy(sv_scene *scene) {
+void sv_scene_destroy(sv_scene *scene)
+{
     sv_gltf_free(scene->gltf);
     free(scene->node_local);
     free(scene->node_world);
@@ -86,7 +90,8 @@ void sv_scene_destroy(sv_scene *scene) {
     memset(scene, 0, sizeof(*scene));
 }
 
-int32_t sv_scene_find_node(const sv_scene *scene, const char *name) {
+int32_t sv_scene_find_node(const sv_scene *scene, const char *name)
+{
     for (uint32_t i = 0; i < scene->gltf->node_count; ++i)
         if (strcmp(scene->gltf->nodes[i].name, name) == 0) return (int32_t)i;
     return -1;
@@ -94,7 +99,8 @@ int32_t sv_scene_find_node(const sv_scene *scene, const char *name) {
 
 /* Recomputes node `n`'s world matrix from its parent's and recurses into the children. The loader
  * validated the hierarchy as a forest, so the recursion terminates. */
-static void update_world(sv_scene *s, uint32_t n) {
+static void update_world(sv_scene *s, uint32_t n)
+{
     const sv_gltf_node *node = &s->gltf->nodes[n];
     if (node->parent >= 0)
         sv_mat4_mul(s->node_world + 16 * (uint32_t)node->parent, s->node_local + 16 * n, s->node_world + 16 * n);
@@ -103,7 +109,8 @@ static void update_world(sv_scene *s, uint32_t n) {
     for (uint32_t c = 0; c < node->child_count; ++c) update_world(s, node->children[c]);
 }
 
-void sv_scene_set_translation(sv_scene *scene, uint32_t node, const float translation[3]) {
+void sv_scene_set_translation(sv_scene *scene, uint32_t node, const float translation[3])
+{
     const sv_gltf_node *gn = &scene->gltf->nodes[node];
     float *local = scene->node_local + 16 * node;
     if (gn->has_matrix) {

@@ -12,23 +12,23 @@
 
 /* One drawn object: a mesh instance of the default scene. */
 typedef struct sv_object {
-    uint32_t node;        /* index into gltf->nodes */
-    uint32_t mesh;        /* index into gltf->meshes */
-    const char *name;     /* the node's name (owned by the glTF handle) */
-    float world[16];      /* current object -> world */
-    float aabb_min[3];    /* current world-space bounds (8 corners of the mesh bounds transformed) */
+    uint32_t node;     /* index into gltf->nodes */
+    uint32_t mesh;     /* index into gltf->meshes */
+    const char *name;  /* the node's name (owned by the glTF handle) */
+    float world[16];   /* current object -> world */
+    float aabb_min[3]; /* current world-space bounds (8 corners of the mesh bounds transformed) */
     float aabb_max[3];
-    uint32_t probe;       /* assigned index in the probe buffer (0 = fallback) */
-    bool needs_probe;     /* moved since the last probe query */
+    uint32_t probe;   /* assigned index in the probe buffer (0 = fallback) */
+    bool needs_probe; /* moved since the last probe query */
 } sv_object;
 
 typedef struct sv_scene {
     sv_gltf *gltf;
-    float *node_local;    /* node_count * 16, current local transforms */
-    float *node_world;    /* node_count * 16, current world transforms */
+    float *node_local; /* node_count * 16, current local transforms */
+    float *node_world; /* node_count * 16, current world transforms */
     sv_object *objects;
     uint32_t object_count;
-    float aabb_min[3];    /* union of the objects' current bounds (min > max when empty) */
+    float aabb_min[3]; /* union of the objects' current bounds (min > max when empty) */
     float aabb_max[3];
 } sv_scene;
 

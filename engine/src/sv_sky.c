@@ -10,7 +10,8 @@
 
 #define SV_PI 3.14159265358979323846
 
-static float radical_inverse(uint32_t b) {
+static float radical_inverse(uint32_t b)
+{
     b = (b << 16u) | (b >> 16u);
     b = ((b & 0x55555555u) << 1u) | ((b & 0xAAAAAAAAu) >> 1u);
     b = ((b & 0x33333333u) << 2u) | ((b & 0xCCCCCCCCu) >> 2u);
@@ -20,7 +21,8 @@ static float radical_inverse(uint32_t b) {
 }
 
 /* GGX half vector for sample (u1, u2) in the frame of unit n (Karis 2013). */
-static void ggx_half(float u1, float u2, float alpha, const float n[3], float h[3]) {
+static void ggx_half(float u1, float u2, float alpha, const float n[3], float h[3])
+{
     float phi = 2.0f * (float)SV_PI * u2;
     float denom = 1.0f + (alpha * alpha - 1.0f) * u1;
     float cos_t = denom > 0.0f ? sqrtf((1.0f - u1) / denom) : 1.0f;
@@ -37,7 +39,8 @@ static void ggx_half(float u1, float u2, float alpha, const float n[3], float h[
 
 static float g1_schlick(float x, float k) { return x / (x * (1.0f - k) + k); }
 
-float *sv_brdf_lut(uint32_t size, uint32_t samples) {
+float *sv_brdf_lut(uint32_t size, uint32_t samples)
+{
     float *lut = malloc((size_t)size * size * 2 * sizeof(float));
     float *hs = malloc((size_t)samples * 3 * sizeof(float)); /* the row's half vectors, n = +z */
     if (!lut || !hs) {
@@ -49,7 +52,8 @@ float *sv_brdf_lut(uint32_t size, uint32_t samples) {
     for (uint32_t j = 0; j < size; ++j) {
         float rough = ((float)j + 0.5f) / (float)size;
         float alpha = rough * rough, k = alpha / 2.0f;
-        for (uint32_t s = 0; s < samples; ++s) ggx_half((float)s / (float)samples, radical_inverse(s), alpha, n, hs + 3 * s);
+        for (uint32_t s = 0; s < samples; ++s)
+            ggx_half((float)s / (float)samples, radical_inverse(s), alpha, n, hs + 3 * s);
         for (uint32_t i = 0; i < size; ++i) {
             float nv = ((float)i + 0.5f) / (float)size;
             float v[3] = {sqrtf(1.0f - nv * nv), 0.0f, nv};
@@ -75,7 +79,8 @@ float *sv_brdf_lut(uint32_t size, uint32_t samples) {
 }
 
 /* Bilinear equirect fetch of level `l` of a pyramid (rgba rows), u wraps, v clamps. */
-static void sample_level(const float *rgba, uint32_t w, uint32_t h, float u, float v, float out[3]) {
+static void sample_level(const float *rgba, uint32_t w, uint32_t h, float u, float v, float out[3])
+{
     float x = u * (float)w - 0.5f, y = v * (float)h - 0.5f;
     float fx = floorf(x), fy = floorf(y);
     float tx = x - fx, ty = y - fy;
@@ -91,14 +96,16 @@ static void sample_level(const float *rgba, uint32_t w, uint32_t h, float u, flo
         }
 }
 
-static void dir_to_uv(const float d[3], float *u, float *v) {
+static void dir_to_uv(const float d[3], float *u, float *v)
+{
     float phi = atan2f(-d[2], d[0]);
     *u = ((float)SV_PI - phi) / (2.0f * (float)SV_PI);
     float y = d[1] < -1.0f ? -1.0f : d[1] > 1.0f ? 1.0f : d[1];
     *v = acosf(y) / (float)SV_PI;
 }
 
-static void uv_to_dir(float u, float v, float d[3]) {
+static void uv_to_dir(float u, float v, float d[3])
+{
     /* Inverse of dir_to_uv: Blender (sin t cos p, sin t sin p, cos t) -> engine (x, z, -y). */
     float phi = (float)SV_PI - 2.0f * (float)SV_PI * u, th = (float)SV_PI * v;
     d[0] = sinf(th) * cosf(phi);
@@ -106,7 +113,8 @@ static void uv_to_dir(float u, float v, float d[3]) {
     d[2] = -sinf(th) * sinf(phi);
 }
 
-void sv_sky_sample(const sv_sky *sky, uint32_t level, const float dir[3], float out[3]) {
+void sv_sky_sample(const sv_sky *sky, uint32_t level, const float dir[3], float out[3])
+{
     float u, v;
     dir_to_uv(dir, &u, &v);
     sample_level(sky->rgba[level], sky->width[level], sky->height[level], u, v, out);
@@ -119,7 +127,8 @@ typedef struct pyramid {
 } pyramid;
 
 /* Box-filtered source pyramid for filtered importance sampling. */
-static bool build_pyramid(const float *rgba, uint32_t w, uint32_t h, pyramid *p) {
+static bool build_pyramid(const float *rgba, uint32_t w, uint32_t h, pyramid *p)
+{
     memset(p, 0, sizeof(*p));
     p->w[0] = w, p->h[0] = h;
     p->rgba[0] = (float *)rgba; /* borrowed */
@@ -133,10 +142,10 @@ static bool build_pyramid(const float *rgba, uint32_t w, uint32_t h, pyramid *p)
             for (uint32_t x = 0; x < nw; ++x)
                 for (int c = 0; c < 4; ++c) {
                     const float *s = p->rgba[l - 1];
-                    dst[((size_t)y * nw + x) * 4 + c] =
-                        0.25f * (s[((size_t)(2 * y) * pw + 2 * x) * 4 + c] + s[((size_t)(2 * y) * pw + 2 * x + 1) * 4 + c] +
-                                 s[((size_t)(2 * y + 1) * pw + 2 * x) * 4 + c] +
-                                 s[((size_t)(2 * y + 1) * pw + 2 * x + 1) * 4 + c]);
+                    dst[((size_t)y * nw + x) * 4 + c] = 0.25f * (s[((size_t)(2 * y) * pw + 2 * x) * 4 + c] +
+                                                                 s[((size_t)(2 * y) * pw + 2 * x + 1) * 4 + c] +
+                                                                 s[((size_t)(2 * y + 1) * pw + 2 * x) * 4 + c] +
+                                                                 s[((size_t)(2 * y + 1) * pw + 2 * x + 1) * 4 + c]);
                 }
         p->rgba[l] = dst, p->w[l] = nw, p->h[l] = nh;
         p->count++;
@@ -144,7 +153,8 @@ static bool build_pyramid(const float *rgba, uint32_t w, uint32_t h, pyramid *p)
     return true;
 }
 
-static void sample_pyramid(const pyramid *p, float lod, const float d[3], float out[3]) {
+static void sample_pyramid(const pyramid *p, float lod, const float d[3], float out[3])
+{
     float u, v;
     dir_to_uv(d, &u, &v);
     if (lod < 0) lod = 0;
@@ -157,7 +167,8 @@ static void sample_pyramid(const pyramid *p, float lod, const float d[3], float 
 }
 
 /* Level `level` of the prefiltered chain: N = V = R, GGX lobe of roughness r. */
-static void prefilter_level(const pyramid *src, float rough, uint32_t w, uint32_t h, float *dst) {
+static void prefilter_level(const pyramid *src, float rough, uint32_t w, uint32_t h, float *dst)
+{
     float alpha = rough * rough;
     uint32_t texels = w * h;
     uint32_t samples = texels ? 4000000u / texels : 64u;
@@ -191,7 +202,8 @@ static void prefilter_level(const pyramid *src, float rough, uint32_t w, uint32_
         }
 }
 
-bool sv_sky_load(const sv_gltf *g, sv_sky *out) {
+bool sv_sky_load(const sv_gltf *g, sv_sky *out)
+{
     memset(out, 0, sizeof(*out));
     if (!g->sky.present) return true;
     if (!g->sky.path) {
@@ -237,8 +249,10 @@ bool sv_sky_load(const sv_gltf *g, sv_sky *out) {
     for (uint32_t l = 1; ok && l < mips; ++l) {
         out->width[l] = w >> l, out->height[l] = h >> l;
         out->rgba[l] = malloc((size_t)out->width[l] * out->height[l] * 4 * sizeof(float));
-        if (!out->rgba[l]) ok = false;
-        else prefilter_level(&src, (float)l / (float)(mips - 1), out->width[l], out->height[l], out->rgba[l]);
+        if (!out->rgba[l])
+            ok = false;
+        else
+            prefilter_level(&src, (float)l / (float)(mips - 1), out->width[l], out->height[l], out->rgba[l]);
     }
     for (uint32_t l = 1; l < src.count; ++l) free(src.rgba[l]);
     if (!ok) {
@@ -248,7 +262,8 @@ bool sv_sky_load(const sv_gltf *g, sv_sky *out) {
     return ok;
 }
 
-void sv_sky_destroy(sv_sky *sky) {
+void sv_sky_destroy(sv_sky *sky)
+{
     for (uint32_t l = 0; l < SV_SKY_MAX_MIPS; ++l) free(sky->rgba[l]);
     memset(sky, 0, sizeof(*sky));
 }

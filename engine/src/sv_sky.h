@@ -16,17 +16,17 @@
 
 #include "sv_gltf.h"
 
-#define SV_SKY_MAX_MIPS 7
-#define SV_BRDF_LUT_SIZE 64
+#define SV_SKY_MAX_MIPS     7
+#define SV_BRDF_LUT_SIZE    64
 #define SV_BRDF_LUT_SAMPLES 4096
 
 typedef struct sv_sky {
     bool present;
     uint32_t mip_count;
     uint32_t width[SV_SKY_MAX_MIPS], height[SV_SKY_MAX_MIPS];
-    float *rgba[SV_SKY_MAX_MIPS];   /* per level, RGBA32F rows top to bottom */
+    float *rgba[SV_SKY_MAX_MIPS]; /* per level, RGBA32F rows top to bottom */
     uint32_t max_band;
-    float sh[25][3];                /* radiance SH from the glTF entry */
+    float sh[25][3]; /* radiance SH from the glTF entry */
 } sv_sky;
 
 /* Reads the glTF's sky (if any) and prefilters it. No sky: out->present = false, true returned.

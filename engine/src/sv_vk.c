@@ -4,9 +4,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-const char *sv_vk_result_name(VkResult r) {
+const char *sv_vk_result_name(VkResult r)
+{
     switch (r) {
-#define SV_CASE(x) case x: return #x
+#define SV_CASE(x)                                                                                                     \
+    case x: return #x
         SV_CASE(VK_SUCCESS);
         SV_CASE(VK_NOT_READY);
         SV_CASE(VK_TIMEOUT);
@@ -39,8 +41,8 @@ const char *sv_vk_result_name(VkResult r) {
 
 static VKAPI_ATTR VkBool32 VKAPI_CALL debug_callback(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
                                                      VkDebugUtilsMessageTypeFlagsEXT type,
-                                                     const VkDebugUtilsMessengerCallbackDataEXT *data,
-                                                     void *user) {
+                                                     const VkDebugUtilsMessengerCallbackDataEXT *data, void *user)
+{
     sv_context *ctx = user;
     if (severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT) {
         ctx->validation_errors++;
@@ -52,7 +54,8 @@ static VKAPI_ATTR VkBool32 VKAPI_CALL debug_callback(VkDebugUtilsMessageSeverity
     return VK_FALSE;
 }
 
-static bool layer_available(const char *name) {
+static bool layer_available(const char *name)
+{
     uint32_t n = 0;
     if (vkEnumerateInstanceLayerProperties(&n, NULL) != VK_SUCCESS) return false;
     VkLayerProperties *props = calloc(n ? n : 1, sizeof(*props));
@@ -65,8 +68,8 @@ static bool layer_available(const char *name) {
     return found;
 }
 
-bool sv_create_instance(sv_context *ctx, bool validation, const char *const *extensions,
-                        uint32_t extension_count) {
+bool sv_create_instance(sv_context *ctx, bool validation, const char *const *extensions, uint32_t extension_count)
+{
     const char *layer = "VK_LAYER_KHRONOS_validation";
     const char *exts[16];
     uint32_t n = 0;
@@ -77,8 +80,10 @@ bool sv_create_instance(sv_context *ctx, bool validation, const char *const *ext
     for (uint32_t i = 0; i < extension_count; ++i) exts[n++] = extensions[i];
     if (validation) {
         if (!layer_available(layer)) {
-            fprintf(stderr, "schnee-view: error: --validation needs %s, which is not installed "
-                            "(Debian: vulkan-validationlayers)\n", layer);
+            fprintf(stderr,
+                    "schnee-view: error: --validation needs %s, which is not installed "
+                    "(Debian: vulkan-validationlayers)\n",
+                    layer);
             return false;
         }
         exts[n++] = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
@@ -92,10 +97,9 @@ bool sv_create_instance(sv_context *ctx, bool validation, const char *const *ext
     };
     VkDebugUtilsMessengerCreateInfoEXT messenger_info = {
         .sType = VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT,
-        .messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
-                           VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT,
-        .messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
-                       VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+        .messageSeverity =
+            VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT,
+        .messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
                        VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT,
         .pfnUserCallback = debug_callback,
         .pUserData = ctx,
@@ -112,8 +116,8 @@ bool sv_create_instance(sv_context *ctx, bool validation, const char *const *ext
     ctx->validation = validation;
     VK_CHECK(vkCreateInstance(&info, NULL, &ctx->instance));
     if (validation) {
-        PFN_vkCreateDebugUtilsMessengerEXT create = (PFN_vkCreateDebugUtilsMessengerEXT)vkGetInstanceProcAddr(
-            ctx->instance, "vkCreateDebugUtilsMessengerEXT");
+        PFN_vkCreateDebugUtilsMessengerEXT create =
+            (PFN_vkCreateDebugUtilsMessengerEXT)vkGetInstanceProcAddr(ctx->instance, "vkCreateDebugUtilsMessengerEXT");
         if (!create) {
             fprintf(stderr, "schnee-view: error: vkCreateDebugUtilsMessengerEXT not available\n");
             return false;
@@ -125,7 +129,8 @@ fail:
     return false;
 }
 
-static int device_rank(VkPhysicalDeviceType type) {
+static int device_rank(VkPhysicalDeviceType type)
+{
     switch (type) {
     case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return 4;
     case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return 3;
@@ -135,7 +140,8 @@ static int device_rank(VkPhysicalDeviceType type) {
     }
 }
 
-bool sv_pick_device(sv_context *ctx) {
+bool sv_pick_device(sv_context *ctx)
+{
     uint32_t n = 0;
     VkPhysicalDevice *devices = NULL;
     VK_CHECK(vkEnumeratePhysicalDevices(ctx->instance, &n, NULL));
@@ -188,7 +194,8 @@ fail:
     return false;
 }
 
-bool sv_create_device(sv_context *ctx) {
+bool sv_create_device(sv_context *ctx)
+{
     float priority = 1.0f;
     VkDeviceQueueCreateInfo queue = {
         .sType = VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO,
@@ -220,7 +227,8 @@ fail:
     return false;
 }
 
-bool sv_create_command_pool(sv_context *ctx) {
+bool sv_create_command_pool(sv_context *ctx)
+{
     VkCommandPoolCreateInfo info = {
         .sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO,
         .flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT,
@@ -232,7 +240,8 @@ fail:
     return false;
 }
 
-void sv_context_destroy(sv_context *ctx) {
+void sv_context_destroy(sv_context *ctx)
+{
     if (ctx->device) {
         vkDeviceWaitIdle(ctx->device);
         if (ctx->command_pool) vkDestroyCommandPool(ctx->device, ctx->command_pool, NULL);
@@ -249,7 +258,8 @@ void sv_context_destroy(sv_context *ctx) {
     ctx->instance = VK_NULL_HANDLE;
 }
 
-static bool find_memory_type(sv_context *ctx, uint32_t type_bits, VkMemoryPropertyFlags want, uint32_t *out) {
+static bool find_memory_type(sv_context *ctx, uint32_t type_bits, VkMemoryPropertyFlags want, uint32_t *out)
+{
     for (uint32_t i = 0; i < ctx->memory.memoryTypeCount; ++i)
         if ((type_bits & (1u << i)) && (ctx->memory.memoryTypes[i].propertyFlags & want) == want) {
             *out = i;
@@ -259,8 +269,8 @@ static bool find_memory_type(sv_context *ctx, uint32_t type_bits, VkMemoryProper
     return false;
 }
 
-bool sv_buffer_create(sv_context *ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible,
-                      sv_buffer *out) {
+bool sv_buffer_create(sv_context *ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible, sv_buffer *out)
+{
     memset(out, 0, sizeof(*out));
     if (size == 0) size = 16;
     VkBufferCreateInfo info = {
@@ -287,8 +297,9 @@ fail:
     return false;
 }
 
-bool sv_buffer_create_with_data(sv_context *ctx, const void *data, VkDeviceSize size,
-                                VkBufferUsageFlags usage, sv_buffer *out) {
+bool sv_buffer_create_with_data(sv_context *ctx, const void *data, VkDeviceSize size, VkBufferUsageFlags usage,
+                                sv_buffer *out)
+{
     sv_buffer staging;
     memset(out, 0, sizeof(*out));
     if (!sv_buffer_create(ctx, size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true, &staging)) return false;
@@ -308,19 +319,22 @@ bool sv_buffer_create_with_data(sv_context *ctx, const void *data, VkDeviceSize 
     return ok;
 }
 
-void sv_buffer_destroy(sv_context *ctx, sv_buffer *b) {
+void sv_buffer_destroy(sv_context *ctx, sv_buffer *b)
+{
     if (b->buffer) vkDestroyBuffer(ctx->device, b->buffer, NULL);
     if (b->memory) vkFreeMemory(ctx->device, b->memory, NULL);
     memset(b, 0, sizeof(*b));
 }
 
-bool sv_image_create(sv_context *ctx, uint32_t width, uint32_t height, VkFormat format,
-                     VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out) {
+bool sv_image_create(sv_context *ctx, uint32_t width, uint32_t height, VkFormat format, VkImageUsageFlags usage,
+                     VkImageAspectFlags aspect, sv_image *out)
+{
     return sv_image_create_mips(ctx, width, height, 1, format, usage, aspect, out);
 }
 
 bool sv_image_create_mips(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, VkFormat format,
-                          VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out) {
+                          VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out)
+{
     memset(out, 0, sizeof(*out));
     VkImageCreateInfo info = {
         .sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO,
@@ -361,14 +375,16 @@ fail:
     return false;
 }
 
-void sv_image_destroy(sv_context *ctx, sv_image *img) {
+void sv_image_destroy(sv_context *ctx, sv_image *img)
+{
     if (img->view) vkDestroyImageView(ctx->device, img->view, NULL);
     if (img->image) vkDestroyImage(ctx->device, img->image, NULL);
     if (img->memory) vkFreeMemory(ctx->device, img->memory, NULL);
     memset(img, 0, sizeof(*img));
 }
 
-VkCommandBuffer sv_begin_one_shot(sv_context *ctx) {
+VkCommandBuffer sv_begin_one_shot(sv_context *ctx)
+{
     VkCommandBuffer cmd = VK_NULL_HANDLE;
     VkCommandBufferAllocateInfo alloc = {
         .sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO,
@@ -388,7 +404,8 @@ fail:
     return VK_NULL_HANDLE;
 }
 
-bool sv_end_one_shot(sv_context *ctx, VkCommandBuffer cmd) {
+bool sv_end_one_shot(sv_context *ctx, VkCommandBuffer cmd)
+{
     bool ok = false;
     VK_CHECK(vkEndCommandBuffer(cmd));
     VkSubmitInfo submit = {.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO, .commandBufferCount = 1, .pCommandBuffers = &cmd};
@@ -402,7 +419,8 @@ fail:
 
 void sv_image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect, VkImageLayout from,
                       VkImageLayout to, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
-                      VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
+                      VkPipelineStageFlags dst_stage, VkAccessFlags dst_access)
+{
     VkImageMemoryBarrier b = {
         .sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER,
         .srcAccessMask = src_access,
@@ -417,7 +435,8 @@ void sv_image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags asp
     vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 0, NULL, 0, NULL, 1, &b);
 }
 
-VkShaderModule sv_shader_module(sv_context *ctx, const uint32_t *code, size_t size_bytes) {
+VkShaderModule sv_shader_module(sv_context *ctx, const uint32_t *code, size_t size_bytes)
+{
     VkShaderModule m = VK_NULL_HANDLE;
     VkShaderModuleCreateInfo info = {
         .sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO,

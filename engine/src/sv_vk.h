@@ -17,20 +17,20 @@
 
 const char *sv_vk_result_name(VkResult r);
 
-#define VK_CHECK(call)                                                                        \
-    do {                                                                                      \
-        VkResult vk_check_result_ = (call);                                                   \
-        if (vk_check_result_ != VK_SUCCESS) {                                                 \
-            fprintf(stderr, "schnee-view: error: %s:%d: %s failed: %s\n", __FILE__, __LINE__, \
-                    #call, sv_vk_result_name(vk_check_result_));                              \
-            goto fail;                                                                        \
-        }                                                                                     \
+#define VK_CHECK(call)                                                                                                 \
+    do {                                                                                                               \
+        VkResult vk_check_result_ = (call);                                                                            \
+        if (vk_check_result_ != VK_SUCCESS) {                                                                          \
+            fprintf(stderr, "schnee-view: error: %s:%d: %s failed: %s\n", __FILE__, __LINE__, #call,                   \
+                    sv_vk_result_name(vk_check_result_));                                                              \
+            goto fail;                                                                                                 \
+        }                                                                                                              \
     } while (0)
 
 typedef struct sv_context {
     VkInstance instance;
     VkDebugUtilsMessengerEXT messenger;
-    VkSurfaceKHR surface;          /* VK_NULL_HANDLE on the headless path */
+    VkSurfaceKHR surface; /* VK_NULL_HANDLE on the headless path */
     VkPhysicalDevice physical;
     VkPhysicalDeviceProperties properties;
     VkPhysicalDeviceMemoryProperties memory;
@@ -38,16 +38,15 @@ typedef struct sv_context {
     uint32_t queue_family;
     VkQueue queue;
     VkCommandPool command_pool;
-    bool validation;               /* VK_LAYER_KHRONOS_validation enabled */
-    uint32_t validation_errors;    /* counted by the debug messenger */
+    bool validation;            /* VK_LAYER_KHRONOS_validation enabled */
+    uint32_t validation_errors; /* counted by the debug messenger */
     uint32_t validation_warnings;
 } sv_context;
 
 /* Instance with `extension_count` extra extensions (e.g. GLFW's surface ones). With validation,
  * enables VK_LAYER_KHRONOS_validation + a messenger that prints and counts messages; fails with a
  * clear message when the layer is missing. */
-bool sv_create_instance(sv_context *ctx, bool validation, const char *const *extensions,
-                        uint32_t extension_count);
+bool sv_create_instance(sv_context *ctx, bool validation, const char *const *extensions, uint32_t extension_count);
 /* Picks a Vulkan 1.3 device with a graphics queue (and presentation to ctx->surface if set);
  * discrete > integrated > virtual > CPU. */
 bool sv_pick_device(sv_context *ctx);
@@ -76,15 +75,14 @@ typedef struct sv_image {
 
 /* Host-visible coherent buffer (mapped) when host_visible, else device-local. size 0 is bumped
  * to 16 bytes so empty scene arrays still bind. */
-bool sv_buffer_create(sv_context *ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible,
-                      sv_buffer *out);
+bool sv_buffer_create(sv_context *ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible, sv_buffer *out);
 /* Device-local buffer filled from `data` through a staging copy (blocking). */
-bool sv_buffer_create_with_data(sv_context *ctx, const void *data, VkDeviceSize size,
-                                VkBufferUsageFlags usage, sv_buffer *out);
+bool sv_buffer_create_with_data(sv_context *ctx, const void *data, VkDeviceSize size, VkBufferUsageFlags usage,
+                                sv_buffer *out);
 void sv_buffer_destroy(sv_context *ctx, sv_buffer *b);
 
-bool sv_image_create(sv_context *ctx, uint32_t width, uint32_t height, VkFormat format,
-                     VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out);
+bool sv_image_create(sv_context *ctx, uint32_t width, uint32_t height, VkFormat format, VkImageUsageFlags usage,
+                     VkImageAspectFlags aspect, sv_image *out);
 /* Same with `mip_levels` levels (the view covers all of them). */
 bool sv_image_create_mips(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, VkFormat format,
                           VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out);

@@ -25,7 +25,8 @@ typedef struct sv_swapchain {
     bool can_copy; /* TRANSFER_SRC usage supported: screenshots possible */
 } sv_swapchain;
 
-static VkFormat pick_surface_format(sv_context *ctx, VkColorSpaceKHR *space) {
+static VkFormat pick_surface_format(sv_context *ctx, VkColorSpaceKHR *space)
+{
     uint32_t n = 0;
     VkFormat chosen = VK_FORMAT_UNDEFINED;
     if (vkGetPhysicalDeviceSurfaceFormatsKHR(ctx->physical, ctx->surface, &n, NULL) != VK_SUCCESS || n == 0)
@@ -46,7 +47,8 @@ static VkFormat pick_surface_format(sv_context *ctx, VkColorSpaceKHR *space) {
     return chosen;
 }
 
-static void destroy_swapchain(sv_context *ctx, sv_swapchain *sc) {
+static void destroy_swapchain(sv_context *ctx, sv_swapchain *sc)
+{
     for (uint32_t i = 0; i < sc->count; ++i) {
         if (sc->views[i]) vkDestroyImageView(ctx->device, sc->views[i], NULL);
         if (sc->render_done[i]) vkDestroySemaphore(ctx->device, sc->render_done[i], NULL);
@@ -57,7 +59,8 @@ static void destroy_swapchain(sv_context *ctx, sv_swapchain *sc) {
     sc->format = f;
 }
 
-static bool create_swapchain(sv_context *ctx, GLFWwindow *win, VkColorSpaceKHR space, sv_swapchain *sc) {
+static bool create_swapchain(sv_context *ctx, GLFWwindow *win, VkColorSpaceKHR space, sv_swapchain *sc)
+{
     VkSurfaceCapabilitiesKHR caps;
     VK_CHECK(vkGetPhysicalDeviceSurfaceCapabilitiesKHR(ctx->physical, ctx->surface, &caps));
     int fw = 0, fh = 0;
@@ -121,13 +124,15 @@ typedef struct fly_camera {
     float yaw, pitch;
 } fly_camera;
 
-static void fly_forward(const fly_camera *c, float f[3]) {
+static void fly_forward(const fly_camera *c, float f[3])
+{
     f[0] = sinf(c->yaw) * cosf(c->pitch);
     f[1] = sinf(c->pitch);
     f[2] = -cosf(c->yaw) * cosf(c->pitch);
 }
 
-static void fly_to_view(const fly_camera *c, sv_view *v) {
+static void fly_to_view(const fly_camera *c, sv_view *v)
+{
     float f[3], target[3], up[3] = {0, 1, 0};
     fly_forward(c, f);
     for (int k = 0; k < 3; ++k) target[k] = c->pos[k] + f[k];
@@ -135,20 +140,24 @@ static void fly_to_view(const fly_camera *c, sv_view *v) {
     memcpy(v->camera_pos, c->pos, sizeof(c->pos));
 }
 
-static bool write_screenshot(const char *path, const uint8_t *bgra_or_rgba, bool bgra, uint32_t w, uint32_t h) {
+static bool write_screenshot(const char *path, const uint8_t *bgra_or_rgba, bool bgra, uint32_t w, uint32_t h)
+{
     float *px = malloc((size_t)w * h * 3 * sizeof(float));
     if (!px) return false;
     for (size_t i = 0; i < (size_t)w * h; ++i)
         for (int c = 0; c < 3; ++c) px[i * 3 + c] = bgra_or_rgba[i * 4 + (bgra ? 2 - c : c)] / 255.0f;
     pb_error err = {0};
     bool ok = pb_image_write(path, w, h, 3, px, &err) == PB_SUCCESS;
-    if (!ok) fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", path, err.message);
-    else fprintf(stderr, "schnee-view: wrote %s\n", path);
+    if (!ok)
+        fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", path, err.message);
+    else
+        fprintf(stderr, "schnee-view: wrote %s\n", path);
     free(px);
     return ok;
 }
 
-int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky) {
+int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky)
+{
     int rc = 1;
     sv_context ctx = {0};
     sv_renderer r = {0};
@@ -212,7 +221,8 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
     cam.yaw = atan2f(fwd[0], -fwd[2]);
     float speed = 1.0f;
     if (scene->aabb_min[0] <= scene->aabb_max[0])
-        speed = fmaxf(0.5f, 0.25f * fmaxf(scene->aabb_max[0] - scene->aabb_min[0], scene->aabb_max[2] - scene->aabb_min[2]));
+        speed = fmaxf(0.5f,
+                      0.25f * fmaxf(scene->aabb_max[0] - scene->aabb_min[0], scene->aabb_max[2] - scene->aabb_min[2]));
 
     uint32_t selected = 0, frame = 0;
     double last = sv_now_ms(), title_time = last, ms_avg = 0.0;
@@ -236,7 +246,8 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
                               : view.probe_mode == SV_PROBE_MODE_PIXEL  ? SV_PROBE_MODE_OFF
                                                                         : SV_PROBE_MODE_MATERIAL;
         prev_m = m;
-        if (p && !prev_p) view.debug_mode = view.debug_mode == SV_DEBUG_PROBE_COLOR ? SV_DEBUG_NONE : SV_DEBUG_PROBE_COLOR;
+        if (p && !prev_p)
+            view.debug_mode = view.debug_mode == SV_DEBUG_PROBE_COLOR ? SV_DEBUG_NONE : SV_DEBUG_PROBE_COLOR;
         if (c && !prev_c) view.show_cells = !view.show_cells;
         if (n && !prev_n && scene->object_count) selected = (selected + 1) % scene->object_count;
         prev_p = p;
@@ -262,8 +273,15 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
         right[1] = 0.0f;
         right[2] = sinf(cam.yaw);
         float step = speed * dt * (glfwGetKey(win, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ? 4.0f : 1.0f);
-        struct { int key; const float *dir; float sign; } keys[] = {
-            {GLFW_KEY_W, f, 1}, {GLFW_KEY_S, f, -1}, {GLFW_KEY_D, right, 1}, {GLFW_KEY_A, right, -1},
+        struct {
+            int key;
+            const float *dir;
+            float sign;
+        } keys[] = {
+            {GLFW_KEY_W, f, 1},
+            {GLFW_KEY_S, f, -1},
+            {GLFW_KEY_D, right, 1},
+            {GLFW_KEY_A, right, -1},
         };
         for (size_t k = 0; k < sizeof(keys) / sizeof(keys[0]); ++k)
             if (glfwGetKey(win, keys[k].key) == GLFW_PRESS) {
@@ -279,7 +297,8 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
             int move_keys[6] = {GLFW_KEY_J, GLFW_KEY_L, GLFW_KEY_K, GLFW_KEY_I, GLFW_KEY_U, GLFW_KEY_O};
             float delta[3] = {0, 0, 0};
             for (int k = 0; k < 6; ++k)
-                if (glfwGetKey(win, move_keys[k]) == GLFW_PRESS) delta[k / 2 == 0 ? 0 : k / 2 == 1 ? 2 : 1] += (k % 2 ? 1.0f : -1.0f) * step;
+                if (glfwGetKey(win, move_keys[k]) == GLFW_PRESS)
+                    delta[k / 2 == 0 ? 0 : k / 2 == 1 ? 2 : 1] += (k % 2 ? 1.0f : -1.0f) * step;
             if (delta[0] != 0 || delta[1] != 0 || delta[2] != 0) {
                 uint32_t node = scene->objects[selected].node;
                 float t[3];
@@ -318,8 +337,8 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
         bool last_frame = opt->frames && frame + 1 >= opt->frames;
         bool take_shot = last_frame && opt->screenshot && sc.can_copy;
         if (take_shot && !shot.buffer &&
-            !sv_buffer_create(&ctx, (VkDeviceSize)sc.extent.width * sc.extent.height * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                              true, &shot))
+            !sv_buffer_create(&ctx, (VkDeviceSize)sc.extent.width * sc.extent.height * 4,
+                              VK_BUFFER_USAGE_TRANSFER_DST_BIT, true, &shot))
             goto done;
         VkCommandBufferBeginInfo begin = {.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
                                           .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
@@ -330,10 +349,11 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
         if (take_shot) {
             VkBufferImageCopy region = {.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
                                         .imageExtent = {sc.extent.width, sc.extent.height, 1}};
-            vkCmdCopyImageToBuffer(cmd, sc.images[image], VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, shot.buffer, 1, &region);
+            vkCmdCopyImageToBuffer(cmd, sc.images[image], VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, shot.buffer, 1,
+                                   &region);
             sv_image_barrier(cmd, sc.images[image], VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                             VK_IMAGE_LAYOUT_PRESENT_SRC_KHR, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT,
-                             VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0);
+                             VK_IMAGE_LAYOUT_PRESENT_SRC_KHR, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                             VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0);
             VkBufferMemoryBarrier hb = {
                 .sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER,
                 .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
@@ -343,7 +363,8 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
                 .buffer = shot.buffer,
                 .size = VK_WHOLE_SIZE,
             };
-            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 0, NULL, 1, &hb, 0, NULL);
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 0, NULL, 1, &hb, 0,
+                                 NULL);
         }
         VK_CHECK(vkEndCommandBuffer(cmd));
         VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
@@ -378,12 +399,13 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
         frame++;
         if (take_shot) {
             VK_CHECK(vkWaitForFences(ctx.device, 1, &fence, VK_TRUE, UINT64_MAX));
-            if (!write_screenshot(opt->screenshot, shot.mapped, sc.format == VK_FORMAT_B8G8R8A8_SRGB ||
-                                                                    sc.format == VK_FORMAT_B8G8R8A8_UNORM,
+            if (!write_screenshot(opt->screenshot, shot.mapped,
+                                  sc.format == VK_FORMAT_B8G8R8A8_SRGB || sc.format == VK_FORMAT_B8G8R8A8_UNORM,
                                   sc.extent.width, sc.extent.height))
                 goto done;
         } else if (last_frame && opt->screenshot) {
-            fprintf(stderr, "schnee-view: error: the swapchain cannot be copied (no TRANSFER_SRC usage); no screenshot\n");
+            fprintf(stderr,
+                    "schnee-view: error: the swapchain cannot be copied (no TRANSFER_SRC usage); no screenshot\n");
             goto done;
         }
         if (last_frame) break;

@@ -31,8 +31,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     for (size_t j = 0; j < cells; j++)
         if (p->grid[j] < -1 || (p->grid[j] >= 0 && (uint32_t)p->grid[j] >= p->probe_count)) abort();
     float centre[3];
-    for (int k = 0; k < 3; k++)
-        centre[k] = p->grid_origin[k] + 0.5f * p->grid_spacing * (float)p->grid_dims[k];
+    for (int k = 0; k < 3; k++) centre[k] = p->grid_origin[k] + 0.5f * p->grid_spacing * (float)p->grid_dims[k];
     int32_t idx = pb_shprobe_lookup(p, centre);
     if (idx < -1 || (idx >= 0 && (uint32_t)idx >= p->probe_count)) abort();
     pb_shprobe_destroy(p);

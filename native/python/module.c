@@ -71,8 +71,8 @@ static const char *type_name(char code)
 
 /* Gets a C-contiguous buffer of `code` items ('d', 'f', 'i', 'I'; native byte order) from obj.
  * multiple > 0: the item count must be a multiple of it; expected >= 0: the count must equal it. */
-static int get_buffer(PyObject *obj, const char *name, char code, Py_ssize_t multiple,
-                      Py_ssize_t expected, held_buffer *out)
+static int get_buffer(PyObject *obj, const char *name, char code, Py_ssize_t multiple, Py_ssize_t expected,
+                      held_buffer *out)
 {
     memset(out, 0, sizeof *out);
     if (PyObject_GetBuffer(obj, &out->view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
@@ -87,22 +87,19 @@ static int get_buffer(PyObject *obj, const char *name, char code, Py_ssize_t mul
         return -1;
     }
     const char *fmt = out->view.format ? out->view.format : "B";
-    if (*fmt == '@' || *fmt == '=' || (*fmt == '<' && PY_LITTLE_ENDIAN) || (*fmt == '>' && PY_BIG_ENDIAN))
-        fmt++;
+    if (*fmt == '@' || *fmt == '=' || (*fmt == '<' && PY_LITTLE_ENDIAN) || (*fmt == '>' && PY_BIG_ENDIAN)) fmt++;
     Py_ssize_t itemsize = code == 'd' ? 8 : 4;
     bool ok = fmt[0] != '\0' && fmt[1] == '\0' && out->view.itemsize == itemsize &&
               (fmt[0] == code || (code == 'i' && fmt[0] == 'l') || (code == 'I' && fmt[0] == 'L'));
     if (!ok) {
-        PyErr_Format(PyExc_TypeError, "%s must hold %s items, got buffer format '%s' (%zd bytes per item)",
-                     name, type_name(code), out->view.format ? out->view.format : "B",
-                     out->view.itemsize);
+        PyErr_Format(PyExc_TypeError, "%s must hold %s items, got buffer format '%s' (%zd bytes per item)", name,
+                     type_name(code), out->view.format ? out->view.format : "B", out->view.itemsize);
         release(out);
         return -1;
     }
     out->count = out->view.len / itemsize;
     if (multiple > 0 && out->count % multiple != 0) {
-        PyErr_Format(PyExc_ValueError, "%s has %zd items, not a multiple of %zd", name, out->count,
-                     multiple);
+        PyErr_Format(PyExc_ValueError, "%s has %zd items, not a multiple of %zd", name, out->count, multiple);
         release(out);
         return -1;
     }
@@ -173,8 +170,8 @@ static PyObject *py_sh_basis(PyObject *module, PyObject *args)
     if (out) {
         double *o = (double *)(void *)PyByteArray_AsString(out);
         const double *d = dirs.view.buf;
-        Py_BEGIN_ALLOW_THREADS
-        for (Py_ssize_t i = 0; i < n; i++) pb_sh_eval_basis((uint32_t)band, d + 3 * i, o + count * i);
+        Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < n; i++)
+            pb_sh_eval_basis((uint32_t)band, d + 3 * i, o + count * i);
         Py_END_ALLOW_THREADS
     }
     release(&dirs);
@@ -201,13 +198,12 @@ static int check_negative(long negative)
 
 static PyObject *py_project_equirect(PyObject *module, PyObject *args, PyObject *kw)
 {
-    static char *kwlist[] = {"pixels", "width", "height", "channels", "max_band", "rotation",
-                             "negative", NULL};
+    static char *kwlist[] = {"pixels", "width", "height", "channels", "max_band", "rotation", "negative", NULL};
     PyObject *pix_obj, *rot_obj = Py_None;
     Py_ssize_t width, height, channels;
     long band = 2, negative = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "Onnn|lOl:project_equirect", kwlist, &pix_obj, &width,
-                                     &height, &channels, &band, &rot_obj, &negative))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Onnn|lOl:project_equirect", kwlist, &pix_obj, &width, &height,
+                                     &channels, &band, &rot_obj, &negative))
         return NULL;
     uint32_t w, h, c;
     if (check_band(band) < 0 || check_negative(negative) < 0 || check_u32(width, "width", &w) < 0 ||
@@ -232,10 +228,8 @@ static PyObject *py_project_equirect(PyObject *module, PyObject *args, PyObject 
     double out[PB_SH_MAX_COEFFS * 3] = {0};
     pb_error err = {0};
     pb_result r;
-    Py_BEGIN_ALLOW_THREADS
-    r = pb_sh_project_equirect(&desc, out, &err);
-    Py_END_ALLOW_THREADS
-    release(&pix);
+    Py_BEGIN_ALLOW_THREADS r = pb_sh_project_equirect(&desc, out, &err);
+    Py_END_ALLOW_THREADS release(&pix);
     release(&rot);
     if (r != PB_SUCCESS) return raise_core(module, r, &err);
     return bytes_out(out, pb_sh_count((uint32_t)band) * 3 * sizeof(double));
@@ -246,8 +240,8 @@ static PyObject *py_project_file(PyObject *module, PyObject *args, PyObject *kw)
     static char *kwlist[] = {"path", "max_band", "rotation", "negative", NULL};
     PyObject *path = NULL, *rot_obj = Py_None;
     long band = 2, negative = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&|lOl:project_file", kwlist, PyUnicode_FSConverter,
-                                     &path, &band, &rot_obj, &negative))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&|lOl:project_file", kwlist, PyUnicode_FSConverter, &path, &band,
+                                     &rot_obj, &negative))
         return NULL;
     held_buffer rot;
     if (check_band(band) < 0 || check_negative(negative) < 0 || get_rotation(rot_obj, &rot) < 0) {
@@ -262,10 +256,8 @@ static PyObject *py_project_file(PyObject *module, PyObject *args, PyObject *kw)
     pb_error err = {0};
     pb_result r;
     const char *cpath = PyBytes_AsString(path);
-    Py_BEGIN_ALLOW_THREADS
-    r = pb_sh_project_file(cpath, &desc, out, &err);
-    Py_END_ALLOW_THREADS
-    release(&rot);
+    Py_BEGIN_ALLOW_THREADS r = pb_sh_project_file(cpath, &desc, out, &err);
+    Py_END_ALLOW_THREADS release(&rot);
     Py_DECREF(path);
     if (r != PB_SUCCESS) return raise_core(module, r, &err);
     return bytes_out(out, pb_sh_count((uint32_t)band) * 3 * sizeof(double));
@@ -275,11 +267,9 @@ static PyObject *py_irradiance(PyObject *module, PyObject *args)
 {
     PyObject *c_obj, *n_obj;
     long band;
-    if (!PyArg_ParseTuple(args, "OlO:irradiance", &c_obj, &band, &n_obj) || check_band(band) < 0)
-        return NULL;
+    if (!PyArg_ParseTuple(args, "OlO:irradiance", &c_obj, &band, &n_obj) || check_band(band) < 0) return NULL;
     held_buffer coeffs, normals;
-    if (get_buffer(c_obj, "coeffs", 'd', 0, (Py_ssize_t)pb_sh_count((uint32_t)band) * 3, &coeffs) < 0)
-        return NULL;
+    if (get_buffer(c_obj, "coeffs", 'd', 0, (Py_ssize_t)pb_sh_count((uint32_t)band) * 3, &coeffs) < 0) return NULL;
     if (get_buffer(n_obj, "normals", 'd', 3, -1, &normals) < 0) {
         release(&coeffs);
         return NULL;
@@ -289,8 +279,8 @@ static PyObject *py_irradiance(PyObject *module, PyObject *args)
     if (out) {
         double *o = (double *)(void *)PyByteArray_AsString(out);
         const double *c = coeffs.view.buf, *nrm = normals.view.buf;
-        Py_BEGIN_ALLOW_THREADS
-        for (Py_ssize_t i = 0; i < n; i++) pb_sh_irradiance((uint32_t)band, c, nrm + 3 * i, o + 3 * i);
+        Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < n; i++)
+            pb_sh_irradiance((uint32_t)band, c, nrm + 3 * i, o + 3 * i);
         Py_END_ALLOW_THREADS
     }
     release(&coeffs);
@@ -303,8 +293,7 @@ static PyObject *py_window(PyObject *module, PyObject *args)
     PyObject *c_obj;
     long band, kind;
     double strength;
-    if (!PyArg_ParseTuple(args, "Olld:window", &c_obj, &band, &kind, &strength) || check_band(band) < 0)
-        return NULL;
+    if (!PyArg_ParseTuple(args, "Olld:window", &c_obj, &band, &kind, &strength) || check_band(band) < 0) return NULL;
     if (kind < PB_SH_WINDOW_NONE || kind > PB_SH_WINDOW_LAPLACIAN)
         return PyErr_Format(PyExc_ValueError, "window kind %ld is out of range 0..2", kind);
     held_buffer coeffs;
@@ -315,10 +304,8 @@ static PyObject *py_window(PyObject *module, PyObject *args)
     release(&coeffs);
     pb_error err = {0};
     pb_result r;
-    Py_BEGIN_ALLOW_THREADS
-    r = pb_sh_window((uint32_t)band, (pb_sh_window_kind)kind, strength, work, min_e, &err);
-    Py_END_ALLOW_THREADS
-    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    Py_BEGIN_ALLOW_THREADS r = pb_sh_window((uint32_t)band, (pb_sh_window_kind)kind, strength, work, min_e, &err);
+    Py_END_ALLOW_THREADS if (r != PB_SUCCESS) return raise_core(module, r, &err);
     PyObject *out = bytes_out(work, (size_t)n * sizeof(double));
     if (!out) return NULL;
     return Py_BuildValue("(N(ddd))", out, min_e[0], min_e[1], min_e[2]);
@@ -450,7 +437,8 @@ static PyObject *placement_dict(const pb_placement *p)
         dict_put(d, "backface_ratio", bytes_out(p->backface_ratio, n * sizeof(float))) < 0 ||
         dict_put(d, "grid", bytes_out(p->grid, (size_t)cells * sizeof(int32_t))) < 0 ||
         dict_put(d, "grid_dims", Py_BuildValue("(III)", p->grid_dims[0], p->grid_dims[1], p->grid_dims[2])) < 0 ||
-        dict_put(d, "grid_origin", Py_BuildValue("(ddd)", p->grid_origin[0], p->grid_origin[1], p->grid_origin[2])) < 0 ||
+        dict_put(d, "grid_origin", Py_BuildValue("(ddd)", p->grid_origin[0], p->grid_origin[1], p->grid_origin[2])) <
+            0 ||
         dict_put(d, "grid_spacing", PyFloat_FromDouble(p->grid_spacing)) < 0 ||
         dict_put(d, "leaf_count", PyLong_FromUnsignedLongLong(p->leaf_count)) < 0 ||
         dict_put(d, "pruned_count", PyLong_FromUnsignedLongLong(p->pruned_count)) < 0) {
@@ -462,20 +450,17 @@ static PyObject *placement_dict(const pb_placement *p)
 
 static PyObject *py_place_probes(PyObject *module, PyObject *args, PyObject *kw)
 {
-    static char *kwlist[] = {"volumes", "geometry", "min_cell_size", "max_cell_size", "threads",
-                             "progress", "solid_ray_count", "solid_backface_ratio",
-                             "max_grid_cells", NULL};
+    static char *kwlist[] = {"volumes",  "geometry",        "min_cell_size",        "max_cell_size",  "threads",
+                             "progress", "solid_ray_count", "solid_backface_ratio", "max_grid_cells", NULL};
     PyObject *vol_obj, *geo_obj, *progress = Py_None;
     double min_cell = 0.0, max_cell = 0.0, backface = 0.0;
     Py_ssize_t threads = 0, rays = 0;
     unsigned long long max_cells = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO|ddnOndK:place_probes", kwlist, &vol_obj, &geo_obj,
-                                     &min_cell, &max_cell, &threads, &progress, &rays, &backface,
-                                     &max_cells))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO|ddnOndK:place_probes", kwlist, &vol_obj, &geo_obj, &min_cell,
+                                     &max_cell, &threads, &progress, &rays, &backface, &max_cells))
         return NULL;
     uint32_t threads32, rays32;
-    if (check_u32(threads, "threads", &threads32) < 0 || check_u32(rays, "solid_ray_count", &rays32) < 0)
-        return NULL;
+    if (check_u32(threads, "threads", &threads32) < 0 || check_u32(rays, "solid_ray_count", &rays32) < 0) return NULL;
     if (progress != Py_None && !PyCallable_Check(progress))
         return PyErr_Format(PyExc_TypeError, "progress must be callable(fraction, stage) or None");
     mesh_list vols, geo;
@@ -503,10 +488,8 @@ static PyObject *py_place_probes(PyObject *module, PyObject *args, PyObject *kw)
     pb_placement *placement = NULL;
     pb_error err = {0};
     pb_result r;
-    Py_BEGIN_ALLOW_THREADS
-    r = pb_placement_build(&desc, &placement, &err);
-    Py_END_ALLOW_THREADS
-    mesh_list_free(&vols);
+    Py_BEGIN_ALLOW_THREADS r = pb_placement_build(&desc, &placement, &err);
+    Py_END_ALLOW_THREADS mesh_list_free(&vols);
     mesh_list_free(&geo);
     if (ctx.exc_type) { /* the callback raised: that exception wins over "cancelled" */
         pb_placement_destroy(placement);
@@ -531,12 +514,13 @@ static int header_into_dict(PyObject *d, const pb_shprobe *p)
             dict_put(d, "probe_count", PyLong_FromUnsignedLong(p->probe_count)) < 0 ||
             dict_put(d, "max_band", PyLong_FromUnsignedLong(p->max_band)) < 0 ||
             dict_put(d, "grid_dims", Py_BuildValue("(III)", p->grid_dims[0], p->grid_dims[1], p->grid_dims[2])) < 0 ||
-            dict_put(d, "grid_origin", Py_BuildValue("(ddd)", (double)p->grid_origin[0],
-                                                     (double)p->grid_origin[1], (double)p->grid_origin[2])) < 0 ||
+            dict_put(d, "grid_origin",
+                     Py_BuildValue("(ddd)", (double)p->grid_origin[0], (double)p->grid_origin[1],
+                                   (double)p->grid_origin[2])) < 0 ||
             dict_put(d, "grid_spacing", PyFloat_FromDouble(p->grid_spacing)) < 0 ||
-            dict_put(d, "grid_axes", Py_BuildValue("((ddd)(ddd)(ddd))", (double)a[0], (double)a[1],
-                                                   (double)a[2], (double)a[3], (double)a[4], (double)a[5],
-                                                   (double)a[6], (double)a[7], (double)a[8])) < 0 ||
+            dict_put(d, "grid_axes",
+                     Py_BuildValue("((ddd)(ddd)(ddd))", (double)a[0], (double)a[1], (double)a[2], (double)a[3],
+                                   (double)a[4], (double)a[5], (double)a[6], (double)a[7], (double)a[8])) < 0 ||
             dict_put(d, "default_sh_scale", PyFloat_FromDouble(p->default_sh_scale)) < 0 ||
             dict_put(d, "default_ambient", PyFloat_FromDouble(p->default_ambient)) < 0)
                ? -1
@@ -571,10 +555,8 @@ static PyObject *py_shprobe_read(PyObject *module, PyObject *args)
     pb_shprobe *p = NULL;
     pb_error err = {0};
     pb_result r;
-    Py_BEGIN_ALLOW_THREADS
-    r = pb_shprobe_read(cpath, &p, &err);
-    Py_END_ALLOW_THREADS
-    Py_DECREF(path);
+    Py_BEGIN_ALLOW_THREADS r = pb_shprobe_read(cpath, &p, &err);
+    Py_END_ALLOW_THREADS Py_DECREF(path);
     if (r != PB_SUCCESS) return raise_core(module, r, &err);
     PyObject *d = shprobe_dict(p);
     pb_shprobe_destroy(p);
@@ -590,10 +572,8 @@ static PyObject *py_shprobe_read_memory(PyObject *module, PyObject *args)
     pb_shprobe *p = NULL;
     pb_error err = {0};
     pb_result r;
-    Py_BEGIN_ALLOW_THREADS
-    r = pb_shprobe_read_memory(view.buf, (size_t)view.len, &p, &err);
-    Py_END_ALLOW_THREADS
-    PyBuffer_Release(&view);
+    Py_BEGIN_ALLOW_THREADS r = pb_shprobe_read_memory(view.buf, (size_t)view.len, &p, &err);
+    Py_END_ALLOW_THREADS PyBuffer_Release(&view);
     if (r != PB_SUCCESS) return raise_core(module, r, &err);
     PyObject *d = shprobe_dict(p);
     pb_shprobe_destroy(p);
@@ -608,10 +588,8 @@ static PyObject *py_shprobe_read_header(PyObject *module, PyObject *args)
     pb_shprobe h;
     pb_error err = {0};
     pb_result r;
-    Py_BEGIN_ALLOW_THREADS
-    r = pb_shprobe_read_header(cpath, &h, &err);
-    Py_END_ALLOW_THREADS
-    Py_DECREF(path);
+    Py_BEGIN_ALLOW_THREADS r = pb_shprobe_read_header(cpath, &h, &err);
+    Py_END_ALLOW_THREADS Py_DECREF(path);
     if (r != PB_SUCCESS) return raise_core(module, r, &err);
     PyObject *d = PyDict_New();
     if (d && header_into_dict(d, &h) < 0) Py_CLEAR(d);
@@ -628,18 +606,18 @@ static int get_optional(PyObject *obj, const char *name, Py_ssize_t n, held_buff
 
 static PyObject *py_shprobe_write(PyObject *module, PyObject *args, PyObject *kw)
 {
-    static char *kwlist[] = {"path", "coeffs", "max_band", "grid", "grid_dims", "grid_origin",
-                             "grid_spacing", "default_sh_scale", "default_ambient", "positions",
-                             "probe_scale", "probe_ambient", "validity", "grid_axes", "version", NULL};
+    static char *kwlist[] = {
+        "path",         "coeffs",           "max_band",        "grid",      "grid_dims",   "grid_origin",
+        "grid_spacing", "default_sh_scale", "default_ambient", "positions", "probe_scale", "probe_ambient",
+        "validity",     "grid_axes",        "version",         NULL};
     PyObject *path = NULL, *c_obj, *g_obj, *pos_obj = Py_None, *scale_obj = Py_None;
     PyObject *amb_obj = Py_None, *val_obj = Py_None, *axes_obj = Py_None;
     long band, version = 0;
     Py_ssize_t dims[3];
     float origin[3], spacing, def_scale = 1.0f, def_ambient = 0.1f;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&OlO(nnn)(fff)f|ffOOOOOl:shprobe_write", kwlist,
-                                     PyUnicode_FSConverter, &path, &c_obj, &band, &g_obj, &dims[0],
-                                     &dims[1], &dims[2], &origin[0], &origin[1], &origin[2], &spacing,
-                                     &def_scale, &def_ambient, &pos_obj, &scale_obj, &amb_obj,
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&OlO(nnn)(fff)f|ffOOOOOl:shprobe_write", kwlist, PyUnicode_FSConverter,
+                                     &path, &c_obj, &band, &g_obj, &dims[0], &dims[1], &dims[2], &origin[0], &origin[1],
+                                     &origin[2], &spacing, &def_scale, &def_ambient, &pos_obj, &scale_obj, &amb_obj,
                                      &val_obj, &axes_obj, &version))
         return NULL;
     pb_shprobe p;
@@ -663,10 +641,8 @@ static PyObject *py_shprobe_write(PyObject *module, PyObject *args, PyObject *kw
     Py_ssize_t cells = product3(dims[0], dims[1], dims[2], "grid_dims");
     if (cells < 0 || get_buffer(g_obj, "grid", 'i', 0, cells, &grid) < 0) goto done;
     if (pos_obj != Py_None && get_buffer(pos_obj, "positions", 'f', 0, n * 3, &pos) < 0) goto done;
-    if (get_optional(scale_obj, "probe_scale", n, &scale) < 0 ||
-        get_optional(amb_obj, "probe_ambient", n, &amb) < 0 ||
-        get_optional(val_obj, "validity", n, &val) < 0 ||
-        get_optional(axes_obj, "grid_axes", 9, &axes) < 0)
+    if (get_optional(scale_obj, "probe_scale", n, &scale) < 0 || get_optional(amb_obj, "probe_ambient", n, &amb) < 0 ||
+        get_optional(val_obj, "validity", n, &val) < 0 || get_optional(axes_obj, "grid_axes", 9, &axes) < 0)
         goto done;
     p.version = (uint32_t)version;
     p.probe_count = (uint32_t)n;
@@ -687,12 +663,10 @@ static PyObject *py_shprobe_write(PyObject *module, PyObject *args, PyObject *kw
         pb_error err = {0};
         pb_shprobe written;
         pb_result r;
-        Py_BEGIN_ALLOW_THREADS
-        r = pb_shprobe_write(cpath, &p, &err);
+        Py_BEGIN_ALLOW_THREADS r = pb_shprobe_write(cpath, &p, &err);
         /* Report the version actually chosen by reading back the header just written. */
         if (r == PB_SUCCESS) r = pb_shprobe_read_header(cpath, &written, &err);
-        Py_END_ALLOW_THREADS
-        if (r != PB_SUCCESS) raise_core(module, r, &err);
+        Py_END_ALLOW_THREADS if (r != PB_SUCCESS) raise_core(module, r, &err);
         else result = PyLong_FromUnsignedLong(written.version);
     }
 done:
@@ -709,14 +683,14 @@ done:
 
 static PyObject *py_shprobe_lookup(PyObject *module, PyObject *args, PyObject *kw)
 {
-    static char *kwlist[] = {"grid", "grid_dims", "grid_origin", "grid_spacing", "probe_count",
-                             "points", "grid_axes", NULL};
+    static char *kwlist[] = {"grid",        "grid_dims", "grid_origin", "grid_spacing",
+                             "probe_count", "points",    "grid_axes",   NULL};
     PyObject *g_obj, *pts_obj, *axes_obj = Py_None;
     Py_ssize_t dims[3], count;
     float origin[3], spacing;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "O(nnn)(fff)fnO|O:shprobe_lookup", kwlist, &g_obj,
-                                     &dims[0], &dims[1], &dims[2], &origin[0], &origin[1], &origin[2],
-                                     &spacing, &count, &pts_obj, &axes_obj))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O(nnn)(fff)fnO|O:shprobe_lookup", kwlist, &g_obj, &dims[0], &dims[1],
+                                     &dims[2], &origin[0], &origin[1], &origin[2], &spacing, &count, &pts_obj,
+                                     &axes_obj))
         return NULL;
     pb_shprobe p;
     memset(&p, 0, sizeof p);
@@ -773,8 +747,7 @@ static PyObject *py_result_string(PyObject *module, PyObject *args)
 }
 
 static PyMethodDef methods[] = {
-    {"sh_basis", py_sh_basis, METH_VARARGS,
-     "sh_basis(dirs: float64[N*3], max_band) -> bytearray float64[N*count]"},
+    {"sh_basis", py_sh_basis, METH_VARARGS, "sh_basis(dirs: float64[N*3], max_band) -> bytearray float64[N*count]"},
     {"min_panorama_size", py_min_panorama_size, METH_VARARGS, "min_panorama_size(max_band) -> (w, h)"},
     {"project_equirect", (PyCFunction)(void (*)(void))py_project_equirect, METH_VARARGS | METH_KEYWORDS,
      "project_equirect(pixels: float32[H*W*C], width, height, channels, max_band=2, rotation=None, "
@@ -836,8 +809,8 @@ PyMODINIT_FUNC PyInit__schnee_native(void)
 {
     PyObject *m = PyModule_Create(&schnee_module);
     if (!m) return NULL;
-    PyObject *error = PyErr_NewExceptionWithDoc(
-        "_schnee_native.Error", "A core error; `.code` is the pb_result name.", PyExc_RuntimeError, NULL);
+    PyObject *error = PyErr_NewExceptionWithDoc("_schnee_native.Error", "A core error; `.code` is the pb_result name.",
+                                                PyExc_RuntimeError, NULL);
     if (!error) {
         Py_DECREF(m);
         return NULL;

@@ -18,7 +18,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-namespace {
+namespace
+{
 
 std::string lower_extension(const std::string &path)
 {
@@ -48,19 +49,19 @@ pb_result read_impl(const char *path, pb_image *out, pb_error *err)
     if (spec.deep)
         return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' is a deep image; flat pixels are required", path);
     if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
-        return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' has unsupported size %dx%dx%d with %d channel(s)",
-                            path, spec.width, spec.height, spec.depth, spec.nchannels);
+        return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' has unsupported size %dx%dx%d with %d channel(s)", path,
+                            spec.width, spec.height, spec.depth, spec.nchannels);
     const uint64_t w = (uint64_t)spec.width, h = (uint64_t)spec.height, c = (uint64_t)spec.nchannels;
     // w, h, c < 2^31 each: w*h < 2^62 fits; then check the channel and byte products.
     const uint64_t pixels = w * h;
     if (pixels > std::numeric_limits<size_t>::max() / sizeof(float) / c)
-        return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' is too large (%dx%d, %d channels)", path,
-                            spec.width, spec.height, spec.nchannels);
+        return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' is too large (%dx%d, %d channels)", path, spec.width,
+                            spec.height, spec.nchannels);
     const size_t count = (size_t)(pixels * c);
     float *data = static_cast<float *>(std::malloc(count * sizeof(float)));
     if (!data)
-        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory reading '%s' (%dx%d, %d channels)",
-                            path, spec.width, spec.height, spec.nchannels);
+        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory reading '%s' (%dx%d, %d channels)", path,
+                            spec.width, spec.height, spec.nchannels);
     if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, data)) {
         std::string msg = in->geterror();
         std::free(data);
@@ -114,8 +115,7 @@ pb_result write_impl(const char *path, uint32_t width, uint32_t height, uint32_t
     if (std::rename(tmpl.c_str(), path) != 0) {
         const int e = errno;
         std::remove(tmpl.c_str());
-        return pb_error_set(err, PB_ERROR_IO, "cannot rename '%s' to '%s': %s", tmpl.c_str(), path,
-                            std::strerror(e));
+        return pb_error_set(err, PB_ERROR_IO, "cannot rename '%s' to '%s': %s", tmpl.c_str(), path, std::strerror(e));
     }
     return PB_SUCCESS;
 }
@@ -149,8 +149,8 @@ extern "C" pb_result pb_image_write(const char *path, uint32_t width, uint32_t h
     const uint32_t int_max = (uint32_t)std::numeric_limits<int>::max();
     if (width > int_max || height > int_max || channels > int_max ||
         (uint64_t)width * height > std::numeric_limits<size_t>::max() / sizeof(float) / channels)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_image_write: image size %ux%u x %u overflows",
-                            width, height, channels);
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_image_write: image size %ux%u x %u overflows", width,
+                            height, channels);
     try {
         return write_impl(path, width, height, channels, pixels, err);
     } catch (const std::bad_alloc &) {

@@ -51,10 +51,10 @@
 /* 2^26 cells = 256 MiB of int32 grid (and of .shprobe file): a 100 m × 100 m × 25 m level at the
  * default 0.5 m cell size needs 2·10^6 cells; 2^26 is ~32× that. */
 #define PB_DEFAULT_MAX_GRID_CELLS (UINT64_C(1) << 26)
-#define PB_MAX_SOLID_RAYS 65536u
-#define PB_MAX_THREADS 256u
+#define PB_MAX_SOLID_RAYS         65536u
+#define PB_MAX_THREADS            256u
 /* Octree depth is bounded so that every integer coordinate (grid units) fits in uint32. */
-#define PB_MAX_LEVELS 30u
+#define PB_MAX_LEVELS     30u
 #define PB_MAX_AXIS_CELLS (UINT32_C(1) << 30)
 
 /* Geometric tolerance, in units of min_cell_size: boxes are padded by it for the scene-geometry
@@ -63,9 +63,9 @@
 #define PB_BOX_EPS 1e-6
 
 /* Cell flags. */
-#define CELL_FULL 1u /* box entirely inside the volumes (no volume triangle crosses it) */
+#define CELL_FULL      1u /* box entirely inside the volumes (no volume triangle crosses it) */
 #define CELL_CENTRE_IN 2u /* centre inside the volumes (known) */
-#define CELL_PRUNED 4u /* centre inside solid geometry */
+#define CELL_PRUNED    4u /* centre inside solid geometry */
 
 /* Classification results of one octree cell. */
 enum { CLS_DROP = 0, CLS_LEAF = 1, CLS_SPLIT = 2 };
@@ -75,7 +75,7 @@ enum { CLS_DROP = 0, CLS_LEAF = 1, CLS_SPLIT = 2 };
 
 typedef struct oct_cell {
     uint32_t x, y, z; /* min corner, grid units */
-    uint8_t lg; /* edge = 2^lg grid units */
+    uint8_t lg;       /* edge = 2^lg grid units */
     uint8_t flags;
 } oct_cell;
 
@@ -89,12 +89,12 @@ typedef struct oct_ctx {
     uint64_t max_cells;
 
     /* Frame and grid. */
-    double centre[3]; /* absolute centre of the volumes' bounding box */
-    double bbmin[3]; /* absolute min corner = grid origin */
+    double centre[3];     /* absolute centre of the volumes' bounding box */
+    double bbmin[3];      /* absolute min corner = grid origin */
     double origin_rel[3]; /* grid origin relative to centre */
     uint32_t dims[3];
     uint32_t root_lg; /* root cell edge = 2^root_lg grid units */
-    double eps; /* PB_BOX_EPS · min_cell, metres */
+    double eps;       /* PB_BOX_EPS · min_cell, metres */
 
     /* Embree. */
     RTCDevice device;
@@ -122,10 +122,7 @@ static double now_seconds(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static const char *mesh_name(const pb_mesh_desc *m)
-{
-    return (m->name && m->name[0]) ? m->name : "(unnamed)";
-}
+static const char *mesh_name(const pb_mesh_desc *m) { return (m->name && m->name[0]) ? m->name : "(unnamed)"; }
 
 /* Reports progress from the calling thread; returns false (and raises the cancel flag) when the
  * callback asks to cancel. `force` reports regardless of the 50 ms throttle. */
@@ -191,8 +188,7 @@ static void par_run_chunks(par_job *j, bool main_thread, double p0, double p1, c
         uint64_t e = b + j->chunk < j->count ? b + j->chunk : j->count;
         j->fn(j->c, j->user, b, e);
         uint64_t done = atomic_fetch_add(&j->done, e - b) + (e - b);
-        if (main_thread)
-            report(j->c, p0 + (p1 - p0) * (double)done / (double)j->count, stage, false);
+        if (main_thread) report(j->c, p0 + (p1 - p0) * (double)done / (double)j->count, stage, false);
     }
 }
 
@@ -203,8 +199,8 @@ static void *par_worker(void *arg)
 }
 
 /* Returns false when cancelled. */
-static bool parallel_for(oct_ctx *c, uint64_t count, uint64_t chunk, range_fn fn, void *user,
-                         double p0, double p1, const char *stage)
+static bool parallel_for(oct_ctx *c, uint64_t count, uint64_t chunk, range_fn fn, void *user, double p0, double p1,
+                         const char *stage)
 {
     if (!report(c, p0, stage, true)) return false;
     if (count == 0) return true;
@@ -248,15 +244,12 @@ static inline void cross3(double r[3], const double a[3], const double b[3])
     r[2] = a[0] * b[1] - a[1] * b[0];
 }
 
-static inline double dot3(const double a[3], const double b[3])
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
+static inline double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 /* Projection of the triangle (v0, v1, v2, relative to the box centre) and of the box (half size h)
  * on axis a; returns true when they are separated. */
-static inline bool sat_separated(const double a[3], const double v0[3], const double v1[3],
-                                 const double v2[3], double h)
+static inline bool sat_separated(const double a[3], const double v0[3], const double v1[3], const double v2[3],
+                                 double h)
 {
     double p0 = dot3(a, v0), p1 = dot3(a, v1), p2 = dot3(a, v2);
     double mn = fmin(p0, fmin(p1, p2)), mx = fmax(p0, fmax(p1, p2));
@@ -265,8 +258,7 @@ static inline bool sat_separated(const double a[3], const double v0[3], const do
 }
 
 /* Closed overlap of the cube (centre bc, half edge h) and triangle (t0, t1, t2). */
-static bool tri_box_overlap(const double bc[3], double h, const double t0[3], const double t1[3],
-                            const double t2[3])
+static bool tri_box_overlap(const double bc[3], double h, const double t0[3], const double t1[3], const double t2[3])
 {
     double v0[3], v1[3], v2[3];
     sub3(v0, t0, bc);
@@ -301,8 +293,7 @@ static bool tri_box_overlap(const double bc[3], double h, const double t0[3], co
 /* ---------------------------------------------------------------------------------------------- */
 /* Queries                                                                                          */
 
-static inline void mesh_vertex_rel(const oct_ctx *c, const pb_mesh_desc *m, uint32_t v,
-                                   double out[3])
+static inline void mesh_vertex_rel(const oct_ctx *c, const pb_mesh_desc *m, uint32_t v, double out[3])
 {
     out[0] = m->positions[3 * (size_t)v + 0] - c->centre[0];
     out[1] = m->positions[3 * (size_t)v + 1] - c->centre[1];
@@ -335,8 +326,8 @@ static bool box_query_fn(struct RTCPointQueryFunctionArguments *args)
 }
 
 /* Whether the cube (relative centre, half edge h) overlaps any triangle of the scene. */
-static bool box_overlaps(const oct_ctx *c, RTCScene scene, const pb_mesh_desc *meshes,
-                         const uint32_t *mesh_of_geom, const double centre[3], double h)
+static bool box_overlaps(const oct_ctx *c, RTCScene scene, const pb_mesh_desc *meshes, const uint32_t *mesh_of_geom,
+                         const double centre[3], double h)
 {
     if (!scene || h <= 0) return false;
     box_query q;
@@ -363,8 +354,7 @@ static bool box_overlaps(const oct_ctx *c, RTCScene scene, const pb_mesh_desc *m
 
 static bool box_touches_geometry(const oct_ctx *c, const double centre[3], double h)
 {
-    return box_overlaps(c, c->geo_scene, c->desc->geometry, c->geo_mesh_of_geom, centre,
-                        h + c->eps);
+    return box_overlaps(c, c->geo_scene, c->desc->geometry, c->geo_mesh_of_geom, centre, h + c->eps);
 }
 
 static bool box_straddles_volumes(const oct_ctx *c, const double centre[3], double h)
@@ -416,7 +406,7 @@ static void inside_filter(const struct RTCFilterFunctionNArguments *args)
 }
 
 static const double inside_dirs[3][3] = {
-    {0.26726124191242440, 0.53452248382484879, 0.80178372573727319}, /* (1,2,3)/√14 */
+    {0.26726124191242440, 0.53452248382484879, 0.80178372573727319},  /* (1,2,3)/√14 */
     {-0.71066905451870360, 0.24313941206692493, 0.66003068395598600}, /* arbitrary, off-axis */
     {0.13168938050081670, -0.82305862813010440, 0.55217424537227870},
 };
@@ -478,8 +468,8 @@ static bool point_inside(const oct_ctx *c, const double p[3])
 }
 
 /* Relative coordinates of a cell: centre and half edge. */
-static inline void cell_geometry(const oct_ctx *c, uint64_t x, uint64_t y, uint64_t z, uint32_t lg,
-                                 double centre[3], double *h)
+static inline void cell_geometry(const oct_ctx *c, uint64_t x, uint64_t y, uint64_t z, uint32_t lg, double centre[3],
+                                 double *h)
 {
     double edge = c->min_cell * (double)(UINT64_C(1) << lg);
     *h = 0.5 * edge;
@@ -500,31 +490,27 @@ static int cmp_u64(const void *a, const void *b)
 static pb_result check_mesh(oct_ctx *c, const pb_mesh_desc *m, const char *kind, uint32_t index)
 {
     if (m->triangle_count > 0 && (!m->indices || !m->positions))
-        return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                            "%s '%s' (#%u) has %u triangles but no %s array", kind, mesh_name(m),
-                            index, m->triangle_count, m->indices ? "position" : "index");
+        return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT, "%s '%s' (#%u) has %u triangles but no %s array", kind,
+                            mesh_name(m), index, m->triangle_count, m->indices ? "position" : "index");
     if (m->vertex_count > 0 && !m->positions)
-        return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                            "%s '%s' (#%u) has %u vertices but no position array", kind,
-                            mesh_name(m), index, m->vertex_count);
+        return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT, "%s '%s' (#%u) has %u vertices but no position array",
+                            kind, mesh_name(m), index, m->vertex_count);
     for (size_t i = 0; i < 3 * (size_t)m->triangle_count; i++) {
         if (m->indices[i] >= m->vertex_count)
-            return pb_error_set(
-                c->err, PB_ERROR_INVALID_ARGUMENT,
-                "%s '%s' (#%u): triangle %zu uses vertex index %u, but the mesh has "
-                "only %u vertices",
-                kind, mesh_name(m), index, i / 3, m->indices[i], m->vertex_count);
+            return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
+                                "%s '%s' (#%u): triangle %zu uses vertex index %u, but the mesh has "
+                                "only %u vertices",
+                                kind, mesh_name(m), index, i / 3, m->indices[i], m->vertex_count);
     }
     for (size_t i = 0; i < 3 * (size_t)m->vertex_count; i++) {
         if (!isfinite(m->positions[i]))
             return pb_error_set(c->err, PB_ERROR_NON_FINITE,
-                                "%s '%s' (#%u): vertex %zu has a non-finite coordinate (%g)", kind,
-                                mesh_name(m), index, i / 3, m->positions[i]);
+                                "%s '%s' (#%u): vertex %zu has a non-finite coordinate (%g)", kind, mesh_name(m), index,
+                                i / 3, m->positions[i]);
         if (fabs(m->positions[i]) > 1e15)
-            return pb_error_set(
-                c->err, PB_ERROR_INVALID_ARGUMENT,
-                "%s '%s' (#%u): vertex %zu coordinate %g is out of range (|x| > 1e15 m)", kind,
-                mesh_name(m), index, i / 3, m->positions[i]);
+            return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
+                                "%s '%s' (#%u): vertex %zu coordinate %g is out of range (|x| > 1e15 m)", kind,
+                                mesh_name(m), index, i / 3, m->positions[i]);
     }
     return PB_SUCCESS;
 }
@@ -536,9 +522,7 @@ static pb_result check_closed(oct_ctx *c, const pb_mesh_desc *m, uint32_t index)
 {
     size_t n = 0;
     uint64_t *edges = malloc(sizeof(uint64_t) * 3 * ((size_t)m->triangle_count + 1));
-    if (!edges)
-        return pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory checking volume '%s'",
-                            mesh_name(m));
+    if (!edges) return pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory checking volume '%s'", mesh_name(m));
     for (size_t t = 0; t < m->triangle_count; t++) {
         const uint32_t *i = &m->indices[3 * t];
         if (i[0] == i[1] || i[1] == i[2] || i[2] == i[0]) continue;
@@ -568,13 +552,12 @@ static pb_result check_closed(oct_ctx *c, const pb_mesh_desc *m, uint32_t index)
     }
     free(edges);
     if (bad)
-        return pb_error_set(
-            c->err, PB_ERROR_OPEN_MESH,
-            "probe volume '%s' (#%u) is not a closed mesh: %zu edge%s not shared by "
-            "exactly two triangles with opposite orientation (e.g. the edge from "
-            "vertex %u to vertex %u); close the holes and make the normals consistent",
-            mesh_name(m), index, bad, bad == 1 ? " is" : "s are", (uint32_t)(example >> 32),
-            (uint32_t)example);
+        return pb_error_set(c->err, PB_ERROR_OPEN_MESH,
+                            "probe volume '%s' (#%u) is not a closed mesh: %zu edge%s not shared by "
+                            "exactly two triangles with opposite orientation (e.g. the edge from "
+                            "vertex %u to vertex %u); close the holes and make the normals consistent",
+                            mesh_name(m), index, bad, bad == 1 ? " is" : "s are", (uint32_t)(example >> 32),
+                            (uint32_t)example);
     return PB_SUCCESS;
 }
 
@@ -583,33 +566,27 @@ static pb_result setup(oct_ctx *c)
     const pb_placement_desc *d = c->desc;
     if (!d->volumes || d->volume_count == 0)
         return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                            "probe placement needs at least one probe volume (volume_count = %u)",
-                            d->volume_count);
+                            "probe placement needs at least one probe volume (volume_count = %u)", d->volume_count);
     if (d->geometry_count > 0 && !d->geometry)
-        return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                            "geometry_count is %u but geometry is NULL", d->geometry_count);
+        return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT, "geometry_count is %u but geometry is NULL",
+                            d->geometry_count);
 
     c->min_cell = d->min_cell_size == 0 ? PB_DEFAULT_MIN_CELL : d->min_cell_size;
     double max_cell = d->max_cell_size == 0 ? PB_DEFAULT_MAX_CELL : d->max_cell_size;
     if (!(c->min_cell > 0) || !isfinite(c->min_cell))
         return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                            "min_cell_size must be a positive finite length in metres (got %g)",
-                            d->min_cell_size);
+                            "min_cell_size must be a positive finite length in metres (got %g)", d->min_cell_size);
     if (!(max_cell > 0) || !isfinite(max_cell))
         return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                            "max_cell_size must be a positive finite length in metres (got %g)",
-                            d->max_cell_size);
+                            "max_cell_size must be a positive finite length in metres (got %g)", d->max_cell_size);
     if (max_cell < c->min_cell)
         return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                            "max_cell_size (%g m) is smaller than min_cell_size (%g m)", max_cell,
-                            c->min_cell);
+                            "max_cell_size (%g m) is smaller than min_cell_size (%g m)", max_cell, c->min_cell);
     c->solid_rays = d->solid_ray_count == 0 ? PB_DEFAULT_SOLID_RAYS : d->solid_ray_count;
     if (c->solid_rays > PB_MAX_SOLID_RAYS)
-        return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                            "solid_ray_count %u is above the maximum of %u", c->solid_rays,
-                            PB_MAX_SOLID_RAYS);
-    c->solid_ratio =
-        d->solid_backface_ratio == 0 ? PB_DEFAULT_BACKFACE_RATIO : d->solid_backface_ratio;
+        return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT, "solid_ray_count %u is above the maximum of %u",
+                            c->solid_rays, PB_MAX_SOLID_RAYS);
+    c->solid_ratio = d->solid_backface_ratio == 0 ? PB_DEFAULT_BACKFACE_RATIO : d->solid_backface_ratio;
     if (!(c->solid_ratio > 0 && c->solid_ratio <= 1))
         return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
                             "solid_backface_ratio must be in (0, 1] (got %g; 1 disables pruning)",
@@ -625,9 +602,7 @@ static pb_result setup(oct_ctx *c)
     /* Root cell: max_cell_size rounded down to min·2^k (1e-9 relative slack so that 16/0.5 = 2^5
      * is not lost to rounding). */
     uint32_t k = 0;
-    while (k < PB_MAX_LEVELS &&
-           c->min_cell * (double)(UINT64_C(1) << (k + 1)) <= max_cell * (1 + 1e-9))
-        k++;
+    while (k < PB_MAX_LEVELS && c->min_cell * (double)(UINT64_C(1) << (k + 1)) <= max_cell * (1 + 1e-9)) k++;
     c->root_lg = k;
 
     for (uint32_t i = 0; i < d->volume_count; i++) {
@@ -691,8 +666,7 @@ static pb_result setup(oct_ctx *c)
                             "(%.4g MiB); use a larger Min Cell Size (about %.3g m or more) or "
                             "smaller probe volumes",
                             want[0], want[1], want[2], cells, cells * 4.0 / 1048576.0, c->min_cell,
-                            (unsigned long long)c->max_cells,
-                            (double)c->max_cells * 4.0 / 1048576.0, suggest);
+                            (unsigned long long)c->max_cells, (double)c->max_cells * 4.0 / 1048576.0, suggest);
     }
     return PB_SUCCESS;
 }
@@ -700,8 +674,8 @@ static pb_result setup(oct_ctx *c)
 /* ---------------------------------------------------------------------------------------------- */
 /* Stage 2: Embree scenes                                                                          */
 
-static pb_result build_mesh_scene(oct_ctx *c, const pb_mesh_desc *meshes, uint32_t count,
-                                  enum RTCSceneFlags flags, RTCScene *out_scene, uint32_t **out_map)
+static pb_result build_mesh_scene(oct_ctx *c, const pb_mesh_desc *meshes, uint32_t count, enum RTCSceneFlags flags,
+                                  RTCScene *out_scene, uint32_t **out_map)
 {
     RTCScene scene = rtcNewScene(c->device);
     uint32_t *map = malloc(sizeof(uint32_t) * ((size_t)count + 1));
@@ -709,8 +683,7 @@ static pb_result build_mesh_scene(oct_ctx *c, const pb_mesh_desc *meshes, uint32
         if (scene) rtcReleaseScene(scene);
         free(map);
         pb_result r = embree_check(c, "creating a scene");
-        return r ? r
-                 : pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating a scene");
+        return r ? r : pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating a scene");
     }
     *out_scene = scene;
     *out_map = map;
@@ -724,18 +697,17 @@ static pb_result build_mesh_scene(oct_ctx *c, const pb_mesh_desc *meshes, uint32
             failed = true;
             break;
         }
-        float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                            3 * sizeof(float), m->vertex_count);
-        unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                               3 * sizeof(unsigned), m->triangle_count);
+        float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                            m->vertex_count);
+        unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                               m->triangle_count);
         if (!vb || !ib) {
             rtcReleaseGeometry(g);
             failed = true;
             break;
         }
         for (size_t v = 0; v < m->vertex_count; v++) {
-            for (int a = 0; a < 3; a++)
-                vb[3 * v + a] = (float)(m->positions[3 * v + a] - c->centre[a]);
+            for (int a = 0; a < 3; a++) vb[3 * v + a] = (float)(m->positions[3 * v + a] - c->centre[a]);
         }
         memcpy(ib, m->indices, 3 * sizeof(unsigned) * (size_t)m->triangle_count);
         rtcCommitGeometry(g);
@@ -749,8 +721,7 @@ static pb_result build_mesh_scene(oct_ctx *c, const pb_mesh_desc *meshes, uint32
     }
     pb_result r = embree_check(c, "building the ray-tracing scenes");
     if (r) return r;
-    if (failed)
-        return pb_error_set(c->err, PB_ERROR_EMBREE, "Embree could not create a triangle mesh");
+    if (failed) return pb_error_set(c->err, PB_ERROR_EMBREE, "Embree could not create a triangle mesh");
     rtcCommitScene(scene);
     return embree_check(c, "building the ray-tracing scenes");
 }
@@ -761,7 +732,7 @@ static pb_result build_mesh_scene(oct_ctx *c, const pb_mesh_desc *meshes, uint32
 typedef struct classify_job {
     const oct_cell *cells;
     uint8_t *result; /* CLS_* */
-    uint8_t *flags; /* flags for the leaf or the children */
+    uint8_t *flags;  /* flags for the leaf or the children */
 } classify_job;
 
 static void classify_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
@@ -807,10 +778,7 @@ static void classify_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
 /* Morton order of integer points (Chan's most-significant-differing-bit comparison); z is the most
  * significant axis, x the least. Sorting the leaves' min corners this way numbers the probes in
  * depth-first octree order. */
-static inline bool less_msb(uint32_t a, uint32_t b)
-{
-    return a < b && a < (a ^ b);
-}
+static inline bool less_msb(uint32_t a, uint32_t b) { return a < b && a < (a ^ b); }
 
 static int cmp_cell_morton(const void *pa, const void *pb)
 {
@@ -854,8 +822,7 @@ static pb_result build_octree(oct_ctx *c, cell_vec *leaves)
     /* Root count ≤ grid cells ≤ max_grid_cells (checked), so this fits. */
     size_t nroot = (size_t)(roots[0] * roots[1] * roots[2]);
     if (!cell_vec_reserve(&cur, nroot)) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree root cells",
-                         nroot);
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree root cells", nroot);
         goto done;
     }
     for (uint64_t z = 0; z < roots[2]; z++)
@@ -878,8 +845,7 @@ static pb_result build_octree(oct_ctx *c, cell_vec *leaves)
         res = malloc(cur.n);
         flg = malloc(cur.n);
         if (!res || !flg) {
-            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree cells",
-                             cur.n);
+            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree cells", cur.n);
             goto done;
         }
         classify_job job = {cur.v, res, flg};
@@ -892,10 +858,8 @@ static pb_result build_octree(oct_ctx *c, cell_vec *leaves)
             nsplit += res[i] == CLS_SPLIT;
             nleaf += res[i] == CLS_LEAF;
         }
-        if (!cell_vec_reserve(leaves, leaves->n + nleaf) ||
-            (nsplit && !cell_vec_reserve(&next, 8 * nsplit))) {
-            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY,
-                             "out of memory for the octree (%zu cells)",
+        if (!cell_vec_reserve(leaves, leaves->n + nleaf) || (nsplit && !cell_vec_reserve(&next, 8 * nsplit))) {
+            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for the octree (%zu cells)",
                              leaves->n + nleaf + 8 * nsplit);
             goto done;
         }
@@ -1014,8 +978,8 @@ typedef struct grid_job {
     int32_t *grid;
 } grid_job;
 
-static void grid_write_box(const oct_ctx *c, int32_t *grid, uint64_t x0, uint64_t y0, uint64_t z0,
-                           uint64_t n, int32_t value)
+static void grid_write_box(const oct_ctx *c, int32_t *grid, uint64_t x0, uint64_t y0, uint64_t z0, uint64_t n,
+                           int32_t value)
 {
     uint64_t x1 = x0 + n < c->dims[0] ? x0 + n : c->dims[0];
     uint64_t y1 = y0 + n < c->dims[1] ? y0 + n : c->dims[1];
@@ -1028,21 +992,20 @@ static void grid_write_box(const oct_ctx *c, int32_t *grid, uint64_t x0, uint64_
 
 /* Fills the part of a leaf that straddles the volume surface: sub-boxes no volume triangle crosses
  * are classified by their centre, the others split down to single grid cells. */
-static void grid_fill_straddling(const oct_ctx *c, int32_t *grid, uint64_t x, uint64_t y,
-                                 uint64_t z, uint32_t lg, int32_t inside_value)
+static void grid_fill_straddling(const oct_ctx *c, int32_t *grid, uint64_t x, uint64_t y, uint64_t z, uint32_t lg,
+                                 int32_t inside_value)
 {
     if (x >= c->dims[0] || y >= c->dims[1] || z >= c->dims[2]) return;
     double ctr[3], h;
     cell_geometry(c, x, y, z, lg, ctr, &h);
     if (lg == 0 || !box_straddles_volumes(c, ctr, h)) {
-        grid_write_box(c, grid, x, y, z, UINT64_C(1) << lg,
-                       point_inside(c, ctr) ? inside_value : -1);
+        grid_write_box(c, grid, x, y, z, UINT64_C(1) << lg, point_inside(c, ctr) ? inside_value : -1);
         return;
     }
     uint64_t half = UINT64_C(1) << (lg - 1);
     for (uint32_t o = 0; o < 8; o++)
-        grid_fill_straddling(c, grid, x + ((o & 1u) ? half : 0), y + ((o & 2u) ? half : 0),
-                             z + ((o & 4u) ? half : 0), lg - 1, inside_value);
+        grid_fill_straddling(c, grid, x + ((o & 1u) ? half : 0), y + ((o & 2u) ? half : 0), z + ((o & 4u) ? half : 0),
+                             lg - 1, inside_value);
 }
 
 static void grid_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
@@ -1056,8 +1019,7 @@ static void grid_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
             grid_write_box(c, j->grid, leaf->x, leaf->y, leaf->z, UINT64_C(1) << leaf->lg, value);
         } else if (leaf->lg == 0) {
             /* A single grid cell: its centre is the leaf centre, already classified. */
-            grid_write_box(c, j->grid, leaf->x, leaf->y, leaf->z, 1,
-                           (leaf->flags & CELL_CENTRE_IN) ? value : -1);
+            grid_write_box(c, j->grid, leaf->x, leaf->y, leaf->z, 1, (leaf->flags & CELL_CENTRE_IN) ? value : -1);
         } else {
             grid_fill_straddling(c, j->grid, leaf->x, leaf->y, leaf->z, leaf->lg, value);
         }
@@ -1183,15 +1145,14 @@ static pb_result place(oct_ctx *c, pb_placement *out)
                             (int)rtcGetDeviceError(NULL));
     rtcSetDeviceErrorFunction(c->device, embree_error_fn, c);
     r = build_mesh_scene(c, c->desc->volumes, c->desc->volume_count,
-                         RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST,
-                         &c->vol_scene, &c->vol_mesh_of_geom);
+                         RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST, &c->vol_scene,
+                         &c->vol_mesh_of_geom);
     if (r) return r;
     bool any_geometry = false;
-    for (uint32_t i = 0; i < c->desc->geometry_count; i++)
-        any_geometry |= c->desc->geometry[i].triangle_count > 0;
+    for (uint32_t i = 0; i < c->desc->geometry_count; i++) any_geometry |= c->desc->geometry[i].triangle_count > 0;
     if (any_geometry) {
-        r = build_mesh_scene(c, c->desc->geometry, c->desc->geometry_count, RTC_SCENE_FLAG_NONE,
-                             &c->geo_scene, &c->geo_mesh_of_geom);
+        r = build_mesh_scene(c, c->desc->geometry, c->desc->geometry_count, RTC_SCENE_FLAG_NONE, &c->geo_scene,
+                             &c->geo_mesh_of_geom);
         if (r) return r;
     }
     if (!report(c, 0.10, "building BVH", true)) return cancelled(c, "building BVH");
@@ -1207,8 +1168,7 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     ratio = malloc(sizeof *ratio * (leaves.n + 1));
     leaf_probe = malloc(sizeof *leaf_probe * (leaves.n + 1));
     if (!c->ray_dirs || !ratio || !leaf_probe) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree leaves",
-                         leaves.n);
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree leaves", leaves.n);
         goto done;
     }
     /* Spherical Fibonacci directions (offset by 0.1 rad so that none lies in an axis plane). */
@@ -1246,8 +1206,7 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     size_t ncells = (size_t)c->dims[0] * c->dims[1] * c->dims[2];
     out->grid = malloc(sizeof(int32_t) * ncells);
     if (!out->grid) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY,
-                         "out of memory for the occupancy grid (%zu cells)", ncells);
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for the occupancy grid (%zu cells)", ncells);
         goto done;
     }
     for (size_t i = 0; i < ncells; i++) out->grid[i] = -1;
@@ -1262,16 +1221,14 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     out->cell_sizes = malloc(sizeof(double) * (nprobe + 1));
     out->backface_ratio = malloc(sizeof(float) * (nprobe + 1));
     if (!probe_rel || !out->cell_sizes || !out->backface_ratio) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes",
-                         (unsigned long long)nprobe);
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes", (unsigned long long)nprobe);
         goto done;
     }
     for (size_t i = 0; i < leaves.n; i++) {
         int32_t p = leaf_probe[i];
         if (p < 0) continue;
         double h;
-        cell_geometry(c, leaves.v[i].x, leaves.v[i].y, leaves.v[i].z, leaves.v[i].lg,
-                      &probe_rel[3 * (size_t)p], &h);
+        cell_geometry(c, leaves.v[i].x, leaves.v[i].y, leaves.v[i].z, leaves.v[i].lg, &probe_rel[3 * (size_t)p], &h);
         out->cell_sizes[p] = 2.0 * h;
         out->backface_ratio[p] = ratio[i];
     }
@@ -1290,8 +1247,7 @@ static pb_result place(oct_ctx *c, pb_placement *out)
         }
         nearest_cells = malloc(sizeof *nearest_cells * nnear);
         if (!nearest_cells) {
-            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu grid cells",
-                             nnear);
+            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu grid cells", nnear);
             goto done;
         }
         for (size_t i = 0, k = 0; i < ncells; i++)
@@ -1325,8 +1281,7 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     refs = calloc(nprobe + 1, sizeof *refs);
     remap = malloc(sizeof *remap * (nprobe + 1));
     if (!refs || !remap) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes",
-                         (unsigned long long)nprobe);
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes", (unsigned long long)nprobe);
         goto done;
     }
     for (size_t i = 0; i < ncells; i++)
@@ -1342,11 +1297,10 @@ static pb_result place(oct_ctx *c, pb_placement *out)
         }
     }
     if (kept == 0) {
-        r = pb_error_set(
-            c->err, PB_ERROR_INVALID_ARGUMENT,
-            "no probe could be placed: no occupancy-grid cell centre (spacing %g m) lies "
-            "inside the probe volumes; are the volumes thinner than Min Cell Size?",
-            c->min_cell);
+        r = pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
+                         "no probe could be placed: no occupancy-grid cell centre (spacing %g m) lies "
+                         "inside the probe volumes; are the volumes thinner than Min Cell Size?",
+                         c->min_cell);
         goto done;
     }
     if (kept != nprobe)
@@ -1385,8 +1339,7 @@ pb_result pb_placement_build(const pb_placement_desc *desc, pb_placement **out, 
 {
     if (out) *out = NULL;
     if (!desc || !out)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                            "pb_placement_build: desc and out must not be NULL");
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_placement_build: desc and out must not be NULL");
     oct_ctx *c = calloc(1, sizeof *c);
     pb_placement *p = calloc(1, sizeof *p);
     if (!c || !p) {

@@ -11,23 +11,23 @@
 #define PB_PI 3.14159265358979323846
 
 /* Normalisation constants at full double precision (the 9-digit values of DESIGN.md §3). */
-#define K00 0.28209479177387814  /* 1/(2√π) */
-#define K1 0.4886025119029199    /* √(3/4π) */
-#define K2A 1.0925484305920792   /* ½√(15/π) */
-#define K2B 0.31539156525252005  /* ¼√(5/π) */
-#define K2C 0.5462742152960396   /* ¼√(15/π) */
-#define K3A 0.5900435899266435   /* ¼√(35/2π) */
-#define K3B 2.890611442640554    /* ½√(105/π) */
-#define K3C 0.4570457994644658   /* ¼√(21/2π) */
-#define K3D 0.3731763325901154   /* ¼√(7/π) */
-#define K3E 1.445305721320277    /* ¼√(105/π) */
-#define K4A 2.5033429417967046   /* ¾√(35/π) */
-#define K4B 1.7701307697799304   /* ¾√(35/2π) */
-#define K4C 0.9461746957575601   /* ¾√(5/π) */
-#define K4D 0.6690465435572892   /* ¾√(5/2π) */
-#define K4E 0.10578554691520431  /* 3/(16√π) */
-#define K4F 0.47308734787878004  /* ⅜√(5/π) */
-#define K4G 0.6258357354491761   /* (3/16)√(35/π) */
+#define K00 0.28209479177387814 /* 1/(2√π) */
+#define K1  0.4886025119029199  /* √(3/4π) */
+#define K2A 1.0925484305920792  /* ½√(15/π) */
+#define K2B 0.31539156525252005 /* ¼√(5/π) */
+#define K2C 0.5462742152960396  /* ¼√(15/π) */
+#define K3A 0.5900435899266435  /* ¼√(35/2π) */
+#define K3B 2.890611442640554   /* ½√(105/π) */
+#define K3C 0.4570457994644658  /* ¼√(21/2π) */
+#define K3D 0.3731763325901154  /* ¼√(7/π) */
+#define K3E 1.445305721320277   /* ¼√(105/π) */
+#define K4A 2.5033429417967046  /* ¾√(35/π) */
+#define K4B 1.7701307697799304  /* ¾√(35/2π) */
+#define K4C 0.9461746957575601  /* ¾√(5/π) */
+#define K4D 0.6690465435572892  /* ¾√(5/2π) */
+#define K4E 0.10578554691520431 /* 3/(16√π) */
+#define K4F 0.47308734787878004 /* ⅜√(5/π) */
+#define K4G 0.6258357354491761  /* (3/16)√(35/π) */
 
 void pb_sh_eval_basis(uint32_t max_band, const double dir[3], double *out)
 {
@@ -112,14 +112,12 @@ static const double pb_blender_to_engine_[9] = {1, 0, 0, 0, 0, 1, 0, -1, 0};
  * for every d (R orthogonal maps each band onto itself). The quadrature (5-point Gauss–Legendre in
  * z × 10 uniform φ) is exact for polynomials of degree ≤ 9 on the sphere, and Y_i(Rd)·Y_j(d) has
  * degree ≤ 8, so M is exact to rounding. Block-diagonal by band; other entries are left zero. */
-static void pb_sh_rotation_matrix_(uint32_t max_band, const double r[9],
-                                   double m[PB_SH_MAX_COEFFS][PB_SH_MAX_COEFFS])
+static void pb_sh_rotation_matrix_(uint32_t max_band, const double r[9], double m[PB_SH_MAX_COEFFS][PB_SH_MAX_COEFFS])
 {
-    static const double gl_x[5] = {-0.90617984593866399280, -0.53846931010568309104, 0.0,
-                                   0.53846931010568309104, 0.90617984593866399280};
-    static const double gl_w[5] = {0.23692688505618908751, 0.47862867049936646804,
-                                   0.56888888888888888889, 0.47862867049936646804,
-                                   0.23692688505618908751};
+    static const double gl_x[5] = {-0.90617984593866399280, -0.53846931010568309104, 0.0, 0.53846931010568309104,
+                                   0.90617984593866399280};
+    static const double gl_w[5] = {0.23692688505618908751, 0.47862867049936646804, 0.56888888888888888889,
+                                   0.47862867049936646804, 0.23692688505618908751};
     enum { NPHI = 10 };
     memset(m, 0, sizeof(double) * PB_SH_MAX_COEFFS * PB_SH_MAX_COEFFS);
     for (int a = 0; a < 5; a++) {
@@ -143,17 +141,15 @@ static void pb_sh_rotation_matrix_(uint32_t max_band, const double r[9],
 static const char *const pb_channel_names_[3] = {"R", "G", "B"};
 
 /* Validates desc and fills the derived sizes. */
-static pb_result pb_sh_validate_(const pb_sh_project_desc *desc, const double *out, uint32_t *channels,
-                                 size_t *stride, pb_error *err)
+static pb_result pb_sh_validate_(const pb_sh_project_desc *desc, const double *out, uint32_t *channels, size_t *stride,
+                                 pb_error *err)
 {
     if (!desc) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: desc is NULL");
     if (!out) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: out is NULL");
-    if (!desc->pixels)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: pixels is NULL");
+    if (!desc->pixels) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: pixels is NULL");
     if (desc->max_band > PB_SH_MAX_BAND)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                            "SH projection: max_band %u is out of range (0..%d)", desc->max_band,
-                            PB_SH_MAX_BAND);
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: max_band %u is out of range (0..%d)",
+                            desc->max_band, PB_SH_MAX_BAND);
     if ((unsigned)desc->negative > (unsigned)PB_NEGATIVE_ALLOW)
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: unknown negative policy %d",
                             (int)desc->negative);
@@ -162,8 +158,8 @@ static pb_result pb_sh_validate_(const pb_sh_project_desc *desc, const double *o
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
                             "SH projection: %u channel(s) per pixel; RGB (at least 3) is required", ch);
     if (desc->width == 0 || desc->height == 0)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: empty panorama (%ux%u)",
-                            desc->width, desc->height);
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: empty panorama (%ux%u)", desc->width,
+                            desc->height);
     uint32_t min_w, min_h;
     pb_sh_min_panorama_size(desc->max_band, &min_w, &min_h);
     if (desc->width < min_w || desc->height < min_h)
@@ -179,24 +175,21 @@ static pb_result pb_sh_validate_(const pb_sh_project_desc *desc, const double *o
     size_t st = desc->row_stride ? desc->row_stride : row;
     if (st < row)
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                            "SH projection: row_stride %zu is smaller than width x channels = %zu", st,
-                            row);
+                            "SH projection: row_stride %zu is smaller than width x channels = %zu", st, row);
     if ((size_t)(desc->height - 1) > (SIZE_MAX - row) / st ||
         (size_t)(desc->height - 1) * st + row > SIZE_MAX / sizeof(float))
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                            "SH projection: %u rows of stride %zu floats overflow the address space",
-                            desc->height, st);
+                            "SH projection: %u rows of stride %zu floats overflow the address space", desc->height, st);
     const double *r = desc->rotation;
     if (r) {
         for (int i = 0; i < 9; i++)
             if (!isfinite(r[i]))
-                return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                                    "SH projection: rotation[%d] is not finite", i);
+                return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: rotation[%d] is not finite", i);
         /* Must be orthogonal: Y_i(R d) is only a band-l function (and d only a unit vector) then. */
         for (int i = 0; i < 3; i++)
             for (int j = 0; j < 3; j++) {
-                const double dot = r[0 * 3 + i] * r[0 * 3 + j] + r[1 * 3 + i] * r[1 * 3 + j] +
-                                   r[2 * 3 + i] * r[2 * 3 + j];
+                const double dot =
+                    r[0 * 3 + i] * r[0 * 3 + j] + r[1 * 3 + i] * r[1 * 3 + j] + r[2 * 3 + i] * r[2 * 3 + j];
                 if (fabs(dot - (i == j ? 1.0 : 0.0)) > 1e-6)
                     return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
                                         "SH projection: rotation is not orthonormal (column %d . column "
@@ -211,8 +204,8 @@ static pb_result pb_sh_validate_(const pb_sh_project_desc *desc, const double *o
 
 /* Finds the first offending pixel of a row whose sums came out non-finite (or had a negative),
  * and reports it. */
-static pb_result pb_sh_report_pixel_(const float *p, uint32_t width, uint32_t ch, uint32_t y,
-                                     bool want_nonfinite, pb_error *err)
+static pb_result pb_sh_report_pixel_(const float *p, uint32_t width, uint32_t ch, uint32_t y, bool want_nonfinite,
+                                     pb_error *err)
 {
     for (uint32_t x = 0; x < width; x++)
         for (uint32_t c = 0; c < 3; c++) {
@@ -253,8 +246,7 @@ pb_result pb_sh_project_equirect(const pb_sh_project_desc *desc, double *out, pb
     if (!trig || !rowbuf) {
         free(trig);
         free(rowbuf);
-        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY,
-                            "SH projection: out of memory for %ux%u tables", W, ntrig);
+        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "SH projection: out of memory for %ux%u tables", W, ntrig);
     }
     for (uint32_t i = 0; i < W; i++) {
         const double phi = PB_PI - 2.0 * PB_PI * (i + 0.5) / W;
@@ -374,8 +366,7 @@ pb_result pb_sh_project_equirect(const pb_sh_project_desc *desc, double *out, pb
     return PB_SUCCESS;
 }
 
-pb_result pb_sh_project_file(const char *path, const pb_sh_project_desc *desc, double *out,
-                             pb_error *err)
+pb_result pb_sh_project_file(const char *path, const pb_sh_project_desc *desc, double *out, pb_error *err)
 {
     if (!path) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: path is NULL");
     if (!out) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH projection: out is NULL");
@@ -383,9 +374,8 @@ pb_result pb_sh_project_file(const char *path, const pb_sh_project_desc *desc, d
     pb_result res = pb_image_read(path, &img, err);
     if (res != PB_SUCCESS) return res;
     if (img.channels < 3) {
-        res = pb_error_set(err, PB_ERROR_FORMAT,
-                           "SH projection: '%s' has %u channel(s); an RGB panorama is required", path,
-                           img.channels);
+        res = pb_error_set(err, PB_ERROR_FORMAT, "SH projection: '%s' has %u channel(s); an RGB panorama is required",
+                           path, img.channels);
         pb_image_free(&img);
         return res;
     }
@@ -510,8 +500,8 @@ static void pb_sh_min_over_sphere_(const pb_sh_minsearch *ms, const double *k, d
     }
 }
 
-static void pb_sh_windowed_irradiance_coeffs_(uint32_t L, pb_sh_window_kind kind, double strength,
-                                              const double *coeffs, double *k)
+static void pb_sh_windowed_irradiance_coeffs_(uint32_t L, pb_sh_window_kind kind, double strength, const double *coeffs,
+                                              double *k)
 {
     for (uint32_t l = 0; l <= L; l++) {
         const double f = pb_sh_window_factor_(kind, strength, l) * pb_sh_lambert_band(l);
@@ -527,8 +517,8 @@ pb_result pb_sh_window(uint32_t max_band, pb_sh_window_kind kind, double strengt
 {
     if (!coeffs) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH window: coeffs is NULL");
     if (max_band > PB_SH_MAX_BAND)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH window: max_band %u is out of range (0..%d)",
-                            max_band, PB_SH_MAX_BAND);
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH window: max_band %u is out of range (0..%d)", max_band,
+                            PB_SH_MAX_BAND);
     if (kind != PB_SH_WINDOW_NONE && kind != PB_SH_WINDOW_SINC4 && kind != PB_SH_WINDOW_LAPLACIAN)
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "SH window: unknown window kind %d", (int)kind);
     if (!isfinite(strength) || strength < 0.0)
@@ -537,8 +527,8 @@ pb_result pb_sh_window(uint32_t max_band, pb_sh_window_kind kind, double strengt
     const uint32_t count = pb_sh_count(max_band);
     for (uint32_t i = 0; i < count * 3; i++)
         if (!isfinite(coeffs[i]))
-            return pb_error_set(err, PB_ERROR_NON_FINITE, "SH window: coefficient %u channel %u is %g",
-                                i / 3, i % 3, coeffs[i]);
+            return pb_error_set(err, PB_ERROR_NON_FINITE, "SH window: coefficient %u channel %u is %g", i / 3, i % 3,
+                                coeffs[i]);
 
     const bool need_min = min_irradiance != NULL || (kind != PB_SH_WINDOW_NONE && strength == 0.0);
     pb_sh_minsearch *ms = NULL;
@@ -583,8 +573,8 @@ pb_result pb_sh_window(uint32_t max_band, pb_sh_window_kind kind, double strengt
             /* feasible / infeasible ends of the strength interval */
             double good, bad;
             if (kind == PB_SH_WINDOW_SINC4) {
-                good = 1.0;   /* cutoff 1 keeps only band 0 */
-                bad = 1e6;    /* ~identity */
+                good = 1.0; /* cutoff 1 keeps only band 0 */
+                bad = 1e6;  /* ~identity */
             } else {
                 bad = 0.0;
                 good = 1e-6;
@@ -597,12 +587,13 @@ pb_result pb_sh_window(uint32_t max_band, pb_sh_window_kind kind, double strengt
                 }
             }
             for (int it = 0; it < 60 && fabs(good - bad) > 1e-6 * fabs(good); it++) {
-                const double mid = kind == PB_SH_WINDOW_SINC4 || bad == 0.0 ? 0.5 * (good + bad)
-                                                                             : sqrt(good * bad);
+                const double mid = kind == PB_SH_WINDOW_SINC4 || bad == 0.0 ? 0.5 * (good + bad) : sqrt(good * bad);
                 pb_sh_windowed_irradiance_coeffs_(max_band, kind, mid, coeffs, k);
                 pb_sh_min_over_sphere_(ms, k, mn);
-                if (pb_min3_(mn) >= 0.0) good = mid;
-                else bad = mid;
+                if (pb_min3_(mn) >= 0.0)
+                    good = mid;
+                else
+                    bad = mid;
             }
             strength = good;
         }

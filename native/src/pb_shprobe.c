@@ -19,12 +19,12 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#define V1_HEADER_SIZE 48u
-#define V1_COEFFS 9u            /* v1 always stores bands 0..2 */
-#define V2_HEADER_SIZE 96u
+#define V1_HEADER_SIZE    48u
+#define V1_COEFFS         9u /* v1 always stores bands 0..2 */
+#define V2_HEADER_SIZE    96u
 #define V2_FLAG_POSITIONS 0x1u
-#define V2_KNOWN_FLAGS V2_FLAG_POSITIONS
-#define AXIS_TOLERANCE 1e-4     /* orthonormality of the grid axes (float data, unit vectors) */
+#define V2_KNOWN_FLAGS    V2_FLAG_POSITIONS
+#define AXIS_TOLERANCE    1e-4 /* orthonormality of the grid axes (float data, unit vectors) */
 
 static const char *const channel_names[3] = {"red", "green", "blue"};
 static const float identity_axes[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
@@ -85,11 +85,11 @@ static const field_offsets v2_fields = {8, 12, 16, 20, 32, 44, 48, 84, 88};
 
 typedef struct layout {
     uint32_t version;
-    uint32_t disk_coeffs;     /* coefficient vec4s per probe record */
+    uint32_t disk_coeffs; /* coefficient vec4s per probe record */
     bool positions;
     const field_offsets *fields;
     uint64_t grid_cells;
-    uint64_t record_size;     /* bytes per probe record */
+    uint64_t record_size; /* bytes per probe record */
     uint64_t records_offset;
     uint64_t positions_offset;
     uint64_t grid_offset;
@@ -102,20 +102,18 @@ static pb_result grid_cell_count(const uint32_t dims[3], uint64_t *cells, pb_err
     for (int i = 0; i < 3; i++)
         if (dims[i] == 0)
             return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                                "grid dim %c is 0; a grid has at least one cell per axis",
-                                axis_names[i]);
+                                "grid dim %c is 0; a grid has at least one cell per axis", axis_names[i]);
     uint64_t xy, xyz;
     if (!mul_u64(dims[0], dims[1], &xy) || !mul_u64(xy, dims[2], &xyz))
-        return pb_error_set(err, PB_ERROR_TOO_LARGE, "grid dims %u x %u x %u overflow 64 bits",
-                            dims[0], dims[1], dims[2]);
+        return pb_error_set(err, PB_ERROR_TOO_LARGE, "grid dims %u x %u x %u overflow 64 bits", dims[0], dims[1],
+                            dims[2]);
     *cells = xyz;
     return PB_SUCCESS;
 }
 
 /* The exact byte layout of a file; fails (code `fail`) when a size overflows 64 bits or size_t. */
-static pb_result layout_compute(uint32_t version, uint32_t probe_count, uint32_t max_band,
-                                const uint32_t dims[3], bool positions, pb_result fail, layout *lay,
-                                pb_error *err)
+static pb_result layout_compute(uint32_t version, uint32_t probe_count, uint32_t max_band, const uint32_t dims[3],
+                                bool positions, pb_result fail, layout *lay, pb_error *err)
 {
     memset(lay, 0, sizeof *lay);
     lay->version = version;
@@ -132,8 +130,7 @@ static pb_result layout_compute(uint32_t version, uint32_t probe_count, uint32_t
     }
     pb_error local = {0};
     if (grid_cell_count(dims, &lay->grid_cells, &local) != PB_SUCCESS)
-        return pb_error_set(err, local.code == PB_ERROR_TOO_LARGE ? fail : local.code, "%s",
-                            local.message);
+        return pb_error_set(err, local.code == PB_ERROR_TOO_LARGE ? fail : local.code, "%s", local.message);
     /* Coefficient vec4s plus one vec4 (scale, ambient, validity, 0). */
     lay->record_size = 16u * ((uint64_t)lay->disk_coeffs + 1u);
     lay->records_offset = header;
@@ -145,8 +142,7 @@ static pb_result layout_compute(uint32_t version, uint32_t probe_count, uint32_t
     ok = ok && mul_u64(lay->grid_cells, 4u, &grid_bytes);
     ok = ok && add_u64(lay->grid_offset, grid_bytes, &end);
     if (!ok || end > (uint64_t)SIZE_MAX)
-        return pb_error_set(err, fail,
-                            "file size overflows: %u probes, grid %u x %u x %u cells (version %u)",
+        return pb_error_set(err, fail, "file size overflows: %u probes, grid %u x %u x %u cells (version %u)",
                             probe_count, dims[0], dims[1], dims[2], version);
     lay->total_size = end;
     return PB_SUCCESS;
@@ -167,8 +163,7 @@ static bool axes_are_identity(const float axes[9])
 }
 
 /* Header values: finite floats, positive spacing, orthonormal axes. `what` prefixes messages. */
-static pb_result check_header_values(const pb_shprobe *p, const layout *lay, pb_result code,
-                                     pb_error *err)
+static pb_result check_header_values(const pb_shprobe *p, const layout *lay, pb_result code, pb_error *err)
 {
     const field_offsets *f = lay->fields;
     for (int i = 0; i < 3; i++)
@@ -176,23 +171,23 @@ static pb_result check_header_values(const pb_shprobe *p, const layout *lay, pb_
             return pb_error_set(err, PB_ERROR_NON_FINITE, "grid origin[%d] is %g (offset %u)", i,
                                 (double)p->grid_origin[i], f->origin + 4u * (uint32_t)i);
     if (!isfinite(p->grid_spacing))
-        return pb_error_set(err, PB_ERROR_NON_FINITE, "grid spacing is %g (offset %u)",
-                            (double)p->grid_spacing, f->spacing);
+        return pb_error_set(err, PB_ERROR_NON_FINITE, "grid spacing is %g (offset %u)", (double)p->grid_spacing,
+                            f->spacing);
     if (!(p->grid_spacing > 0.0f))
-        return pb_error_set(err, code, "grid spacing is %g (offset %u); it must be > 0",
-                            (double)p->grid_spacing, f->spacing);
+        return pb_error_set(err, code, "grid spacing is %g (offset %u); it must be > 0", (double)p->grid_spacing,
+                            f->spacing);
     if (!isfinite(p->default_sh_scale))
-        return pb_error_set(err, PB_ERROR_NON_FINITE, "default SH scale is %g (offset %u)",
-                            (double)p->default_sh_scale, f->scale);
+        return pb_error_set(err, PB_ERROR_NON_FINITE, "default SH scale is %g (offset %u)", (double)p->default_sh_scale,
+                            f->scale);
     if (!isfinite(p->default_ambient))
-        return pb_error_set(err, PB_ERROR_NON_FINITE, "default ambient is %g (offset %u)",
-                            (double)p->default_ambient, f->ambient);
+        return pb_error_set(err, PB_ERROR_NON_FINITE, "default ambient is %g (offset %u)", (double)p->default_ambient,
+                            f->ambient);
     if (lay->version >= 2 && !axes_are_zero(p->grid_axes)) {
         const float *a = p->grid_axes;
         for (int i = 0; i < 9; i++)
             if (!isfinite(a[i]))
-                return pb_error_set(err, PB_ERROR_NON_FINITE, "grid axes[%d] is %g (offset %u)", i,
-                                    (double)a[i], f->axes + 4u * (uint32_t)i);
+                return pb_error_set(err, PB_ERROR_NON_FINITE, "grid axes[%d] is %g (offset %u)", i, (double)a[i],
+                                    f->axes + 4u * (uint32_t)i);
         for (int i = 0; i < 3; i++)
             for (int j = i; j < 3; j++) {
                 double dot = (double)a[3 * i] * a[3 * j] + (double)a[3 * i + 1] * a[3 * j + 1] +
@@ -210,8 +205,7 @@ static pb_result check_header_values(const pb_shprobe *p, const layout *lay, pb_
 
 /* Per-probe values and grid entries. `code` is the result for a range error (format when reading,
  * invalid argument when writing); NaN/Inf is always PB_ERROR_NON_FINITE. */
-static pb_result check_contents(const pb_shprobe *p, const layout *lay, pb_result code,
-                                pb_error *err)
+static pb_result check_contents(const pb_shprobe *p, const layout *lay, pb_result code, pb_error *err)
 {
     uint32_t count = pb_sh_count(p->max_band);
     for (uint32_t i = 0; i < p->probe_count; i++) {
@@ -219,9 +213,8 @@ static pb_result check_contents(const pb_shprobe *p, const layout *lay, pb_resul
         const float *c = p->coeffs + (size_t)i * count * 3u;
         for (uint32_t k = 0; k < count * 3u; k++)
             if (!isfinite(c[k]))
-                return pb_error_set(err, PB_ERROR_NON_FINITE,
-                                    "probe %u coefficient %u %s is %g (offset %llu)", i, k / 3u,
-                                    channel_names[k % 3u], (double)c[k],
+                return pb_error_set(err, PB_ERROR_NON_FINITE, "probe %u coefficient %u %s is %g (offset %llu)", i,
+                                    k / 3u, channel_names[k % 3u], (double)c[k],
                                     (unsigned long long)(rec + 16u * (k / 3u) + 4u * (k % 3u)));
         uint64_t tail = rec + 16u * (uint64_t)lay->disk_coeffs;
         if (p->probe_scale && !isfinite(p->probe_scale[i]))
@@ -233,20 +226,17 @@ static pb_result check_contents(const pb_shprobe *p, const layout *lay, pb_resul
         if (p->validity && lay->version >= 2) {
             float v = p->validity[i];
             if (!isfinite(v))
-                return pb_error_set(err, PB_ERROR_NON_FINITE,
-                                    "probe %u validity is %g (offset %llu)", i, (double)v,
+                return pb_error_set(err, PB_ERROR_NON_FINITE, "probe %u validity is %g (offset %llu)", i, (double)v,
                                     (unsigned long long)(tail + 8u));
             if (v < 0.0f || v > 1.0f)
-                return pb_error_set(err, code,
-                                    "probe %u validity is %g (offset %llu); it must be in [0, 1]",
-                                    i, (double)v, (unsigned long long)(tail + 8u));
+                return pb_error_set(err, code, "probe %u validity is %g (offset %llu); it must be in [0, 1]", i,
+                                    (double)v, (unsigned long long)(tail + 8u));
         }
         if (p->positions && lay->positions) {
             uint64_t off = lay->positions_offset + 16u * (uint64_t)i;
             for (int k = 0; k < 3; k++)
                 if (!isfinite(p->positions[3u * i + (uint32_t)k]))
-                    return pb_error_set(err, PB_ERROR_NON_FINITE,
-                                        "probe %u position[%d] is %g (offset %llu)", i, k,
+                    return pb_error_set(err, PB_ERROR_NON_FINITE, "probe %u position[%d] is %g (offset %llu)", i, k,
                                         (double)p->positions[3u * i + (uint32_t)k],
                                         (unsigned long long)(off + 4u * (uint64_t)k));
         }
@@ -258,32 +248,30 @@ static pb_result check_contents(const pb_shprobe *p, const layout *lay, pb_resul
             return pb_error_set(err, code,
                                 "grid cell (%llu, %llu, %llu) holds %d (offset %llu); entries must "
                                 "be -1 or a probe index below the probe count %u",
-                                (unsigned long long)(j % xdim),
-                                (unsigned long long)((j / xdim) % p->grid_dims[1]),
-                                (unsigned long long)(j / xy), (int)v,
-                                (unsigned long long)(lay->grid_offset + 4u * j), p->probe_count);
+                                (unsigned long long)(j % xdim), (unsigned long long)((j / xdim) % p->grid_dims[1]),
+                                (unsigned long long)(j / xy), (int)v, (unsigned long long)(lay->grid_offset + 4u * j),
+                                p->probe_count);
     }
     return PB_SUCCESS;
 }
 
 /* ---- create / destroy ------------------------------------------------------------------------- */
 
-pb_result pb_shprobe_create(uint32_t probe_count, uint32_t max_band, const uint32_t grid_dims[3],
-                            bool with_positions, pb_shprobe **out, pb_error *err)
+pb_result pb_shprobe_create(uint32_t probe_count, uint32_t max_band, const uint32_t grid_dims[3], bool with_positions,
+                            pb_shprobe **out, pb_error *err)
 {
-    if (!out || !grid_dims)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_create: NULL argument");
+    if (!out || !grid_dims) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_create: NULL argument");
     *out = NULL;
     if (max_band > PB_SH_MAX_BAND)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "max band %u is out of range 0..%d",
-                            max_band, PB_SH_MAX_BAND);
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "max band %u is out of range 0..%d", max_band,
+                            PB_SH_MAX_BAND);
     uint64_t cells;
     pb_result r = grid_cell_count(grid_dims, &cells, err);
     if (r != PB_SUCCESS) return r;
     uint64_t coeff_count = (uint64_t)probe_count * pb_sh_count(max_band) * 3u;
     if (cells > SIZE_MAX / sizeof(int32_t) || coeff_count > SIZE_MAX / sizeof(float))
-        return pb_error_set(err, PB_ERROR_TOO_LARGE, "%u probes / %llu grid cells do not fit memory",
-                            probe_count, (unsigned long long)cells);
+        return pb_error_set(err, PB_ERROR_TOO_LARGE, "%u probes / %llu grid cells do not fit memory", probe_count,
+                            (unsigned long long)cells);
 
     pb_shprobe *p = calloc(1, sizeof *p);
     if (!p) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for .shprobe header");
@@ -303,8 +291,7 @@ pb_result pb_shprobe_create(uint32_t probe_count, uint32_t max_band, const uint3
     if (!p->coeffs || !p->probe_scale || !p->probe_ambient || !p->validity || !p->grid ||
         (with_positions && !p->positions)) {
         pb_shprobe_destroy(p);
-        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY,
-                            "out of memory for %u probes and %llu grid cells", probe_count,
+        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %u probes and %llu grid cells", probe_count,
                             (unsigned long long)cells);
     }
     for (uint32_t i = 0; i < probe_count; i++) {
@@ -333,13 +320,12 @@ void pb_shprobe_destroy(pb_shprobe *probes)
 
 /* Parses and validates the header from `data` (`avail` bytes, at least the header when the file is
  * long enough) against the whole file's size. Fills the scalar fields of `h` and the layout. */
-static pb_result parse_header(const uint8_t *data, size_t avail, uint64_t file_size, pb_shprobe *h,
-                              layout *lay, pb_error *err)
+static pb_result parse_header(const uint8_t *data, size_t avail, uint64_t file_size, pb_shprobe *h, layout *lay,
+                              pb_error *err)
 {
     memset(h, 0, sizeof *h);
     if (file_size < 4 || avail < 4)
-        return pb_error_set(err, PB_ERROR_FORMAT,
-                            "truncated: %llu bytes, the magic at offset 0 needs 4",
+        return pb_error_set(err, PB_ERROR_FORMAT, "truncated: %llu bytes, the magic at offset 0 needs 4",
                             (unsigned long long)file_size);
     uint32_t magic = get_u32(data);
     if (magic != PB_SHPROBE_MAGIC)
@@ -348,18 +334,15 @@ static pb_result parse_header(const uint8_t *data, size_t avail, uint64_t file_s
                             ".shprobe file",
                             magic, PB_SHPROBE_MAGIC);
     if (file_size < 8 || avail < 8)
-        return pb_error_set(err, PB_ERROR_FORMAT,
-                            "truncated: %llu bytes, the version at offset 4 needs 8",
+        return pb_error_set(err, PB_ERROR_FORMAT, "truncated: %llu bytes, the version at offset 4 needs 8",
                             (unsigned long long)file_size);
     uint32_t version = get_u32(data + 4);
     if (version != 1 && version != 2)
-        return pb_error_set(err, PB_ERROR_FORMAT,
-                            "unknown version %u at offset 4; this reader knows versions 1 and 2",
+        return pb_error_set(err, PB_ERROR_FORMAT, "unknown version %u at offset 4; this reader knows versions 1 and 2",
                             version);
     uint32_t header_size = version == 1 ? V1_HEADER_SIZE : V2_HEADER_SIZE;
     if (file_size < header_size || avail < header_size)
-        return pb_error_set(err, PB_ERROR_FORMAT,
-                            "truncated: %llu bytes, the version %u header needs %u",
+        return pb_error_set(err, PB_ERROR_FORMAT, "truncated: %llu bytes, the version %u header needs %u",
                             (unsigned long long)file_size, version, header_size);
     const field_offsets *f = version == 1 ? &v1_fields : &v2_fields;
     h->version = version;
@@ -371,13 +354,12 @@ static pb_result parse_header(const uint8_t *data, size_t avail, uint64_t file_s
     } else {
         h->max_band = get_u32(data + f->band);
         if (h->max_band > PB_SH_MAX_BAND)
-            return pb_error_set(err, PB_ERROR_FORMAT, "max band %u at offset %u is out of range 0..%d",
-                                h->max_band, f->band, PB_SH_MAX_BAND);
+            return pb_error_set(err, PB_ERROR_FORMAT, "max band %u at offset %u is out of range 0..%d", h->max_band,
+                                f->band, PB_SH_MAX_BAND);
         flags = get_u32(data + f->flags);
         if (flags & ~V2_KNOWN_FLAGS)
-            return pb_error_set(err, PB_ERROR_FORMAT,
-                                "unknown flags 0x%X at offset %u (known: 0x%X = positions)", flags,
-                                f->flags, V2_KNOWN_FLAGS);
+            return pb_error_set(err, PB_ERROR_FORMAT, "unknown flags 0x%X at offset %u (known: 0x%X = positions)",
+                                flags, f->flags, V2_KNOWN_FLAGS);
         for (int i = 0; i < 9; i++) h->grid_axes[i] = get_f32(data + f->axes + 4 * i);
         if (axes_are_zero(h->grid_axes))
             return pb_error_set(err, PB_ERROR_FORMAT, "grid axes at offset %u are all zero", f->axes);
@@ -387,15 +369,15 @@ static pb_result parse_header(const uint8_t *data, size_t avail, uint64_t file_s
         h->grid_origin[i] = get_f32(data + f->origin + 4 * i);
         if (h->grid_dims[i] == 0)
             return pb_error_set(err, PB_ERROR_FORMAT,
-                                "grid dim %c at offset %u is 0; a grid has at least one cell per axis",
-                                "XYZ"[i], f->dims + 4u * (uint32_t)i);
+                                "grid dim %c at offset %u is 0; a grid has at least one cell per axis", "XYZ"[i],
+                                f -> dims + 4u * (uint32_t)i);
     }
     h->grid_spacing = get_f32(data + f->spacing);
     h->default_sh_scale = get_f32(data + f->scale);
     h->default_ambient = get_f32(data + f->ambient);
 
-    pb_result r = layout_compute(version, h->probe_count, h->max_band, h->grid_dims,
-                                 (flags & V2_FLAG_POSITIONS) != 0, PB_ERROR_FORMAT, lay, err);
+    pb_result r = layout_compute(version, h->probe_count, h->max_band, h->grid_dims, (flags & V2_FLAG_POSITIONS) != 0,
+                                 PB_ERROR_FORMAT, lay, err);
     if (r != PB_SUCCESS) return r;
     r = check_header_values(h, lay, PB_ERROR_FORMAT, err);
     if (r != PB_SUCCESS) return r;
@@ -404,13 +386,12 @@ static pb_result parse_header(const uint8_t *data, size_t avail, uint64_t file_s
                             "truncated: %llu bytes, but %u probes (max band %u%s) and a %u x %u x %u "
                             "grid need %llu",
                             (unsigned long long)file_size, h->probe_count, h->max_band,
-                            lay->positions ? ", positions" : "", h->grid_dims[0], h->grid_dims[1],
-                            h->grid_dims[2], (unsigned long long)lay->total_size);
+                            lay->positions ? ", positions" : "", h->grid_dims[0], h->grid_dims[1], h->grid_dims[2],
+                            (unsigned long long)lay->total_size);
     if (file_size > lay->total_size)
         return pb_error_set(err, PB_ERROR_FORMAT,
                             "%llu bytes of trailing data after the grid, which ends at offset %llu",
-                            (unsigned long long)(file_size - lay->total_size),
-                            (unsigned long long)lay->total_size);
+                            (unsigned long long)(file_size - lay->total_size), (unsigned long long)lay->total_size);
     return PB_SUCCESS;
 }
 
@@ -418,8 +399,7 @@ pb_result pb_shprobe_read_memory(const void *data, size_t size, pb_shprobe **out
 {
     if (!out) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_read_memory: NULL out");
     *out = NULL;
-    if (!data && size > 0)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_read_memory: NULL data");
+    if (!data && size > 0) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_read_memory: NULL data");
     const uint8_t *bytes = data;
     pb_shprobe h;
     layout lay;
@@ -494,8 +474,7 @@ static pb_result open_regular(const char *path, int *fd_out, uint64_t *size_out,
 }
 
 /* Reads up to n bytes (fewer only at end of file). */
-static pb_result read_full(int fd, const char *path, uint8_t *buf, size_t n, size_t *got,
-                           pb_error *err)
+static pb_result read_full(int fd, const char *path, uint8_t *buf, size_t n, size_t *got, pb_error *err)
 {
     size_t done = 0;
     while (done < n) {
@@ -586,21 +565,24 @@ static bool all_valid(const pb_shprobe *p)
 static pb_result choose_version(const pb_shprobe *p, uint32_t *version, pb_error *err)
 {
     const char *needs2 = NULL;
-    if (p->max_band > 2) needs2 = "max band > 2";
-    else if (p->positions) needs2 = "probe positions";
-    else if (!axes_are_identity(p->grid_axes)) needs2 = "non-identity grid axes";
-    else if (!all_valid(p)) needs2 = "validity below 1";
+    if (p->max_band > 2)
+        needs2 = "max band > 2";
+    else if (p->positions)
+        needs2 = "probe positions";
+    else if (!axes_are_identity(p->grid_axes))
+        needs2 = "non-identity grid axes";
+    else if (!all_valid(p))
+        needs2 = "validity below 1";
     if (p->version == 0) {
         *version = needs2 ? 2u : 1u;
         return PB_SUCCESS;
     }
     if (p->version == 1 && needs2)
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                            "version 1 cannot hold %s (max band %u); write version 2 or 0 (auto)",
-                            needs2, p->max_band);
+                            "version 1 cannot hold %s (max band %u); write version 2 or 0 (auto)", needs2, p->max_band);
     if (p->version > 2)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                            "unknown version %u to write; known: 1, 2 (0 = auto)", p->version);
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "unknown version %u to write; known: 1, 2 (0 = auto)",
+                            p->version);
     *version = p->version;
     return PB_SUCCESS;
 }
@@ -709,20 +691,19 @@ fail:
 
 pb_result pb_shprobe_write(const char *path, const pb_shprobe *probes, pb_error *err)
 {
-    if (!path || !probes)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_write: NULL argument");
+    if (!path || !probes) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_write: NULL argument");
     const pb_shprobe *p = probes;
     pb_error local = {0};
     pb_result r = PB_SUCCESS;
     uint32_t version = 0;
     layout lay;
     if (p->max_band > PB_SH_MAX_BAND)
-        r = pb_error_set(&local, PB_ERROR_INVALID_ARGUMENT, "max band %u is out of range 0..%d",
-                         p->max_band, PB_SH_MAX_BAND);
+        r = pb_error_set(&local, PB_ERROR_INVALID_ARGUMENT, "max band %u is out of range 0..%d", p->max_band,
+                         PB_SH_MAX_BAND);
     if (r == PB_SUCCESS) r = choose_version(p, &version, &local);
     if (r == PB_SUCCESS)
-        r = layout_compute(version, p->probe_count, p->max_band, p->grid_dims, p->positions != NULL,
-                           PB_ERROR_TOO_LARGE, &lay, &local);
+        r = layout_compute(version, p->probe_count, p->max_band, p->grid_dims, p->positions != NULL, PB_ERROR_TOO_LARGE,
+                           &lay, &local);
     if (r == PB_SUCCESS && ((p->probe_count > 0 && !p->coeffs) || !p->grid))
         r = pb_error_set(&local, PB_ERROR_INVALID_ARGUMENT, "coeffs or grid is NULL");
     if (r == PB_SUCCESS) r = check_header_values(p, &lay, PB_ERROR_INVALID_ARGUMENT, &local);
@@ -731,8 +712,8 @@ pb_result pb_shprobe_write(const char *path, const pb_shprobe *probes, pb_error 
 
     uint8_t *bytes = serialize(p, &lay);
     if (!bytes)
-        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "cannot write %s: out of memory for %llu bytes",
-                            path, (unsigned long long)lay.total_size);
+        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "cannot write %s: out of memory for %llu bytes", path,
+                            (unsigned long long)lay.total_size);
     r = write_atomic(path, bytes, (size_t)lay.total_size, err);
     free(bytes);
     return r;
@@ -742,8 +723,7 @@ pb_result pb_shprobe_write(const char *path, const pb_shprobe *probes, pb_error 
 
 int32_t pb_shprobe_lookup(const pb_shprobe *probes, const float point[3])
 {
-    if (!probes || !point || !probes->grid || !(probes->grid_spacing > 0.0f) ||
-        !isfinite(probes->grid_spacing))
+    if (!probes || !point || !probes->grid || !(probes->grid_spacing > 0.0f) || !isfinite(probes->grid_spacing))
         return -1;
     const float *axes = axes_are_zero(probes->grid_axes) ? identity_axes : probes->grid_axes;
     double d[3], spacing = probes->grid_spacing;

@@ -44,8 +44,7 @@ static void mesh_box(mesh *m, const double lo[3], const double hi[3])
 {
     uint32_t v[8];
     for (int i = 0; i < 8; i++)
-        v[i] = mesh_vertex(m, (i & 1) ? hi[0] : lo[0], (i & 2) ? hi[1] : lo[1],
-                           (i & 4) ? hi[2] : lo[2]);
+        v[i] = mesh_vertex(m, (i & 1) ? hi[0] : lo[0], (i & 2) ? hi[1] : lo[1], (i & 4) ? hi[2] : lo[2]);
     /* Each face as 4 corners in counter-clockwise order seen from outside. */
     static const int faces[6][4] = {
         {0, 4, 6, 2}, /* −x */
@@ -87,15 +86,12 @@ static void make_room(mesh *volume, mesh *walls, const double o[3])
 {
     const double t = 0.2;
     box_at(volume, o[0], o[1], o[2], o[0] + 10, o[1] + 4, o[2] + 10);
-    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0] + 10 + t, o[1], o[2] + 10 + t); /* floor */
-    box_at(walls, o[0] - t, o[1] + 4, o[2] - t, o[0] + 10 + t, o[1] + 4 + t,
-           o[2] + 10 + t); /* ceiling */
-    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0], o[1] + 4 + t, o[2] + 10 + t); /* −x wall */
-    box_at(walls, o[0] + 10, o[1] - t, o[2] - t, o[0] + 10 + t, o[1] + 4 + t,
-           o[2] + 10 + t); /* +x wall */
-    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0] + 10 + t, o[1] + 4 + t, o[2]); /* −z wall */
-    box_at(walls, o[0] - t, o[1] - t, o[2] + 10, o[0] + 10 + t, o[1] + 4 + t,
-           o[2] + 10 + t); /* +z wall */
+    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0] + 10 + t, o[1], o[2] + 10 + t);          /* floor */
+    box_at(walls, o[0] - t, o[1] + 4, o[2] - t, o[0] + 10 + t, o[1] + 4 + t, o[2] + 10 + t);  /* ceiling */
+    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0], o[1] + 4 + t, o[2] + 10 + t);           /* −x wall */
+    box_at(walls, o[0] + 10, o[1] - t, o[2] - t, o[0] + 10 + t, o[1] + 4 + t, o[2] + 10 + t); /* +x wall */
+    box_at(walls, o[0] - t, o[1] - t, o[2] - t, o[0] + 10 + t, o[1] + 4 + t, o[2]);           /* −z wall */
+    box_at(walls, o[0] - t, o[1] - t, o[2] + 10, o[0] + 10 + t, o[1] + 4 + t, o[2] + 10 + t); /* +z wall */
 }
 
 /* Furniture: a solid 3 m × 1 m × 4 m block standing on the floor, relative to the room corner. */
@@ -104,10 +100,7 @@ static const double furn_lo[3] = {3, 0, 3}, furn_hi[3] = {6, 1, 7};
 /* ---------------------------------------------------------------------------------------------- */
 /* Shared checks                                                                                    */
 
-static size_t grid_cells(const pb_placement *p)
-{
-    return (size_t)p->grid_dims[0] * p->grid_dims[1] * p->grid_dims[2];
-}
+static size_t grid_cells(const pb_placement *p) { return (size_t)p->grid_dims[0] * p->grid_dims[1] * p->grid_dims[2]; }
 
 static void grid_cell_centre(const pb_placement *p, size_t i, double c[3])
 {
@@ -142,8 +135,7 @@ static void check_consistency(const pb_placement *p)
     }
 }
 
-static bool strictly_inside_box(const double p[3], const double lo[3], const double hi[3],
-                                double margin)
+static bool strictly_inside_box(const double p[3], const double lo[3], const double hi[3], double margin)
 {
     for (int a = 0; a < 3; a++)
         if (!(p[a] > lo[a] + margin && p[a] < hi[a] - margin)) return false;
@@ -155,8 +147,7 @@ static pb_placement *build(const pb_placement_desc *d, pb_error *err)
     pb_placement *p = NULL;
     memset(err, 0, sizeof *err);
     pb_result r = pb_placement_build(d, &p, err);
-    if (r != PB_SUCCESS)
-        fprintf(stderr, "pb_placement_build: %s: %s\n", pb_result_string(r), err->message);
+    if (r != PB_SUCCESS) fprintf(stderr, "pb_placement_build: %s: %s\n", pb_result_string(r), err->message);
     return p;
 }
 
@@ -243,8 +234,8 @@ static pb_placement *build_furnished_room(const double o[3], uint32_t threads, p
 {
     mesh vol = {0}, geo = {0};
     make_room(&vol, &geo, o);
-    box_at(&geo, o[0] + furn_lo[0], o[1] + furn_lo[1], o[2] + furn_lo[2], o[0] + furn_hi[0],
-           o[1] + furn_hi[1], o[2] + furn_hi[2]);
+    box_at(&geo, o[0] + furn_lo[0], o[1] + furn_lo[1], o[2] + furn_lo[2], o[0] + furn_hi[0], o[1] + furn_hi[1],
+           o[2] + furn_hi[2]);
     pb_mesh_desc v = mesh_desc(&vol, "Room"), g = mesh_desc(&geo, "Walls+Block");
     pb_placement_desc d = {0};
     d.volumes = &v;
@@ -335,8 +326,7 @@ static void test_far_from_origin(void)
         double worst = 0;
         for (uint32_t k = 0; k < a->probe_count; k++)
             for (int c = 0; c < 3; c++)
-                worst =
-                    fmax(worst, fabs(b->positions[3 * k + c] - o1[c] - a->positions[3 * k + c]));
+                worst = fmax(worst, fabs(b->positions[3 * k + c] - o1[c] - a->positions[3 * k + c]));
         TU_CHECK_NEAR(worst, 0.0, 1e-9);
         TU_CHECK(!memcmp(a->grid, b->grid, sizeof(int32_t) * grid_cells(a)));
     }
@@ -415,8 +405,7 @@ static void test_union_generic(void)
         outside += !ia && !ib;
         in_a_only += ia && !ib;
         in_b_only += ib && !ia;
-        for (uint32_t j = 0; j < k; j++)
-            dup += !memcmp(q, &p->positions[3 * j], 3 * sizeof(double));
+        for (uint32_t j = 0; j < k; j++) dup += !memcmp(q, &p->positions[3 * j], 3 * sizeof(double));
     }
     TU_CHECK_EQ_INT(outside, 0);
     TU_CHECK(in_a_only > 0);
@@ -443,8 +432,7 @@ static void test_union_generic(void)
  * inside vote and the recursive fill of leaves that straddle the volume surface. */
 static void test_rotated_volume(void)
 {
-    const double ay = 0.5235987755982988,
-                 ax = 0.3490658503988659; /* 30° about y, then 20° about x */
+    const double ay = 0.5235987755982988, ax = 0.3490658503988659; /* 30° about y, then 20° about x */
     const double cy = cos(ay), sy = sin(ay), cx = cos(ax), sx = sin(ax);
     /* R = Rx · Ry; rows are the cube's axes in world space. */
     const double R[3][3] = {{cy, 0, sy}, {sx * sy, cx, -sx * cy}, {-cx * sy, sx, cx * cy}};
@@ -471,8 +459,7 @@ static void test_rotated_volume(void)
         double c[3], l[3], m = 0;
         grid_cell_centre(p, i, c);
         for (int r = 0; r < 3; r++) {
-            l[r] = R[r][0] * (c[0] - centre[0]) + R[r][1] * (c[1] - centre[1]) +
-                   R[r][2] * (c[2] - centre[2]);
+            l[r] = R[r][0] * (c[0] - centre[0]) + R[r][1] * (c[1] - centre[1]) + R[r][2] * (c[2] - centre[2]);
             m = fmax(m, fabs(l[r]));
         }
         if (fabs(m - half) < 1e-6) {
@@ -489,8 +476,7 @@ static void test_rotated_volume(void)
     for (uint32_t k = 0; k < p->probe_count; k++) {
         double m = 0;
         for (int r = 0; r < 3; r++) {
-            double l = R[r][0] * (p->positions[3 * k] - centre[0]) +
-                       R[r][1] * (p->positions[3 * k + 1] - centre[1]) +
+            double l = R[r][0] * (p->positions[3 * k] - centre[0]) + R[r][1] * (p->positions[3 * k + 1] - centre[1]) +
                        R[r][2] * (p->positions[3 * k + 2] - centre[2]);
             m = fmax(m, fabs(l));
         }
@@ -549,12 +535,11 @@ static void test_degenerate_triangles(void)
     pb_error err;
     pb_placement *clean = build(&d, &err);
 
-    uint32_t a = mesh_vertex(&walls, 0, 0, 0), b = mesh_vertex(&walls, 5, 0, 0),
-             c = mesh_vertex(&walls, 10, 0, 0);
+    uint32_t a = mesh_vertex(&walls, 0, 0, 0), b = mesh_vertex(&walls, 5, 0, 0), c = mesh_vertex(&walls, 10, 0, 0);
     mesh_tri(&walls, a, a, b); /* repeated index */
     mesh_tri(&walls, a, b, c); /* collinear: zero area */
     mesh_tri(&walls, c, c, c); /* a point */
-    mesh_tri(&vol, 0, 0, 1); /* repeated index in the volume: no area, does not open it */
+    mesh_tri(&vol, 0, 0, 1);   /* repeated index in the volume: no area, does not open it */
     mesh_tri(&vol, 3, 3, 3);
     v = mesh_desc(&vol, "Room");
     g = mesh_desc(&walls, "Walls");
@@ -563,8 +548,7 @@ static void test_degenerate_triangles(void)
     TU_CHECK_EQ_INT(dirty->probe_count, 2304);
     TU_CHECK_EQ_INT(dirty->probe_count, clean->probe_count);
     if (dirty->probe_count == clean->probe_count) {
-        TU_CHECK(
-            !memcmp(dirty->positions, clean->positions, sizeof(double) * 3 * clean->probe_count));
+        TU_CHECK(!memcmp(dirty->positions, clean->positions, sizeof(double) * 3 * clean->probe_count));
         TU_CHECK(!memcmp(dirty->grid, clean->grid, sizeof(int32_t) * grid_cells(clean)));
     }
     pb_placement_destroy(clean);

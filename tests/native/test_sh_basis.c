@@ -40,18 +40,31 @@ static void test_basis_design_literals(void)
     const double d[3] = {x, y, z};
     double v[25];
     pb_sh_eval_basis(4, d, v);
-    const double want[25] = {
-        0.282094792, 0.488602512 * y, 0.488602512 * z, 0.488602512 * x,
-        1.092548431 * x * y, 1.092548431 * y * z, 0.315391565 * (3 * z * z - 1), 1.092548431 * x * z,
-        0.546274215 * (x * x - y * y),
-        0.590043590 * y * (3 * x * x - y * y), 2.890611443 * x * y * z, 0.457045799 * y * (5 * z * z - 1),
-        0.373176333 * z * (5 * z * z - 3), 0.457045799 * x * (5 * z * z - 1),
-        1.445305721 * z * (x * x - y * y), 0.590043590 * x * (x * x - 3 * y * y),
-        2.503342942 * x * y * (x * x - y * y), 1.770130770 * y * z * (3 * x * x - y * y),
-        0.946174696 * x * y * (7 * z * z - 1), 0.669046544 * y * z * (7 * z * z - 3),
-        0.105785547 * (35 * z * z * z * z - 30 * z * z + 3), 0.669046544 * x * z * (7 * z * z - 3),
-        0.473087348 * (x * x - y * y) * (7 * z * z - 1), 1.770130770 * x * z * (x * x - 3 * y * y),
-        0.625835735 * (x * x * x * x - 6 * x * x * y * y + y * y * y * y)};
+    const double want[25] = {0.282094792,
+                             0.488602512 * y,
+                             0.488602512 * z,
+                             0.488602512 * x,
+                             1.092548431 * x * y,
+                             1.092548431 * y * z,
+                             0.315391565 * (3 * z * z - 1),
+                             1.092548431 * x * z,
+                             0.546274215 * (x * x - y * y),
+                             0.590043590 * y * (3 * x * x - y * y),
+                             2.890611443 * x * y * z,
+                             0.457045799 * y * (5 * z * z - 1),
+                             0.373176333 * z * (5 * z * z - 3),
+                             0.457045799 * x * (5 * z * z - 1),
+                             1.445305721 * z * (x * x - y * y),
+                             0.590043590 * x * (x * x - 3 * y * y),
+                             2.503342942 * x * y * (x * x - y * y),
+                             1.770130770 * y * z * (3 * x * x - y * y),
+                             0.946174696 * x * y * (7 * z * z - 1),
+                             0.669046544 * y * z * (7 * z * z - 3),
+                             0.105785547 * (35 * z * z * z * z - 30 * z * z + 3),
+                             0.669046544 * x * z * (7 * z * z - 3),
+                             0.473087348 * (x * x - y * y) * (7 * z * z - 1),
+                             1.770130770 * x * z * (x * x - 3 * y * y),
+                             0.625835735 * (x * x * x * x - 6 * x * x * y * y + y * y * y * y)};
     /* 9 significant digits in the document: 5e-9 relative on constants ≤ 3. */
     for (int i = 0; i < 25; i++) TU_CHECK_NEAR(v[i], want[i], 2e-8);
 }
@@ -118,7 +131,8 @@ static void test_irradiance_closed_forms(void)
         double coeffs[25 * 3];
         for (int l = 0; l <= (int)L; l++)
             for (int m = -l; m <= l; m++)
-                for (int k = 0; k < 3; k++) coeffs[(l * l + l + m) * 3 + k] = (k + 1) * ref_lambert(l) * ref_sh(l, m, a);
+                for (int k = 0; k < 3; k++)
+                    coeffs[(l * l + l + m) * 3 + k] = (k + 1) * ref_lambert(l) * ref_sh(l, m, a);
         for (int t = 0; t < 50; t++) {
             double n[3], e[3];
             ref_rand_dir(&rng, n);

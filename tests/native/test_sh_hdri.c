@@ -21,7 +21,8 @@ static void brute_basis(int L, const double e[3], const double k[25], double *y)
         const double cm = cos(m * phi), sm = sin(m * phi);
         for (int l = m; l <= L; l++) {
             const double p = ref_legendre(l, m, z) * k[l * l + l + m];
-            if (m == 0) y[l * l + l] = p;
+            if (m == 0)
+                y[l * l + l] = p;
             else {
                 y[l * l + l + m] = sqrt(2.0) * p * cm;
                 y[l * l + l - m] = sqrt(2.0) * p * sm;

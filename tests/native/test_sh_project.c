@@ -33,8 +33,7 @@ static float *make_env(uint32_t w, uint32_t h, uint32_t ch, env_fn env, void *us
     return p;
 }
 
-static pb_result project(const float *px, uint32_t w, uint32_t h, uint32_t ch, uint32_t L, double *out,
-                         pb_error *err)
+static pb_result project(const float *px, uint32_t w, uint32_t h, uint32_t ch, uint32_t L, double *out, pb_error *err)
 {
     pb_sh_project_desc d = {.pixels = px, .width = w, .height = h, .channels = ch, .max_band = L};
     return pb_sh_project_equirect(&d, out, err);
@@ -208,8 +207,7 @@ static void test_irradiance_of_constant_env(void)
 
 /* Brute-force reference: L_i = Σ_p L_p Ω_p Y_i(R d_p) with the recurrence basis. R = NULL means
  * Blender → engine. */
-static void brute_force(const float *px, uint32_t w, uint32_t h, uint32_t ch, int L, const double *rot,
-                        double *out)
+static void brute_force(const float *px, uint32_t w, uint32_t h, uint32_t ch, int L, const double *rot, double *out)
 {
     const uint32_t n = (uint32_t)((L + 1) * (L + 1));
     for (uint32_t q = 0; q < n * 3; q++) out[q] = 0.0;
@@ -234,9 +232,8 @@ static void brute_force(const float *px, uint32_t w, uint32_t h, uint32_t ch, in
 static void rotation_matrix(const double axis[3], double angle, double r[9])
 {
     const double c = cos(angle), s = sin(angle), t = 1 - c, x = axis[0], y = axis[1], z = axis[2];
-    const double m[9] = {t * x * x + c,     t * x * y - s * z, t * x * z + s * y,
-                         t * x * y + s * z, t * y * y + c,     t * y * z - s * x,
-                         t * x * z - s * y, t * y * z + s * x, t * z * z + c};
+    const double m[9] = {t * x * x + c,     t * x * y - s * z, t * x * z + s * y, t * x * y + s * z, t * y * y + c,
+                         t * y * z - s * x, t * x * z - s * y, t * y * z + s * x, t * z * z + c};
     for (int i = 0; i < 9; i++) r[i] = m[i];
 }
 
@@ -259,8 +256,8 @@ static void test_rotation_against_brute_force(void)
     for (int L = 0; L <= 4; L++)
         for (int ri = 0; ri < 4; ri++) {
             double got[75], want[75];
-            pb_sh_project_desc d = {.pixels = px, .width = w, .height = h, .channels = ch,
-                                    .max_band = (uint32_t)L, .rotation = rots[ri]};
+            pb_sh_project_desc d = {
+                .pixels = px, .width = w, .height = h, .channels = ch, .max_band = (uint32_t)L, .rotation = rots[ri]};
             pb_error err = {0};
             TU_CHECK_EQ_INT(pb_sh_project_equirect(&d, got, &err), PB_SUCCESS);
             brute_force(px, w, h, ch, L, rots[ri], want);
@@ -292,11 +289,12 @@ static void test_minimum_size(void)
                 }
             double out[75];
             pb_error err = {0};
-            pb_sh_project_desc d = {.pixels = px, .width = mw, .height = mh, .channels = 3, .max_band = L,
-                                    .negative = PB_NEGATIVE_ALLOW};
+            pb_sh_project_desc d = {
+                .pixels = px, .width = mw, .height = mh, .channels = 3, .max_band = L, .negative = PB_NEGATIVE_ALLOW};
             TU_CHECK_EQ_INT(pb_sh_project_equirect(&d, out, &err), PB_SUCCESS);
             for (uint32_t q = 0; q < pb_sh_count(L); q++)
-                for (int k = 0; k < 3; k++) TU_CHECK_NEAR(out[q * 3 + k], (k + 1) * (q == j ? 1.0 : 0.0), 0.07 * (k + 1));
+                for (int k = 0; k < 3; k++)
+                    TU_CHECK_NEAR(out[q * 3 + k], (k + 1) * (q == j ? 1.0 : 0.0), 0.07 * (k + 1));
         }
         for (uint32_t q = 0; q < mw * mh * 3; q++) px[q] = 1.5f;
         double out[75];
@@ -370,7 +368,9 @@ static void test_huge_panorama(void)
             const double want[3] = {lam_h[l] * ref_sh(l, m, up), ref_lambert(l) * ref_sh(l, m, axis),
                                     q == 0 ? 0.75 * 2 * sqrt(REF_PI) : 0.0};
             for (int k = 0; k < 3; k++) {
-                const double l00 = k == 0 ? 8 * REF_PI * ref_sh(0, 0, up) : k == 1 ? REF_PI * ref_sh(0, 0, up) : 0.75 * 2 * sqrt(REF_PI);
+                const double l00 = k == 0   ? 8 * REF_PI * ref_sh(0, 0, up)
+                                   : k == 1 ? REF_PI * ref_sh(0, 0, up)
+                                            : 0.75 * 2 * sqrt(REF_PI);
                 TU_CHECK_NEAR(out[q * 3 + k], want[k], 1e-6 * l00);
                 worst = fmax(worst, fabs(out[q * 3 + k] - want[k]) / l00);
             }
@@ -398,7 +398,8 @@ static void test_dynamic_range(void)
             ref_basis(4, e, y);
             for (int k = 0; k < 3; k++) px[((size_t)r * w + i) * 3 + k] = sun;
             for (int q = 0; q < 25; q++)
-                for (int k = 0; k < 3; k++) sun_part[q * 3 + k] += ((double)sun - (double)sky) * ref_pixel_solid_angle(r, w, h) * y[q];
+                for (int k = 0; k < 3; k++)
+                    sun_part[q * 3 + k] += ((double)sun - (double)sky) * ref_pixel_solid_angle(r, w, h) * y[q];
         }
     double out[75];
     pb_error err = {0};
@@ -409,7 +410,8 @@ static void test_dynamic_range(void)
         TU_CHECK_REL(sky00, (double)sky * 2 * sqrt(REF_PI), 1e-6);
         for (int q = 1; q < 25; q++) {
             /* sun part to 1e-12 relative; sky's l > 0 terms are discretisation, ≤ 0.5 (π/H)² sky */
-            TU_CHECK_NEAR(out[q * 3 + k] - sun_part[q * 3 + k], 0.0, 1e-12 * fabs(sun_part[k]) + 0.5 * pow(REF_PI / h, 2) * sky);
+            TU_CHECK_NEAR(out[q * 3 + k] - sun_part[q * 3 + k], 0.0,
+                          1e-12 * fabs(sun_part[k]) + 0.5 * pow(REF_PI / h, 2) * sky);
         }
     }
     printf("  sky L00 recovered: %.9e (closed form %.9e)\n", out[0] - sun_part[0], (double)sky * 2 * sqrt(REF_PI));
@@ -430,7 +432,11 @@ static void test_non_finite(void)
             px[((size_t)7 * w + 5) * ch + 1] = bad[b];
             double out[75];
             pb_error err = {0};
-            pb_sh_project_desc d = {.pixels = px, .width = w, .height = h, .channels = ch, .max_band = 2,
+            pb_sh_project_desc d = {.pixels = px,
+                                    .width = w,
+                                    .height = h,
+                                    .channels = ch,
+                                    .max_band = 2,
                                     .negative = (pb_negative_policy)pol};
             TU_CHECK_EQ_INT(pb_sh_project_equirect(&d, out, &err), PB_ERROR_NON_FINITE);
             TU_CHECK_CONTAINS(err.message, "pixel (x=5, y=7), channel 1 (G)");
@@ -477,8 +483,8 @@ static void test_negative_policies(void)
     TU_CHECK_CONTAINS(err.message, "pixel (x=3, y=4), channel 2 (B)");
     TU_CHECK_CONTAINS(err.message, "-2");
 
-    pb_sh_project_desc d = {.pixels = px, .width = w, .height = h, .channels = ch, .max_band = 4,
-                            .negative = PB_NEGATIVE_CLAMP};
+    pb_sh_project_desc d = {
+        .pixels = px, .width = w, .height = h, .channels = ch, .max_band = 4, .negative = PB_NEGATIVE_CLAMP};
     pb_error e2 = {0};
     TU_CHECK_EQ_INT(pb_sh_project_equirect(&d, out, &e2), PB_SUCCESS);
     for (int q = 0; q < 75; q++) TU_CHECK_NEAR(out[q], zeroed[q], 1e-14);
@@ -506,11 +512,11 @@ static void test_invalid_arguments(void)
     pb_sh_project_desc d;
     pb_error err;
 
-#define EXPECT_FAIL(desc_ptr, out_ptr, code, text)                                                  \
-    do {                                                                                           \
-        err = (pb_error){0};                                                                       \
-        TU_CHECK_EQ_INT(pb_sh_project_equirect(desc_ptr, out_ptr, &err), code);                    \
-        TU_CHECK_CONTAINS(err.message, text);                                                      \
+#define EXPECT_FAIL(desc_ptr, out_ptr, code, text)                                                                     \
+    do {                                                                                                               \
+        err = (pb_error){0};                                                                                           \
+        TU_CHECK_EQ_INT(pb_sh_project_equirect(desc_ptr, out_ptr, &err), code);                                        \
+        TU_CHECK_CONTAINS(err.message, text);                                                                          \
     } while (0)
 
     EXPECT_FAIL(NULL, out, PB_ERROR_INVALID_ARGUMENT, "desc is NULL");

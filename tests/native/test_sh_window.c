@@ -31,7 +31,8 @@ static double zonal_min(uint32_t L, const double f[5])
     for (int i = 0; i <= n; i++) {
         const double t = -1.0 + 2.0 * i / n;
         double g = 0.0;
-        for (uint32_t l = 0; l <= L; l++) g += f[l] * ref_lambert((int)l) * (2.0 * l + 1) / (4 * REF_PI) * ref_legendre((int)l, 0, t);
+        for (uint32_t l = 0; l <= L; l++)
+            g += f[l] * ref_lambert((int)l) * (2.0 * l + 1) / (4 * REF_PI) * ref_legendre((int)l, 0, t);
         if (g < best) best = g, bt = t;
     }
     double a = fmax(-1.0, bt - 2.0 / n), b = fmin(1.0, bt + 2.0 / n);
@@ -43,8 +44,10 @@ static double zonal_min(uint32_t L, const double f[5])
             g1 += k * ref_legendre((int)l, 0, m1);
             g2 += k * ref_legendre((int)l, 0, m2);
         }
-        if (g1 < g2) b = m2;
-        else a = m1;
+        if (g1 < g2)
+            b = m2;
+        else
+            a = m1;
         best = fmin(best, fmin(g1, g2));
     }
     return best;
@@ -99,7 +102,8 @@ static void test_explicit_factors(void)
         TU_CHECK_EQ_INT(pb_sh_window(4, PB_SH_WINDOW_LAPLACIAN, lambdas[s], c, NULL, &err), PB_SUCCESS);
         for (uint32_t l = 0; l <= 4; l++)
             for (uint32_t q = l * l; q < (l + 1) * (l + 1); q++)
-                for (int k = 0; k < 3; k++) TU_CHECK_NEAR(c[q * 3 + k], c0[q * 3 + k] * laplacian(l, lambdas[s]), 1e-15);
+                for (int k = 0; k < 3; k++)
+                    TU_CHECK_NEAR(c[q * 3 + k], c0[q * 3 + k] * laplacian(l, lambdas[s]), 1e-15);
     }
     /* sinc cutoff at band 3 zeroes bands 3 and 4 */
     double c[75];
@@ -116,8 +120,10 @@ static double recover_strength(pb_sh_window_kind kind, double f1)
     double a = 1.0 + 1e-12, b = 1e6; /* sinc4(1, w) increases with w */
     for (int it = 0; it < 200; it++) {
         const double m = 0.5 * (a + b);
-        if (sinc4(1, m) < f1) a = m;
-        else b = m;
+        if (sinc4(1, m) < f1)
+            a = m;
+        else
+            b = m;
     }
     return 0.5 * (a + b);
 }
@@ -145,8 +151,10 @@ static void test_auto_window(void)
                 const double mid = 0.5 * (good + bad);
                 double f[5];
                 for (uint32_t l = 0; l <= 4; l++) f[l] = kind == PB_SH_WINDOW_SINC4 ? sinc4(l, mid) : laplacian(l, mid);
-                if (zonal_min(L, f) >= 0.0) good = mid;
-                else bad = mid;
+                if (zonal_min(L, f) >= 0.0)
+                    good = mid;
+                else
+                    bad = mid;
                 if (fabs(good - bad) < 1e-9 * good) break;
             }
             TU_CHECK_REL(got, good, 1e-4);
@@ -158,7 +166,8 @@ static void test_auto_window(void)
             }
             double f[5];
             const double weaker = kind == PB_SH_WINDOW_SINC4 ? got * 1.01 : got * 0.99;
-            for (uint32_t l = 0; l <= 4; l++) f[l] = kind == PB_SH_WINDOW_SINC4 ? sinc4(l, weaker) : laplacian(l, weaker);
+            for (uint32_t l = 0; l <= 4; l++)
+                f[l] = kind == PB_SH_WINDOW_SINC4 ? sinc4(l, weaker) : laplacian(l, weaker);
             TU_CHECK(zonal_min(L, f) < 0.0);
             printf("  %s L=%u: strength %.6g (reference %.6g), min E = %.3g\n",
                    kind == PB_SH_WINDOW_SINC4 ? "sinc4" : "laplacian", L, got, good, mn[0]);

@@ -16,10 +16,7 @@
 
 static char tmpdir[256];
 
-static void path_in_tmp(char *out, size_t n, const char *name)
-{
-    snprintf(out, n, "%s/%s", tmpdir, name);
-}
+static void path_in_tmp(char *out, size_t n, const char *name) { snprintf(out, n, "%s/%s", tmpdir, name); }
 
 static uint8_t *read_all(const char *path, size_t *size)
 {
@@ -49,7 +46,10 @@ static void le_u32(uint8_t *b, size_t off, uint32_t v)
 
 static void le_f32(uint8_t *b, size_t off, float f)
 {
-    union { float f; uint32_t u; } c = {f};
+    union {
+        float f;
+        uint32_t u;
+    } c = {f};
     le_u32(b, off, c.u);
 }
 
@@ -124,7 +124,7 @@ static void test_v1_bytes_match_table(void)
     le_f32(want, 44, 0.1f);
     for (uint32_t i = 0; i < 2; i++) {
         size_t rec = 48 + 160 * (size_t)i;
-        for (uint32_t k = 0; k < 4; k++)     /* band 1: 4 coefficients, the rest stay zero */
+        for (uint32_t k = 0; k < 4; k++) /* band 1: 4 coefficients, the rest stay zero */
             for (uint32_t c = 0; c < 3; c++)
                 le_f32(want, rec + 16 * k + 4 * c, (float)(i + 1) * 0.5f - (float)(3 * k + c) * 0.03125f);
         le_f32(want, rec + 144, 1.0f + 0.25f * (float)i);
@@ -144,8 +144,8 @@ static void test_v1_bytes_match_table(void)
     static const uint8_t minus1[4] = {0xFF, 0xFF, 0xFF, 0xFF};
     TU_CHECK(memcmp(got, magic, 4) == 0);
     TU_CHECK(got[4] == 1 && got[5] == 0 && got[6] == 0 && got[7] == 0);
-    TU_CHECK(memcmp(got + 48 + 144, one_f, 4) == 0);           /* probe 0 scale 1.0 */
-    TU_CHECK(memcmp(got + 48 + 320 + 8, minus1, 4) == 0);      /* grid cell 2 = -1 */
+    TU_CHECK(memcmp(got + 48 + 144, one_f, 4) == 0);      /* probe 0 scale 1.0 */
+    TU_CHECK(memcmp(got + 48 + 320 + 8, minus1, 4) == 0); /* grid cell 2 = -1 */
 
     pb_shprobe *r = NULL;
     TU_CHECK_EQ_INT(pb_shprobe_read(path, &r, &err), PB_SUCCESS);
@@ -153,8 +153,8 @@ static void test_v1_bytes_match_table(void)
         TU_CHECK_EQ_INT(r->version, 1);
         TU_CHECK_EQ_INT(r->max_band, 2);
         TU_CHECK(r->positions == NULL);
-        TU_CHECK_EQ_INT(r->coeffs[4 * 3], 0);                   /* padded band 2 */
-        TU_CHECK_EQ_INT(r->coeffs[27 + 0], 1.0);                 /* probe 1, coeff 0 red = 2*0.5 */
+        TU_CHECK_EQ_INT(r->coeffs[4 * 3], 0);    /* padded band 2 */
+        TU_CHECK_EQ_INT(r->coeffs[27 + 0], 1.0); /* probe 1, coeff 0 red = 2*0.5 */
         TU_CHECK(r->grid_axes[0] == 1 && r->grid_axes[4] == 1 && r->grid_axes[8] == 1);
         TU_CHECK(r->validity[0] == 1.0f && r->validity[1] == 1.0f);
     }
@@ -222,9 +222,9 @@ static void test_round_trips(void)
                 /* v2 size: 96 + P*(C+1)*16 (+ P*16 positions) + cells*4 (docs/shprobe-format.md). */
                 size_t size = 0;
                 uint8_t *bytes = read_all(path, &size);
-                size_t want = want_version == 1 ? 48 + 3 * 160 + 48
-                                                : 96 + 3 * (pb_sh_count(band) + 1) * 16 +
-                                                      (variant == 1 ? 3 * 16 : 0) + 48;
+                size_t want = want_version == 1
+                                  ? 48 + 3 * 160 + 48
+                                  : 96 + 3 * (pb_sh_count(band) + 1) * 16 + (variant == 1 ? 3 * 16 : 0) + 48;
                 TU_CHECK_EQ_INT(size, want);
                 pb_shprobe hdr;
                 TU_CHECK_EQ_INT(pb_shprobe_read_header(path, &hdr, &err), PB_SUCCESS);
@@ -257,7 +257,12 @@ static void test_write_rejects(void)
     TU_CHECK_CONTAINS(err.message, "version 1 cannot hold max band > 2");
     pb_shprobe_destroy(p);
 
-    struct { const char *what; int field; pb_result code; const char *needle; } cases[] = {
+    struct {
+        const char *what;
+        int field;
+        pb_result code;
+        const char *needle;
+    } cases[] = {
         {"spacing 0", 0, PB_ERROR_INVALID_ARGUMENT, "grid spacing is 0 (offset 36)"},
         {"NaN coeff", 1, PB_ERROR_NON_FINITE, "probe 1 coefficient 2 green is nan"},
         {"grid entry = count", 2, PB_ERROR_INVALID_ARGUMENT, "grid cell (1, 1, 0) holds 2"},
@@ -303,10 +308,10 @@ static void test_write_rejects(void)
 
 /* Reader rejections: each case patches a valid v1 or v2 image and expects code + message. */
 typedef struct reject_case {
-    int version;          /* which base image */
-    size_t offset;        /* byte offset to patch (SIZE_MAX = none) */
-    uint32_t value;       /* u32 written there */
-    long resize;          /* bytes added to (or removed from) the end */
+    int version;    /* which base image */
+    size_t offset;  /* byte offset to patch (SIZE_MAX = none) */
+    uint32_t value; /* u32 written there */
+    long resize;    /* bytes added to (or removed from) the end */
     pb_result code;
     const char *needle;
 } reject_case;
@@ -355,12 +360,13 @@ static void test_read_rejects(void)
         {1, 368, 0x7FFFFFFFu, 0, PB_ERROR_FORMAT, "holds 2147483647"},
         {2, 12, 5, 0, PB_ERROR_FORMAT, "max band 5 at offset 12 is out of range 0..4"},
         {2, 16, 3, 0, PB_ERROR_FORMAT, "unknown flags 0x3 at offset 16"},
-        {2, 16, 0, 0, PB_ERROR_FORMAT, "trailing data"},   /* positions flag cleared */
+        {2, 16, 0, 0, PB_ERROR_FORMAT, "trailing data"}, /* positions flag cleared */
         {2, 52, 0x3F800000u, 0, PB_ERROR_FORMAT, "grid axes are not orthonormal: axis 0 . axis 0 = 2"},
         {2, 48, nan_bits, 0, PB_ERROR_NON_FINITE, "grid axes[0] is nan (offset 48)"},
         {2, 48, 0, 0, PB_ERROR_FORMAT, "grid axes are not orthonormal"},
         {2, 44, 0, 0, PB_ERROR_FORMAT, "grid spacing is 0 (offset 44)"},
-        {2, 96 + 272 + 16 * 15 + 4, inf_bits, 0, PB_ERROR_NON_FINITE, "probe 1 coefficient 15 green is inf (offset 612)"},
+        {2, 96 + 272 + 16 * 15 + 4, inf_bits, 0, PB_ERROR_NON_FINITE,
+         "probe 1 coefficient 15 green is inf (offset 612)"},
         {2, 96 + 16 * 16 + 8, two_bits, 0, PB_ERROR_FORMAT, "probe 0 validity is 2 (offset 360); it must be in [0, 1]"},
         {2, 96 + 16 * 16 + 8, nan_bits, 0, PB_ERROR_NON_FINITE, "probe 0 validity is nan"},
         {2, 640 + 16 + 8, inf_bits, 0, PB_ERROR_NON_FINITE, "probe 1 position[2] is inf (offset 664)"},
@@ -492,21 +498,22 @@ static void test_lookup(void)
     pb_shprobe *p = make_sample(2, 2, false);
     TU_REQUIRE(p != NULL);
     for (int j = 0; j < 12; j++) p->grid[j] = (j == 7) ? -1 : (int32_t)(j % 2);
-    const struct { float x, y, z; int32_t want; } pts[] = {
-        {-1.0f, 0.5f, 2.0f, 0},           /* min corner belongs to cell 0 */
-        {-0.5f, 0.5f, 2.0f, 1},           /* face x = -0.5 belongs to cell x=1 (flat 1) */
-        {-0.50001f, 0.5f, 2.0f, 0},
-        {0.49999f, 1.49999f, 2.99999f, 1}, /* last cell (2,1,1), flat 11 */
-        {0.5f, 1.0f, 2.5f, -1},           /* max face x = 0.5 is outside */
-        {0.0f, 1.5f, 2.5f, -1},           /* max face y */
-        {0.0f, 1.0f, 3.0f, -1},           /* max face z */
-        {-1.00001f, 0.7f, 2.2f, -1},      /* just below the min corner */
-        {-0.25f, 1.25f, 2.25f, 0},        /* cell (1,1,0): flat 1 + 3 = 4 -> 4 % 2 = 0 */
-        {0.25f, 0.75f, 2.75f, 0},         /* cell (2,0,1): flat 2 + 6 = 8 -> 0 */
-        {-0.75f, 0.75f, 2.75f, 0},        /* cell (0,0,1): flat 6 -> 0 */
-        {-0.25f, 0.75f, 2.75f, -1},       /* cell (1,0,1): flat 7 is empty */
-        {NAN, 1.0f, 2.2f, -1},
-        {INFINITY, 1.0f, 2.2f, -1},
+    const struct {
+        float x, y, z;
+        int32_t want;
+    } pts[] = {
+        {-1.0f, 0.5f, 2.0f, 0},                                         /* min corner belongs to cell 0 */
+        {-0.5f, 0.5f, 2.0f, 1},                                         /* face x = -0.5 belongs to cell x=1 (flat 1) */
+        {-0.50001f, 0.5f, 2.0f, 0},  {0.49999f, 1.49999f, 2.99999f, 1}, /* last cell (2,1,1), flat 11 */
+        {0.5f, 1.0f, 2.5f, -1},                                         /* max face x = 0.5 is outside */
+        {0.0f, 1.5f, 2.5f, -1},                                         /* max face y */
+        {0.0f, 1.0f, 3.0f, -1},                                         /* max face z */
+        {-1.00001f, 0.7f, 2.2f, -1},                                    /* just below the min corner */
+        {-0.25f, 1.25f, 2.25f, 0},                                      /* cell (1,1,0): flat 1 + 3 = 4 -> 4 % 2 = 0 */
+        {0.25f, 0.75f, 2.75f, 0},                                       /* cell (2,0,1): flat 2 + 6 = 8 -> 0 */
+        {-0.75f, 0.75f, 2.75f, 0},                                      /* cell (0,0,1): flat 6 -> 0 */
+        {-0.25f, 0.75f, 2.75f, -1},                                     /* cell (1,0,1): flat 7 is empty */
+        {NAN, 1.0f, 2.2f, -1},       {INFINITY, 1.0f, 2.2f, -1},
     };
     float pt[3];
     for (size_t i = 0; i < sizeof pts / sizeof pts[0]; i++) {

@@ -20,66 +20,66 @@
 static int tu_failures_ = 0;
 static int tu_checks_ = 0;
 
-#define TU_FAIL_(...)                                                                              \
-    do {                                                                                           \
-        tu_failures_++;                                                                            \
-        fprintf(stderr, "%s:%d: FAIL: ", __FILE__, __LINE__);                                      \
-        fprintf(stderr, __VA_ARGS__);                                                              \
-        fputc('\n', stderr);                                                                       \
+#define TU_FAIL_(...)                                                                                                  \
+    do {                                                                                                               \
+        tu_failures_++;                                                                                                \
+        fprintf(stderr, "%s:%d: FAIL: ", __FILE__, __LINE__);                                                          \
+        fprintf(stderr, __VA_ARGS__);                                                                                  \
+        fputc('\n', stderr);                                                                                           \
     } while (0)
 
 /* Boolean condition. */
-#define TU_CHECK(cond)                                                                             \
-    do {                                                                                           \
-        tu_checks_++;                                                                              \
-        if (!(cond)) TU_FAIL_("%s", #cond);                                                        \
+#define TU_CHECK(cond)                                                                                                 \
+    do {                                                                                                               \
+        tu_checks_++;                                                                                                  \
+        if (!(cond)) TU_FAIL_("%s", #cond);                                                                            \
     } while (0)
 
 /* Like TU_CHECK but returns from the enclosing void function on failure. */
-#define TU_REQUIRE(cond)                                                                           \
-    do {                                                                                           \
-        tu_checks_++;                                                                              \
-        if (!(cond)) {                                                                             \
-            TU_FAIL_("required: %s", #cond);                                                       \
-            return;                                                                                \
-        }                                                                                          \
+#define TU_REQUIRE(cond)                                                                                               \
+    do {                                                                                                               \
+        tu_checks_++;                                                                                                  \
+        if (!(cond)) {                                                                                                 \
+            TU_FAIL_("required: %s", #cond);                                                                           \
+            return;                                                                                                    \
+        }                                                                                                              \
     } while (0)
 
 /* |a - b| <= tol (absolute). NaN always fails. */
-#define TU_CHECK_NEAR(a, b, tol)                                                                   \
-    do {                                                                                           \
-        double tu_a_ = (double)(a), tu_b_ = (double)(b), tu_t_ = (double)(tol);                    \
-        tu_checks_++;                                                                              \
-        if (!(fabs(tu_a_ - tu_b_) <= tu_t_))                                                       \
-            TU_FAIL_("%s = %.17g, %s = %.17g, |diff| = %.3g > tol %.3g", #a, tu_a_, #b, tu_b_,     \
-                     fabs(tu_a_ - tu_b_), tu_t_);                                                  \
+#define TU_CHECK_NEAR(a, b, tol)                                                                                       \
+    do {                                                                                                               \
+        double tu_a_ = (double)(a), tu_b_ = (double)(b), tu_t_ = (double)(tol);                                        \
+        tu_checks_++;                                                                                                  \
+        if (!(fabs(tu_a_ - tu_b_) <= tu_t_))                                                                           \
+            TU_FAIL_("%s = %.17g, %s = %.17g, |diff| = %.3g > tol %.3g", #a, tu_a_, #b, tu_b_, fabs(tu_a_ - tu_b_),    \
+                     tu_t_);                                                                                           \
     } while (0)
 
 /* |a - b| <= rel * |b| (relative to the expected value b). NaN always fails. */
-#define TU_CHECK_REL(a, b, rel)                                                                    \
-    do {                                                                                           \
-        double tu_a_ = (double)(a), tu_b_ = (double)(b), tu_r_ = (double)(rel);                    \
-        tu_checks_++;                                                                              \
-        if (!(fabs(tu_a_ - tu_b_) <= tu_r_ * fabs(tu_b_)))                                         \
-            TU_FAIL_("%s = %.17g, %s = %.17g, rel diff = %.3g > %.3g", #a, tu_a_, #b, tu_b_,       \
-                     fabs(tu_a_ - tu_b_) / fabs(tu_b_), tu_r_);                                    \
+#define TU_CHECK_REL(a, b, rel)                                                                                        \
+    do {                                                                                                               \
+        double tu_a_ = (double)(a), tu_b_ = (double)(b), tu_r_ = (double)(rel);                                        \
+        tu_checks_++;                                                                                                  \
+        if (!(fabs(tu_a_ - tu_b_) <= tu_r_ * fabs(tu_b_)))                                                             \
+            TU_FAIL_("%s = %.17g, %s = %.17g, rel diff = %.3g > %.3g", #a, tu_a_, #b, tu_b_,                           \
+                     fabs(tu_a_ - tu_b_) / fabs(tu_b_), tu_r_);                                                        \
     } while (0)
 
 /* Integer / enum equality. */
-#define TU_CHECK_EQ_INT(a, b)                                                                      \
-    do {                                                                                           \
-        long long tu_a_ = (long long)(a), tu_b_ = (long long)(b);                                  \
-        tu_checks_++;                                                                              \
-        if (tu_a_ != tu_b_) TU_FAIL_("%s = %lld, expected %s = %lld", #a, tu_a_, #b, tu_b_);       \
+#define TU_CHECK_EQ_INT(a, b)                                                                                          \
+    do {                                                                                                               \
+        long long tu_a_ = (long long)(a), tu_b_ = (long long)(b);                                                      \
+        tu_checks_++;                                                                                                  \
+        if (tu_a_ != tu_b_) TU_FAIL_("%s = %lld, expected %s = %lld", #a, tu_a_, #b, tu_b_);                           \
     } while (0)
 
 /* `haystack` contains `needle` (e.g. an error message names the offending value). */
-#define TU_CHECK_CONTAINS(haystack, needle)                                                        \
-    do {                                                                                           \
-        const char *tu_h_ = (haystack), *tu_n_ = (needle);                                         \
-        tu_checks_++;                                                                              \
-        if (!tu_h_ || !strstr(tu_h_, tu_n_))                                                       \
-            TU_FAIL_("\"%s\" does not contain \"%s\"", tu_h_ ? tu_h_ : "(null)", tu_n_);           \
+#define TU_CHECK_CONTAINS(haystack, needle)                                                                            \
+    do {                                                                                                               \
+        const char *tu_h_ = (haystack), *tu_n_ = (needle);                                                             \
+        tu_checks_++;                                                                                                  \
+        if (!tu_h_ || !strstr(tu_h_, tu_n_))                                                                           \
+            TU_FAIL_("\"%s\" does not contain \"%s\"", tu_h_ ? tu_h_ : "(null)", tu_n_);                               \
     } while (0)
 
 static inline double tu_now_seconds(void)
@@ -90,17 +90,15 @@ static inline double tu_now_seconds(void)
 }
 
 /* Runs one test function, printing its name, duration and whether it added failures. */
-#define TU_RUN(fn)                                                                                 \
-    do {                                                                                           \
-        int tu_before_ = tu_failures_;                                                             \
-        double tu_t0_ = tu_now_seconds();                                                          \
-        fn();                                                                                      \
-        printf("%-48s %s (%.2f s)\n", #fn, tu_failures_ == tu_before_ ? "ok" : "FAILED",           \
-               tu_now_seconds() - tu_t0_);                                                         \
-        fflush(stdout);                                                                            \
+#define TU_RUN(fn)                                                                                                     \
+    do {                                                                                                               \
+        int tu_before_ = tu_failures_;                                                                                 \
+        double tu_t0_ = tu_now_seconds();                                                                              \
+        fn();                                                                                                          \
+        printf("%-48s %s (%.2f s)\n", #fn, tu_failures_ == tu_before_ ? "ok" : "FAILED", tu_now_seconds() - tu_t0_);   \
+        fflush(stdout);                                                                                                \
     } while (0)
 
-#define TU_EXIT()                                                                                  \
-    (printf("%d checks, %d failures\n", tu_checks_, tu_failures_), tu_failures_ ? 1 : 0)
+#define TU_EXIT() (printf("%d checks, %d failures\n", tu_checks_, tu_failures_), tu_failures_ ? 1 : 0)
 
 #endif

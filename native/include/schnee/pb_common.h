@@ -19,15 +19,15 @@ typedef enum pb_result {
     PB_SUCCESS = 0,
     PB_ERROR_INVALID_ARGUMENT, /* a parameter is out of range or inconsistent */
     PB_ERROR_OUT_OF_MEMORY,
-    PB_ERROR_IO,               /* a file could not be opened, read, written or renamed */
-    PB_ERROR_FORMAT,           /* a file is malformed (wrong magic, truncated, bad sizes, ...) */
-    PB_ERROR_NON_FINITE,       /* NaN or Inf in input data */
-    PB_ERROR_NEGATIVE,         /* negative radiance where it is not allowed */
-    PB_ERROR_TOO_SMALL,        /* e.g. a panorama too small to represent the requested band */
-    PB_ERROR_TOO_LARGE,        /* e.g. a dense occupancy grid past the documented limit */
-    PB_ERROR_OPEN_MESH,        /* a probe-volume mesh is not watertight */
-    PB_ERROR_EMBREE,           /* Embree reported an error */
-    PB_ERROR_CANCELLED,        /* the progress callback returned false */
+    PB_ERROR_IO,         /* a file could not be opened, read, written or renamed */
+    PB_ERROR_FORMAT,     /* a file is malformed (wrong magic, truncated, bad sizes, ...) */
+    PB_ERROR_NON_FINITE, /* NaN or Inf in input data */
+    PB_ERROR_NEGATIVE,   /* negative radiance where it is not allowed */
+    PB_ERROR_TOO_SMALL,  /* e.g. a panorama too small to represent the requested band */
+    PB_ERROR_TOO_LARGE,  /* e.g. a dense occupancy grid past the documented limit */
+    PB_ERROR_OPEN_MESH,  /* a probe-volume mesh is not watertight */
+    PB_ERROR_EMBREE,     /* Embree reported an error */
+    PB_ERROR_CANCELLED,  /* the progress callback returned false */
     PB_RESULT_COUNT_
 } pb_result;
 

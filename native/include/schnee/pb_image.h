@@ -19,8 +19,8 @@ pb_result pb_image_read(const char *path, pb_image *out, pb_error *err);
 
 /* Writes `pixels` (row 0 at the top). The format follows the extension: .exr keeps float values;
  * 8-bit formats (.png, ...) take values already in display encoding [0, 1]. Atomic: temp + rename. */
-pb_result pb_image_write(const char *path, uint32_t width, uint32_t height, uint32_t channels,
-                         const float *pixels, pb_error *err);
+pb_result pb_image_write(const char *path, uint32_t width, uint32_t height, uint32_t channels, const float *pixels,
+                         pb_error *err);
 
 void pb_image_free(pb_image *image);
 

@@ -24,41 +24,41 @@ extern "C" {
 #endif
 
 typedef struct pb_mesh_desc {
-    const char *name;          /* for messages (e.g. which volume is open); may be NULL */
-    const double *positions;   /* vertex_count * 3, engine space, metres */
+    const char *name;        /* for messages (e.g. which volume is open); may be NULL */
+    const double *positions; /* vertex_count * 3, engine space, metres */
     uint32_t vertex_count;
-    const uint32_t *indices;   /* triangle_count * 3 */
+    const uint32_t *indices; /* triangle_count * 3 */
     uint32_t triangle_count;
 } pb_mesh_desc;
 
 typedef struct pb_placement_desc {
-    const pb_mesh_desc *volumes;    /* closed meshes; probes fill their union; >= 1 required */
+    const pb_mesh_desc *volumes; /* closed meshes; probes fill their union; >= 1 required */
     uint32_t volume_count;
-    const pb_mesh_desc *geometry;   /* scene geometry; may be empty */
+    const pb_mesh_desc *geometry; /* scene geometry; may be empty */
     uint32_t geometry_count;
-    double min_cell_size;           /* 0 = 0.5 m */
-    double max_cell_size;           /* 0 = 16 m; rounded down to min_cell_size·2^k */
-    uint32_t solid_ray_count;       /* 0 = default (documented in the source), rays per probe for the solid test */
-    double solid_backface_ratio;    /* 0 = default; a probe is inside solid geometry when more than
+    double min_cell_size;        /* 0 = 0.5 m */
+    double max_cell_size;        /* 0 = 16 m; rounded down to min_cell_size·2^k */
+    uint32_t solid_ray_count;    /* 0 = default (documented in the source), rays per probe for the solid test */
+    double solid_backface_ratio; /* 0 = default; a probe is inside solid geometry when more than
                                        this fraction of its rays first hit a back face */
-    uint64_t max_grid_cells;        /* 0 = default limit (documented); larger dense grids are refused
+    uint64_t max_grid_cells;     /* 0 = default limit (documented); larger dense grids are refused
                                        with PB_ERROR_TOO_LARGE naming the size */
-    uint32_t thread_count;          /* 0 = all cores; 1 = the calling thread only */
-    pb_progress_fn progress;        /* optional; returning false cancels */
+    uint32_t thread_count;       /* 0 = all cores; 1 = the calling thread only */
+    pb_progress_fn progress;     /* optional; returning false cancels */
     void *progress_user;
 } pb_placement_desc;
 
 typedef struct pb_placement {
     uint32_t probe_count;
-    double *positions;        /* probe_count * 3, engine space */
-    double *cell_sizes;       /* probe_count: edge length of the leaf cell each probe sits in */
-    float *backface_ratio;    /* probe_count: fraction of solid-test rays that hit a back face */
-    uint32_t grid_dims[3];    /* X, Y, Z */
-    double grid_origin[3];    /* min corner of grid cell (0,0,0), engine space */
-    double grid_spacing;      /* = min_cell_size */
-    int32_t *grid;            /* X*Y*Z, flat x + y*X + z*X*Y: probe index or −1 (outside the volumes) */
-    uint64_t leaf_count;      /* octree leaves visited */
-    uint64_t pruned_count;    /* leaf centres inside the volumes rejected as inside solid geometry */
+    double *positions;     /* probe_count * 3, engine space */
+    double *cell_sizes;    /* probe_count: edge length of the leaf cell each probe sits in */
+    float *backface_ratio; /* probe_count: fraction of solid-test rays that hit a back face */
+    uint32_t grid_dims[3]; /* X, Y, Z */
+    double grid_origin[3]; /* min corner of grid cell (0,0,0), engine space */
+    double grid_spacing;   /* = min_cell_size */
+    int32_t *grid;         /* X*Y*Z, flat x + y*X + z*X*Y: probe index or −1 (outside the volumes) */
+    uint64_t leaf_count;   /* octree leaves visited */
+    uint64_t pruned_count; /* leaf centres inside the volumes rejected as inside solid geometry */
 } pb_placement;
 
 pb_result pb_placement_build(const pb_placement_desc *desc, pb_placement **out, pb_error *err);

@@ -21,7 +21,7 @@
 extern "C" {
 #endif
 
-#define PB_SH_MAX_BAND 4
+#define PB_SH_MAX_BAND   4
 #define PB_SH_MAX_COEFFS 25
 
 /* (max_band + 1)^2 */
@@ -43,12 +43,12 @@ typedef enum pb_negative_policy {
 } pb_negative_policy;
 
 typedef struct pb_sh_project_desc {
-    const float *pixels;   /* required for pb_sh_project_equirect; ignored by pb_sh_project_file */
-    uint32_t width;        /* columns; ignored by pb_sh_project_file */
-    uint32_t height;       /* rows, row 0 at the top; ignored by pb_sh_project_file */
-    uint32_t channels;     /* floats per pixel, >= 3, RGB first; 0 = 4 (RGBA) */
-    size_t row_stride;     /* floats between rows; 0 = width * channels */
-    uint32_t max_band;     /* 0..4; the panorama must be large enough (else PB_ERROR_TOO_SMALL) */
+    const float *pixels; /* required for pb_sh_project_equirect; ignored by pb_sh_project_file */
+    uint32_t width;      /* columns; ignored by pb_sh_project_file */
+    uint32_t height;     /* rows, row 0 at the top; ignored by pb_sh_project_file */
+    uint32_t channels;   /* floats per pixel, >= 3, RGB first; 0 = 4 (RGBA) */
+    size_t row_stride;   /* floats between rows; 0 = width * channels */
+    uint32_t max_band;   /* 0..4; the panorama must be large enough (else PB_ERROR_TOO_SMALL) */
     /* Row-major 3×3 matrix R taking the canonical Cycles panorama direction d (Blender world space,
      * camera rotated (90°, 0, −90°): φ = π − 2π(i+½)/W, θ = π(r+½)/H,
      * d = (sin θ cos φ, sin θ sin φ, cos θ)) to the output space: out = R·d.
@@ -65,8 +65,7 @@ void pb_sh_min_panorama_size(uint32_t max_band, uint32_t *min_width, uint32_t *m
 pb_result pb_sh_project_equirect(const pb_sh_project_desc *desc, double *out, pb_error *err);
 
 /* Same, reading an EXR/HDR/... through OpenImageIO (desc->pixels/width/height/channels ignored). */
-pb_result pb_sh_project_file(const char *path, const pb_sh_project_desc *desc, double *out,
-                             pb_error *err);
+pb_result pb_sh_project_file(const char *path, const pb_sh_project_desc *desc, double *out, pb_error *err);
 
 typedef enum pb_sh_window_kind {
     PB_SH_WINDOW_NONE = 0,

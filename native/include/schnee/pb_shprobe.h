@@ -20,32 +20,32 @@ extern "C" {
 #define PB_SHPROBE_MAGIC 0x52485053u /* bytes on disk "SPHR" */
 
 typedef struct pb_shprobe {
-    uint32_t version;        /* version read, or to write: 0 = smallest that holds the data
+    uint32_t version; /* version read, or to write: 0 = smallest that holds the data
                                 (1 for max_band <= 2 without positions, identity axes and every
                                 validity 1; else 2) */
     uint32_t probe_count;
-    uint32_t max_band;       /* 0..4; version 1 files always read back as 2 (9 coefficients) */
-    uint32_t grid_dims[3];   /* X, Y, Z */
-    float grid_origin[3];    /* min corner of cell (0,0,0), engine space, metres */
-    float grid_spacing;      /* metres */
-    float default_sh_scale;  /* header default, 1.0 in a fresh bake */
-    float default_ambient;   /* header default, 0.1 in a fresh bake */
-    float *coeffs;           /* probe_count * pb_sh_count(max_band) * 3: probe-major, then coeff, then RGB */
-    float *probe_scale;      /* probe_count */
-    float *probe_ambient;    /* probe_count */
-    float *positions;        /* probe_count * 3, or NULL (version 1 has none) */
-    int32_t *grid;           /* X*Y*Z, flat x + y*X + z*X*Y, probe index or −1 */
+    uint32_t max_band;      /* 0..4; version 1 files always read back as 2 (9 coefficients) */
+    uint32_t grid_dims[3];  /* X, Y, Z */
+    float grid_origin[3];   /* min corner of cell (0,0,0), engine space, metres */
+    float grid_spacing;     /* metres */
+    float default_sh_scale; /* header default, 1.0 in a fresh bake */
+    float default_ambient;  /* header default, 0.1 in a fresh bake */
+    float *coeffs;          /* probe_count * pb_sh_count(max_band) * 3: probe-major, then coeff, then RGB */
+    float *probe_scale;     /* probe_count */
+    float *probe_ambient;   /* probe_count */
+    float *positions;       /* probe_count * 3, or NULL (version 1 has none) */
+    int32_t *grid;          /* X*Y*Z, flat x + y*X + z*X*Y, probe index or −1 */
     /* Added with version 2 (docs/shprobe-format.md); version 1 reads back the defaults. */
-    float grid_axes[9];      /* rows: unit X, Y, Z axes of the grid in engine space (orthonormal);
+    float grid_axes[9]; /* rows: unit X, Y, Z axes of the grid in engine space (orthonormal);
                                 all zero = identity (a version 1 read fills the identity) */
-    float *validity;         /* probe_count values in [0, 1] (1 − back-face ratio), or NULL = all 1 */
+    float *validity;    /* probe_count values in [0, 1] (1 − back-face ratio), or NULL = all 1 */
 } pb_shprobe;
 
 /* Allocates a zeroed file image (grid filled with −1, scales 1, ambients = default 0.1, validity 1,
  * identity axes, positions allocated only if with_positions). grid_spacing is 0 and must be set
  * before writing. Free with pb_shprobe_destroy. */
-pb_result pb_shprobe_create(uint32_t probe_count, uint32_t max_band, const uint32_t grid_dims[3],
-                            bool with_positions, pb_shprobe **out, pb_error *err);
+pb_result pb_shprobe_create(uint32_t probe_count, uint32_t max_band, const uint32_t grid_dims[3], bool with_positions,
+                            pb_shprobe **out, pb_error *err);
 
 /* Validates like the reader (finite values, grid entries in [−1, count), spacing > 0, ...), then
  * writes atomically. NULL probe_scale = all 1, NULL probe_ambient = all default_ambient. */

@@ -167,22 +167,21 @@ static void test_index_types_strips_fans_points(void)
     for (int i = 0; i < 4; i++) tg_u32(&b, ui[i]);
     char *uri = tg_data_uri(b.data, b.size);
     const char *kv[] = {"URI", uri, NULL};
-    sv_gltf *g = load_json(
-        "{'asset':{'version':'2.0'},'scenes':[{'nodes':[0]}],'nodes':[{'mesh':0}],"
-        "'meshes':[{'primitives':["
-        "{'attributes':{'POSITION':0,'NORMAL':3},'indices':1},"
-        "{'attributes':{'POSITION':0,'NORMAL':3},'indices':2,'mode':5},"
-        "{'attributes':{'POSITION':0,'NORMAL':3},'mode':6},"
-        "{'attributes':{'POSITION':0},'mode':0},"
-        "{'attributes':{'POSITION':0,'NORMAL':3},'mode':1}]}],"
-        "'accessors':[{'bufferView':0,'componentType':5126,'count':4,'type':'VEC3'},"
-        "{'bufferView':1,'componentType':5123,'count':6,'type':'SCALAR'},"
-        "{'bufferView':2,'componentType':5125,'count':4,'type':'SCALAR'},"
-        "{'componentType':5126,'count':4,'type':'VEC3'}],"
-        "'bufferViews':[{'buffer':0,'byteLength':48},{'buffer':0,'byteOffset':48,'byteLength':12},"
-        "{'buffer':0,'byteOffset':60,'byteLength':16}],"
-        "'buffers':[{'byteLength':76,'uri':'@URI@'}]}",
-        kv, NULL);
+    sv_gltf *g = load_json("{'asset':{'version':'2.0'},'scenes':[{'nodes':[0]}],'nodes':[{'mesh':0}],"
+                           "'meshes':[{'primitives':["
+                           "{'attributes':{'POSITION':0,'NORMAL':3},'indices':1},"
+                           "{'attributes':{'POSITION':0,'NORMAL':3},'indices':2,'mode':5},"
+                           "{'attributes':{'POSITION':0,'NORMAL':3},'mode':6},"
+                           "{'attributes':{'POSITION':0},'mode':0},"
+                           "{'attributes':{'POSITION':0,'NORMAL':3},'mode':1}]}],"
+                           "'accessors':[{'bufferView':0,'componentType':5126,'count':4,'type':'VEC3'},"
+                           "{'bufferView':1,'componentType':5123,'count':6,'type':'SCALAR'},"
+                           "{'bufferView':2,'componentType':5125,'count':4,'type':'SCALAR'},"
+                           "{'componentType':5126,'count':4,'type':'VEC3'}],"
+                           "'bufferViews':[{'buffer':0,'byteLength':48},{'buffer':0,'byteOffset':48,'byteLength':12},"
+                           "{'buffer':0,'byteOffset':60,'byteLength':16}],"
+                           "'buffers':[{'byteLength':76,'uri':'@URI@'}]}",
+                           kv, NULL);
     free(uri);
     free(b.data);
     TU_REQUIRE(g);
@@ -224,17 +223,16 @@ static void test_sparse_and_flat_normals(void)
     tg_u8(&b, 2);
     char *uri = tg_data_uri(b.data, b.size);
     const char *kv[] = {"URI", uri, NULL};
-    sv_gltf *g = load_json(
-        "{'asset':{'version':'2.0'},'scenes':[{'nodes':[0]}],'nodes':[{'mesh':0}],"
-        "'meshes':[{'primitives':[{'attributes':{'POSITION':0},'indices':1}]}],"
-        "'accessors':[{'componentType':5126,'count':3,'type':'VEC3','sparse':{'count':2,"
-        "'indices':{'bufferView':0,'componentType':5123},'values':{'bufferView':1}}},"
-        "{'componentType':5121,'count':3,'type':'SCALAR','sparse':{'count':2,"
-        "'indices':{'bufferView':0,'componentType':5123},'values':{'bufferView':2}}}],"
-        "'bufferViews':[{'buffer':0,'byteLength':4},{'buffer':0,'byteOffset':4,'byteLength':24},"
-        "{'buffer':0,'byteOffset':28,'byteLength':2}],"
-        "'buffers':[{'byteLength':30,'uri':'@URI@'}]}",
-        kv, NULL);
+    sv_gltf *g = load_json("{'asset':{'version':'2.0'},'scenes':[{'nodes':[0]}],'nodes':[{'mesh':0}],"
+                           "'meshes':[{'primitives':[{'attributes':{'POSITION':0},'indices':1}]}],"
+                           "'accessors':[{'componentType':5126,'count':3,'type':'VEC3','sparse':{'count':2,"
+                           "'indices':{'bufferView':0,'componentType':5123},'values':{'bufferView':1}}},"
+                           "{'componentType':5121,'count':3,'type':'SCALAR','sparse':{'count':2,"
+                           "'indices':{'bufferView':0,'componentType':5123},'values':{'bufferView':2}}}],"
+                           "'bufferViews':[{'buffer':0,'byteLength':4},{'buffer':0,'byteOffset':4,'byteLength':24},"
+                           "{'buffer':0,'byteOffset':28,'byteLength':2}],"
+                           "'buffers':[{'byteLength':30,'uri':'@URI@'}]}",
+                           kv, NULL);
     free(uri);
     free(b.data);
     TU_REQUIRE(g);
@@ -361,7 +359,8 @@ static void test_materials_textures_images(void)
     TU_REQUIRE(g);
     TU_CHECK(g->images[0].path == NULL && g->images[0].data == NULL);
     TU_REQUIRE(g->warning_count == 1);
-    TU_CHECK_CONTAINS(g->warnings[0], "images[0]: external URI 'tex/base%20color.png' left unresolved (no base directory)");
+    TU_CHECK_CONTAINS(g->warnings[0],
+                      "images[0]: external URI 'tex/base%20color.png' left unresolved (no base directory)");
     sv_gltf_free(g);
 }
 

@@ -5,15 +5,15 @@
 #include "testutil.h"
 
 /* Fragments substituted into the templates (' becomes " in the templates only). */
-#define A "'asset':{'version':'2.0'}"
+#define A   "'asset':{'version':'2.0'}"
 #define Z12 "'buffers':[{'byteLength':12,'uri':'data:application/octet-stream;base64,AAAAAAAAAAAAAAAA'}]"
 /* 12 bytes, the first is 5. */
 #define B5 "'buffers':[{'byteLength':12,'uri':'data:application/octet-stream;base64,BQAAAAAAAAAAAAAA'}]"
 /* 12 bytes: a float NaN (0x7fc00000) then zeros. */
 #define BNAN "'buffers':[{'byteLength':12,'uri':'data:application/octet-stream;base64,AADAfwAAAAAAAAAA'}]"
-#define V12 "'bufferViews':[{'buffer':0,'byteLength':12}]"
+#define V12  "'bufferViews':[{'buffer':0,'byteLength':12}]"
 /* One POSITION accessor of 1 vertex reading zeros (no bufferView). */
-#define POS1 "{'componentType':5126,'count':1,'type':'VEC3'}"
+#define POS1       "{'componentType':5126,'count':1,'type':'VEC3'}"
 #define MESH(prim) "'meshes':[{'primitives':[" prim "]}]"
 
 typedef struct bad_case {
@@ -43,8 +43,8 @@ static const bad_case CASES[] = {
     /* buffers */
     {"{" A ",'buffers':[{'byteLength':100,'uri':'data:application/octet-stream;base64,AAAAAAAAAAAAAAAA'}]}",
      SV_GLTF_ERROR_FORMAT, "buffers[0]: data: URI holds 12 bytes, byteLength is 100"},
-    {"{" A ",'buffers':[{'byteLength':3,'uri':'data:application/octet-stream;base64,@@@@'}]}",
-     SV_GLTF_ERROR_FORMAT, "buffers[0]: invalid base64 in data: URI"},
+    {"{" A ",'buffers':[{'byteLength':3,'uri':'data:application/octet-stream;base64,@@@@'}]}", SV_GLTF_ERROR_FORMAT,
+     "buffers[0]: invalid base64 in data: URI"},
     {"{" A ",'buffers':[{'byteLength':3,'uri':'data:text/plain,abc'}]}", SV_GLTF_ERROR_UNSUPPORTED,
      "buffers[0]: data: URI is not base64-encoded"},
     {"{" A ",'buffers':[{'byteLength':3}]}", SV_GLTF_ERROR_FORMAT,
@@ -81,17 +81,20 @@ static const bad_case CASES[] = {
      SV_GLTF_ERROR_FORMAT, "accessors[0]: bufferView 7 out of range (1 bufferViews)"},
     {"{" A "," Z12 "," V12 ",'accessors':[{'bufferView':0,'componentType':5126,'count':2,'type':'VEC3'}]}",
      SV_GLTF_ERROR_FORMAT, "accessors[0]: needs bytes [0, 24) of bufferView 0, which has 12 bytes"},
-    {"{" A "," Z12 "," V12 ",'accessors':[{'bufferView':0,'byteOffset':4,'componentType':5126,'count':1,'type':'VEC3'}]}",
+    {"{" A "," Z12 "," V12
+     ",'accessors':[{'bufferView':0,'byteOffset':4,'componentType':5126,'count':1,'type':'VEC3'}]}",
      SV_GLTF_ERROR_FORMAT, "accessors[0]: needs bytes [4, 16) of bufferView 0"},
     {"{" A "," Z12 "," V12 ",'accessors':[{'bufferView':0,'componentType':5124,'count':1,'type':'SCALAR'}]}",
      SV_GLTF_ERROR_FORMAT, "accessors[0].componentType: 5124 is not a glTF component type"},
     {"{" A "," Z12 "," V12 ",'accessors':[{'bufferView':0,'componentType':5126,'count':1,'type':'VEC5'}]}",
      SV_GLTF_ERROR_FORMAT, "accessors[0].type: 'VEC5' is not SCALAR, VEC2..4 or MAT2..4"},
-    {"{" A "," Z12 "," V12 ",'accessors':[{'bufferView':0,'componentType':5126,'count':1}]}",
-     SV_GLTF_ERROR_FORMAT, "accessors[0].type: missing"},
-    {"{" A "," Z12 "," V12 ",'accessors':[{'bufferView':0,'componentType':5126,'normalized':true,'count':1,'type':'VEC3'}]}",
+    {"{" A "," Z12 "," V12 ",'accessors':[{'bufferView':0,'componentType':5126,'count':1}]}", SV_GLTF_ERROR_FORMAT,
+     "accessors[0].type: missing"},
+    {"{" A "," Z12 "," V12
+     ",'accessors':[{'bufferView':0,'componentType':5126,'normalized':true,'count':1,'type':'VEC3'}]}",
      SV_GLTF_ERROR_FORMAT, "accessors[0]: normalized is not allowed with componentType 5126"},
-    {"{" A "," Z12 "," V12 ",'accessors':[{'bufferView':0,'byteOffset':2,'componentType':5126,'count':1,'type':'SCALAR'}]}",
+    {"{" A "," Z12 "," V12
+     ",'accessors':[{'bufferView':0,'byteOffset':2,'componentType':5126,'count':1,'type':'SCALAR'}]}",
      SV_GLTF_ERROR_FORMAT, "accessors[0]: byteOffset 2 is not a multiple of the component size 4"},
     {"{" A "," Z12 ",'bufferViews':[{'buffer':0,'byteLength':12,'byteStride':4}],"
      "'accessors':[{'bufferView':0,'componentType':5126,'count':1,'type':'VEC3'}]}",
@@ -118,36 +121,38 @@ static const bad_case CASES[] = {
      SV_GLTF_ERROR_FORMAT, "accessors[0].sparse: indices missing"},
     /* meshes */
     {"{" A "," B5 "," V12 ",'accessors':[{'componentType':5126,'count':1,'type':'VEC3','sparse':"
-     "{'count':1,'indices':{'bufferView':0,'componentType':5121},'values':{'bufferView':0}}}],"
-     MESH("{'attributes':{'POSITION':0}}") "}",
-     SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0].attributes.POSITION: accessors[0].sparse.indices[0] = 5 is out of range"},
-    {"{" A "," B5 "," V12 ",'accessors':[" POS1 ",{'bufferView':0,'componentType':5121,'count':3,'type':'SCALAR'}],"
-     MESH("{'attributes':{'POSITION':0},'indices':1}") "}",
+     "{'count':1,'indices':{'bufferView':0,'componentType':5121},'values':{'bufferView':0}}}]," MESH(
+         "{'attributes':{'POSITION':0}}") "}",
+     SV_GLTF_ERROR_FORMAT,
+     "meshes[0].primitives[0].attributes.POSITION: accessors[0].sparse.indices[0] = 5 is out of range"},
+    {"{" A "," B5 "," V12 ",'accessors':[" POS1
+     ",{'bufferView':0,'componentType':5121,'count':3,'type':'SCALAR'}]," MESH(
+         "{'attributes':{'POSITION':0},'indices':1}") "}",
      SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0].indices: index 5 at position 0 is out of range (1 vertices)"},
-    {"{" A ",'accessors':[" POS1 ",{'componentType':5126,'count':2,'type':'VEC3'}],"
-     MESH("{'attributes':{'POSITION':0,'NORMAL':1}}") "}",
+    {"{" A ",'accessors':[" POS1
+     ",{'componentType':5126,'count':2,'type':'VEC3'}]," MESH("{'attributes':{'POSITION':0,'NORMAL':1}}") "}",
      SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0].attributes.NORMAL: accessor 1 has count 2, POSITION has 1"},
-    {"{" A ",'accessors':[" POS1 ",{'componentType':5126,'count':1,'type':'VEC2'}],"
-     MESH("{'attributes':{'POSITION':0,'NORMAL':1}}") "}",
+    {"{" A ",'accessors':[" POS1
+     ",{'componentType':5126,'count':1,'type':'VEC2'}]," MESH("{'attributes':{'POSITION':0,'NORMAL':1}}") "}",
      SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0].attributes.NORMAL: accessor 1 has type VEC2, expected VEC3"},
-    {"{" A ",'accessors':[" POS1 "]," MESH("{'attributes':{'POSITION':0,'NORMAL':4}}") "}",
-     SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0].attributes: NORMAL 4 out of range (1 accessors)"},
-    {"{" A ",'accessors':[" POS1 ",{'componentType':5126,'count':3,'type':'SCALAR'}],"
-     MESH("{'attributes':{'POSITION':0},'indices':1}") "}",
+    {"{" A ",'accessors':[" POS1 "]," MESH("{'attributes':{'POSITION':0,'NORMAL':4}}") "}", SV_GLTF_ERROR_FORMAT,
+     "meshes[0].primitives[0].attributes: NORMAL 4 out of range (1 accessors)"},
+    {"{" A ",'accessors':[" POS1
+     ",{'componentType':5126,'count':3,'type':'SCALAR'}]," MESH("{'attributes':{'POSITION':0},'indices':1}") "}",
      SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0].indices: accessor 1 must be a SCALAR of unsigned byte/short/int"},
     {"{" A ",'accessors':[{'componentType':5126,'count':4,'type':'VEC3'}]," MESH("{'attributes':{'POSITION':0}}") "}",
      SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0]: 4 indices is not a multiple of 3 for TRIANGLES"},
-    {"{" A ",'accessors':[" POS1 "]," MESH("{'attributes':{'POSITION':0},'mode':9}") "}",
-     SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0].mode: 9 out of range [0, 6]"},
-    {"{" A ",'accessors':[" POS1 "]," MESH("{'attributes':{'POSITION':0},'mode':1}") "}",
-     SV_GLTF_ERROR_UNSUPPORTED, "meshes[0].primitives[0]: mode LINES is not supported (triangles only)", true},
-    {"{" A ",'accessors':[" POS1 "]," MESH("{'attributes':{'POSITION':0},'material':0}") "}",
-     SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0]: material 0 out of range (0 materials)"},
+    {"{" A ",'accessors':[" POS1 "]," MESH("{'attributes':{'POSITION':0},'mode':9}") "}", SV_GLTF_ERROR_FORMAT,
+     "meshes[0].primitives[0].mode: 9 out of range [0, 6]"},
+    {"{" A ",'accessors':[" POS1 "]," MESH("{'attributes':{'POSITION':0},'mode':1}") "}", SV_GLTF_ERROR_UNSUPPORTED,
+     "meshes[0].primitives[0]: mode LINES is not supported (triangles only)", true},
+    {"{" A ",'accessors':[" POS1 "]," MESH("{'attributes':{'POSITION':0},'material':0}") "}", SV_GLTF_ERROR_FORMAT,
+     "meshes[0].primitives[0]: material 0 out of range (0 materials)"},
     {"{" A "," MESH("") "}", SV_GLTF_ERROR_FORMAT, "meshes[0].primitives: missing or empty"},
     {"{" A "," MESH("{}") "}", SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0].attributes: missing"},
     {"{" A "," MESH("7") "}", SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0]: expected an object, got a number"},
-    {"{" A "," BNAN "," V12 ",'accessors':[{'bufferView':0,'componentType':5126,'count':1,'type':'VEC3'}],"
-     MESH("{'attributes':{'POSITION':0}}") "}",
+    {"{" A "," BNAN "," V12 ",'accessors':[{'bufferView':0,'componentType':5126,'count':1,'type':'VEC3'}]," MESH(
+         "{'attributes':{'POSITION':0}}") "}",
      SV_GLTF_ERROR_FORMAT, "meshes[0].primitives[0].attributes.POSITION: accessor 0 element 0 is not finite"},
     /* nodes and scenes */
     {"{" A ",'nodes':[{'mesh':3}]}", SV_GLTF_ERROR_FORMAT, "nodes[0]: mesh 3 out of range (0 meshes)"},
@@ -171,7 +176,8 @@ static const bad_case CASES[] = {
      "nodes[0].extensions.KHR_lights_punctual: light 0 out of range (0 lights)"},
     {"{" A ",'nodes':[{'children':[1]},{}],'scenes':[{'nodes':[1]}]}", SV_GLTF_ERROR_FORMAT,
      "scenes[0].nodes[0]: node 1 is not a root node (it has a parent)"},
-    {"{" A ",'nodes':[{}],'scenes':[{'nodes':[0,0]}]}", SV_GLTF_ERROR_FORMAT, "scenes[0].nodes[1]: node 0 is listed twice"},
+    {"{" A ",'nodes':[{}],'scenes':[{'nodes':[0,0]}]}", SV_GLTF_ERROR_FORMAT,
+     "scenes[0].nodes[1]: node 0 is listed twice"},
     {"{" A ",'nodes':[{}],'scenes':[{'nodes':[0]}],'scene':2}", SV_GLTF_ERROR_FORMAT,
      "(root): scene 2 out of range (1 scenes)"},
     {"{" A ",'scenes':[{'nodes':[3]}]}", SV_GLTF_ERROR_FORMAT, "scenes[0].nodes[0]: not a node index (0 nodes)"},
@@ -189,15 +195,17 @@ static const bad_case CASES[] = {
     {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'area'}]}}}", SV_GLTF_ERROR_FORMAT,
      "KHR_lights_punctual.lights[0].type: 'area' is not directional, point or spot"},
     {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'point','name':'Fill',"
-     "'extensions':{'VULKAN_SCHNEE_light':{'mode':'sometimes'}}}]}}}", SV_GLTF_ERROR_FORMAT,
-     "'sometimes' is not baked or realtime"},
+     "'extensions':{'VULKAN_SCHNEE_light':{'mode':'sometimes'}}}]}}}",
+     SV_GLTF_ERROR_FORMAT, "'sometimes' is not baked or realtime"},
     {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'point',"
-     "'extensions':{'VULKAN_SCHNEE_light':{'mode':1}}}]}}}", SV_GLTF_ERROR_FORMAT,
-     "VULKAN_SCHNEE_light.mode"},
-    {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'spot','spot':{'innerConeAngle':0.5,'outerConeAngle':0.4}}]}}}",
-     SV_GLTF_ERROR_FORMAT, "KHR_lights_punctual.lights[0].spot: innerConeAngle 0.5 is not less than outerConeAngle 0.4"},
-    {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'point','intensity':-1}]}}}",
-     SV_GLTF_ERROR_FORMAT, "KHR_lights_punctual.lights[0].intensity: -1 out of range"},
+     "'extensions':{'VULKAN_SCHNEE_light':{'mode':1}}}]}}}",
+     SV_GLTF_ERROR_FORMAT, "VULKAN_SCHNEE_light.mode"},
+    {"{" A
+     ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'spot','spot':{'innerConeAngle':0.5,'outerConeAngle':0.4}}]}}}",
+     SV_GLTF_ERROR_FORMAT,
+     "KHR_lights_punctual.lights[0].spot: innerConeAngle 0.5 is not less than outerConeAngle 0.4"},
+    {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'point','intensity':-1}]}}}", SV_GLTF_ERROR_FORMAT,
+     "KHR_lights_punctual.lights[0].intensity: -1 out of range"},
     {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':{}}}}", SV_GLTF_ERROR_FORMAT,
      "extensions.KHR_lights_punctual.lights: expected an array, got an object"},
     /* materials, textures, images, samplers */
@@ -209,7 +217,8 @@ static const bad_case CASES[] = {
      "materials[0].alphaMode: 'FOO' is not OPAQUE, MASK or BLEND"},
     {"{" A ",'materials':[{'pbrMetallicRoughness':{'baseColorTexture':{'index':0}}}]}", SV_GLTF_ERROR_FORMAT,
      "materials[0].pbrMetallicRoughness.baseColorTexture: index 0 out of range (0 textures)"},
-    {"{" A ",'materials':[{'emissiveTexture':{}}]}", SV_GLTF_ERROR_FORMAT, "materials[0].emissiveTexture: index missing"},
+    {"{" A ",'materials':[{'emissiveTexture':{}}]}", SV_GLTF_ERROR_FORMAT,
+     "materials[0].emissiveTexture: index missing"},
     {"{" A ",'materials':[{'extensions':{'VULKAN_SCHNEE_materials':{'shScale':'big'}}}]}", SV_GLTF_ERROR_FORMAT,
      "materials[0].extensions.VULKAN_SCHNEE_materials.shScale: expected a finite number, got a string"},
     {"{" A ",'materials':[{'extensions':{'VULKAN_SCHNEE_materials':[1]}}]}", SV_GLTF_ERROR_FORMAT,
@@ -222,7 +231,8 @@ static const bad_case CASES[] = {
     {"{" A ",'images':[{'uri':'http://example.com/a.png'}]}", SV_GLTF_ERROR_UNSUPPORTED,
      "images[0]: URI scheme 'http:' is not supported", false, "/data"},
     {"{" A ",'samplers':[{'wrapS':1}]}", SV_GLTF_ERROR_FORMAT, "samplers[0].wrapS: 1 is not 33071, 33648 or 10497"},
-    {"{" A ",'samplers':[{'magFilter':9984}]}", SV_GLTF_ERROR_FORMAT, "samplers[0].magFilter: 9984 is not 9728 or 9729"},
+    {"{" A ",'samplers':[{'magFilter':9984}]}", SV_GLTF_ERROR_FORMAT,
+     "samplers[0].magFilter: 9984 is not 9728 or 9729"},
     /* probe-grid extension: the container must have the right type (entries are only warned about) */
     {"{" A ",'scenes':[{'extensions':{'VULKAN_SCHNEE_engine_properties':{'shProbeGrids':{}}}}]}", SV_GLTF_ERROR_FORMAT,
      "scenes[0].extensions.VULKAN_SCHNEE_engine_properties.shProbeGrids: expected an array, got an object"},
@@ -262,8 +272,8 @@ static void test_malformed_glb(void)
     sv_gltf_free(g);
 
     struct {
-        size_t cut;        /* truncate to this many bytes (0 = keep) */
-        size_t patch_at;   /* overwrite one uint32 at this offset (0 = none) */
+        size_t cut;      /* truncate to this many bytes (0 = keep) */
+        size_t patch_at; /* overwrite one uint32 at this offset (0 = none) */
         uint32_t patch;
         sv_gltf_result code;
         const char *fragment;
@@ -323,8 +333,9 @@ static void test_arguments_and_budget(void)
     TU_CHECK_EQ_INT(sv_gltf_load_file(NULL, NULL, &g, NULL), SV_GLTF_ERROR_INVALID_ARGUMENT);
     /* An accessor without bufferView costs nothing in the file but count * 12 bytes decoded:
      * 100 million vertices must hit the budget, not the allocator. */
-    const char *json = "{'asset':{'version':'2.0'},'accessors':[{'componentType':5126,'count':100000000,'type':'VEC3'}],"
-                       "'meshes':[{'primitives':[{'attributes':{'POSITION':0}}]}]}";
+    const char *json =
+        "{'asset':{'version':'2.0'},'accessors':[{'componentType':5126,'count':100000000,'type':'VEC3'}],"
+        "'meshes':[{'primitives':[{'attributes':{'POSITION':0}}]}]}";
     char *j = tg_json(json, NULL);
     sv_gltf_desc desc = {.max_decoded_bytes = 1 << 20};
     err = (sv_gltf_error){0};
