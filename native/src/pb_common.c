@@ -1,7 +1,16 @@
+#define _POSIX_C_SOURCE 200809L
 #include "schnee/pb_common.h"
 
+#include "pb_file.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 const char *pb_result_string(pb_result result)
 {
@@ -33,4 +42,83 @@ pb_result pb_error_set(pb_error *err, pb_result code, const char *fmt, ...)
         va_end(ap);
     }
     return code;
+}
+
+/* ---- files (pb_file.h) ------------------------------------------------------------------------ */
+
+const char *pb_file_kind_(mode_t mode)
+{
+    if (S_ISREG(mode)) return "regular file";
+    if (S_ISDIR(mode)) return "directory";
+    if (S_ISFIFO(mode)) return "FIFO (named pipe)";
+    if (S_ISCHR(mode)) return "character device";
+    if (S_ISBLK(mode)) return "block device";
+    if (S_ISSOCK(mode)) return "socket";
+    if (S_ISLNK(mode)) return "symbolic link";
+    return "special file";
+}
+
+static pb_result open_failed(const char *path, const char *step, int e, pb_error *err)
+{
+    char why[128];
+    if (strerror_r(e, why, sizeof why) != 0) snprintf(why, sizeof why, "errno %d", e);
+    return pb_error_set(err, PB_ERROR_IO, "%s: cannot %s: %s%s", path, step, why,
+                        e == ELOOP ? " (a symbolic link loop, or too many links in the path)" : "");
+}
+
+static pb_result not_regular(const char *path, mode_t mode, const char *what, pb_error *err)
+{
+    return pb_error_set(err, PB_ERROR_IO, "%s: not a regular file (a %s); only regular files are read as %s", path,
+                        pb_file_kind_(mode), what);
+}
+
+pb_result pb_open_regular_(const char *path, const char *what, int *fd_out, uint64_t *size_out, pb_error *err)
+{
+    *fd_out = -1;
+    *size_out = 0;
+    struct stat st;
+    if (stat(path, &st) != 0) return open_failed(path, "open", errno, err);
+    if (!S_ISREG(st.st_mode)) return not_regular(path, st.st_mode, what, err);
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+    if (fd < 0) return open_failed(path, "open", errno, err);
+    if (fstat(fd, &st) != 0) {
+        int e = errno;
+        close(fd);
+        return open_failed(path, "stat", e, err);
+    }
+    if (!S_ISREG(st.st_mode)) {
+        close(fd);
+        return not_regular(path, st.st_mode, what, err);
+    }
+    int flags = fcntl(fd, F_GETFL);
+    if (flags >= 0) (void)fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
+    *fd_out = fd;
+    *size_out = st.st_size > 0 ? (uint64_t)st.st_size : 0u;
+    return PB_SUCCESS;
+}
+
+pb_result pb_read_full_(int fd, const char *path, void *buf, size_t n, size_t *got, pb_error *err)
+{
+    size_t done = 0;
+    while (done < n) {
+        ssize_t k = read(fd, (char *)buf + done, n - done);
+        if (k < 0 && errno == EINTR) continue;
+        if (k < 0) {
+            int e = errno;
+            *got = done;
+            return open_failed(path, "read", e, err);
+        }
+        if (k == 0) break;
+        done += (size_t)k;
+    }
+    *got = done;
+    return PB_SUCCESS;
+}
+
+const char *pb_format_double_(double v, char *buf, size_t n)
+{
+    if (isnan(v)) return "nan";
+    if (isinf(v)) return v > 0 ? "inf" : "-inf";
+    snprintf(buf, n, "%g", v);
+    return buf;
 }

@@ -2,6 +2,9 @@
 // No exception crosses the C boundary: every entry point catches and reports.
 #include "schnee/pb_image.h"
 
+#include "pb_file.h"
+
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -15,6 +18,7 @@
 #include <limits>
 #include <string>
 
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -37,27 +41,97 @@ bool is_float_format(const std::string &ext)
     return ext == ".exr" || ext == ".hdr" || ext == ".pfm" || ext == ".tif" || ext == ".tiff";
 }
 
+// The reader for a file, by content first (its magic bytes), else by extension. OpenImageIO's own
+// fallback (when the extension's reader fails, try every reader in turn) is never used: on a large
+// file some readers scan it whole (a 2 GB sparse file took minutes), and content decides anyway.
+struct format_magic {
+    const char *format;
+    unsigned char bytes[4];
+    size_t n;
+};
+const format_magic known_magics[] = {
+    {"openexr", {0x76, 0x2f, 0x31, 0x01}, 4}, {"png", {0x89, 'P', 'N', 'G'}, 4},   {"jpeg", {0xff, 0xd8, 0xff, 0}, 3},
+    {"tiff", {'I', 'I', 0x2a, 0x00}, 4},      {"tiff", {'M', 'M', 0x00, 0x2a}, 4}, {"hdr", {'#', '?', 0, 0}, 2},
+    {"pnm", {'P', 'F', '\n', 0}, 3},          {"pnm", {'P', 'f', '\n', 0}, 3},
+};
+
+std::string format_for(const std::string &path, const unsigned char *head, size_t got)
+{
+    for (const format_magic &m : known_magics)
+        if (got >= m.n && std::memcmp(head, m.bytes, m.n) == 0) return m.format;
+    const std::string ext = lower_extension(path);
+    return ext.empty() ? std::string() : ext.substr(1);
+}
+
+// Closes the descriptor (and the FILE wrapping it) on every path out of read_impl.
+struct file_guard {
+    int fd = -1;
+    FILE *file = nullptr;
+    ~file_guard()
+    {
+        if (file)
+            std::fclose(file);
+        else if (fd >= 0)
+            close(fd);
+    }
+};
+
 pb_result read_impl(const char *path, pb_image *out, pb_error *err)
 {
-    auto in = OIIO::ImageInput::open(path);
+    // 1. The file: a regular file opened without blocking, of a plausible size.
+    file_guard g;
+    uint64_t size = 0;
+    pb_result r = pb_open_regular_(path, "an image", &g.fd, &size, err);
+    if (r != PB_SUCCESS) return r;
+    if (size == 0) return pb_error_set(err, PB_ERROR_FORMAT, "%s: empty file, not an image", path);
+    if (size > PB_IMAGE_MAX_FILE_BYTES)
+        return pb_error_set(err, PB_ERROR_TOO_LARGE, "%s: %llu bytes is above the image file limit of %llu bytes", path,
+                            (unsigned long long)size, (unsigned long long)PB_IMAGE_MAX_FILE_BYTES);
+    unsigned char head[4] = {0, 0, 0, 0};
+    size_t got = 0;
+    r = pb_read_full_(g.fd, path, head, sizeof head, &got, err);
+    if (r != PB_SUCCESS) return r;
+    if (lseek(g.fd, 0, SEEK_SET) != 0)
+        return pb_error_set(err, PB_ERROR_IO, "%s: cannot seek: %s", path, std::strerror(errno));
+    const std::string format = format_for(path, head, got);
+    // 2. OpenImageIO reads through our checked descriptor where the reader supports it (all the
+    // formats above do), so the file cannot be swapped for a FIFO or device after the check. The
+    // proxy outlives the reader (declared before it), the FILE outlives both.
+    g.file = fdopen(g.fd, "rb");
+    if (!g.file) return pb_error_set(err, PB_ERROR_IO, "%s: cannot read: %s", path, std::strerror(errno));
+    OIIO::Filesystem::IOFile proxy(g.file, OIIO::Filesystem::IOProxy::Read);
+    auto in = format.empty() ? nullptr : OIIO::ImageInput::create(format, false);
     if (!in) {
-        std::string msg = OIIO::geterror();
-        return pb_error_set(err, PB_ERROR_IO, "cannot open image '%s': %s", path,
+        (void)OIIO::geterror(); // clear OpenImageIO's per-thread error
+        return pb_error_set(err, PB_ERROR_FORMAT,
+                            "%s: not a known image format (the content is not EXR, HDR, PNG, JPEG, TIFF or PFM, "
+                            "and OpenImageIO has no reader for the extension '%s')",
+                            path, format.c_str());
+    }
+    if (in->supports("ioproxy") && !in->set_ioproxy(&proxy))
+        return pb_error_set(err, PB_ERROR_IO, "%s: cannot read through OpenImageIO", path);
+    OIIO::ImageSpec spec;
+    if (!in->open(path, spec)) {
+        std::string msg = in->geterror();
+        return pb_error_set(err, PB_ERROR_FORMAT, "%s: cannot read as %s: %s", path, format.c_str(),
                             msg.empty() ? "unknown OpenImageIO error" : msg.c_str());
     }
-    const OIIO::ImageSpec &spec = in->spec();
+    // 3. The spec against the documented limits, before any pixel is read or allocated.
     if (spec.deep)
         return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' is a deep image; flat pixels are required", path);
     if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
         return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' has unsupported size %dx%dx%d with %d channel(s)", path,
                             spec.width, spec.height, spec.depth, spec.nchannels);
     const uint64_t w = (uint64_t)spec.width, h = (uint64_t)spec.height, c = (uint64_t)spec.nchannels;
-    // w, h, c < 2^31 each: w*h < 2^62 fits; then check the channel and byte products.
-    const uint64_t pixels = w * h;
-    if (pixels > std::numeric_limits<size_t>::max() / sizeof(float) / c)
-        return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' is too large (%dx%d, %d channels)", path, spec.width,
-                            spec.height, spec.nchannels);
-    const size_t count = (size_t)(pixels * c);
+    // w, h, c < 2^31 each: w*h < 2^62 fits; w*h*c is only formed once w*h and c are bounded.
+    if (w > PB_IMAGE_MAX_DIM || h > PB_IMAGE_MAX_DIM || c > PB_IMAGE_MAX_CHANNELS || w * h * c > PB_IMAGE_MAX_VALUES ||
+        w * h * c > std::numeric_limits<size_t>::max() / sizeof(float))
+        return pb_error_set(err, PB_ERROR_TOO_LARGE,
+                            "image '%s' is too large: %dx%d with %d channel(s); the limits are %u pixels per side, "
+                            "%u channels and %llu values (width x height x channels)",
+                            path, spec.width, spec.height, spec.nchannels, PB_IMAGE_MAX_DIM, PB_IMAGE_MAX_CHANNELS,
+                            (unsigned long long)PB_IMAGE_MAX_VALUES);
+    const size_t count = (size_t)(w * h * c);
     float *data = static_cast<float *>(std::malloc(count * sizeof(float)));
     if (!data)
         return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory reading '%s' (%dx%d, %d channels)", path,

@@ -10,6 +10,8 @@
 
 #include "schnee/pb_sh.h"
 
+#include "pb_file.h"
+
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -131,6 +133,15 @@ static pb_result layout_compute(uint32_t version, uint32_t probe_count, uint32_t
     pb_error local = {0};
     if (grid_cell_count(dims, &lay->grid_cells, &local) != PB_SUCCESS)
         return pb_error_set(err, local.code == PB_ERROR_TOO_LARGE ? fail : local.code, "%s", local.message);
+    /* Documented limits (pb_shprobe.h): checked before any size is used. */
+    if (probe_count > PB_SHPROBE_MAX_PROBES)
+        return pb_error_set(err, PB_ERROR_TOO_LARGE, "probe count %u (offset %u) is above the limit of %u probes",
+                            probe_count, lay->fields->count, PB_SHPROBE_MAX_PROBES);
+    if (lay->grid_cells > PB_SHPROBE_MAX_GRID_CELLS)
+        return pb_error_set(err, PB_ERROR_TOO_LARGE,
+                            "grid %u x %u x %u = %llu cells (offset %u) is above the limit of %llu cells", dims[0],
+                            dims[1], dims[2], (unsigned long long)lay->grid_cells, lay->fields->dims,
+                            (unsigned long long)PB_SHPROBE_MAX_GRID_CELLS);
     /* Coefficient vec4s plus one vec4 (scale, ambient, validity, 0). */
     lay->record_size = 16u * ((uint64_t)lay->disk_coeffs + 1u);
     lay->records_offset = header;
@@ -327,12 +338,11 @@ static pb_result parse_header(const uint8_t *data, size_t avail, uint64_t file_s
     if (file_size < 4 || avail < 4)
         return pb_error_set(err, PB_ERROR_FORMAT, "truncated: %llu bytes, the magic at offset 0 needs 4",
                             (unsigned long long)file_size);
-    uint32_t magic = get_u32(data);
-    if (magic != PB_SHPROBE_MAGIC)
+    /* The value found is not quoted: it would echo 4 bytes of a file that is not ours. */
+    if (get_u32(data) != PB_SHPROBE_MAGIC)
         return pb_error_set(err, PB_ERROR_FORMAT,
-                            "bad magic 0x%08X at offset 0, expected 0x%08X (bytes \"SPHR\"); not a "
-                            ".shprobe file",
-                            magic, PB_SHPROBE_MAGIC);
+                            "not a .shprobe file (bad magic: it does not start with \"SPHR\" = 0x%08X)",
+                            PB_SHPROBE_MAGIC);
     if (file_size < 8 || avail < 8)
         return pb_error_set(err, PB_ERROR_FORMAT, "truncated: %llu bytes, the version at offset 4 needs 8",
                             (unsigned long long)file_size);
@@ -449,53 +459,31 @@ static void describe_errno(int e, char *buf, size_t n)
     if (strerror_r(e, buf, n) != 0) snprintf(buf, n, "errno %d", e);
 }
 
-/* Opens a regular file for reading and reports its size. */
-static pb_result open_regular(const char *path, int *fd_out, uint64_t *size_out, pb_error *err)
-{
-    char why[128];
-    int fd = open(path, O_RDONLY);
-    if (fd < 0) {
-        describe_errno(errno, why, sizeof why);
-        return pb_error_set(err, PB_ERROR_IO, "%s: cannot open: %s", path, why);
-    }
-    struct stat st;
-    if (fstat(fd, &st) != 0) {
-        describe_errno(errno, why, sizeof why);
-        close(fd);
-        return pb_error_set(err, PB_ERROR_IO, "%s: cannot stat: %s", path, why);
-    }
-    if (!S_ISREG(st.st_mode)) {
-        close(fd);
-        return pb_error_set(err, PB_ERROR_IO, "%s: not a regular file", path);
-    }
-    *fd_out = fd;
-    *size_out = (uint64_t)st.st_size;
-    return PB_SUCCESS;
-}
-
-/* Reads up to n bytes (fewer only at end of file). */
-static pb_result read_full(int fd, const char *path, uint8_t *buf, size_t n, size_t *got, pb_error *err)
-{
-    size_t done = 0;
-    while (done < n) {
-        ssize_t k = read(fd, buf + done, n - done);
-        if (k < 0 && errno == EINTR) continue;
-        if (k < 0) {
-            char why[128];
-            describe_errno(errno, why, sizeof why);
-            return pb_error_set(err, PB_ERROR_IO, "%s: read failed: %s", path, why);
-        }
-        if (k == 0) break;
-        done += (size_t)k;
-    }
-    *got = done;
-    return PB_SUCCESS;
-}
-
 /* Re-reports a format/validation error with the file name in front. */
 static pb_result prefix_path(pb_result r, const char *path, const pb_error *local, pb_error *err)
 {
     return pb_error_set(err, r, "%s: %s", path, local->message);
+}
+
+/* Opens `path` (regular files only, never blocking), reads the header bytes and validates the header
+ * against the file size. On success *fd is open and positioned after `*got` header bytes. */
+static pb_result open_and_parse_header(const char *path, int *fd, uint8_t head[V2_HEADER_SIZE], size_t *got,
+                                       pb_shprobe *h, layout *lay, pb_error *err)
+{
+    uint64_t size;
+    pb_result r = pb_open_regular_(path, "a .shprobe file", fd, &size, err);
+    if (r != PB_SUCCESS) return r;
+    r = pb_read_full_(*fd, path, head, V2_HEADER_SIZE, got, err);
+    if (r == PB_SUCCESS) {
+        pb_error local = {0};
+        r = parse_header(head, *got, size, h, lay, &local);
+        if (r != PB_SUCCESS) prefix_path(r, path, &local, err);
+    }
+    if (r != PB_SUCCESS) {
+        close(*fd);
+        *fd = -1;
+    }
+    return r;
 }
 
 pb_result pb_shprobe_read(const char *path, pb_shprobe **out, pb_error *err)
@@ -503,26 +491,27 @@ pb_result pb_shprobe_read(const char *path, pb_shprobe **out, pb_error *err)
     if (!path || !out) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_read: NULL argument");
     *out = NULL;
     int fd;
-    uint64_t size;
-    pb_result r = open_regular(path, &fd, &size, err);
+    uint8_t head[V2_HEADER_SIZE];
+    size_t got = 0;
+    pb_shprobe h;
+    layout lay;
+    pb_result r = open_and_parse_header(path, &fd, head, &got, &h, &lay, err);
     if (r != PB_SUCCESS) return r;
-    if (size > (uint64_t)SIZE_MAX - 1u) {
-        close(fd);
-        return pb_error_set(err, PB_ERROR_TOO_LARGE, "%s: %llu bytes do not fit memory", path,
-                            (unsigned long long)size);
-    }
-    uint8_t *buf = malloc((size_t)size + 1u);
+    /* The header matched the file size exactly and the limits, so this is what the data needs. */
+    size_t total = (size_t)lay.total_size;
+    uint8_t *buf = malloc(total > got ? total : got);
     if (!buf) {
         close(fd);
         return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "%s: out of memory for %llu bytes", path,
-                            (unsigned long long)size);
+                            (unsigned long long)lay.total_size);
     }
-    size_t got = 0;
-    r = read_full(fd, path, buf, (size_t)size, &got, err);
+    memcpy(buf, head, got);
+    size_t rest = 0;
+    if (total > got) r = pb_read_full_(fd, path, buf + got, total - got, &rest, err);
     close(fd);
     if (r == PB_SUCCESS) {
         pb_error local = {0};
-        r = pb_shprobe_read_memory(buf, got, out, &local);
+        r = pb_shprobe_read_memory(buf, got + rest, out, &local);
         if (r != PB_SUCCESS) prefix_path(r, path, &local, err);
     }
     free(buf);
@@ -535,19 +524,13 @@ pb_result pb_shprobe_read_header(const char *path, pb_shprobe *out_header, pb_er
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_read_header: NULL argument");
     memset(out_header, 0, sizeof *out_header);
     int fd;
-    uint64_t size;
-    pb_result r = open_regular(path, &fd, &size, err);
-    if (r != PB_SUCCESS) return r;
-    uint8_t buf[V2_HEADER_SIZE];
+    uint8_t head[V2_HEADER_SIZE];
     size_t got = 0;
-    r = read_full(fd, path, buf, sizeof buf, &got, err);
-    close(fd);
-    if (r != PB_SUCCESS) return r;
     pb_shprobe h;
     layout lay;
-    pb_error local = {0};
-    r = parse_header(buf, got, size, &h, &lay, &local);
-    if (r != PB_SUCCESS) return prefix_path(r, path, &local, err);
+    pb_result r = open_and_parse_header(path, &fd, head, &got, &h, &lay, err);
+    if (r != PB_SUCCESS) return r;
+    close(fd);
     *out_header = h;
     return PB_SUCCESS;
 }
@@ -629,6 +612,50 @@ static uint8_t *serialize(const pb_shprobe *p, const layout *lay)
     return b;
 }
 
+/* Whether `path` may be replaced: it does not exist, or it is a regular file (not a symbolic link)
+ * that starts with the .shprobe magic. Anything else is refused without being opened (a device,
+ * FIFO, socket or directory) or after reading its first 4 bytes only (a regular file). */
+static pb_result check_destination(const char *path, pb_error *err)
+{
+    char why[128];
+    struct stat st;
+    if (lstat(path, &st) != 0) {
+        if (errno == ENOENT) return PB_SUCCESS;
+        describe_errno(errno, why, sizeof why);
+        return pb_error_set(err, PB_ERROR_IO, "cannot write %s: cannot check what is there: %s", path, why);
+    }
+    if (S_ISLNK(st.st_mode))
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                            "refusing to write %s: it is a symbolic link (writing would replace the link, not "
+                            "the file it points to); write to the target path instead",
+                            path);
+    if (!S_ISREG(st.st_mode))
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                            "refusing to write %s: it exists and is a %s, not a .shprobe file; only a new path "
+                            "or an existing .shprobe file is written",
+                            path, pb_file_kind_(st.st_mode));
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY | O_NOFOLLOW);
+    if (fd < 0) {
+        describe_errno(errno, why, sizeof why);
+        return pb_error_set(err, PB_ERROR_IO,
+                            "refusing to write %s: it exists and cannot be read to check that it is a .shprobe "
+                            "file: %s",
+                            path, why);
+    }
+    uint8_t magic[4] = {0};
+    size_t got = 0;
+    pb_error local = {0};
+    bool regular = fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
+    pb_result r = regular ? pb_read_full_(fd, path, magic, sizeof magic, &got, &local) : PB_ERROR_IO;
+    close(fd);
+    if (r != PB_SUCCESS || got < sizeof magic || get_u32(magic) != PB_SHPROBE_MAGIC)
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                            "refusing to replace %s: it exists and is not a .shprobe file (it does not start "
+                            "with the .shprobe magic); remove it or choose another output path",
+                            path);
+    return PB_SUCCESS;
+}
+
 /* Temp file in the same folder, write, fsync, rename; the temp is removed on any failure. */
 static pb_result write_atomic(const char *path, const uint8_t *data, size_t size, pb_error *err)
 {
@@ -659,6 +686,15 @@ static pb_result write_atomic(const char *path, const uint8_t *data, size_t size
         int c = close(fd);
         fd = -1;
         if (c != 0) goto fail;
+    }
+    /* Checked again just before the rename: something may have appeared there while writing. */
+    {
+        pb_result again = check_destination(path, err);
+        if (again != PB_SUCCESS) {
+            unlink(tmp);
+            free(tmp);
+            return again;
+        }
     }
     step = "rename the temporary file onto";
     if (rename(tmp, path) != 0) goto fail;
@@ -709,6 +745,8 @@ pb_result pb_shprobe_write(const char *path, const pb_shprobe *probes, pb_error 
     if (r == PB_SUCCESS) r = check_header_values(p, &lay, PB_ERROR_INVALID_ARGUMENT, &local);
     if (r == PB_SUCCESS) r = check_contents(p, &lay, PB_ERROR_INVALID_ARGUMENT, &local);
     if (r != PB_SUCCESS) return pb_error_set(err, r, "cannot write %s: %s", path, local.message);
+    r = check_destination(path, err);
+    if (r != PB_SUCCESS) return r;
 
     uint8_t *bytes = serialize(p, &lay);
     if (!bytes)

@@ -336,15 +336,19 @@ static void test_read_rejects(void)
     const reject_case cases[] = {
         {1, SIZE_MAX, 0, -(long)n1, PB_ERROR_FORMAT, "truncated: 0 bytes, the magic at offset 0"},
         {1, SIZE_MAX, 0, 3 - (long)n1, PB_ERROR_FORMAT, "truncated: 3 bytes"},
-        {1, 0, 0x52504853u, 0, PB_ERROR_FORMAT, "bad magic 0x52504853 at offset 0"},
+        {1, 0, 0x52504853u, 0, PB_ERROR_FORMAT, "not a .shprobe file (bad magic: it does not start with \"SPHR\""},
         {1, SIZE_MAX, 0, 6 - (long)n1, PB_ERROR_FORMAT, "the version at offset 4"},
         {1, 4, 3, 0, PB_ERROR_FORMAT, "unknown version 3 at offset 4"},
         {1, 4, 0, 0, PB_ERROR_FORMAT, "unknown version 0 at offset 4"},
         {1, SIZE_MAX, 0, 47 - (long)n1, PB_ERROR_FORMAT, "the version 1 header needs 48"},
         {1, SIZE_MAX, 0, -1, PB_ERROR_FORMAT, "truncated: 415 bytes, but 2 probes"},
         {1, SIZE_MAX, 0, 1, PB_ERROR_FORMAT, "1 bytes of trailing data after the grid, which ends at offset 416"},
-        {1, 8, 0xFFFFFFFFu, 0, PB_ERROR_FORMAT, "truncated: 416 bytes, but 4294967295 probes"},
-        {1, 12, 0xFFFFFFFFu, 0, PB_ERROR_FORMAT, "truncated"},
+        {1, 8, 0xFFFFFFFFu, 0, PB_ERROR_TOO_LARGE, "probe count 4294967295 (offset 8) is above the limit of 16777216"},
+        {1, 8, (1u << 24) + 1u, 0, PB_ERROR_TOO_LARGE, "probe count 16777217 (offset 8) is above the limit"},
+        {1, 8, 1u << 24, 0, PB_ERROR_FORMAT, "truncated: 416 bytes, but 16777216 probes"}, /* at the limit */
+        {1, 12, 0xFFFFFFFFu, 0, PB_ERROR_TOO_LARGE, "grid 4294967295 x 2 x 2 = 17179869180 cells (offset 12) is above"},
+        {1, 12, 1u << 26, 0, PB_ERROR_FORMAT, "truncated"}, /* 2^26 x 2 x 2 = 2^28 cells: at the limit */
+        {1, 12, (1u << 26) + 1u, 0, PB_ERROR_TOO_LARGE, "268435460 cells (offset 12) is above the limit of 268435456"},
         {1, 16, 0, 0, PB_ERROR_FORMAT, "grid dim Y at offset 16 is 0"},
         {1, 24, nan_bits, 0, PB_ERROR_NON_FINITE, "grid origin[0] is nan (offset 24)"},
         {1, 36, inf_bits, 0, PB_ERROR_NON_FINITE, "grid spacing is inf (offset 36)"},
@@ -400,9 +404,9 @@ static void test_read_rejects(void)
         if (big_z) le_u32(buf, 20, 0x80000000u);
         pb_shprobe *out = NULL;
         memset(&err, 0, sizeof err);
-        TU_CHECK_EQ_INT(pb_shprobe_read_memory(buf, n1, &out, &err), PB_ERROR_FORMAT);
+        TU_CHECK_EQ_INT(pb_shprobe_read_memory(buf, n1, &out, &err), big_z ? PB_ERROR_FORMAT : PB_ERROR_TOO_LARGE);
         TU_CHECK_CONTAINS(err.message, big_z ? "grid dims 2147483648 x 2147483648 x 2147483648 overflow"
-                                             : "file size overflows: 2 probes, grid 2147483648 x 2147483648 x 2");
+                                             : "grid 2147483648 x 2147483648 x 2 = 9223372036854775808 cells");
         TU_CHECK(out == NULL);
         free(buf);
     }
@@ -450,15 +454,15 @@ static void test_atomic_write(void)
     p->coeffs[0] = NAN;
     TU_CHECK_EQ_INT(pb_shprobe_write(path, p, &err), PB_ERROR_NON_FINITE);
     p->coeffs[0] = 7.0f;
-    /* 2. The rename fails (the target is a non-empty directory): the temp file is removed. */
+    /* 2. The target is a non-empty directory: refused before a temp file is made (issue 14). */
     char dir_target[300], inner[320];
     path_in_tmp(dir_target, sizeof dir_target, "occupied");
     mkdir(dir_target, 0755);
     snprintf(inner, sizeof inner, "%s/keep", dir_target);
     write_all(inner, "x", 1);
     memset(&err, 0, sizeof err);
-    TU_CHECK_EQ_INT(pb_shprobe_write(dir_target, p, &err), PB_ERROR_IO);
-    TU_CHECK_CONTAINS(err.message, "cannot rename the temporary file onto it");
+    TU_CHECK_EQ_INT(pb_shprobe_write(dir_target, p, &err), PB_ERROR_INVALID_ARGUMENT);
+    TU_CHECK_CONTAINS(err.message, "occupied: it exists and is a directory, not a .shprobe file");
     TU_CHECK_EQ_INT(count_temp_files(), 0);
     /* 3. The folder does not exist: no temp file can be created. */
     char bad[300];

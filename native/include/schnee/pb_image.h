@@ -14,7 +14,17 @@ typedef struct pb_image {
     float *pixels;                    /* width * height * channels, owned; free with pb_image_free */
 } pb_image;
 
-/* Reads any format OpenImageIO knows as 32-bit float, converted to linear as stored in the file. */
+/* Documented limits of pb_image_read (docs/python-api.md, "Limits"), checked on the file size and on
+ * the image header before any pixel is allocated or read; larger inputs fail with PB_ERROR_TOO_LARGE. */
+#define PB_IMAGE_MAX_FILE_BYTES (UINT64_C(1) << 32) /* 4 GiB on disk */
+#define PB_IMAGE_MAX_DIM        65536u              /* pixels per side */
+#define PB_IMAGE_MAX_CHANNELS   64u
+#define PB_IMAGE_MAX_VALUES     (UINT64_C(1) << 29) /* width x height x channels: 2 GiB of float */
+
+/* Reads an EXR, HDR, PNG, JPEG, TIFF or PFM file (chosen by content, else by extension; other
+ * formats OpenImageIO knows by extension) as 32-bit float, converted to linear as stored in the
+ * file. Opens without blocking, regular files only (a FIFO, device, directory or symbolic-link loop
+ * fails at once with PB_ERROR_IO), and checks the limits above before reading pixels. */
 pb_result pb_image_read(const char *path, pb_image *out, pb_error *err);
 
 /* Writes `pixels` (row 0 at the top). The format follows the extension: .exr keeps float values;

@@ -19,6 +19,12 @@ extern "C" {
 
 #define PB_SHPROBE_MAGIC 0x52485053u /* bytes on disk "SPHR" */
 
+/* Documented limits (docs/shprobe-format.md, "Limits"): a header above them is refused with
+ * PB_ERROR_TOO_LARGE after reading the header only (nothing allocated), and the writer refuses to
+ * produce such a file. At the limits a band-4 file with positions is about 8.3 GB. */
+#define PB_SHPROBE_MAX_PROBES     (UINT32_C(1) << 24) /* 16 777 216 probes */
+#define PB_SHPROBE_MAX_GRID_CELLS (UINT64_C(1) << 28) /* 268 435 456 cells = 1 GiB of int32 */
+
 typedef struct pb_shprobe {
     uint32_t version; /* version read, or to write: 0 = smallest that holds the data
                                 (1 for max_band <= 2 without positions, identity axes and every
@@ -48,10 +54,18 @@ pb_result pb_shprobe_create(uint32_t probe_count, uint32_t max_band, const uint3
                             pb_shprobe **out, pb_error *err);
 
 /* Validates like the reader (finite values, grid entries in [−1, count), spacing > 0, ...), then
- * writes atomically. NULL probe_scale = all 1, NULL probe_ambient = all default_ambient. */
+ * writes atomically. NULL probe_scale = all 1, NULL probe_ambient = all default_ambient.
+ * Never replaces what is not a .shprobe: when `path` exists it must be a regular file whose first
+ * 4 bytes are the magic; a directory, device, FIFO, socket, symbolic link (decided: refused, not
+ * followed — rename would replace the link itself) or any other file is refused with
+ * PB_ERROR_INVALID_ARGUMENT naming the path, and nothing is written. */
 pb_result pb_shprobe_write(const char *path, const pb_shprobe *probes, pb_error *err);
 pb_result pb_shprobe_read(const char *path, pb_shprobe **out, pb_error *err);
 pb_result pb_shprobe_read_memory(const void *data, size_t size, pb_shprobe **out, pb_error *err);
+
+/* The file readers open without blocking and read regular files only (a FIFO, device, directory or
+ * symbolic-link loop fails at once with PB_ERROR_IO), check the header first and then read exactly
+ * the size it implies (limits above). Errors never quote the content of a file that is not ours. */
 
 /* Reads and validates only the header (for exporters): fills every scalar field, array pointers NULL. */
 pb_result pb_shprobe_read_header(const char *path, pb_shprobe *out_header, pb_error *err);
