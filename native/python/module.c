@@ -15,6 +15,7 @@
 #include "schnee/pb_sh.h"
 #include "schnee/pb_shprobe.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -448,17 +449,45 @@ static PyObject *placement_dict(const pb_placement *p)
     return d;
 }
 
+/* An optional length in metres: omitted or None = the core default (0 in the desc); given, it must
+ * be a positive finite number (0 is refused here: in Python it is a mistake, not "default"). */
+static int get_length(PyObject *obj, const char *name, double *out)
+{
+    *out = 0.0;
+    if (!obj || obj == Py_None) return 0;
+    double v = PyFloat_AsDouble(obj);
+    if (v == -1.0 && PyErr_Occurred()) return -1;
+    if (!(v > 0.0) || !isfinite(v)) {
+        char text[64];
+        if (isnan(v))
+            snprintf(text, sizeof text, "nan");
+        else
+            snprintf(text, sizeof text, "%g", v);
+        PyErr_Format(PyExc_ValueError,
+                     "%s must be a positive finite length in metres, got %s (omit it for the default)", name, text);
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
 static PyObject *py_place_probes(PyObject *module, PyObject *args, PyObject *kw)
 {
     static char *kwlist[] = {"volumes",  "geometry",        "min_cell_size",        "max_cell_size",  "threads",
                              "progress", "solid_ray_count", "solid_backface_ratio", "max_grid_cells", NULL};
-    PyObject *vol_obj, *geo_obj, *progress = Py_None;
+    PyObject *vol_obj, *geo_obj, *progress = Py_None, *min_obj = NULL, *max_obj = NULL;
     double min_cell = 0.0, max_cell = 0.0, backface = 0.0;
     Py_ssize_t threads = 0, rays = 0;
-    unsigned long long max_cells = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO|ddnOndK:place_probes", kwlist, &vol_obj, &geo_obj, &min_cell,
-                                     &max_cell, &threads, &progress, &rays, &backface, &max_cells))
+    long long max_cells = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO|OOnOndL:place_probes", kwlist, &vol_obj, &geo_obj, &min_obj,
+                                     &max_obj, &threads, &progress, &rays, &backface, &max_cells))
         return NULL;
+    if (get_length(min_obj, "min_cell_size", &min_cell) < 0 || get_length(max_obj, "max_cell_size", &max_cell) < 0)
+        return NULL;
+    if (max_cells < 0)
+        return PyErr_Format(PyExc_ValueError,
+                            "max_grid_cells must be 0 (the default limit) or a positive cell count, got %lld",
+                            max_cells);
     uint32_t threads32, rays32;
     if (check_u32(threads, "threads", &threads32) < 0 || check_u32(rays, "solid_ray_count", &rays32) < 0) return NULL;
     if (progress != Py_None && !PyCallable_Check(progress))
@@ -479,7 +508,7 @@ static PyObject *py_place_probes(PyObject *module, PyObject *args, PyObject *kw)
     desc.max_cell_size = max_cell;
     desc.solid_ray_count = rays32;
     desc.solid_backface_ratio = backface;
-    desc.max_grid_cells = max_cells;
+    desc.max_grid_cells = (uint64_t)max_cells;
     desc.thread_count = threads32;
     if (progress != Py_None) {
         desc.progress = progress_trampoline;
@@ -759,8 +788,9 @@ static PyMethodDef methods[] = {
     {"window", py_window, METH_VARARGS,
      "window(coeffs: float64[count*3], max_band, kind, strength) -> (bytearray, (min_r, min_g, min_b))"},
     {"place_probes", (PyCFunction)(void (*)(void))py_place_probes, METH_VARARGS | METH_KEYWORDS,
-     "place_probes(volumes, geometry, min_cell_size=0, max_cell_size=0, threads=0, progress=None, "
-     "solid_ray_count=0, solid_backface_ratio=0, max_grid_cells=0) -> dict"},
+     "place_probes(volumes, geometry, min_cell_size=None, max_cell_size=None, threads=0, progress=None, "
+     "solid_ray_count=0, solid_backface_ratio=0, max_grid_cells=0) -> dict; sizes in metres, None = default "
+     "(0, negative, NaN, Inf refused), max_grid_cells 0 = default limit (negative refused)"},
     {"shprobe_write", (PyCFunction)(void (*)(void))py_shprobe_write, METH_VARARGS | METH_KEYWORDS,
      "shprobe_write(path, coeffs, max_band, grid, grid_dims, grid_origin, grid_spacing, "
      "default_sh_scale=1, default_ambient=0.1, positions=None, probe_scale=None, probe_ambient=None, "

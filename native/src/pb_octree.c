@@ -26,6 +26,10 @@
  */
 #include "schnee/pb_octree.h"
 
+#include "schnee/pb_shprobe.h"
+
+#include "pb_file.h"
+
 #include <embree3/rtcore.h>
 #include <float.h>
 #include <math.h>
@@ -503,10 +507,16 @@ static pb_result check_mesh(oct_ctx *c, const pb_mesh_desc *m, const char *kind,
                                 kind, mesh_name(m), index, i / 3, m->indices[i], m->vertex_count);
     }
     for (size_t i = 0; i < 3 * (size_t)m->vertex_count; i++) {
-        if (!isfinite(m->positions[i]))
+        if (!isfinite(m->positions[i])) {
+            /* Every coordinate of the vertex, NaN and Inf spelled as such (never "-nan"). */
+            const double *v = m->positions + 3 * (i / 3);
+            char b[3][32];
             return pb_error_set(c->err, PB_ERROR_NON_FINITE,
-                                "%s '%s' (#%u): vertex %zu has a non-finite coordinate (%g)", kind, mesh_name(m), index,
-                                i / 3, m->positions[i]);
+                                "%s '%s' (#%u): vertex %zu = (%s, %s, %s) has a non-finite %c coordinate (%s)", kind,
+                                mesh_name(m), index, i / 3, pb_format_double_(v[0], b[0], sizeof b[0]),
+                                pb_format_double_(v[1], b[1], sizeof b[1]), pb_format_double_(v[2], b[2], sizeof b[2]),
+                                "xyz"[i % 3], isnan(m->positions[i]) ? "NaN" : "infinite");
+        }
         if (fabs(m->positions[i]) > 1e15)
             return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
                                 "%s '%s' (#%u): vertex %zu coordinate %g is out of range (|x| > 1e15 m)", kind,
@@ -561,6 +571,14 @@ static pb_result check_closed(oct_ctx *c, const pb_mesh_desc *m, uint32_t index)
     return PB_SUCCESS;
 }
 
+/* A cell count for messages: exact below 10^9, else 4 significant digits (a 1e-300 m cell size
+ * must not print a 300-digit number). */
+static const char *count_text(double v, char *buf, size_t n)
+{
+    snprintf(buf, n, v < 1e9 ? "%.0f" : "%.4g", v);
+    return buf;
+}
+
 static pb_result setup(oct_ctx *c)
 {
     const pb_placement_desc *d = c->desc;
@@ -592,6 +610,12 @@ static pb_result setup(oct_ctx *c)
                             "solid_backface_ratio must be in (0, 1] (got %g; 1 disables pruning)",
                             d->solid_backface_ratio);
     c->max_cells = d->max_grid_cells == 0 ? PB_DEFAULT_MAX_GRID_CELLS : d->max_grid_cells;
+    if (c->max_cells > PB_SHPROBE_MAX_GRID_CELLS)
+        return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
+                            "max_grid_cells %llu is above the hard limit of %llu cells (%.4g GiB), the largest grid a "
+                            ".shprobe file holds",
+                            (unsigned long long)d->max_grid_cells, (unsigned long long)PB_SHPROBE_MAX_GRID_CELLS,
+                            (double)PB_SHPROBE_MAX_GRID_CELLS * 4.0 / 1073741824.0);
     uint32_t threads = d->thread_count;
     if (threads == 0) {
         long n = sysconf(_SC_NPROCESSORS_ONLN);
@@ -658,14 +682,25 @@ static pb_result setup(oct_ctx *c)
     }
     c->eps = PB_BOX_EPS * c->min_cell;
     if (overflow || total > c->max_cells || total > SIZE_MAX / sizeof(int32_t)) {
-        double cells = want[0] * want[1] * want[2];
-        double suggest = c->min_cell * cbrt(cells / (double)c->max_cells) * 1.01;
+        double cells = want[0] * want[1] * want[2]; /* may be inf for absurd sizes: printed as such */
+        /* min·cbrt(X·Y·Z / limit), factor by factor so that it does not overflow. */
+        double suggest =
+            c->min_cell * cbrt(want[0]) * cbrt(want[1]) * cbrt(want[2]) / cbrt((double)c->max_cells) * 1.01;
+        char dx[32], dy[32], dz[32], total_text[48], mib_text[48];
+        if (isfinite(cells)) {
+            snprintf(total_text, sizeof total_text, "%.4g", cells);
+            snprintf(mib_text, sizeof mib_text, "%.4g", cells * 4.0 / 1048576.0);
+        } else {
+            snprintf(total_text, sizeof total_text, "more than 1e308");
+            snprintf(mib_text, sizeof mib_text, "more than 1e302");
+        }
         return pb_error_set(c->err, PB_ERROR_TOO_LARGE,
-                            "the occupancy grid would have %.0f x %.0f x %.0f = %.4g cells "
-                            "(%.4g MiB) at Min Cell Size %g m, above the limit of %llu cells "
+                            "the occupancy grid would have %s x %s x %s = %s cells "
+                            "(%s MiB) at Min Cell Size %g m, above the limit of %llu cells "
                             "(%.4g MiB); use a larger Min Cell Size (about %.3g m or more) or "
                             "smaller probe volumes",
-                            want[0], want[1], want[2], cells, cells * 4.0 / 1048576.0, c->min_cell,
+                            count_text(want[0], dx, sizeof dx), count_text(want[1], dy, sizeof dy),
+                            count_text(want[2], dz, sizeof dz), total_text, mib_text, c->min_cell,
                             (unsigned long long)c->max_cells, (double)c->max_cells * 4.0 / 1048576.0, suggest);
     }
     return PB_SUCCESS;
@@ -1301,6 +1336,13 @@ static pb_result place(oct_ctx *c, pb_placement *out)
                          "no probe could be placed: no occupancy-grid cell centre (spacing %g m) lies "
                          "inside the probe volumes; are the volumes thinner than Min Cell Size?",
                          c->min_cell);
+        goto done;
+    }
+    if (kept > PB_SHPROBE_MAX_PROBES) {
+        r = pb_error_set(c->err, PB_ERROR_TOO_LARGE,
+                         "%u probes are above the limit of %u probes a .shprobe file holds; use a larger Min "
+                         "Cell Size or smaller probe volumes",
+                         kept, PB_SHPROBE_MAX_PROBES);
         goto done;
     }
     if (kept != nprobe)

@@ -1,6 +1,8 @@
 /* Real spherical harmonics L = 0..4 (DESIGN.md §3): basis, equirect projection, irradiance,
  * ringing windows. See docs/sh.md for the derivations behind the choices below. */
 #include "schnee/pb_sh.h"
+
+#include "pb_file.h"
 #include "schnee/pb_image.h"
 
 #include <float.h>
@@ -210,11 +212,13 @@ static pb_result pb_sh_report_pixel_(const float *p, uint32_t width, uint32_t ch
     for (uint32_t x = 0; x < width; x++)
         for (uint32_t c = 0; c < 3; c++) {
             const float v = p[(size_t)x * ch + c];
-            if (want_nonfinite && !isfinite(v))
+            if (want_nonfinite && !isfinite(v)) {
+                char text[32];
                 return pb_error_set(err, PB_ERROR_NON_FINITE,
-                                    "SH projection: non-finite radiance %g at pixel (x=%u, y=%u), "
+                                    "SH projection: non-finite radiance %s at pixel (x=%u, y=%u), "
                                     "channel %u (%s)",
-                                    (double)v, x, y, c, pb_channel_names_[c]);
+                                    pb_format_double_(v, text, sizeof text), x, y, c, pb_channel_names_[c]);
+            }
             if (!want_nonfinite && v < 0.0f)
                 return pb_error_set(err, PB_ERROR_NEGATIVE,
                                     "SH projection: negative radiance %g at pixel (x=%u, y=%u), "

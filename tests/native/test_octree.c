@@ -2,6 +2,7 @@
  * independent closed-form inside tests and brute-force nearest-probe searches. Geometry is generated
  * here; engine space (Y up), metres. */
 #include "schnee/pb_octree.h"
+#include "schnee/pb_shprobe.h"
 #include "testutil.h"
 
 #include <stdlib.h>
@@ -733,6 +734,55 @@ static void test_too_large(void)
     mesh_free(&vol);
 }
 
+/* Issue 14: a NaN/Inf vertex is named as such with its index and coordinates (a sign-bit NaN was
+ * printed "-nan", an Inf read as "(-nan)" after the add-on's transform); a 1e-300 m cell size gives a
+ * short message (it printed a 300-digit cell count); max_grid_cells past the .shprobe grid limit
+ * (e.g. (uint64_t)-1, which Python's -1 became) is refused; the limit itself is accepted. */
+static void test_messages_and_limits(void)
+{
+    mesh vol = {0};
+    box_at(&vol, 0, 0, 0, 2, 2, 2);
+    pb_mesh_desc v = mesh_desc(&vol, "Vol");
+    pb_placement_desc d = {0};
+    d.volumes = &v;
+    d.volume_count = 1;
+    char want[160];
+    const double keep = vol.pos[4];
+    snprintf(want, sizeof want, "vertex 1 = (%g, inf, %g) has a non-finite y coordinate (infinite)", vol.pos[3],
+             vol.pos[5]);
+    vol.pos[4] = INFINITY;
+    expect_error(&d, PB_ERROR_NON_FINITE, want);
+    vol.pos[4] = -NAN; /* sign bit set: printf's %g gives "-nan" */
+    snprintf(want, sizeof want, "vertex 1 = (%g, nan, %g) has a non-finite y coordinate (NaN)", vol.pos[3], vol.pos[5]);
+    expect_error(&d, PB_ERROR_NON_FINITE, want);
+    pb_placement *p = NULL;
+    pb_error err = {0};
+    TU_CHECK(pb_placement_build(&d, &p, &err) == PB_ERROR_NON_FINITE && strstr(err.message, "-nan") == NULL);
+    vol.pos[4] = keep;
+
+    d.min_cell_size = 1e-300;
+    memset(&err, 0, sizeof err);
+    TU_CHECK_EQ_INT(pb_placement_build(&d, &p, &err), PB_ERROR_TOO_LARGE);
+    /* 2 m / 1e-300 m = 2e300 cells per axis; the suggestion 1e-300 · 2e300 / cbrt(2^26) · 1.01 =
+     * 0.00497 m (computed factor by factor: the cell count itself overflows a double). */
+    TU_CHECK_CONTAINS(err.message, "2e+300 x 2e+300 x 2e+300 = more than 1e308 cells");
+    TU_CHECK_CONTAINS(err.message, "about 0.00497 m or more");
+    TU_CHECK_CONTAINS(err.message, "at Min Cell Size 1e-300 m");
+    TU_CHECK(strlen(err.message) < 400);
+    d.min_cell_size = 0;
+
+    d.max_grid_cells = UINT64_MAX;
+    expect_error(&d, PB_ERROR_INVALID_ARGUMENT,
+                 "max_grid_cells 18446744073709551615 is above the hard limit of 268435456 cells");
+    d.max_grid_cells = PB_SHPROBE_MAX_GRID_CELLS + 1;
+    expect_error(&d, PB_ERROR_INVALID_ARGUMENT, "above the hard limit");
+    d.max_grid_cells = PB_SHPROBE_MAX_GRID_CELLS;
+    p = build(&d, &err);
+    TU_CHECK(p != NULL);
+    pb_placement_destroy(p);
+    mesh_free(&vol);
+}
+
 /* Cancel at every progress call in turn: PB_ERROR_CANCELLED, nothing returned, nothing leaked (the
  * ASan build checks the last part). */
 typedef struct cancel_state {
@@ -806,6 +856,7 @@ int main(void)
     TU_RUN(test_tiny_cells);
     TU_RUN(test_huge_cells);
     TU_RUN(test_too_large);
+    TU_RUN(test_messages_and_limits);
     TU_RUN(test_cancel);
     return TU_EXIT();
 }
