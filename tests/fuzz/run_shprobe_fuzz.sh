@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# Fuzzes the .shprobe reader (native/fuzz/fuzz_shprobe.c) with libFuzzer + ASan + UBSan for a bounded
-# time: SCHNEE_FUZZ_SECONDS (default 60). Builds with clang straight from the two core sources it
-# needs (no OpenImageIO / Embree), seeds the corpus with a valid v1 and v2 file written by the real
-# writer, and exits non-zero on any crash, leak or UB report. Prints one summary line at the end.
+# Fuzzes the .shprobe readers with libFuzzer + ASan + UBSan for a bounded time: the memory reader
+# (native/fuzz/fuzz_shprobe.c) for SCHNEE_FUZZ_SECONDS (default 60), then the file readers against it
+# (native/fuzz/fuzz_shprobe_file.c: pb_shprobe_read / _read_header on the same bytes in a file, issue
+# 14) for half that time. Builds with clang straight from the core sources they need (no
+# OpenImageIO / Embree), seeds the corpus with a valid v1 and v2 file written by the real writer, and
+# exits non-zero on any crash, leak or UB report. Prints one summary line per target.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 seconds="${SCHNEE_FUZZ_SECONDS:-60}"
@@ -12,8 +14,10 @@ CC="${CLANG:-clang}"
 flags=(-std=c11 -g -O1 -Inative/include -Wall -Wextra -Werror -Wno-unused-parameter)
 san=(-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer)
 
-"$CC" "${flags[@]}" "${san[@]}" native/fuzz/fuzz_shprobe.c native/src/pb_shprobe.c \
-  native/src/pb_common.c -lm -o "$work/fuzz_shprobe"
+for target in fuzz_shprobe fuzz_shprobe_file; do
+  "$CC" "${flags[@]}" "${san[@]}" "native/fuzz/$target.c" native/src/pb_shprobe.c \
+    native/src/pb_common.c -lm -o "$work/$target"
+done
 
 # Seeds: a v1 (band 2) and a v2 (band 4, positions, rotated axes, validity) written by the writer.
 cat > "$work/make_seeds.c" <<'SEED'
@@ -49,17 +53,25 @@ SEED
   native/src/pb_common.c -lm -o "$work/make_seeds"
 "$work/make_seeds" "$work/corpus"
 
-log="$work/fuzz.log"
-set +e
-ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  "$work/fuzz_shprobe" "$work/corpus" -max_total_time="$seconds" -max_len=4096 -timeout=10 \
-  -rss_limit_mb=2048 -artifact_prefix="$work/artifacts/" -print_final_stats=1 >"$log" 2>&1
-rc=$?
-set -e
-runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo "?")
-if [ "$rc" -ne 0 ]; then
-  tail -n 60 "$log"
-  echo "fuzz_shprobe: FAILED (exit $rc) after ${runs} runs in <= ${seconds} s; crash input in $work/artifacts/"
-  exit 1
-fi
-echo "fuzz_shprobe: ok, ${runs} runs in ${seconds} s, no crash (corpus $(ls "$work/corpus" | wc -l) files, log $log)"
+# run_target NAME SECONDS: fuzzes on a copy of the seed corpus; exits non-zero on any finding.
+run_target() {
+  local name="$1" secs="$2" log="$work/$1.log" corpus="$work/corpus-$1"
+  mkdir -p "$corpus"
+  cp -n "$work"/corpus/seed_v*.shprobe "$corpus"/
+  set +e
+  ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    "$work/$name" "$corpus" -max_total_time="$secs" -max_len=4096 -timeout=10 \
+    -rss_limit_mb=2048 -artifact_prefix="$work/artifacts/$name-" -print_final_stats=1 >"$log" 2>&1
+  local rc=$?
+  set -e
+  local runs
+  runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo "?")
+  if [ "$rc" -ne 0 ]; then
+    tail -n 60 "$log"
+    echo "$name: FAILED (exit $rc) after ${runs} runs in <= ${secs} s; crash input in $work/artifacts/"
+    exit 1
+  fi
+  echo "$name: ok, ${runs} runs in ${secs} s, no crash (corpus $(ls "$corpus" | wc -l) files, log $log)"
+}
+run_target fuzz_shprobe "$seconds"
+run_target fuzz_shprobe_file "$(( seconds / 2 > 0 ? seconds / 2 : 1 ))"
