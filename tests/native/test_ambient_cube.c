@@ -1,7 +1,7 @@
 /* Ambient cube (pb_ambient_cube.h) against closed forms: the least-squares fit against an
  * independent numerical least-squares solve, and the irradiance of a constant environment, a single
  * directional light and a hemisphere light against the exact irradiance, with the error figures
- * derived in docs/ambient-cube.md §3 (exact fractions, checked with sympy there).
+ * derived in docs/ambient-cube.md §3 (exact fractions; the sympy lines there reproduce the axis-light ones).
  *
  * Error measures (the sweep's, bench/sweep/metrics.py): relative RMS = RMS(E_a − E) / RMS(E) and
  * relative max = max |E_a − E| / RMS(E) over the sphere. RMS by per-octant Gauss–Legendre
@@ -259,7 +259,7 @@ static void test_constant_environment(void)
 }
 
 /* Single directional light along an axis (here +y, and −z for the symmetry): E = max(0, n·d).
- * docs/ambient-cube.md §3.2, exact: least-squares cube C = 19/16 (towards the light), −1/16 (away),
+ * docs/ambient-cube.md §3, exact: least-squares cube C = 19/16 (towards the light), −1/16 (away),
  * 3/32 (the four others); relative RMS √10/16 = 19.76 %, max |error| 3/16 at n = d (relative max
  * 3√6/16 = 45.93 %). Valve's axis samples of the L2 SH: 17/16, 1/16, 3/32; relative RMS
  * √370/80 = 24.04 %, max 163/992 (40.25 %). L2 SH itself: √2/16 = 8.84 %, max 3/32 = 9.4 % of the
@@ -310,7 +310,7 @@ static void test_directional_axis_light(void)
  * C = 0.610844 / −0.110844 (towards / away faces), relative RMS √(5/32) = 39.53 %; axis samples of
  * the L2 SH √(7/40) = 41.83 %; L2 SH unchanged by the rotation (√2/16). The light's terminator is
  * not on the octant boundaries here, so the quadrature converges as O(h²): figures converged to
- * 1e-8 by the 1600-node run of docs/ambient-cube.md §3.2, tolerance 2e-5 at 200 nodes. */
+ * 1e-8 by the 1600-node run of docs/ambient-cube.md §3, tolerance 2e-5 at 200 nodes. */
 static void test_directional_diagonal_light(void)
 {
     const double s = 1.0 / sqrt(3.0), d[3] = {s, s, s};
@@ -336,7 +336,7 @@ static void test_directional_diagonal_light(void)
 
 /* Sky of radiance 1 over the upper hemisphere (y > 0): E(n) = π(1 + n_y)/2 exactly, and its exact
  * radiance SH to L = 2 is L_0 = 2π·Y_0, L_1 (y) = π·K_1 (every other coefficient integrates to 0
- * over the half-sphere), so L2 SH is exact here. docs/ambient-cube.md §3.3: least squares
+ * over the half-sphere), so L2 SH is exact here. docs/ambient-cube.md §3: least squares
  * C = π/2 (x, z faces), 9π/8 (+y), −π/8 (−y), relative RMS 1/8 = 12.5 %; axis samples C = π/2, π,
  * 0, relative RMS √10/20 = 15.81 %; both max |error| π/8 (relative √3/8 = 21.65 %). */
 static void test_hemisphere_light(void)
