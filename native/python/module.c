@@ -11,6 +11,7 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
+#include "schnee/pb_ambient_cube.h"
 #include "schnee/pb_octree.h"
 #include "schnee/pb_sh.h"
 #include "schnee/pb_shprobe.h"
@@ -768,6 +769,58 @@ static PyObject *py_set_error_class(PyObject *module, PyObject *cls)
     Py_RETURN_NONE;
 }
 
+/* ---- ambient cube ----------------------------------------------------------------------------- */
+
+static PyObject *py_ambient_cube_from_sh(PyObject *module, PyObject *args)
+{
+    PyObject *c_obj;
+    long band, fit;
+    if (!PyArg_ParseTuple(args, "Oll:ambient_cube_from_sh", &c_obj, &band, &fit) || check_band(band) < 0) return NULL;
+    const Py_ssize_t per = (Py_ssize_t)pb_sh_count((uint32_t)band) * 3;
+    held_buffer coeffs;
+    if (get_buffer(c_obj, "coeffs", 'd', per, -1, &coeffs) < 0) return NULL;
+    const Py_ssize_t n = coeffs.count / per;
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, n * 18 * 8);
+    pb_error err = {0};
+    pb_result r = PB_SUCCESS;
+    if (out) {
+        double *o = (double *)(void *)PyByteArray_AsString(out);
+        const double *c = coeffs.view.buf;
+        Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < n && r == PB_SUCCESS; i++) r =
+            pb_ambient_cube_from_sh((uint32_t)band, c + per * i, (pb_ambient_cube_fit)fit, o + 18 * i, &err);
+        Py_END_ALLOW_THREADS
+    }
+    release(&coeffs);
+    if (out && r != PB_SUCCESS) {
+        Py_DECREF(out);
+        return raise_core(module, r, &err);
+    }
+    return out;
+}
+
+static PyObject *py_ambient_cube_irradiance(PyObject *module, PyObject *args)
+{
+    PyObject *c_obj, *n_obj;
+    if (!PyArg_ParseTuple(args, "OO:ambient_cube_irradiance", &c_obj, &n_obj)) return NULL;
+    held_buffer cube, normals;
+    if (get_buffer(c_obj, "cube", 'd', 0, 18, &cube) < 0) return NULL;
+    if (get_buffer(n_obj, "normals", 'd', 3, -1, &normals) < 0) {
+        release(&cube);
+        return NULL;
+    }
+    Py_ssize_t n = normals.count / 3;
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, n * 3 * 8);
+    if (out) {
+        double *o = (double *)(void *)PyByteArray_AsString(out);
+        const double *c = cube.view.buf, *nrm = normals.view.buf;
+        Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < n; i++) pb_ambient_cube_irradiance(c, nrm + 3 * i, o + 3 * i);
+        Py_END_ALLOW_THREADS
+    }
+    release(&cube);
+    release(&normals);
+    return out;
+}
+
 static PyObject *py_result_string(PyObject *module, PyObject *args)
 {
     int code;
@@ -801,6 +854,10 @@ static PyMethodDef methods[] = {
     {"shprobe_lookup", (PyCFunction)(void (*)(void))py_shprobe_lookup, METH_VARARGS | METH_KEYWORDS,
      "shprobe_lookup(grid, grid_dims, grid_origin, grid_spacing, probe_count, points: float32[N*3], "
      "grid_axes=None) -> bytearray int32[N]"},
+    {"ambient_cube_from_sh", py_ambient_cube_from_sh, METH_VARARGS,
+     "ambient_cube_from_sh(coeffs: float64[P*count*3], max_band, fit) -> bytearray float64[P*18]"},
+    {"ambient_cube_irradiance", py_ambient_cube_irradiance, METH_VARARGS,
+     "ambient_cube_irradiance(cube: float64[18], normals: float64[N*3]) -> bytearray float64[N*3]"},
     {"result_string", py_result_string, METH_VARARGS, "result_string(code) -> str"},
     {"_set_error_class", py_set_error_class, METH_O,
      "_set_error_class(cls): raise core errors as cls(message) with .code set"},
