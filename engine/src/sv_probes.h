@@ -10,7 +10,7 @@
 #include <stdint.h>
 
 #include "schnee/pb_shprobe.h"
-#include "sv_gpu_types.h"
+#include "sv_gpu.h"
 #include "sv_scene.h"
 
 /* Fallback probe (index 0): a uniform environment of this radiance in every channel, so an object
@@ -58,13 +58,6 @@ uint16_t sv_half_from_float(float f);
  * docs/engine.md "Per-pixel probes". Caller frees both. */
 bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_grid **grids, int32_t **cells,
                          uint32_t *cell_count);
-
-/* Probe view instances: centre + radius, probe[0] = probe-buffer index, probe[1] = grid index. */
-typedef struct sv_gpu_cell {
-    float center_radius[4];
-    uint32_t probe[4];
-} sv_gpu_cell;
-_Static_assert(sizeof(sv_gpu_cell) == 32, "sv_gpu_cell must match probe_cells.vert");
 
 /* One sphere per probe (at its v2 position, else the mean centre of the cells that map to it;
  * radius 0.1 x the grid spacing), then one entry per occupied cell (its centre, for the

@@ -429,34 +429,35 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
     VK_CHECK(vkCreateSampler(dev, &si, NULL, &r->sky_sampler));
 
     const VkShaderStageFlags vf = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
-    VkDescriptorSetLayoutBinding scene_b[] = {
-        {0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, vf, NULL},
-        {1, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {2, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {3, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {5, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT, NULL},
-        {6, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, vf, NULL},
-        {7, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {8, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {9, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {10, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+    /* Set 0; the first 8 are buffers (in the order of bufs[] below), the last 2 images. */
+    VkDescriptorSetLayoutBinding scene_b[SV_SCENE_BINDING_COUNT] = {
+        {SV_BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, vf, NULL},
+        {SV_BINDING_MATERIALS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_PROBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_LIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_CELLS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT, NULL},
+        {SV_BINDING_GRIDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, vf, NULL},
+        {SV_BINDING_CELL_INDEX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_PROBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_SKY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_BRDF_LUT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     };
     VkDescriptorSetLayoutCreateInfo li = {
         .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
-        .bindingCount = 10,
+        .bindingCount = SV_SCENE_BINDING_COUNT,
         .pBindings = scene_b,
     };
     VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->scene_set_layout));
     /* Set 1, per material: separate sets rather than a sampler array, since lavapipe (and Vulkan
      * 1.0 in general) need not support dynamically indexed sampler arrays. */
     VkDescriptorSetLayoutBinding mat_b[2] = {
-        {0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {1, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_BASE_COLOR_TEX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_EMISSIVE_TEX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     };
     li.bindingCount = 2;
     li.pBindings = mat_b;
     VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->material_set_layout));
-    VkDescriptorSetLayoutBinding tone_b = {0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+    VkDescriptorSetLayoutBinding tone_b = {SV_BINDING_HDR, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
                                            VK_SHADER_STAGE_FRAGMENT_BIT, NULL};
     li.bindingCount = 1;
     li.pBindings = &tone_b;
@@ -496,7 +497,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
             tex[0] = texture_slot(g, &g->materials[m].base_color_texture);
             tex[1] = texture_slot(g, &g->materials[m].emissive_texture);
         }
-        VkDescriptorImageInfo ii[2];
+        VkDescriptorImageInfo ii[2]; /* SV_BINDING_BASE_COLOR_TEX, SV_BINDING_EMISSIVE_TEX (consecutive) */
         for (int k = 0; k < 2; ++k) {
             ii[k].sampler = r->sampler;
             ii[k].imageView = tex[k] >= 0 && r->textures[tex[k]].view ? r->textures[tex[k]].view : r->white.view;
@@ -505,7 +506,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
         VkWriteDescriptorSet mw = {
             .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
             .dstSet = r->material_sets[m],
-            .dstBinding = 0,
+            .dstBinding = SV_BINDING_BASE_COLOR_TEX,
             .descriptorCount = 2,
             .descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
             .pImageInfo = ii,
@@ -523,8 +524,8 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
         {r->sky_sampler, r->sky.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
         {r->lut_sampler, r->brdf_lut.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
     };
-    VkWriteDescriptorSet w[10];
-    for (uint32_t i = 0; i < 10; ++i)
+    VkWriteDescriptorSet w[SV_SCENE_BINDING_COUNT];
+    for (uint32_t i = 0; i < SV_SCENE_BINDING_COUNT; ++i)
         w[i] = (VkWriteDescriptorSet){
             .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
             .dstSet = r->scene_set,
@@ -534,7 +535,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
             .pBufferInfo = i < 8 ? &bufs[i] : NULL,
             .pImageInfo = i >= 8 ? &imgs[i - 8] : NULL,
         };
-    vkUpdateDescriptorSets(dev, 10, w, 0, NULL);
+    vkUpdateDescriptorSets(dev, SV_SCENE_BINDING_COUNT, w, 0, NULL);
     return true;
 fail:
     return false;
@@ -574,9 +575,9 @@ static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d)
     };
     VkVertexInputBindingDescription binding = {0, SV_VERTEX_FLOATS * sizeof(float), VK_VERTEX_INPUT_RATE_VERTEX};
     VkVertexInputAttributeDescription attrs[3] = {
-        {0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
-        {1, 0, VK_FORMAT_R32G32B32_SFLOAT, 3 * sizeof(float)},
-        {2, 0, VK_FORMAT_R32G32_SFLOAT, 6 * sizeof(float)},
+        {SV_LOCATION_POSITION, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
+        {SV_LOCATION_NORMAL, 0, VK_FORMAT_R32G32B32_SFLOAT, 3 * sizeof(float)},
+        {SV_LOCATION_UV, 0, VK_FORMAT_R32G32_SFLOAT, 6 * sizeof(float)},
     };
     VkPipelineVertexInputStateCreateInfo vi = {.sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
     if (d->attribute_count) {
@@ -668,9 +669,8 @@ static bool create_pipelines(sv_renderer *r)
     li.pPushConstantRanges = &tone_push;
     VK_CHECK(vkCreatePipelineLayout(dev, &li, NULL, &r->tonemap_layout));
 
-    /* constant_id 0 = SV_HALF_PROBES (gpu_types.glsl). */
     VkBool32 half = r->half_probes ? VK_TRUE : VK_FALSE;
-    VkSpecializationMapEntry entry = {0, 0, sizeof(VkBool32)};
+    VkSpecializationMapEntry entry = {SV_CONSTANT_HALF_PROBES, 0, sizeof(VkBool32)};
     VkSpecializationInfo spec = {1, &entry, sizeof(half), &half};
     pipeline_desc d = {mesh_vert_spv,
                        sizeof(mesh_vert_spv),
@@ -769,7 +769,7 @@ bool sv_renderer_resize(sv_renderer *r, uint32_t width, uint32_t height)
     VkWriteDescriptorSet w = {
         .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
         .dstSet = r->tonemap_set,
-        .dstBinding = 0,
+        .dstBinding = SV_BINDING_HDR,
         .descriptorCount = 1,
         .descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
         .pImageInfo = &img,
@@ -806,7 +806,7 @@ void sv_view_projection(const sv_view *v, float aspect, float m[16])
 }
 
 /* Inverse-transpose of the upper 3x3 as three vec4 columns. */
-static void normal_matrix(const float m[16], float out[12])
+static void normal_matrix(const float m[16], float out[3][4])
 {
     float a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], i = m[10];
     float A = e * i - f * h, B = -(d * i - f * g), C = d * h - e * g;
@@ -817,8 +817,8 @@ static void normal_matrix(const float m[16], float out[12])
     /* inverse-transpose = cofactor matrix / det; column k of it. */
     float cols[3][3] = {{A, B, C}, {D, E, F}, {G, H, I}};
     for (int k = 0; k < 3; ++k) {
-        for (int r = 0; r < 3; ++r) out[k * 4 + r] = cols[k][r] * s;
-        out[k * 4 + 3] = 0.0f;
+        for (int r = 0; r < 3; ++r) out[k][r] = cols[k][r] * s;
+        out[k][3] = 0.0f;
     }
 }
 
@@ -880,9 +880,10 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     vkCmdBeginRendering(cmd, &ri);
     vkCmdSetViewport(cmd, 0, 1, &viewport);
     vkCmdSetScissor(cmd, 0, 1, &scissor);
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 0, 1, &r->scene_set, 0, NULL);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, SV_SET_SCENE, 1, &r->scene_set, 0,
+                            NULL);
     /* Set 1 must be bound for every pipeline of this layout: the default material's set. */
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 1, 1,
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, SV_SET_MATERIAL, 1,
                             &r->material_sets[r->material_count - 1], 0, NULL);
     uint32_t bound_material = r->material_count - 1;
     if (r->has_sky && view->debug_mode == SV_DEBUG_NONE) {
@@ -915,7 +916,7 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
             draw.material_index = r->prim_material[pi];
             if (draw.material_index != bound_material) {
                 bound_material = draw.material_index;
-                vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 1, 1,
+                vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, SV_SET_MATERIAL, 1,
                                         &r->material_sets[bound_material], 0, NULL);
             }
             vkCmdPushConstants(cmd, r->scene_layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,

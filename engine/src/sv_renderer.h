@@ -7,7 +7,7 @@
 #ifndef SV_RENDERER_H
 #define SV_RENDERER_H
 
-#include "sv_gpu_types.h"
+#include "sv_gpu.h"
 #include "sv_probes.h"
 #include "sv_scene.h"
 #include "sv_sky.h"
