@@ -426,7 +426,7 @@ int main(int argc, char **argv)
     double t0 = sv_now_ms();
     if (!sv_scene_load(opt.scene_path, &scene)) return 1;
     double t1 = sv_now_ms();
-    if (!sv_probes_load(scene.gltf, &probes)) {
+    if (!sv_probes_load(&scene.ext, &probes)) {
         sv_scene_destroy(&scene);
         return 1;
     }
@@ -439,13 +439,13 @@ int main(int argc, char **argv)
     sv_sky sky = {0};
     if (!opt.no_sky) {
         double ts = sv_now_ms();
-        if (!sv_sky_load(scene.gltf, &sky)) {
+        if (!sv_sky_load(&scene.ext, &sky)) {
             rc = 1;
             goto done;
         }
         if (sky.present)
-            fprintf(stderr, "schnee-view: sky %s: %ux%u, %u prefiltered mip(s), band %u; %.1f ms\n",
-                    scene.gltf->sky.path, sky.width[0], sky.height[0], sky.mip_count, sky.max_band, sv_now_ms() - ts);
+            fprintf(stderr, "schnee-view: sky %s: %ux%u, %u prefiltered mip(s), band %u; %.1f ms\n", scene.ext.sky.path,
+                    sky.width[0], sky.height[0], sky.mip_count, sky.max_band, sv_now_ms() - ts);
     }
     if (sky_mips_prefix) {
         if (sky.present)

@@ -24,7 +24,7 @@ static const float *file_axes(const pb_shprobe *f)
 }
 
 /* Warns about every field where the glTF entry disagrees with the file it names. */
-static void check_entry(const sv_gltf_probe_grid *e, const pb_shprobe *f, uint32_t index)
+static void check_entry(const sv_ext_probe_grid *e, const pb_shprobe *f, uint32_t index)
 {
     const char *n = e->name[0] ? e->name : e->uri;
     if (e->probe_count != f->probe_count)
@@ -71,18 +71,18 @@ static void check_entry(const sv_gltf_probe_grid *e, const pb_shprobe *f, uint32
             }
 }
 
-bool sv_probes_load(const sv_gltf *gltf, sv_probes *out)
+bool sv_probes_load(const sv_ext *ext, sv_probes *out)
 {
     memset(out, 0, sizeof(*out));
     out->total = 1;
-    if (gltf->probe_grid_count == 0) return true;
-    out->grids = calloc(gltf->probe_grid_count, sizeof(sv_probe_grid));
+    if (ext->probe_grid_count == 0) return true;
+    out->grids = calloc(ext->probe_grid_count, sizeof(sv_probe_grid));
     if (!out->grids) {
         fprintf(stderr, "schnee-view: error: out of memory for probe grids\n");
         return false;
     }
-    for (uint32_t i = 0; i < gltf->probe_grid_count; ++i) {
-        const sv_gltf_probe_grid *e = &gltf->probe_grids[i];
+    for (uint32_t i = 0; i < ext->probe_grid_count; ++i) {
+        const sv_ext_probe_grid *e = &ext->probe_grids[i];
         pb_error err = {0};
         pb_shprobe *f = NULL;
         if (pb_shprobe_read(e->path, &f, &err) != PB_SUCCESS) {

@@ -33,7 +33,7 @@ typedef struct sv_probes {
 /* Reads every grid of the scene. A file that cannot be read or is malformed is an error (message
  * names the grid and the file); an entry that disagrees with its file header is a warning (the
  * file is trusted). */
-bool sv_probes_load(const sv_gltf *gltf, sv_probes *out);
+bool sv_probes_load(const sv_ext *ext, sv_probes *out);
 void sv_probes_destroy(sv_probes *probes);
 
 /* Buffer index for a world-space point (DESIGN.md §7). */

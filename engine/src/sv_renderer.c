@@ -143,7 +143,7 @@ static int32_t texture_slot(const sv_gltf *g, const sv_gltf_texture_ref *ref)
     return ref->texture;
 }
 
-static bool upload_materials(sv_renderer *r, const sv_gltf *g)
+static bool upload_materials(sv_renderer *r, const sv_gltf *g, const sv_ext *ext)
 {
     uint32_t n = g->material_count + 1; /* + the glTF default material */
     sv_gpu_material *m = calloc(n, sizeof(*m));
@@ -151,8 +151,8 @@ static bool upload_materials(sv_renderer *r, const sv_gltf *g)
     for (uint32_t i = 0; i < n; ++i) {
         if (i == g->material_count) { /* glTF spec defaults + DESIGN.md §5 defaults */
             for (int c = 0; c < 4; ++c) m[i].base_color[c] = 1.0f;
-            m[i].sh_scale = 1.0f;
-            m[i].ambient_term = 0.1f;
+            m[i].sh_scale = SV_EXT_DEFAULT_SH_SCALE;
+            m[i].ambient_term = SV_EXT_DEFAULT_AMBIENT_TERM;
             m[i].metallic = 1.0f;
             m[i].roughness = 1.0f;
             m[i].base_color_texture = m[i].emissive_texture = -1;
@@ -162,15 +162,13 @@ static bool upload_materials(sv_renderer *r, const sv_gltf *g)
         const sv_gltf_material *s = &g->materials[i];
         memcpy(m[i].base_color, s->base_color_factor, sizeof(m[i].base_color));
         for (int c = 0; c < 3; ++c) m[i].emissive[c] = s->emissive_factor[c] * s->emissive_strength;
-        m[i].sh_scale = s->sh_scale;
-        m[i].ambient_term = s->ambient_term;
+        m[i].sh_scale = ext->materials[i].sh_scale;
+        m[i].ambient_term = ext->materials[i].ambient_term;
         m[i].metallic = s->metallic_factor;
         m[i].roughness = s->roughness_factor;
         m[i].base_color_texture = texture_slot(g, &s->base_color_texture);
         m[i].emissive_texture = texture_slot(g, &s->emissive_texture);
-        m[i].probe_mode = s->probe_mode == SV_GLTF_PROBE_MODE_OFF     ? SV_PROBE_MODE_OFF
-                          : s->probe_mode == SV_GLTF_PROBE_MODE_PIXEL ? SV_PROBE_MODE_PIXEL
-                                                                      : SV_PROBE_MODE_OBJECT;
+        m[i].probe_mode = ext->materials[i].probe_mode;
     }
     bool ok = sv_buffer_create_with_data(r->ctx, m, n * sizeof(*m), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->materials);
     free(m);
@@ -272,7 +270,7 @@ static bool upload_textures(sv_renderer *r, const sv_gltf *g)
     return true;
 }
 
-static bool upload_lights(sv_renderer *r, const sv_gltf *g)
+static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext)
 {
     uint32_t n = g->light_instance_count;
     sv_gpu_light *l = calloc(n ? n : 1, sizeof(*l));
@@ -291,7 +289,7 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g)
         float scale = 1.0f / fmaxf(0.001f, cosf(s->inner_cone_angle) - cosf(s->outer_cone_angle));
         l[i].spot[0] = scale;
         l[i].spot[1] = -cosf(s->outer_cone_angle) * scale;
-        l[i].spot[2] = s->mode == SV_GLTF_LIGHT_MODE_BAKED ? 1.0f : 0.0f;
+        l[i].spot[2] = ext->light_modes[li->light] == SV_LIGHT_MODE_BAKED ? 1.0f : 0.0f;
     }
     r->light_count = n;
     bool ok =
@@ -742,8 +740,8 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
     r->output_format = output_format;
     r->encode_srgb = output_format != VK_FORMAT_B8G8R8A8_SRGB && output_format != VK_FORMAT_R8G8B8A8_SRGB;
     const sv_gltf *g = scene->gltf;
-    if (!upload_geometry(r, g) || !upload_materials(r, g) || !upload_textures(r, g) || !upload_lights(r, g) ||
-        !upload_probes(r, scene, probes, desc) || !upload_sky(r, desc->sky))
+    if (!upload_geometry(r, g) || !upload_materials(r, g, &scene->ext) || !upload_textures(r, g) ||
+        !upload_lights(r, g, &scene->ext) || !upload_probes(r, scene, probes, desc) || !upload_sky(r, desc->sky))
         return false;
     if (!sv_buffer_create(ctx, sizeof(sv_gpu_frame), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true, &r->frame)) return false;
     r->material_count = g->material_count + 1;

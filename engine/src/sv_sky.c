@@ -202,22 +202,22 @@ static void prefilter_level(const pyramid *src, float rough, uint32_t w, uint32_
         }
 }
 
-bool sv_sky_load(const sv_gltf *g, sv_sky *out)
+bool sv_sky_load(const sv_ext *ext, sv_sky *out)
 {
     memset(out, 0, sizeof(*out));
-    if (!g->sky.present) return true;
-    if (!g->sky.path) {
-        fprintf(stderr, "schnee-view: error: sky '%s' has no resolvable path\n", g->sky.uri);
+    if (!ext->sky.present) return true;
+    if (!ext->sky.path) {
+        fprintf(stderr, "schnee-view: error: sky '%s' has no resolvable path\n", ext->sky.uri);
         return false;
     }
     pb_image img = {0};
     pb_error err = {0};
-    if (pb_image_read(g->sky.path, &img, &err) != PB_SUCCESS) {
-        fprintf(stderr, "schnee-view: error: sky: cannot read %s: %s\n", g->sky.path, err.message);
+    if (pb_image_read(ext->sky.path, &img, &err) != PB_SUCCESS) {
+        fprintf(stderr, "schnee-view: error: sky: cannot read %s: %s\n", ext->sky.path, err.message);
         return false;
     }
     if (img.width < 4 || img.height < 2) {
-        fprintf(stderr, "schnee-view: error: sky %s: %ux%u is too small (at least 4x2)\n", g->sky.path, img.width,
+        fprintf(stderr, "schnee-view: error: sky %s: %ux%u is too small (at least 4x2)\n", ext->sky.path, img.width,
                 img.height);
         pb_image_free(&img);
         return false;
@@ -237,8 +237,8 @@ bool sv_sky_load(const sv_gltf *g, sv_sky *out)
     }
     pb_image_free(&img);
     out->present = true;
-    out->max_band = g->sky.max_band;
-    memcpy(out->sh, g->sky.sh, sizeof(out->sh));
+    out->max_band = ext->sky.max_band;
+    memcpy(out->sh, ext->sky.sh, sizeof(out->sh));
     out->rgba[0] = base;
     out->width[0] = w, out->height[0] = h;
     uint32_t mips = 1;

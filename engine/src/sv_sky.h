@@ -14,7 +14,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "sv_gltf.h"
+#include "sv_ext.h"
 
 #define SV_SKY_MAX_MIPS     7
 #define SV_BRDF_LUT_SIZE    64
@@ -31,7 +31,7 @@ typedef struct sv_sky {
 
 /* Reads the glTF's sky (if any) and prefilters it. No sky: out->present = false, true returned.
  * An unreadable image is an error (message names the file). */
-bool sv_sky_load(const sv_gltf *gltf, sv_sky *out);
+bool sv_sky_load(const sv_ext *ext, sv_sky *out);
 void sv_sky_destroy(sv_sky *sky);
 
 /* Split-sum LUT, size x size texels of (A, B), texel (i, j) at NoV = (i + 0.5) / size, roughness

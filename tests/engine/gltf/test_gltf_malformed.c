@@ -1,7 +1,10 @@
 /* glTF loader: a table of malformed inputs, each expecting a specific result code and an error
  * message fragment that names the broken element. Runs under ASan/UBSan in the sanitizer build,
- * so "no crash, no out-of-bounds read, no leak on the error path" is checked too. Runtime: < 1 s. */
+ * so "no crash, no out-of-bounds read, no leak on the error path" is checked too. Runtime: < 1 s.
+ * A case that loads is then run through the engine's extension parser (sv_ext_parse), whose errors
+ * (VULKAN_SCHNEE_*) the table expects the same way. */
 #include "gltf_testgen.h"
+#include "sv_ext.h"
 #include "testutil.h"
 
 /* Fragments substituted into the templates (' becomes " in the templates only). */
@@ -248,6 +251,16 @@ static void test_malformed_table(void)
         sv_gltf *g = (sv_gltf *)&desc; /* must be reset to NULL on failure */
         sv_gltf_error err = {0};
         sv_gltf_result r = sv_gltf_load_memory(json, strlen(json), &desc, &g, &err);
+        if (r == SV_GLTF_SUCCESS) { /* the Schnee extensions are parsed by the engine's module */
+            sv_ext ext;
+            r = sv_ext_parse(g, &ext, &err);
+            if (r == SV_GLTF_SUCCESS) {
+                sv_ext_free(&ext);
+            } else {
+                sv_gltf_free(g);
+                g = NULL;
+            }
+        }
         if (r != bc->code || !strstr(err.message, bc->fragment))
             fprintf(stderr, "case %zu: %s\n  -> %s: %s\n", i, json, sv_gltf_result_string(r), err.message);
         TU_CHECK_EQ_INT(r, bc->code);
