@@ -18,6 +18,10 @@
  * ambientTerm). The value is a neutral mid-dark grey; --fallback-radiance overrides it. */
 #define SV_FALLBACK_RADIANCE 0.2f
 
+/* Threads of the Embree device that computes the per-pixel visibility masks at load
+ * (rtcNewDevice "threads=N"): min(online CPUs, this). */
+#define SV_EMBREE_MAX_THREADS 4u
+
 typedef struct sv_probe_grid {
     pb_shprobe *file;
     uint32_t base;    /* buffer index of the grid's probe 0 */
@@ -35,6 +39,10 @@ typedef struct sv_probes {
  * file is trusted). */
 bool sv_probes_load(const sv_ext *ext, sv_probes *out);
 void sv_probes_destroy(sv_probes *probes);
+
+/* World-space centre of cell (x, y, z) of a grid: origin + sum_i (c_i + 0.5) * spacing * axis_i
+ * (the GLSL twin is cell_centre() in shaders/gpu_types.glsl). */
+void sv_cell_centre(const pb_shprobe *file, int x, int y, int z, float out[3]);
 
 /* Buffer index for a world-space point (DESIGN.md §7). */
 uint32_t sv_probes_lookup(const sv_probes *probes, const float point[3]);
