@@ -319,7 +319,10 @@ static bool resolve(ectx_ *c, const char *uri, const char *what, char **path)
         return true;
     }
     sv_gltf_error e = {0};
-    if (sv_gltf_resolve_uri(c->g, uri, what, path, &e) != SV_GLTF_SUCCESS) return efail(c, e.code, "%s", e.message);
+    bool literal = false;
+    if (sv_gltf_resolve_uri(c->g, uri, what, path, &literal, &e) != SV_GLTF_SUCCESS)
+        return efail(c, e.code, "%s", e.message);
+    if (literal) ewarn(c, "%s: URI '%.200s' has a '%%' that is not a %%XX escape; taken literally", what, uri);
     return true;
 }
 

@@ -180,6 +180,7 @@ static sv_gltf_result load(const uint8_t *data, size_t size, uint8_t *owned, con
         return svg_fail(&c, SV_GLTF_ERROR_OUT_OF_MEMORY, "out of memory");
     }
     c.g->internal_ = in;
+    in->allow_outside_paths = c.desc.allow_outside_paths;
     /* The input stays alive with the handle: GLB BIN chunks and images point into it. */
     if (owned && !svg_own_blob(&c, owned)) {
         sv_gltf_free(c.g);
@@ -304,6 +305,7 @@ const char *sv_gltf_result_string(sv_gltf_result r)
     case SV_GLTF_ERROR_UNSUPPORTED: return "unsupported glTF feature";
     case SV_GLTF_ERROR_TOO_LARGE: return "too large";
     case SV_GLTF_ERROR_OUT_OF_MEMORY: return "out of memory";
+    case SV_GLTF_ERROR_OUTSIDE: return "file outside the glTF's folder";
     default: return "unknown result";
     }
 }
@@ -319,7 +321,8 @@ int32_t sv_gltf_find_camera(const sv_gltf *g, const char *name)
     return -1;
 }
 
-sv_gltf_result sv_gltf_resolve_uri(const sv_gltf *g, const char *uri, const char *what, char **path, sv_gltf_error *err)
+sv_gltf_result sv_gltf_resolve_uri(const sv_gltf *g, const char *uri, const char *what, char **path,
+                                   bool *literal_percent, sv_gltf_error *err)
 {
     ctx_ c = {0};
     c.err = err;
@@ -328,7 +331,7 @@ sv_gltf_result sv_gltf_resolve_uri(const sv_gltf *g, const char *uri, const char
     if (!g || !uri || !what) return svg_fail(&c, SV_GLTF_ERROR_INVALID_ARGUMENT, "sv_gltf_resolve_uri: NULL argument");
     if (!g->base_dir) return SV_GLTF_SUCCESS;
     c.g = (sv_gltf *)g; /* read only: svg_resolve_uri reads base_dir and never warns here */
-    *path = svg_resolve_uri(&c, uri, what);
+    *path = svg_resolve_uri(&c, uri, what, literal_percent);
     return *path ? SV_GLTF_SUCCESS : c.result;
 }
 

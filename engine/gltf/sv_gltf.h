@@ -41,13 +41,16 @@ extern "C" {
 typedef enum sv_gltf_result {
     SV_GLTF_SUCCESS = 0,
     SV_GLTF_ERROR_INVALID_ARGUMENT, /* NULL path/output, bad desc */
-    SV_GLTF_ERROR_IO,               /* the file or an external buffer cannot be opened or read */
+    SV_GLTF_ERROR_IO,               /* the file or an external buffer cannot be opened or read, or is
+                                       not a regular file (FIFO, device, directory, symlink loop) */
     SV_GLTF_ERROR_JSON,             /* not parseable JSON (or GLB JSON chunk not JSON) */
     SV_GLTF_ERROR_FORMAT,           /* malformed glTF/GLB: bad index, range, type, count, ... */
     SV_GLTF_ERROR_UNSUPPORTED,      /* valid glTF this loader refuses (unknown required extension,
                                        glTF major version != 2, external URI without base dir) */
     SV_GLTF_ERROR_TOO_LARGE,        /* over desc.max_decoded_bytes */
     SV_GLTF_ERROR_OUT_OF_MEMORY,
+    SV_GLTF_ERROR_OUTSIDE, /* a referenced file lies outside the glTF's folder tree (an absolute path,
+                              '..' above it, or a symlink leading out); desc.allow_outside_paths */
     SV_GLTF_RESULT_COUNT_
 } sv_gltf_result;
 
@@ -72,6 +75,9 @@ typedef struct sv_gltf_desc {
     bool non_triangles_are_errors;     /* default false: POINTS/LINES* primitives are skipped with a
                                       warning; true: they are SV_GLTF_ERROR_UNSUPPORTED. Triangle
                                       strips and fans are always converted to lists. */
+    bool allow_outside_paths;          /* default false: every URI must stay inside base_dir's tree
+                                          (no absolute path, no '..' above it, no symlink leading
+                                          out: SV_GLTF_ERROR_OUTSIDE); true for trusted scenes */
     const char *const *app_extensions; /* extensions the application parses itself from the raw
                                           JSON: accepted in extensionsRequired. NULL = none. */
     uint32_t app_extension_count;
@@ -292,12 +298,26 @@ sv_gltf_result sv_gltf_load_memory(const void *data, size_t size, const sv_gltf_
                                    sv_gltf_error *err);
 
 /* Resolves a relative URI found in the file (e.g. in an application extension) to a file path by
- * the loader's rules for buffers: percent-decoded, no scheme, against g->base_dir. On success
- * *path is malloc'ed (caller frees), or NULL when the handle has no base directory (loaded from
- * memory without desc.base_dir: the caller decides; nothing is an error then). `what` prefixes
- * the error message. */
+ * the loader's rules for buffers: percent-decoded (a '%' without two hex digits stays literal and
+ * sets *literal_percent, which may be NULL, for the caller to warn), no scheme, against
+ * g->base_dir and inside its tree unless the load allowed outside paths. On success *path is
+ * malloc'ed (caller frees), or NULL when the handle has no base directory (loaded from memory
+ * without desc.base_dir: the caller decides; nothing is an error then). `what` prefixes the
+ * error message. */
 sv_gltf_result sv_gltf_resolve_uri(const sv_gltf *gltf, const char *uri, const char *what, char **path,
-                                   sv_gltf_error *err);
+                                   bool *literal_percent, sv_gltf_error *err);
+
+/* A .gltf (JSON) file larger than this is refused (SV_GLTF_ERROR_TOO_LARGE); a GLB is bounded by
+ * its header's length and desc.max_decoded_bytes. */
+#define SV_GLTF_MAX_JSON_BYTES (512ull << 20)
+
+/* Opens a file for reading the way the loader opens every referenced file: without blocking
+ * (O_NONBLOCK, so a FIFO cannot hang the open), then checked on the descriptor (fstat): only a
+ * regular file of at most max_bytes (0 = no limit) is accepted; a FIFO, device, directory or
+ * symlink loop is SV_GLTF_ERROR_IO, a larger file SV_GLTF_ERROR_TOO_LARGE, each with a message
+ * naming `what` and the path (never the file's content). Returns the descriptor (caller closes)
+ * and *size, or -1. */
+int sv_gltf_open_regular(const char *path, const char *what, uint64_t max_bytes, uint64_t *size, sv_gltf_error *err);
 
 /* Raw JSON of extension `name` in a list, or NULL. */
 const char *sv_gltf_find_extension(const sv_gltf_extension *ext, uint32_t count, const char *name);

@@ -1,4 +1,4 @@
-/* Loader: URIs and files, buffers, bufferViews, accessors. */
+/* Loader: data: URIs, buffers, bufferViews, accessors. */
 #include "sv_gltf_internal.h"
 
 #include <float.h>
@@ -7,83 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* ---------------------------------------------------------------- URIs and files */
-
-/* Reads up to `want` bytes (or the whole file when want == 0) of path; fails with a message about
- * `what`. *out is malloc'ed. */
-bool svg_read_file(ctx_ *c, const char *path, uint64_t want, const char *what, uint8_t **out, uint64_t *out_size)
-{
-    *out = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        svg_fail(c, SV_GLTF_ERROR_IO, "%s: cannot open '%s'", what, path);
-        return false;
-    }
-    long end = -1;
-    if (fseek(f, 0, SEEK_END) == 0) end = ftell(f);
-    if (end < 0 || fseek(f, 0, SEEK_SET) != 0) {
-        fclose(f);
-        svg_fail(c, SV_GLTF_ERROR_IO, "%s: cannot read '%s' (not a regular file?)", what, path);
-        return false;
-    }
-    uint64_t size = (uint64_t)end;
-    if (want && size < want) {
-        fclose(f);
-        svg_fail(c, SV_GLTF_ERROR_FORMAT, "%s: file '%s' has %llu bytes, byteLength is %llu", what, path,
-                 (unsigned long long)size, (unsigned long long)want);
-        return false;
-    }
-    if (want) size = want;
-    if (!svg_take_budget(c, size, what)) {
-        fclose(f);
-        return false;
-    }
-    uint8_t *buf = svg_xcalloc(c, size, 1);
-    if (!buf) {
-        fclose(f);
-        return false;
-    }
-    if (size && fread(buf, 1, (size_t)size, f) != size) {
-        fclose(f);
-        free(buf);
-        svg_fail(c, SV_GLTF_ERROR_IO, "%s: cannot read '%s'", what, path);
-        return false;
-    }
-    fclose(f);
-    *out = buf;
-    *out_size = size;
-    return true;
-}
-
-/* Resolves a relative URI to a path under the base dir (percent-decoded). Refuses schemes and
- * external files without a base dir. */
-char *svg_resolve_uri(ctx_ *c, const char *uri, const char *what)
-{
-    char scheme[16];
-    if (svg_uri_has_scheme(uri, scheme, sizeof scheme)) {
-        svg_fail(c, SV_GLTF_ERROR_UNSUPPORTED, "%s: URI scheme '%s:' is not supported (only relative paths and data:)",
-                 what, scheme);
-        return NULL;
-    }
-    if (!c->g->base_dir) {
-        svg_fail(c, SV_GLTF_ERROR_UNSUPPORTED, "%s: external URI '%.200s' but no base directory was given", what, uri);
-        return NULL;
-    }
-    char *decoded = svg_percent_decode(uri);
-    if (!decoded) {
-        svg_fail(c, SV_GLTF_ERROR_FORMAT, "%s: malformed percent-encoding in URI '%.200s'", what, uri);
-        return NULL;
-    }
-    if (!decoded[0]) {
-        free(decoded);
-        svg_fail(c, SV_GLTF_ERROR_FORMAT, "%s: empty URI", what);
-        return NULL;
-    }
-    char *path = svg_path_join(c->g->base_dir, decoded);
-    free(decoded);
-    if (!path) svg_fail(c, SV_GLTF_ERROR_OUT_OF_MEMORY, "out of memory");
-    return path;
-}
+/* ---------------------------------------------------------------- data: URIs */
 
 /* Decodes a base64 data: URI into an owned blob. */
 bool svg_decode_data_uri(ctx_ *c, const char *uri, const char *what, const uint8_t **data, uint64_t *size,
@@ -158,8 +82,12 @@ bool svg_parse_buffers(ctx_ *c, const cJSON *root)
                 return false;
             }
         } else {
-            char *file = svg_resolve_uri(c, uri->valuestring, path);
+            bool literal;
+            char *file = svg_resolve_uri(c, uri->valuestring, path, &literal);
             if (!file) return false;
+            if (literal)
+                svg_warn(c, "%s: URI '%.200s' has a '%%' that is not a %%XX escape; taken literally", path,
+                         uri->valuestring);
             uint8_t *data;
             uint64_t n;
             bool ok = svg_read_file(c, file, len, path, &data, &n);

@@ -2,7 +2,8 @@
  * (not part of the API). One file per concern:
  *   sv_gltf.c            container (GLB/JSON), asset + extensionsRequired, load/free entry points
  *   sv_gltf_json.c       errors, warnings, the memory budget, typed JSON member getters, raw extensions
- *   sv_gltf_buffers.c    URIs and files, buffers, bufferViews, accessors (validated, decoded)
+ *   sv_gltf_files.c      referenced files: URI resolution (folder-tree rule), non-blocking bounded reads
+ *   sv_gltf_buffers.c    data: URIs, buffers, bufferViews, accessors (validated, decoded)
  *   sv_gltf_materials.c  samplers, images, textures, materials
  *   sv_gltf_meshes.c     meshes and primitives (attributes, indices, flat normals, bounds)
  *   sv_gltf_nodes.c      cameras, lights, nodes (hierarchy, world matrices), the default scene
@@ -27,6 +28,7 @@
 struct sv_gltf_internal_ {
     uint8_t **blobs;
     uint32_t blob_count, blob_capacity;
+    bool allow_outside_paths; /* desc.allow_outside_paths of the load */
 };
 
 enum { CT_BYTE = 5120, CT_UBYTE = 5121, CT_SHORT = 5122, CT_USHORT = 5123, CT_UINT = 5125, CT_FLOAT = 5126 };
@@ -117,11 +119,16 @@ bool svg_get_extensions(ctx_ *c, const cJSON *obj, const char *path, const char 
                         sv_gltf_extension **out, uint32_t *count);
 void svg_free_extensions(sv_gltf_extension *ext, uint32_t count);
 
-/* ---- sv_gltf_buffers.c */
-/* Reads `want` bytes (want > 0) or the whole file (want == 0) of path. *out is malloc'ed. */
+/* ---- sv_gltf_files.c */
+/* Reads `want` bytes (want > 0; the file must have at least that many) or, want == 0, the glTF
+ * file itself bounded by its header (GLB length; JSON under SV_GLTF_MAX_JSON_BYTES). Opened with
+ * sv_gltf_open_regular. *out is malloc'ed. */
 bool svg_read_file(ctx_ *c, const char *path, uint64_t want, const char *what, uint8_t **out, uint64_t *out_size);
-/* Resolves a relative URI against the base dir (see sv_gltf_resolve_uri). */
-char *svg_resolve_uri(ctx_ *c, const char *uri, const char *what);
+/* Resolves a relative URI against the base dir (see sv_gltf_resolve_uri); *literal_percent tells
+ * that a '%' without two hex digits was kept literally (the caller warns). */
+char *svg_resolve_uri(ctx_ *c, const char *uri, const char *what, bool *literal_percent);
+
+/* ---- sv_gltf_buffers.c */
 /* Decodes a base64 data: URI into an owned blob. */
 bool svg_decode_data_uri(ctx_ *c, const char *uri, const char *what, const uint8_t **data, uint64_t *size,
                          char **mime_out);
@@ -148,8 +155,10 @@ bool svg_parse_nodes(ctx_ *c, const cJSON *root);
 bool svg_parse_scene(ctx_ *c, const cJSON *root);
 
 /* ---- sv_gltf_util.c */
-/* Percent-decodes a URI reference into a new string; NULL on a malformed escape or %00. */
-char *svg_percent_decode(const char *uri);
+/* Percent-decodes a URI reference into a new string. A '%' not followed by two hex digits is kept
+ * as it is (*literal_percent set: Blender's exporter writes file names unencoded); NULL on %00 or
+ * out of memory. */
+char *svg_percent_decode(const char *uri, bool *literal_percent);
 
 /* Decodes standard base64 (with or without '=' padding, no whitespace). Returns false on a bad
  * character or length; *out is malloc'ed (at least 1 byte) and must be freed by the caller. */

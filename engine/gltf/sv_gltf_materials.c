@@ -97,8 +97,12 @@ bool svg_parse_images(ctx_ *c, const cJSON *root)
         } else {
             if (!c->g->base_dir) {
                 svg_warn(c, "%s: external URI '%.200s' left unresolved (no base directory)", path, uri->valuestring);
-            } else if (!(im->path = svg_resolve_uri(c, uri->valuestring, path))) {
-                return false;
+            } else {
+                bool literal;
+                if (!(im->path = svg_resolve_uri(c, uri->valuestring, path, &literal))) return false;
+                if (literal)
+                    svg_warn(c, "%s: URI '%.200s' has a '%%' that is not a %%XX escape; taken literally", path,
+                             uri->valuestring);
             }
         }
         i++;

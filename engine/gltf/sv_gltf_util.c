@@ -14,8 +14,9 @@ static int hex_value(int ch)
     return -1;
 }
 
-char *svg_percent_decode(const char *uri)
+char *svg_percent_decode(const char *uri, bool *literal_percent)
 {
+    *literal_percent = false;
     size_t n = strlen(uri);
     char *out = malloc(n + 1);
     if (!out) return NULL;
@@ -27,7 +28,12 @@ char *svg_percent_decode(const char *uri)
         }
         int hi = i + 1 < n ? hex_value((unsigned char)uri[i + 1]) : -1;
         int lo = i + 2 < n ? hex_value((unsigned char)uri[i + 2]) : -1;
-        if (hi < 0 || lo < 0 || (hi == 0 && lo == 0)) {
+        if (hi < 0 || lo < 0) { /* not an escape: the '%' itself (Blender writes names unencoded) */
+            *literal_percent = true;
+            out[o++] = '%';
+            continue;
+        }
+        if (hi == 0 && lo == 0) {
             free(out);
             return NULL;
         }

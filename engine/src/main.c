@@ -45,6 +45,8 @@ static void usage(FILE *f)
         "  --move NODE X Y Z        set a node's translation before rendering (objects are re-assigned)\n"
         "  --print-assignments      print each object's probe index and exit status as usual\n"
         "  --validation             enable VK_LAYER_KHRONOS_validation; any message fails the run (exit 3)\n"
+        "  --allow-outside-paths    let the glTF reference files outside its folder tree (absolute paths, '..',\n"
+        "                           symlinks leading out); only for scenes you trust\n"
         "  --frames N               headless: frames to render and time; window: quit after N frames\n"
         "  --screenshot PATH        window: write the last frame presented to PATH\n"
         "window keys: WASD/QE move, right mouse drag looks, Shift faster, P probe colours, C probe view,\n"
@@ -206,6 +208,8 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
             i += 4;
         } else if (strcmp(a, "--print-assignments") == 0) {
             o->print_assignments = true;
+        } else if (strcmp(a, "--allow-outside-paths") == 0) {
+            o->allow_outside_paths = true;
         } else if (strcmp(a, "--validation") == 0) {
             o->validation = true;
         } else if (strcmp(a, "--frames") == 0) {
@@ -308,7 +312,7 @@ int main(int argc, char **argv)
     sv_scene scene;
     sv_probes probes;
     double t0 = sv_now_ms();
-    if (!sv_scene_load(opt.scene_path, &scene)) return 1;
+    if (!sv_scene_load(opt.scene_path, opt.allow_outside_paths, &scene)) return 1;
     double t1 = sv_now_ms();
     if (!sv_probes_load(&scene.ext, &probes)) {
         sv_scene_destroy(&scene);

@@ -26,7 +26,8 @@ typedef struct sv_options {
     uint32_t tonemap;       /* SV_TONEMAP_*, default PBR Neutral */
     uint32_t debug_mode;    /* SV_DEBUG_* */
     bool no_direct;
-    bool validation; /* enable the validation layer; any message fails the run (exit 3) */
+    bool validation;          /* enable the validation layer; any message fails the run (exit 3) */
+    bool allow_outside_paths; /* --allow-outside-paths: glTF URIs may leave the glTF's folder */
     bool print_assignments;
     bool show_cells;
     sv_move moves[SV_MAX_MOVES];

@@ -63,6 +63,43 @@ static void check_entry(const sv_ext_probe_grid *e, const pb_shprobe *f, uint32_
             }
 }
 
+/* Before the bake's reader sees a grid's file: opened without blocking, a regular file of at most
+ * SV_MAX_PROBE_FILE_BYTES that starts with the .shprobe magic (else it is not ours, and its
+ * content is never quoted), whose header (pb_shprobe_read_header) implies exactly its size. */
+static bool check_probe_file(const sv_ext_probe_grid *e, uint32_t index)
+{
+    char what[96];
+    snprintf(what, sizeof what, "shProbeGrids[%u] '%.40s'", index, e->name);
+    if (!e->path) {
+        fprintf(stderr, "schnee-view: error: %s: '%s' has no resolvable path\n", what, e->uri);
+        return false;
+    }
+    sv_gltf_error gerr = {0};
+    uint64_t size = 0;
+    int fd = sv_gltf_open_regular(e->path, what, SV_MAX_PROBE_FILE_BYTES, &size, &gerr);
+    if (fd < 0) {
+        fprintf(stderr, "schnee-view: error: %s\n", gerr.message);
+        return false;
+    }
+    unsigned char magic[4] = {0};
+    ssize_t n = read(fd, magic, sizeof magic);
+    close(fd);
+    static const unsigned char sphr[4] = {0x53, 0x50, 0x48, 0x52}; /* PB_SHPROBE_MAGIC on disk */
+    if (n != 4 || memcmp(magic, sphr, 4) != 0) {
+        fprintf(stderr, "schnee-view: error: %s: '%s' (%llu bytes) is not a .shprobe file (no \"SPHR\" magic)\n", what,
+                e->path, (unsigned long long)size);
+        return false;
+    }
+    pb_shprobe h;
+    pb_error err = {0};
+    if (pb_shprobe_read_header(e->path, &h, &err) != PB_SUCCESS) {
+        fprintf(stderr, "schnee-view: error: %s: cannot read %s: %s\n", what, e->path,
+                err.message[0] ? err.message : pb_result_string(err.code));
+        return false;
+    }
+    return true;
+}
+
 bool sv_probes_load(const sv_ext *ext, sv_probes *out)
 {
     memset(out, 0, sizeof(*out));
@@ -77,6 +114,10 @@ bool sv_probes_load(const sv_ext *ext, sv_probes *out)
         const sv_ext_probe_grid *e = &ext->probe_grids[i];
         pb_error err = {0};
         pb_shprobe *f = NULL;
+        if (!check_probe_file(e, i)) {
+            sv_probes_destroy(out);
+            return false;
+        }
         if (pb_shprobe_read(e->path, &f, &err) != PB_SUCCESS) {
             fprintf(stderr, "schnee-view: error: shProbeGrids[%u] '%s': cannot read %s: %s\n", i, e->name, e->path,
                     err.message[0] ? err.message : pb_result_string(err.code));
@@ -199,6 +240,35 @@ uint16_t sv_half_from_float(float f)
     uint32_t h = sign | ((uint32_t)he << 10) | hm;
     if (rem > 0x1000u || (rem == 0x1000u && (hm & 1u))) h++; /* carries into the exponent correctly */
     return (uint16_t)h;
+}
+
+bool sv_probes_fit_half(const sv_probes *probes, const sv_gpu_probe *packed, char *msg, size_t cap)
+{
+    for (uint32_t p = 0; p < probes->total; ++p) {
+        const sv_gpu_probe *s = &packed[p];
+        float worst = fabsf(s->params[1]);
+        int at = -1; /* -1 = the scale */
+        for (int i = 0; i < SV_SH_MAX_COEFFS; ++i)
+            for (int c = 0; c < 3; ++c)
+                if (!(fabsf(s->sh[i][c]) <= worst)) { /* also catches NaN */
+                    worst = fabsf(s->sh[i][c]);
+                    at = i;
+                }
+        if (worst <= SV_HALF_MAX) continue;
+        char where[160] = "the fallback probe 0 (the sky's SH)";
+        for (uint32_t g = 0; g < probes->grid_count; ++g) {
+            const sv_probe_grid *gr = &probes->grids[g];
+            if (p >= gr->base && p - gr->base < gr->file->probe_count)
+                snprintf(where, sizeof where, "shProbeGrids[%u] '%.60s' probe %u", g, gr->name, p - gr->base);
+        }
+        if (at < 0)
+            snprintf(msg, cap, "%s: scale %g exceeds the half-float range (%g)", where, worst, SV_HALF_MAX);
+        else
+            snprintf(msg, cap, "%s: coefficient %d = %g exceeds the half-float range (%g)", where, at, worst,
+                     SV_HALF_MAX);
+        return false;
+    }
+    return true;
 }
 
 static uint32_t pack2(float a, float b)

@@ -22,6 +22,10 @@
  * (rtcNewDevice "threads=N"): min(online CPUs, this). */
 #define SV_EMBREE_MAX_THREADS 4u
 
+/* A .shprobe file larger than this is refused before it is read (1 GiB: about 2.5 M probes at
+ * L = 4 with a 256^3 grid). */
+#define SV_MAX_PROBE_FILE_BYTES (1ull << 30)
+
 typedef struct sv_probe_grid {
     pb_shprobe *file;
     uint32_t base;    /* buffer index of the grid's probe 0 */
@@ -56,6 +60,11 @@ sv_gpu_probe *sv_probes_pack(const sv_probes *probes, float fallback_radiance, c
                              uint32_t sky_band);
 /* The same entries in half storage (packHalf2x16 layout of sv_gpu_probe_half). Caller frees. */
 sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t count);
+/* True when every coefficient and scale of the packed probes fits half floats (|v| <= 65504, the
+ * largest finite binary16); else false with a message naming the first grid and probe that does
+ * not (or the fallback probe, the sky's SH) and the value. */
+#define SV_HALF_MAX 65504.0f
+bool sv_probes_fit_half(const sv_probes *probes, const sv_gpu_probe *packed, char *msg, size_t cap);
 /* IEEE 754 binary16 of a float (round to nearest even), as GLSL's packHalf2x16 stores it. */
 uint16_t sv_half_from_float(float f);
 

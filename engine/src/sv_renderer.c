@@ -220,6 +220,11 @@ static bool read_gltf_image(const sv_gltf_image *img, pb_image *out)
 {
     pb_error err = {0};
     if (img->path) {
+        char msg[640];
+        if (!sv_image_file_check(img->path, "image", msg, sizeof msg)) {
+            fprintf(stderr, "schnee-view: warning: %s (using white)\n", msg);
+            return false;
+        }
         if (pb_image_read(img->path, out, &err) == PB_SUCCESS) return true;
         fprintf(stderr, "schnee-view: warning: image '%s': %s (using white)\n", img->path, err.message);
         return false;
@@ -302,22 +307,30 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
 {
     const sv_sky *sky = desc->sky && desc->sky->present ? desc->sky : NULL;
     sv_gpu_probe *p = sv_probes_pack(probes, desc->fallback_radiance, sky ? sky->sh : NULL, sky ? sky->max_band : 0);
-    sv_gpu_probe_half *ph = p && desc->half_probes ? sv_probes_pack_half(p, probes->total) : NULL;
+    /* Half storage only when every value fits: an overflow would become Inf and shade the objects
+     * lit by that probe dark (NaN) or white, silently. Then float storage, with a warning. */
+    bool half = desc->half_probes;
+    char msg[320];
+    if (p && half && !sv_probes_fit_half(probes, p, msg, sizeof msg)) {
+        fprintf(stderr, "schnee-view: warning: --probe-storage half: %s; using float storage\n", msg);
+        half = false;
+    }
+    sv_gpu_probe_half *ph = p && half ? sv_probes_pack_half(p, probes->total) : NULL;
     uint32_t nspheres = 0, ncells = 0, grid_cells = 0;
     sv_gpu_cell *cells = sv_probes_cells(probes, &nspheres, &ncells);
     sv_gpu_grid *grids = NULL;
     int32_t *cell_index = NULL;
-    bool ok = p && cells && (!desc->half_probes || ph);
+    bool ok = p && cells && (!half || ph);
     if (!ok) fail_msg("out of memory packing probes");
     ok = ok && sv_probes_gpu_grids(probes, scene, &grids, &cell_index, &grid_cells);
     /* Only the storage in use holds the probes; the other binding gets one zero entry. */
     static const sv_gpu_probe zero_probe;
     static const sv_gpu_probe_half zero_half;
-    ok = ok && sv_buffer_create_with_data(r->ctx, desc->half_probes ? &zero_probe : (const void *)p,
-                                          desc->half_probes ? sizeof(*p) : probes->total * sizeof(*p),
+    ok = ok && sv_buffer_create_with_data(r->ctx, half ? &zero_probe : (const void *)p,
+                                          half ? sizeof(*p) : probes->total * sizeof(*p),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->probes);
-    ok = ok && sv_buffer_create_with_data(r->ctx, desc->half_probes ? (const void *)ph : &zero_half,
-                                          desc->half_probes ? probes->total * sizeof(*ph) : sizeof(*ph),
+    ok = ok && sv_buffer_create_with_data(r->ctx, half ? (const void *)ph : &zero_half,
+                                          half ? probes->total * sizeof(*ph) : sizeof(*ph),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->probes_half);
     ok = ok && sv_buffer_create_with_data(r->ctx, cells, (nspheres + ncells ? nspheres + ncells : 1) * sizeof(*cells),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cells);
@@ -329,7 +342,7 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
     r->grid_count = probes->grid_count;
     r->sphere_count = nspheres;
     r->outline_count = ncells;
-    r->half_probes = desc->half_probes;
+    r->half_probes = half;
     free(p);
     free(ph);
     free(cells);

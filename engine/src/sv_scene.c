@@ -40,10 +40,12 @@ static void update_scene_bounds(sv_scene *s)
         }
 }
 
-bool sv_scene_load(const char *path, sv_scene *out)
+bool sv_scene_load(const char *path, bool allow_outside_paths, sv_scene *out)
 {
     memset(out, 0, sizeof(*out));
-    sv_gltf_desc desc = {.app_extensions = sv_ext_names, .app_extension_count = SV_EXT_NAME_COUNT};
+    sv_gltf_desc desc = {.app_extensions = sv_ext_names,
+                         .app_extension_count = SV_EXT_NAME_COUNT,
+                         .allow_outside_paths = allow_outside_paths};
     sv_gltf_error err = {0};
     if (sv_gltf_load_file(path, &desc, &out->gltf, &err) != SV_GLTF_SUCCESS) {
         fprintf(stderr, "schnee-view: error: cannot load %s: %s (%s)\n", path, err.message,

@@ -34,9 +34,10 @@ typedef struct sv_scene {
     float aabb_max[3];
 } sv_scene;
 
-/* Loads the glTF at path and parses its Schnee extensions (prints the warnings of both). On error
- * prints a message naming the problem and returns false with nothing allocated. */
-bool sv_scene_load(const char *path, sv_scene *out);
+/* Loads the glTF at path and parses its Schnee extensions (prints the warnings of both). Files the
+ * glTF references must lie inside its folder tree unless allow_outside_paths (trusted scenes). On
+ * error prints a message naming the problem and returns false with nothing allocated. */
+bool sv_scene_load(const char *path, bool allow_outside_paths, sv_scene *out);
 void sv_scene_destroy(sv_scene *scene);
 
 /* Index of the node named `name` (first match), or -1. */

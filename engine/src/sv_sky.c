@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "schnee/pb_image.h"
 
@@ -202,12 +203,57 @@ static void prefilter_level(const pyramid *src, float rough, uint32_t w, uint32_
         }
 }
 
+bool sv_image_file_check(const char *path, const char *what, char *msg, size_t cap)
+{
+    sv_gltf_error err = {0};
+    uint64_t size = 0;
+    int fd = sv_gltf_open_regular(path, what, SV_MAX_IMAGE_FILE_BYTES, &size, &err);
+    if (fd < 0) {
+        snprintf(msg, cap, "%s", err.message);
+        return false;
+    }
+    unsigned char h[12] = {0};
+    ssize_t n = read(fd, h, sizeof h);
+    close(fd);
+    static const struct {
+        const char *sig;
+        size_t len;
+    } sigs[] = {
+        {"\x76\x2f\x31\x01", 4},  /* OpenEXR */
+        {"\x89PNG\r\n\x1a\n", 8}, /* PNG */
+        {"\xff\xd8\xff", 3},      /* JPEG */
+        {"#?", 2},                /* Radiance HDR */
+        {"II*\0", 4},             /* TIFF little-endian */
+        {"MM\0*", 4},             /* TIFF big-endian */
+        {"BM", 2},                /* BMP */
+        {"GIF8", 4},              /* GIF */
+        {"RIFF", 4},              /* WebP */
+    };
+    bool ok = false;
+    for (size_t k = 0; k < sizeof sigs / sizeof sigs[0] && !ok; ++k)
+        ok = n >= (ssize_t)sigs[k].len && memcmp(h, sigs[k].sig, sigs[k].len) == 0;
+    /* PNM / PFM: 'P' then 1-7, F or f, then whitespace. */
+    ok = ok || (n >= 3 && h[0] == 'P' && strchr("1234567Ff", h[1]) && h[1] &&
+                (h[2] == '\n' || h[2] == ' ' || h[2] == '\r' || h[2] == '\t'));
+    if (!ok)
+        snprintf(msg, cap,
+                 "%s: '%s' (%llu bytes) does not start like an image file (EXR, PNG, JPEG, HDR, TIFF, PNM, "
+                 "BMP, GIF, WebP); not read",
+                 what, path, (unsigned long long)size);
+    return ok;
+}
+
 bool sv_sky_load(const sv_ext *ext, sv_sky *out)
 {
     memset(out, 0, sizeof(*out));
     if (!ext->sky.present) return true;
     if (!ext->sky.path) {
         fprintf(stderr, "schnee-view: error: sky '%s' has no resolvable path\n", ext->sky.uri);
+        return false;
+    }
+    char msg[640];
+    if (!sv_image_file_check(ext->sky.path, "sky", msg, sizeof msg)) {
+        fprintf(stderr, "schnee-view: error: %s\n", msg);
         return false;
     }
     pb_image img = {0};

@@ -12,6 +12,7 @@
 #define SV_SKY_H
 
 #include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "sv_ext.h"
@@ -32,6 +33,13 @@ typedef struct sv_sky {
 /* Reads the glTF's sky (if any) and prefilters it. No sky: out->present = false, true returned.
  * An unreadable image is an error (message names the file). */
 bool sv_sky_load(const sv_ext *ext, sv_sky *out);
+
+/* Image files (textures, the sky) are read through OpenImageIO only after this check: opened
+ * without blocking, a regular file (sv_gltf_open_regular) of at most SV_MAX_IMAGE_FILE_BYTES whose
+ * first bytes are the signature of an image format (EXR, PNG, JPEG, Radiance HDR, TIFF, PNM/PFM,
+ * BMP, GIF, WebP). False with a message in msg naming `what` and the path, never the content. */
+#define SV_MAX_IMAGE_FILE_BYTES (1ull << 30)
+bool sv_image_file_check(const char *path, const char *what, char *msg, size_t cap);
 void sv_sky_destroy(sv_sky *sky);
 
 /* Split-sum LUT, size x size texels of (A, B), texel (i, j) at NoV = (i + 0.5) / size, roughness

@@ -59,8 +59,16 @@ static const bad_case CASES[] = {
      "buffers[0]: external URI 'a.bin' but no base directory was given"},
     {"{" A ",'buffers':[{'byteLength':4,'uri':'http://example.com/a.bin'}]}", SV_GLTF_ERROR_UNSUPPORTED,
      "buffers[0]: URI scheme 'http:' is not supported"},
-    {"{" A ",'buffers':[{'byteLength':4,'uri':'bad%zz.bin'}]}", SV_GLTF_ERROR_FORMAT,
-     "buffers[0]: malformed percent-encoding in URI 'bad%zz.bin'", false, "/nonexistent"},
+    /* issue 14: a '%' that is no escape is taken literally (Blender writes names unencoded), so this
+     * is now a missing file named with the '%'; %00 stays an error. */
+    {"{" A ",'buffers':[{'byteLength':4,'uri':'bad%zz.bin'}]}", SV_GLTF_ERROR_IO,
+     "buffers[0]: cannot open '/nonexistent/bad%zz.bin'", false, "/nonexistent"},
+    {"{" A ",'buffers':[{'byteLength':4,'uri':'bad%00.bin'}]}", SV_GLTF_ERROR_FORMAT,
+     "buffers[0]: URI 'bad%00.bin' encodes a NUL byte (%00)", false, "/nonexistent"},
+    {"{" A ",'buffers':[{'byteLength':4,'uri':'../up.bin'}]}", SV_GLTF_ERROR_OUTSIDE,
+     "buffers[0]: '../up.bin' is outside the glTF's folder '/nonexistent'", false, "/nonexistent"},
+    {"{" A ",'buffers':[{'byteLength':4,'uri':'/etc/passwd'}]}", SV_GLTF_ERROR_OUTSIDE,
+     "buffers[0]: '/etc/passwd' is an absolute path outside the glTF's folder", false, "/nonexistent"},
     {"{" A ",'buffers':[{'byteLength':4,'uri':'missing.bin'}]}", SV_GLTF_ERROR_IO,
      "buffers[0]: cannot open '/nonexistent/missing.bin'", false, "/nonexistent"},
     {"{" A ",'buffers':[{'byteLength':4,'uri':7}]}", SV_GLTF_ERROR_FORMAT,
