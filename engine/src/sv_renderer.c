@@ -221,7 +221,7 @@ static bool read_gltf_image(const sv_gltf_image *img, pb_image *out)
     pb_error err = {0};
     if (img->path) {
         char msg[640];
-        if (!sv_image_file_check(img->path, "image", msg, sizeof msg)) {
+        if (!sv_image_file_check(img->path, "image", SV_TEXTURE_MAX_PIXELS, msg, sizeof msg)) {
             fprintf(stderr, "schnee-view: warning: %s (using white)\n", msg);
             return false;
         }

@@ -203,7 +203,39 @@ static void prefilter_level(const pyramid *src, float rough, uint32_t w, uint32_
         }
 }
 
-bool sv_image_file_check(const char *path, const char *what, char *msg, size_t cap)
+/* Width and height from an OpenEXR header (the first part's dataWindow, box2i) in buf[0, n). */
+static bool exr_dims(const unsigned char *buf, size_t n, uint64_t *w, uint64_t *h)
+{
+    size_t p = 8; /* magic, version + flags */
+    while (p < n && buf[p]) {
+        const unsigned char *name = buf + p;
+        const unsigned char *e = memchr(name, 0, n - p);
+        if (!e) return false;
+        size_t q = (size_t)(e - buf) + 1;
+        const unsigned char *type = q < n ? memchr(buf + q, 0, n - q) : NULL;
+        if (!type) return false;
+        q = (size_t)(type - buf) + 1;
+        if (n - q < 4) return false;
+        uint32_t size =
+            (uint32_t)buf[q] | (uint32_t)buf[q + 1] << 8 | (uint32_t)buf[q + 2] << 16 | (uint32_t)buf[q + 3] << 24;
+        q += 4;
+        if (size > n - q) return false;
+        if (strcmp((const char *)name, "dataWindow") == 0 && size == 16) {
+            int32_t v[4];
+            for (int k = 0; k < 4; ++k)
+                v[k] = (int32_t)((uint32_t)buf[q + 4 * k] | (uint32_t)buf[q + 4 * k + 1] << 8 |
+                                 (uint32_t)buf[q + 4 * k + 2] << 16 | (uint32_t)buf[q + 4 * k + 3] << 24);
+            if (v[2] < v[0] || v[3] < v[1]) return false;
+            *w = (uint64_t)((int64_t)v[2] - v[0] + 1);
+            *h = (uint64_t)((int64_t)v[3] - v[1] + 1);
+            return true;
+        }
+        p = q + size;
+    }
+    return false;
+}
+
+bool sv_image_file_check(const char *path, const char *what, uint64_t max_pixels, char *msg, size_t cap)
 {
     sv_gltf_error err = {0};
     uint64_t size = 0;
@@ -212,9 +244,10 @@ bool sv_image_file_check(const char *path, const char *what, char *msg, size_t c
         snprintf(msg, cap, "%s", err.message);
         return false;
     }
-    unsigned char h[12] = {0};
-    ssize_t n = read(fd, h, sizeof h);
+    static unsigned char h[1 << 16]; /* the header: signature, and the EXR attributes / PNG IHDR */
+    ssize_t got = read(fd, h, sizeof h);
     close(fd);
+    size_t n = got > 0 ? (size_t)got : 0;
     static const struct {
         const char *sig;
         size_t len;
@@ -229,18 +262,35 @@ bool sv_image_file_check(const char *path, const char *what, char *msg, size_t c
         {"GIF8", 4},              /* GIF */
         {"RIFF", 4},              /* WebP */
     };
-    bool ok = false;
-    for (size_t k = 0; k < sizeof sigs / sizeof sigs[0] && !ok; ++k)
-        ok = n >= (ssize_t)sigs[k].len && memcmp(h, sigs[k].sig, sigs[k].len) == 0;
+    int kind = -1;
+    for (size_t k = 0; k < sizeof sigs / sizeof sigs[0] && kind < 0; ++k)
+        if (n >= sigs[k].len && memcmp(h, sigs[k].sig, sigs[k].len) == 0) kind = (int)k;
     /* PNM / PFM: 'P' then 1-7, F or f, then whitespace. */
-    ok = ok || (n >= 3 && h[0] == 'P' && strchr("1234567Ff", h[1]) && h[1] &&
-                (h[2] == '\n' || h[2] == ' ' || h[2] == '\r' || h[2] == '\t'));
-    if (!ok)
+    bool ok = kind >= 0 || (n >= 3 && h[0] == 'P' && h[1] && strchr("1234567Ff", h[1]) &&
+                            (h[2] == '\n' || h[2] == ' ' || h[2] == '\r' || h[2] == '\t'));
+    if (!ok) {
         snprintf(msg, cap,
-                 "%s: '%s' (%llu bytes) does not start like an image file (EXR, PNG, JPEG, HDR, TIFF, PNM, "
-                 "BMP, GIF, WebP); not read",
+                 "%s: '%s' (%llu bytes) does not start like an image file (EXR, PNG, JPEG, HDR, TIFF, PNM, BMP, GIF, "
+                 "WebP); not read",
                  what, path, (unsigned long long)size);
-    return ok;
+        return false;
+    }
+    uint64_t w = 0, hh = 0;
+    if (kind == 0 && !exr_dims(h, n, &w, &hh)) {
+        snprintf(msg, cap, "%s: '%s': malformed OpenEXR header (no valid dataWindow in the first %zu bytes)", what,
+                 path, n);
+        return false;
+    }
+    if (kind == 1 && n >= 24 && memcmp(h + 12, "IHDR", 4) == 0) {
+        w = (uint64_t)h[16] << 24 | (uint64_t)h[17] << 16 | (uint64_t)h[18] << 8 | h[19];
+        hh = (uint64_t)h[20] << 24 | (uint64_t)h[21] << 16 | (uint64_t)h[22] << 8 | h[23];
+    }
+    if (max_pixels && (w > max_pixels || hh > max_pixels || w * hh > max_pixels)) {
+        snprintf(msg, cap, "%s: '%s' is %llu x %llu pixels, over the limit of %llu pixels; not read", what, path,
+                 (unsigned long long)w, (unsigned long long)hh, (unsigned long long)max_pixels);
+        return false;
+    }
+    return true;
 }
 
 bool sv_sky_load(const sv_ext *ext, sv_sky *out)
@@ -252,7 +302,7 @@ bool sv_sky_load(const sv_ext *ext, sv_sky *out)
         return false;
     }
     char msg[640];
-    if (!sv_image_file_check(ext->sky.path, "sky", msg, sizeof msg)) {
+    if (!sv_image_file_check(ext->sky.path, "sky", SV_SKY_MAX_PIXELS, msg, sizeof msg)) {
         fprintf(stderr, "schnee-view: error: %s\n", msg);
         return false;
     }

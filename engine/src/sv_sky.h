@@ -37,9 +37,15 @@ bool sv_sky_load(const sv_ext *ext, sv_sky *out);
 /* Image files (textures, the sky) are read through OpenImageIO only after this check: opened
  * without blocking, a regular file (sv_gltf_open_regular) of at most SV_MAX_IMAGE_FILE_BYTES whose
  * first bytes are the signature of an image format (EXR, PNG, JPEG, Radiance HDR, TIFF, PNM/PFM,
- * BMP, GIF, WebP). False with a message in msg naming `what` and the path, never the content. */
+ * BMP, GIF, WebP); for EXR (dataWindow) and PNG (IHDR) the header's size must be at most
+ * max_pixels (0 = no limit) before a pixel is decoded. False with a message in msg naming `what`
+ * and the path, never the content. */
 #define SV_MAX_IMAGE_FILE_BYTES (1ull << 30)
-bool sv_image_file_check(const char *path, const char *what, char *msg, size_t cap);
+#ifndef SV_SKY_MAX_PIXELS
+#define SV_SKY_MAX_PIXELS (8192ull * 4096ull) /* the sky image (prefiltered on the CPU at load) */
+#endif
+#define SV_TEXTURE_MAX_PIXELS (8192ull * 8192ull)
+bool sv_image_file_check(const char *path, const char *what, uint64_t max_pixels, char *msg, size_t cap);
 void sv_sky_destroy(sv_sky *sky);
 
 /* Split-sum LUT, size x size texels of (A, B), texel (i, j) at NoV = (i + 0.5) / size, roughness
