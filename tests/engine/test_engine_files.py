@@ -186,3 +186,16 @@ def test_half_storage_overflow_falls_back_to_float(tmp_path):
     # The cube's front face: albedo 0.5 · (E/π + 0.1) with E = π·L00·Y00 ≈ 2.8e5 — bright, not dark.
     assert hi[16, 16, 0] > 1e4
     assert np.array_equal(fi, hi)  # float storage in both runs
+
+
+def test_exr_header_over_the_pixel_limit_is_not_decoded(tmp_path):
+    # A 60-byte file whose EXR header claims 100000 x 50000 pixels: refused from the header, before
+    # OpenImageIO would allocate 60 GB for it.
+    import struct
+    head = (b"\x76\x2f\x31\x01" + struct.pack("<I", 2) + b"dataWindow\0box2i\0" + struct.pack("<i", 16)
+            + struct.pack("<4i", 0, 0, 99999, 49999) + b"\0")
+    (tmp_path / "sky.exr").write_bytes(head)
+    proc, seconds = run(scene(tmp_path, "sky", "sky.exr"))
+    assert proc.returncode == 1 and seconds < 20
+    assert "sky: '%s' is 100000 x 50000 pixels, over the limit of %d pixels" % (tmp_path / "sky.exr", 8192 * 4096) \
+        in proc.stderr, proc.stderr
