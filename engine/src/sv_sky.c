@@ -324,13 +324,21 @@ bool sv_sky_load(const sv_ext *ext, sv_sky *out)
         pb_image_free(&img);
         return false;
     }
+    size_t clamped = 0;
     for (size_t i = 0; i < (size_t)w * h; ++i) {
         for (uint32_t c = 0; c < 3; ++c) {
             float v = img.pixels[i * img.channels + (img.channels >= 3 ? c : 0)];
             base[i * 4 + c] = isfinite(v) && v > 0.0f ? v : 0.0f; /* the bake clamps negatives too */
+            if (base[i * 4 + c] > SV_SKY_MAX_RADIANCE) {          /* the prefilter's sums must stay finite */
+                base[i * 4 + c] = SV_SKY_MAX_RADIANCE;
+                clamped++;
+            }
         }
         base[i * 4 + 3] = 1.0f;
     }
+    if (clamped)
+        fprintf(stderr, "schnee-view: warning: sky %s: %zu value(s) above %g clamped to it\n", ext->sky.path, clamped,
+                (double)SV_SKY_MAX_RADIANCE);
     pb_image_free(&img);
     out->present = true;
     out->max_band = ext->sky.max_band;

@@ -45,6 +45,9 @@ bool sv_sky_load(const sv_ext *ext, sv_sky *out);
 #define SV_SKY_MAX_PIXELS (8192ull * 4096ull) /* the sky image (prefiltered on the CPU at load) */
 #endif
 #define SV_TEXTURE_MAX_PIXELS (8192ull * 8192ull)
+/* Sky radiance above this (far beyond any real HDRI: the sun is ~1e5-1e9) is clamped at load with
+ * a warning, so that the prefilter's sums cannot overflow to Inf. */
+#define SV_SKY_MAX_RADIANCE 1e20f
 bool sv_image_file_check(const char *path, const char *what, uint64_t max_pixels, char *msg, size_t cap);
 void sv_sky_destroy(sv_sky *sky);
 

@@ -199,3 +199,18 @@ def test_exr_header_over_the_pixel_limit_is_not_decoded(tmp_path):
     assert proc.returncode == 1 and seconds < 20
     assert "sky: '%s' is 100000 x 50000 pixels, over the limit of %d pixels" % (tmp_path / "sky.exr", 8192 * 4096) \
         in proc.stderr, proc.stderr
+
+
+def test_sky_near_float_max_is_clamped_not_infinite(tmp_path):
+    # Found by tests/fuzz/run_sky_fuzz.sh: a sky texel of 1.7e38 made the GGX prefilter's sums Inf.
+    img = np.full((8, 16, 3), 0.5, np.float32)
+    img[2:4, 3:6] = 1.7e38
+    sg.write_exr(tmp_path / "sky.exr", img)
+    path = scene(tmp_path, "sky", "sky.exr")
+    proc = viewer.check(viewer.run(path, "--write-sky-mips", tmp_path / "mip", validation=False))
+    assert "18 value(s) above 1e+20 clamped to it" in proc.stderr, proc.stderr
+    levels = sorted(tmp_path.glob("mip*.exr"))
+    assert len(levels) >= 2
+    for level in levels:
+        px = viewer.read_image(level)
+        assert np.all(np.isfinite(px)) and px.max() <= 1e20 * (1 + 1e-6)
