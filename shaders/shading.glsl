@@ -90,9 +90,7 @@ bool grid_irradiance(vec3 p_surface, vec3 n, out vec3 e_out) {
                 continue;
             vec3 w3 = mix(1.0 - f, f, vec3(o));
             float w = w3.x * w3.y * w3.z;
-            vec3 centre_local = (vec3(ci) + 0.5) * h;
-            vec3 centre = gr.origin_spacing.xyz + centre_local.x * gr.axes[0].xyz + centre_local.y * gr.axes[1].xyz +
-                          centre_local.z * gr.axes[2].xyz;
+            vec3 centre = cell_centre(gr, ci);
             float t = dot(centre - p_surface, n) / h;
             uint pi = gr.base.x + uint(idx);
             w *= smoothstep(-0.1, 0.1, t) * probe_validity(pi);

@@ -7,7 +7,7 @@
 #ifndef SV_RENDERER_H
 #define SV_RENDERER_H
 
-#include "sv_gpu_types.h"
+#include "sv_gpu.h"
 #include "sv_probes.h"
 #include "sv_scene.h"
 #include "sv_sky.h"
@@ -28,12 +28,19 @@ typedef struct sv_view {
     float normal_bias;   /* per-pixel sample offset along n, in grid spacings (default 0) */
 } sv_view;
 
-/* What the renderer uploads besides the scene (zero = defaults). */
+/* What the renderer uploads besides the scene. Zero-initialised means: no half storage, no sky
+ * and a BLACK fallback probe (fallback_radiance 0 is a valid value, e.g. --fallback-radiance 0);
+ * start from SV_RENDERER_DESC_DEFAULT for the documented defaults. */
 typedef struct sv_renderer_desc {
-    float fallback_radiance; /* uniform radiance of probe 0 when there is no sky */
+    float fallback_radiance; /* uniform radiance of probe 0 when there is no sky (default
+                                SV_FALLBACK_RADIANCE; 0 = black) */
     bool half_probes;        /* half-float probe storage (sv_gpu_probe_half) instead of float */
     const sv_sky *sky;       /* NULL or !present: no background, no specular, constant fallback */
 } sv_renderer_desc;
+#define SV_RENDERER_DESC_DEFAULT                                                                                       \
+    {                                                                                                                  \
+        .fallback_radiance = SV_FALLBACK_RADIANCE, .half_probes = false, .sky = NULL                                   \
+    }
 
 typedef struct sv_renderer {
     sv_context *ctx;
