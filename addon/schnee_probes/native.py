@@ -14,17 +14,66 @@ re-checks every buffer's format and length. See docs/python-api.md.
 """
 from __future__ import annotations
 
+import os
+import sys
 from dataclasses import dataclass
 from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
+def _import_native():
+    """Import the compiled module. RTLD_DEEPBIND makes it (and the Embree/TBB it carries in lib/)
+    resolve its symbols in its own libraries first: a Blender built with Embree 4 exports rtc*
+    functions of the same names, which would otherwise be bound in place of Embree 3's."""
+    flags = sys.getdlopenflags()
+    deep = getattr(os, "RTLD_DEEPBIND", 0)
+    if deep and "libasan" not in os.environ.get("LD_PRELOAD", ""):  # ASan refuses DEEPBIND
+        sys.setdlopenflags(flags | deep)
+    try:
+        from . import _schnee_native
+        return _schnee_native
+    finally:
+        sys.setdlopenflags(flags)
+
+
 try:
-    from . import _schnee_native as _native
+    _native = _import_native()
     _NATIVE_IMPORT_ERROR: Optional[BaseException] = None
 except ImportError as exc:  # not built yet: the pure-Python parts (dataclasses, errors) still work
     _native = None
     _NATIVE_IMPORT_ERROR = exc
+
+
+def native_problem() -> Optional[str]:
+    """None when the compiled module loaded, else what is wrong and what to do, in words for someone
+    who installed the add-on package (shown by the panel and bake.py)."""
+    if _native is not None:
+        return None
+    return _explain(_NATIVE_IMPORT_ERROR)
+
+
+def _explain(exc: Optional[BaseException]) -> str:
+    import platform
+    text = str(exc) if exc is not None else "unknown reason"
+    here = os.path.dirname(os.path.abspath(__file__))
+    found = [f for f in os.listdir(here) if f.startswith("_schnee_native")] if os.path.isdir(here) else []
+    if platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64"):
+        what = (f"this package's bake core is built for Linux x86-64, and this is "
+                f"{platform.system()} {platform.machine()}")
+    elif not found:
+        what = "the package has no compiled bake core (_schnee_native.abi3.so)"
+    elif "cannot open shared object file" in text:
+        lib = text.split(":")[0].strip()
+        what = (f"a library the bake core needs is missing: {lib} (the package ships Embree and TBB in "
+                f"{os.path.join('schnee_probes', 'lib')}; the package seems incomplete)")
+    elif "GLIBC" in text or "GLIBCXX" in text:
+        what = f"this system's C/C++ runtime is older than the package was built for ({text})"
+    else:
+        what = f"the bake core did not load ({text})"
+    return (f"Schnee Probes: {what}. Reinstall the add-on from the complete package "
+            f"(schnee_probes-<version>.zip, or the extension package for Blender 4.2+) built for "
+            f"Linux x86-64 with glibc 2.36 or newer, or build it from source (scripts/build.sh). "
+            f"Loaded from: {here}")
 
 
 class SchneeError(RuntimeError):
@@ -42,8 +91,7 @@ if _native is not None:
 
 def _lib():
     if _native is None:
-        raise ImportError("the native module _schnee_native is not built (run scripts/build.sh): "
-                          f"{_NATIVE_IMPORT_ERROR}")
+        raise ImportError(_explain(_NATIVE_IMPORT_ERROR))
     return _native
 
 
@@ -170,10 +218,62 @@ def project_equirect(pixels: np.ndarray, max_band: int = 2, rotation: Optional[n
 
 def project_file(path: str, max_band: int = 2, rotation: Optional[np.ndarray] = None,
                  negative: str = "error") -> np.ndarray:
-    """Same as :func:`project_equirect` for an image file read through OpenImageIO (EXR, HDR, ...)."""
+    """Same as :func:`project_equirect` for an image file. Single-part scanline EXR (uncompressed,
+    RLE, ZIP: what Cycles' ``save_render`` writes) is read by the add-on's own reader (``exr.py``);
+    any other format or codec is read through Blender's image API (inside Blender only). Errors are
+    SchneeError: "I/O error" (missing/unreadable file), "malformed file"."""
     band = _check_band(max_band)
-    raw = _lib().project_file(path, band, _rotation(rotation), _choice(negative, _NEGATIVE, "negative"))
+    rot = _rotation(rotation)
+    policy = _choice(negative, _NEGATIVE, "negative")
+    pixels = read_image(path)
+    h, w, c = pixels.shape
+    try:
+        raw = _lib().project_equirect(pixels, w, h, c, band, rot, policy)
+    except SchneeError as exc:
+        raise SchneeError(f"{os.fspath(path)}: {exc}", exc.code) from None
     return np.frombuffer(raw, dtype=np.float64).reshape(sh_count(band), 3)
+
+
+def read_image(path: str) -> np.ndarray:
+    """Float32 pixels (H, W, C), row 0 at the top, of an EXR the add-on reads itself or (inside
+    Blender) any image Blender reads. SchneeError on failure."""
+    from . import exr
+    path = os.fspath(path)
+    try:
+        if exr.is_exr(path):
+            return exr.read(path)
+    except OSError as exc:
+        raise SchneeError(f"cannot read {path}: {exc.strerror or exc}", "I/O error") from None
+    except exr.Malformed as exc:
+        raise SchneeError(f"{path}: {exc}", "malformed file") from None
+    except exr.Unsupported:
+        pass  # e.g. DWAB-compressed HDRIs: Blender reads those
+    return _read_with_blender(path)
+
+
+def _read_with_blender(path: str) -> np.ndarray:
+    try:
+        import bpy
+    except ImportError:
+        raise SchneeError(f"{path}: outside Blender only uncompressed/RLE/ZIP scanline EXR files are "
+                          "read", "I/O error") from None
+    if not os.path.isfile(path):
+        raise SchneeError(f"cannot read {path}: no such file", "I/O error")
+    try:
+        image = bpy.data.images.load(path, check_existing=False)
+    except RuntimeError as exc:
+        raise SchneeError(f"cannot read {path}: {exc}", "I/O error") from None
+    try:
+        w, h = image.size
+        c = image.channels
+        if w <= 0 or h <= 0 or c < 3:
+            raise SchneeError(f"cannot read {path}: Blender loaded {w} x {h} x {c}", "I/O error")
+        buf = np.empty(w * h * c, np.float32)
+        image.pixels.foreach_get(buf)
+    finally:
+        bpy.data.images.remove(image)
+    # Blender's Image.pixels is bottom-up; the projection wants row 0 at the top.
+    return np.ascontiguousarray(buf.reshape(h, w, c)[::-1])
 
 
 def irradiance(coeffs: np.ndarray, normals: np.ndarray) -> np.ndarray:
