@@ -16,6 +16,9 @@ set -euo pipefail
 
 ROOT="${SCHNEE_CHROOT_DIR:-/var/cache/schnee-chroots}"
 MIRROR="${SCHNEE_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
+# Blender, and numpy: every blender.org build bundles numpy, Debian packages it separately (and its
+# blender package does not depend on it). Nothing else: no Embree, OpenImageIO or dev packages.
+PACKAGES="blender python3-numpy"
 
 usage() {
     echo "usage: $0 ensure|path SUITE | run SUITE -- CMD..." >&2
@@ -59,7 +62,8 @@ create() {
     echo 'Acquire::Check-Valid-Until "false";' >"$tmp/etc/apt/apt.conf.d/99schnee-no-valid-until"
     echo 'APT::Install-Recommends "false";' >"$tmp/etc/apt/apt.conf.d/99schnee-no-recommends"
     in_chroot "$tmp" apt-get -q update >&2
-    in_chroot "$tmp" /usr/bin/env DEBIAN_FRONTEND=noninteractive apt-get install -y -q blender >&2
+    in_chroot "$tmp" /usr/bin/env DEBIAN_FRONTEND=noninteractive apt-get install -y -q $PACKAGES >&2
+    echo "$PACKAGES" >"$tmp/.schnee-packages"
     in_chroot "$tmp" apt-get clean >&2
     local probe
     probe="$(in_chroot "$tmp" blender -b --factory-startup --python-expr \
@@ -78,7 +82,7 @@ create() {
 }
 
 ensure() {
-    if [ -f "$dir/.schnee-blender-version" ]; then
+    if [ -f "$dir/.schnee-blender-version" ] && [ "$(cat "$dir/.schnee-packages" 2>/dev/null)" = "$PACKAGES" ]; then
         return
     fi
     mkdir -p "$ROOT"
@@ -94,6 +98,12 @@ ensure() {
             exit 1
         }
         create
+    elif [ "$(cat "$dir/.schnee-packages" 2>/dev/null)" != "$PACKAGES" ]; then
+        # A chroot made by an earlier version of this script: add what the list gained.
+        in_chroot "$dir" apt-get -q update >&2
+        in_chroot "$dir" /usr/bin/env DEBIAN_FRONTEND=noninteractive apt-get install -y -q $PACKAGES >&2
+        in_chroot "$dir" apt-get clean >&2
+        echo "$PACKAGES" >"$dir/.schnee-packages"
     fi
     flock -u 9
 }

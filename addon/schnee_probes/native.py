@@ -21,23 +21,12 @@ from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
-def _import_native():
-    """Import the compiled module. RTLD_DEEPBIND makes it (and the Embree/TBB it carries in lib/)
-    resolve its symbols in its own libraries first: a Blender built with Embree 4 exports rtc*
-    functions of the same names, which would otherwise be bound in place of Embree 3's."""
-    flags = sys.getdlopenflags()
-    deep = getattr(os, "RTLD_DEEPBIND", 0)
-    if deep and "libasan" not in os.environ.get("LD_PRELOAD", ""):  # ASan refuses DEEPBIND
-        sys.setdlopenflags(flags | deep)
-    try:
-        from . import _schnee_native
-        return _schnee_native
-    finally:
-        sys.setdlopenflags(flags)
-
-
+# The module's only exported symbol is PyInit__schnee_native (hidden visibility + version script), and
+# it finds Embree/TBB through its RUNPATH ($ORIGIN/lib). Its rtc* references bind to the Embree 3 it
+# carries even where Blender links Embree 4 (tests/blender_versions check the bindings with
+# LD_DEBUG). RTLD_DEEPBIND is not used: it crashes Blender 3.4, whose Embree 3 is the same library.
 try:
-    _native = _import_native()
+    from . import _schnee_native as _native
     _NATIVE_IMPORT_ERROR: Optional[BaseException] = None
 except ImportError as exc:  # not built yet: the pure-Python parts (dataclasses, errors) still work
     _native = None
