@@ -33,12 +33,15 @@ if(CMAKE_SCRIPT_MODE_FILE)
   file(COPY "${MODULE}" DESTINATION "${STAGE}/schnee_probes")
   file(COPY "${BAKE_PY}" DESTINATION "${STAGE}/schnee_probes")
 
-  # The module's shared-library closure, minus what every Linux system (and Blender) has.
+  # The shared-library closure of the module and of the Embree it opens at import (EMBREE, through
+  # dlopen: pb_embree_dyn.c), minus what every Linux system (and Blender) has.
   execute_process(COMMAND ldd "${MODULE}" OUTPUT_VARIABLE _ldd RESULT_VARIABLE _rc)
-  if(NOT _rc EQUAL 0)
-    message(FATAL_ERROR "addon_zip: ldd ${MODULE} failed")
+  execute_process(COMMAND ldd "${EMBREE}" OUTPUT_VARIABLE _ldd2 RESULT_VARIABLE _rc2)
+  if(NOT _rc EQUAL 0 OR NOT _rc2 EQUAL 0)
+    message(FATAL_ERROR "addon_zip: ldd ${MODULE} / ${EMBREE} failed")
   endif()
-  string(REPLACE "\n" ";" _ldd "${_ldd}")
+  file(REAL_PATH "${EMBREE}" _embree_real)
+  string(REPLACE "\n" ";" _ldd "${_ldd}\n${_ldd2}\n\tlibembree3.so.3 => ${_embree_real} (0)")
   set(_system "^(linux-vdso|ld-linux|libc|libm|libpthread|libdl|librt|libstdc\\+\\+|libgcc_s)[.-]")
   foreach(_line IN LISTS _ldd)
     if(_line MATCHES "^[ \t]*([^ ]+) => (/[^ ]+) \\(")
@@ -102,7 +105,7 @@ add_custom_command(
   COMMAND ${CMAKE_COMMAND} -DSRC_DIR=${_addon_src} -DMODULE=$<TARGET_FILE:_schnee_native>
           -DBAKE_PY=${CMAKE_SOURCE_DIR}/bake.py -DMANIFEST=${CMAKE_BINARY_DIR}/blender_manifest.toml
           -DSTAGE=${CMAKE_BINARY_DIR}/addon_zip -DEXT_DIR=${SCHNEE_EXTENSION_DIR}
-          -DZIP=${SCHNEE_ADDON_ZIP} -DPATCHELF=${SCHNEE_PATCHELF}
+          -DZIP=${SCHNEE_ADDON_ZIP} -DPATCHELF=${SCHNEE_PATCHELF} -DEMBREE=$<TARGET_FILE:embree>
           -P ${CMAKE_CURRENT_LIST_FILE}
   DEPENDS _schnee_native $<TARGET_FILE:_schnee_native> ${_addon_inputs} ${CMAKE_CURRENT_LIST_FILE}
           ${CMAKE_SOURCE_DIR}/bake.py ${CMAKE_BINARY_DIR}/blender_manifest.toml

@@ -4,6 +4,8 @@ Submodules register themselves; this file only orders them. The glTF exporter fi
 ``glTF2ExportUserExtension`` on this package while the add-on is enabled.
 """
 
+# Licence: GPL-3.0-or-later (Blender add-ons must be GPL-compatible). Blender 3.4-4.1 read bl_info
+# (legacy add-on zip); 4.2+ read blender_manifest.toml of the extension package (docs/install.md).
 bl_info = {
     "name": "Schnee Probes",
     "author": "Schnee probes team",
@@ -33,6 +35,12 @@ def _modules():
 
 
 def register():
+    try:
+        import numpy  # noqa: F401
+    except ImportError:
+        raise ImportError("Schnee Probes needs numpy. Blender from blender.org bundles it; for a Blender "
+                          "from a Linux distribution install its numpy package (Debian/Ubuntu: "
+                          "apt install python3-numpy)") from None
     for mod in _modules():
         mod.register()
 
@@ -43,9 +51,9 @@ def unregister():
 
 
 def __getattr__(name):
-    # The glTF exporter looks this class up on the add-on module, and (3.4) calls register_panel()
-    # when its dialog opens to show the extension's checkbox.
-    if name in ("glTF2ExportUserExtension", "register_panel"):
+    # The glTF exporter looks this class up on the add-on module; to show the extension's checkbox
+    # 3.4-4.1 call register_panel() and 4.2-4.3 read draw_export when its dialog opens (compat.py).
+    if name in ("glTF2ExportUserExtension", "register_panel", "draw_export"):
         from . import gltf_export
         return getattr(gltf_export, name)
     raise AttributeError(name)

@@ -21,10 +21,10 @@ from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
-# The module's only exported symbol is PyInit__schnee_native (hidden visibility + version script), and
-# it finds Embree/TBB through its RUNPATH ($ORIGIN/lib). Its rtc* references bind to the Embree 3 it
-# carries even where Blender links Embree 4 (tests/blender_versions check the bindings with
-# LD_DEBUG). RTLD_DEEPBIND is not used: it crashes Blender 3.4, whose Embree 3 is the same library.
+# The module exports only PyInit__schnee_native (hidden visibility + version script) and links only
+# libc/libm: it opens Embree itself at import (dlopen RTLD_LOCAL + dlsym, native/src/pb_embree_dyn.h),
+# preferring an Embree 3 already in the process (Blender 3.x), else the one the add-on package
+# carries in lib/ (with TBB), so its Embree calls cannot bind to the Embree 4 of Blender 4.x/5.x.
 try:
     from . import _schnee_native as _native
     _NATIVE_IMPORT_ERROR: Optional[BaseException] = None

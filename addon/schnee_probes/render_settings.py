@@ -140,7 +140,7 @@ def apply_bake_settings(scene, view_layer, settings):
     im.color_mode = 'RGB'
     im.color_depth = '32'
     im.exr_codec = 'NONE'  # lossless either way; uncompressed is fastest to write and read
-    im.use_zbuffer = False
+    compat.set_existing(im, use_zbuffer=False)  # removed in Blender 4.x
     im.use_preview = False
 
     c = scene.cycles
