@@ -189,3 +189,7 @@ def test_gltf_export_hook_checkbox_validator_engine(session, tmp_path):
                             "--width", 64, "--height", 48))
     img = viewer.read_image(png)
     assert img.shape == (48, 64, 3) and np.isfinite(img).all()
+    # The background is the exported sky (sh_coeffs/sky.exr, the uniform world C = (0.25, 0.5, 1)):
+    # blue over green over red after tone mapping.
+    bg = np.median(img.reshape(-1, 3), axis=0)
+    assert bg[2] > bg[1] > bg[0] > 0.0, bg
