@@ -118,8 +118,10 @@ add_custom_target(schnee_addon_zip ALL DEPENDS ${SCHNEE_ADDON_ZIP})
 # first time: scripts/blender-chroot.sh). Not part of ALL.
 set(SCHNEE_EXTENSION_ZIP ${CMAKE_SOURCE_DIR}/dist/schnee_probes-${SCHNEE_ADDON_VERSION}-extension.zip
     CACHE INTERNAL "Path of the extension package")
-add_custom_target(schnee_extension
+add_custom_command(
+  OUTPUT ${SCHNEE_EXTENSION_ZIP}
   COMMAND ${CMAKE_SOURCE_DIR}/scripts/build_extension.sh ${SCHNEE_EXTENSION_DIR} ${SCHNEE_EXTENSION_ZIP}
-  DEPENDS schnee_addon_zip
+  DEPENDS ${SCHNEE_ADDON_ZIP} ${CMAKE_SOURCE_DIR}/scripts/build_extension.sh
   COMMENT "Building the extension with Blender: dist/schnee_probes-${SCHNEE_ADDON_VERSION}-extension.zip"
   VERBATIM)
+add_custom_target(schnee_extension DEPENDS ${SCHNEE_EXTENSION_ZIP})

@@ -35,11 +35,10 @@ sys.path.insert(0, str(REPO / "tests" / "engine" / "scripts"))
 
 
 def _extension_zip():
-    zips = sorted((REPO / "dist").glob("schnee_probes-*-extension.zip"))
-    if not zips and (BUILD_DIR / "build.ninja").exists():
+    if (BUILD_DIR / "build.ninja").exists():  # up to date with the sources (no-op when it is)
         subprocess.run(["cmake", "--build", str(BUILD_DIR), "--target", "schnee_extension"], check=True,
-                       timeout=900)
-        zips = sorted((REPO / "dist").glob("schnee_probes-*-extension.zip"))
+                       timeout=900, capture_output=True)
+    zips = sorted((REPO / "dist").glob("schnee_probes-*-extension.zip"))
     return zips[-1] if zips else None
 
 
@@ -98,6 +97,10 @@ def session(request, tmp_path_factory):
         host = tmp_path_factory.mktemp(suite)
         shutil.copytree(outer / "work", host / "work")
         s["host"] = host / "work"
+        # A package whose Embree went missing: bake.py must say so and exit 4 (no crash, no traceback).
+        (root / pkg.relative_to("/") / "lib" / "libembree3.so.3").unlink()
+        s["broken"] = _run(suite, "blender", "-b", inner / "work" / "scene.blend", "-P", pkg / "bake.py", "--",
+                           "--output", "//broken/probes.shprobe", env=env)
         s["bindings"] = [line for f in outer.glob("ld.*") for line in f.read_text(errors="replace").splitlines()
                          if "symbol `rtc" in line]
         yield s
@@ -146,6 +149,17 @@ def test_headless_bake_py_from_the_package(session):
     f = native.read_shprobe(str(session["host"] / "headless" / "probes.shprobe"))
     assert f.probe_count == 8
     np.testing.assert_allclose(f.coeffs[:, 0, :], np.tile(COLOR * L0, (8, 1)), rtol=1e-5)
+
+
+def test_missing_embree_explained_by_bake_py(session):
+    proc = session["broken"]
+    assert proc.returncode == 4, proc.stdout[-2000:] + proc.stderr[-2000:]
+    line = [ln for ln in proc.stderr.splitlines() if ln.startswith("bake.py: error:")]
+    assert line, proc.stderr[-2000:]
+    assert "cannot load Embree (libembree3.so.3)" in line[0] and "Reinstall the add-on" in line[0], line[0]
+    # No traceback from the add-on (Debian's 5.2 prints one of its own at startup: bl_pkg lacks cattrs).
+    assert not [ln for ln in proc.stderr.splitlines() if ln.strip().startswith("File ") and "schnee" in ln]
+    assert not (session["host"] / "broken").exists()
 
 
 def test_module_binds_the_embree_it_carries(session):

@@ -127,3 +127,25 @@ def test_extension_package_same_files_plus_manifest(unpacked):
     assert f'version = "{version}"' in manifest
     assert 'license = ["SPDX:GPL-3.0-or-later"]' in manifest
     assert 'blender_version_min = "4.2.0"' in manifest and 'platforms = ["linux-x64"]' in manifest
+
+
+def test_missing_module_is_explained_to_a_package_user(unpacked, tmp_path):
+    """A package without its compiled module: native.native_problem() (what the panel shows) and
+    bake.py (exit 4) say what is missing and what to do, in words for someone who installed a zip."""
+    import shutil
+    _, pkg = unpacked
+    broken = tmp_path / "schnee_probes"
+    shutil.copytree(pkg, broken)
+    (broken / "_schnee_native.abi3.so").unlink()
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "LD_LIBRARY_PATH")}
+    env["PYTHONPATH"] = str(tmp_path)
+    code = "import schnee_probes.native as n; print(n.native_problem())"
+    text = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True,
+                          cwd="/").stdout
+    assert "no compiled bake core (_schnee_native.abi3.so)" in text and "Reinstall the add-on" in text
+    assert "build it from source" in text and str(broken) in text
+    proc = subprocess.run(["blender", "-b", "--factory-startup", "-P", str(broken / "bake.py"), "--"],
+                          capture_output=True, text=True, env=env, timeout=300, cwd="/")
+    assert proc.returncode == 4, proc.stdout[-2000:] + proc.stderr[-2000:]
+    line = [ln for ln in proc.stderr.splitlines() if ln.startswith("bake.py: error:")]
+    assert line and "no compiled bake core" in line[0] and "Reinstall the add-on" in line[0], proc.stderr[-2000:]
