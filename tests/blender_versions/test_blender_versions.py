@@ -94,6 +94,9 @@ def session(request, tmp_path_factory):
                              "-P", pkg / "bake.py", "--", "--output", "//headless/probes.shprobe",
                              "--panorama-resolution", 16, "--samples", 1, "--quiet",
                              env=dict(env, LD_DEBUG="bindings", LD_DEBUG_OUTPUT=inner / "ld"))
+        # Blender 4.2+'s command-line entry the add-on registers: the same bake through a child Blender.
+        s["cli"] = _run(suite, "blender", "--command", "schnee_bake", inner / "work" / "scene.blend", "--output",
+                        "//cli/probes.shprobe", "--panorama-resolution", 16, "--samples", 1, "--quiet", env=env)
         host = tmp_path_factory.mktemp(suite)
         shutil.copytree(outer / "work", host / "work")
         s["host"] = host / "work"
@@ -148,6 +151,14 @@ def test_headless_bake_py_from_the_package(session):
     from schnee_probes import native  # the host's reader reads the file the chroot's Blender wrote
     f = native.read_shprobe(str(session["host"] / "headless" / "probes.shprobe"))
     assert f.probe_count == 8
+    np.testing.assert_allclose(f.coeffs[:, 0, :], np.tile(COLOR * L0, (8, 1)), rtol=1e-5)
+
+
+def test_blender_command_schnee_bake(session):
+    proc = session["cli"]
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    from schnee_probes import native
+    f = native.read_shprobe(str(session["host"] / "cli" / "probes.shprobe"))
     np.testing.assert_allclose(f.coeffs[:, 0, :], np.tile(COLOR * L0, (8, 1)), rtol=1e-5)
 
 
