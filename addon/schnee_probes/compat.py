@@ -1,7 +1,7 @@
 """Blender-version differences, in one place.
 
-The add-on targets Debian's Blender 3.4 and is written so that Blender 4.x is a small step: every
-API that moved between those versions is reached through a helper here, never directly.
+One add-on for Blender 3.4 through 5.x (tested: 3.4, 4.3, 5.2; docs/install.md): every API that
+differs between those versions is reached through a helper here, never directly.
 """
 import bpy
 
@@ -27,6 +27,22 @@ def set_equirectangular(camera_data):
 def panorama_settings_holder(camera_data):
     """The struct that carries the panorama settings of ``camera_data`` in this Blender."""
     return camera_data if hasattr(camera_data, "panorama_type") else camera_data.cycles
+
+
+def group_interface_sockets(tree, in_out):
+    """(name -> socket) of a node group's interface ('INPUT' or 'OUTPUT'); Blender 4.0 moved them
+    from ``tree.inputs``/``tree.outputs`` to ``tree.interface``."""
+    if hasattr(tree, "interface"):  # 4.0+
+        return {item.name: item for item in tree.interface.items_tree
+                if item.item_type == 'SOCKET' and item.in_out == in_out}
+    return {s.name: s for s in (tree.inputs if in_out == 'INPUT' else tree.outputs)}
+
+
+def new_group_socket(tree, in_out, socket_type, name):
+    """Add an interface socket to node group ``tree`` (4.0+ ``tree.interface.new_socket``)."""
+    if hasattr(tree, "interface"):  # 4.0+
+        return tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+    return (tree.inputs if in_out == 'INPUT' else tree.outputs).new(socket_type, name)
 
 
 def light_objects(scene):
