@@ -82,6 +82,7 @@ def session(request, tmp_path_factory):
     env = {"BLENDER_USER_RESOURCES": inner / "profile"}
     s = {"suite": suite, "inner": inner, "outer": outer, "env": env}
     try:
+        s["validate"] = _run(suite, "blender", "--command", "extension", "validate", inner / ext.name, env=env)
         s["install"] = _run(suite, "blender", "--command", "extension", "install-file", "-r", "user_default",
                             "-e", inner / ext.name, env=env)
         s["checks"] = _run(suite, "blender", "-b", "--python-exit-code", "1", "-P", inner / "version_checks.py",
@@ -113,6 +114,9 @@ def session(request, tmp_path_factory):
 
 
 def test_installs_and_enables_as_extension(session):
+    # This Blender's own validator accepts the package (it was built by 4.3's `extension build`).
+    assert session["validate"].returncode == 0, session["validate"].stdout + session["validate"].stderr
+    assert "Success parsing TOML" in session["validate"].stdout
     assert session["install"].returncode == 0, session["install"].stdout + session["install"].stderr
     r = session["result"]
     assert "error" not in r, r.get("error")
