@@ -18,7 +18,8 @@ ROOT="${SCHNEE_CHROOT_DIR:-/var/cache/schnee-chroots}"
 MIRROR="${SCHNEE_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
 # Blender, and numpy: every blender.org build bundles numpy, Debian packages it separately (and its
 # blender package does not depend on it). Nothing else: no Embree, OpenImageIO or dev packages.
-PACKAGES="blender python3-numpy"
+PACKAGES=(blender python3-numpy)
+PACKAGE_LIST="${PACKAGES[*]}"
 
 usage() {
     echo "usage: $0 ensure|path SUITE | run SUITE -- CMD..." >&2
@@ -42,6 +43,7 @@ dir="$ROOT/$suite"
 in_chroot() {
     local d="$1"
     shift
+    # shellcheck disable=SC2016  # the inner script expands its own positional parameters
     unshare --mount --propagation private -- /bin/sh -c '
         d="$1"; shift
         mount -t proc proc "$d/proc"
@@ -62,8 +64,8 @@ create() {
     echo 'Acquire::Check-Valid-Until "false";' >"$tmp/etc/apt/apt.conf.d/99schnee-no-valid-until"
     echo 'APT::Install-Recommends "false";' >"$tmp/etc/apt/apt.conf.d/99schnee-no-recommends"
     in_chroot "$tmp" apt-get -q update >&2
-    in_chroot "$tmp" /usr/bin/env DEBIAN_FRONTEND=noninteractive apt-get install -y -q $PACKAGES >&2
-    echo "$PACKAGES" >"$tmp/.schnee-packages"
+    in_chroot "$tmp" /usr/bin/env DEBIAN_FRONTEND=noninteractive apt-get install -y -q "${PACKAGES[@]}" >&2
+    echo "$PACKAGE_LIST" >"$tmp/.schnee-packages"
     in_chroot "$tmp" apt-get clean >&2
     local probe
     probe="$(in_chroot "$tmp" blender -b --factory-startup --python-expr \
@@ -82,7 +84,7 @@ create() {
 }
 
 ensure() {
-    if [ -f "$dir/.schnee-blender-version" ] && [ "$(cat "$dir/.schnee-packages" 2>/dev/null)" = "$PACKAGES" ]; then
+    if [ -f "$dir/.schnee-blender-version" ] && [ "$(cat "$dir/.schnee-packages" 2>/dev/null)" = "$PACKAGE_LIST" ]; then
         return
     fi
     mkdir -p "$ROOT"
@@ -98,12 +100,12 @@ ensure() {
             exit 1
         }
         create
-    elif [ "$(cat "$dir/.schnee-packages" 2>/dev/null)" != "$PACKAGES" ]; then
+    elif [ "$(cat "$dir/.schnee-packages" 2>/dev/null)" != "$PACKAGE_LIST" ]; then
         # A chroot made by an earlier version of this script: add what the list gained.
         in_chroot "$dir" apt-get -q update >&2
-        in_chroot "$dir" /usr/bin/env DEBIAN_FRONTEND=noninteractive apt-get install -y -q $PACKAGES >&2
+        in_chroot "$dir" /usr/bin/env DEBIAN_FRONTEND=noninteractive apt-get install -y -q "${PACKAGES[@]}" >&2
         in_chroot "$dir" apt-get clean >&2
-        echo "$PACKAGES" >"$dir/.schnee-packages"
+        echo "$PACKAGE_LIST" >"$dir/.schnee-packages"
     fi
     flock -u 9
 }
