@@ -61,7 +61,7 @@ def _explain(exc: Optional[BaseException]) -> str:
         what = f"the bake core did not load ({text})"
     return (f"Schnee Probes: {what}. Reinstall the add-on from the complete package "
             f"(schnee_probes-<version>.zip, or the extension package for Blender 4.2+) built for "
-            f"Linux x86-64 with glibc 2.36 or newer, or build it from source (scripts/build.sh). "
+            f"Linux x86-64 with glibc 2.34 or newer, or build it from source (scripts/build.sh). "
             f"Loaded from: {here}")
 
 

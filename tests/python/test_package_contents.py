@@ -149,3 +149,17 @@ def test_missing_module_is_explained_to_a_package_user(unpacked, tmp_path):
     assert proc.returncode == 4, proc.stdout[-2000:] + proc.stderr[-2000:]
     line = [ln for ln in proc.stderr.splitlines() if ln.startswith("bake.py: error:")]
     assert line and "no compiled bake core" in line[0] and "Reinstall the add-on" in line[0], proc.stderr[-2000:]
+
+
+@pytest.mark.parametrize("binary", ["_schnee_native.abi3.so", "lib/libembree3.so.3", "lib/libtbb.so.12"])
+def test_runtime_requirements_stay_at_glibc_2_34_and_gcc_11(unpacked, binary):
+    """docs/install.md promises glibc 2.34+ and GCC 11's libstdc++ (Ubuntu 22.04, RHEL 9): the
+    highest symbol versions the packaged binaries need."""
+    _, pkg = unpacked
+    table = subprocess.run(["objdump", "-T", str(pkg / binary)], capture_output=True, text=True, check=True).stdout
+
+    def newest(prefix):
+        found = [tuple(int(x) for x in v.split(".")) for v in re.findall(prefix + r"_([0-9.]+)\b", table)]
+        return max(found) if found else ()
+    assert newest("GLIBC") <= (2, 34), newest("GLIBC")
+    assert newest("GLIBCXX") <= (3, 4, 29), newest("GLIBCXX")
