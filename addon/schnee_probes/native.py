@@ -210,7 +210,8 @@ def project_file(path: str, max_band: int = 2, rotation: Optional[np.ndarray] = 
     """Same as :func:`project_equirect` for an image file. Single-part scanline EXR (uncompressed,
     RLE, ZIP: what Cycles' ``save_render`` writes) is read by the add-on's own reader (``exr.py``);
     any other format or codec is read through Blender's image API (inside Blender only). Errors are
-    SchneeError: "I/O error" (missing/unreadable file), "malformed file"."""
+    SchneeError: "I/O error" (missing/unreadable file), "malformed file". Outside Blender, other
+    images are read through OpenImageIO's ``oiiotool`` when it is installed (benchmarks, tools)."""
     band = _check_band(max_band)
     rot = _rotation(rotation)
     policy = _choice(negative, _NEGATIVE, "negative")
@@ -240,12 +241,36 @@ def read_image(path: str) -> np.ndarray:
     return _read_with_blender(path)
 
 
+def _read_with_oiiotool(path: str) -> np.ndarray:
+    """Outside Blender (benchmarks, tools on a development machine): OpenImageIO's command-line tool,
+    when installed, rewrites the image as an uncompressed float EXR, which exr.py reads exactly."""
+    import shutil
+    import subprocess
+    import tempfile
+    from . import exr
+    tool = shutil.which("oiiotool")
+    if tool is None:
+        raise SchneeError(f"{path}: outside Blender only uncompressed/RLE/ZIP scanline EXR files are read "
+                          "(or any image when OpenImageIO's oiiotool is installed)", "I/O error")
+    if not os.path.isfile(path):
+        raise SchneeError(f"cannot read {path}: no such file", "I/O error")
+    with tempfile.TemporaryDirectory(prefix="schnee-img-") as tmp:
+        out = os.path.join(tmp, "image.exr")
+        proc = subprocess.run([tool, path, "-d", "float", "--compression", "none", "-o", out],
+                              capture_output=True, text=True)
+        if proc.returncode != 0 or not os.path.isfile(out):
+            raise SchneeError(f"cannot read {path}: {proc.stderr.strip() or 'oiiotool failed'}", "I/O error")
+        try:
+            return exr.read(out)
+        except (exr.Malformed, exr.Unsupported) as exc:
+            raise SchneeError(f"cannot read {path}: {exc}", "I/O error") from None
+
+
 def _read_with_blender(path: str) -> np.ndarray:
     try:
         import bpy
     except ImportError:
-        raise SchneeError(f"{path}: outside Blender only uncompressed/RLE/ZIP scanline EXR files are "
-                          "read", "I/O error") from None
+        return _read_with_oiiotool(path)
     if not os.path.isfile(path):
         raise SchneeError(f"cannot read {path}: no such file", "I/O error")
     try:

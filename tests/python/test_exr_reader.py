@@ -2,6 +2,7 @@
 Blender for the bake's panoramas: every codec it claims against OpenImageIO's reading of the same
 file (oiiotool --dumpdata, independent code), refusals for what it does not handle, and malformed
 input. Runtime: ~3 s."""
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -9,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import REPO
 from schnee_probes import exr, native
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "engine" / "scripts"))
@@ -50,10 +52,17 @@ def test_other_codecs_are_unsupported_not_misread(tmp_path, codec):
     path = _write(tmp_path, codec)
     with pytest.raises(exr.Unsupported):
         exr.read(str(path))
-    # Outside Blender there is no fallback reader: a clear I/O error, not garbage.
-    with pytest.raises(native.SchneeError) as err:
-        native.project_file(str(path), 1)
-    assert err.value.code == "I/O error" and "outside Blender" in str(err.value)
+    # Outside Blender, native.project_file falls back to oiiotool (development machines, benchmarks):
+    # the same projection as OpenImageIO's pixels.
+    pixels = viewer.read_image(path).astype(np.float32)
+    np.testing.assert_allclose(native.project_file(str(path), 1, negative="allow"),
+                               native.project_equirect(pixels, 1, negative="allow"), rtol=0, atol=1e-6)
+    # Without oiiotool: a clear I/O error, not garbage.
+    code = ("import schnee_probes.native as n\n"
+            "try:\n    n.project_file(%r, 1)\nexcept n.SchneeError as e:\n    print(e.code, '|', e)\n" % str(path))
+    env = dict(os.environ, PATH="/nonexistent", PYTHONPATH=str(REPO / "addon"))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout
+    assert out.startswith("I/O error |") and "outside Blender" in out and "oiiotool" in out, out
 
 
 def test_malformed_files(tmp_path):
