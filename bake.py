@@ -11,7 +11,10 @@ line, exits 0 on success and non-zero with a one-line reason on failure:
     130 interrupted (Ctrl+C)
 
 The add-on package is taken from ``addon/`` next to this file when present, else from the installed
-add-ons. Nothing is written on failure; the .blend itself is never saved.
+add-ons (legacy ``schnee_probes`` or the 4.2+ extension ``bl_ext.<repo>.schnee_probes``). The add-on
+package carries a copy of this file: ``<installed add-on folder>/schnee_probes/bake.py``
+(docs/install.md says where that is per Blender version). Nothing is written on failure; the .blend
+itself is never saved.
 """
 import argparse
 import os
@@ -35,17 +38,44 @@ def _script_args():
 
 
 def _import_addon():
+    """The add-on package: addon/ next to this file (source checkout), else the installed add-on
+    (legacy ``schnee_probes`` or extension ``bl_ext.<repo>.schnee_probes``; this file also ships
+    inside the package, next to its __init__.py)."""
+    import importlib
     here = os.path.dirname(os.path.abspath(__file__))
     local = os.path.join(here, "addon")
     if os.path.isdir(os.path.join(local, "schnee_probes")) and local not in sys.path:
         sys.path.insert(0, local)
+    name = _installed_package_name(here)
     try:
-        import schnee_probes  # noqa: F401  (the package itself; registration below)
-        from schnee_probes import bake_core, native
+        addon = importlib.import_module(name)
+        bake_core = importlib.import_module(name + ".bake_core")
+        native = importlib.import_module(name + ".native")
     except ImportError as exc:
-        _fail(EXIT_ADDON, f"cannot import the schnee_probes add-on ({exc}); build it with "
-                          "'cmake --build build' or install the add-on zip")
-    return schnee_probes, bake_core, native
+        _fail(EXIT_ADDON, f"cannot import the schnee_probes add-on ({exc}); install the add-on package "
+                          "(Preferences > Add-ons/Get Extensions > Install from Disk) or, in a source "
+                          "checkout, build it with 'cmake --build build'")
+    problem = native.native_problem()
+    if problem:
+        _fail(EXIT_ADDON, problem)
+    return addon, bake_core, native
+
+
+def _installed_package_name(here):
+    """``schnee_probes`` when importable as such (source checkout, legacy add-on), else the module
+    name Blender gave the installed copy (a 4.2+ extension: ``bl_ext.user_default.schnee_probes``)."""
+    import importlib.util
+    if importlib.util.find_spec("schnee_probes") is not None:
+        return "schnee_probes"
+    try:
+        import addon_utils
+        mods = [m for m in addon_utils.modules() if m.__name__.split(".")[-1] == "schnee_probes"]
+    except Exception:  # noqa: BLE001  (no add-on listing: the plain name gives the clear error)
+        return "schnee_probes"
+    for m in mods:  # prefer the copy this file ships in
+        if os.path.dirname(os.path.abspath(m.__file__)) == here:
+            return m.__name__
+    return mods[0].__name__ if mods else "schnee_probes"
 
 
 def _parser(bake_core):

@@ -13,6 +13,7 @@ APT_PACKAGES=(
   libvulkan-dev glslc mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
   libcjson-dev libglfw3-dev xvfb xauth
   nodejs npm
+  debootstrap patchelf
 )
 
 missing=()

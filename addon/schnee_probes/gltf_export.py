@@ -29,7 +29,7 @@ import urllib.parse
 
 import bpy
 
-from . import light_modes, nodes
+from . import compat, light_modes, nodes
 
 EXT_ENGINE = "VULKAN_SCHNEE_engine_properties"
 EXT_MATERIALS = "VULKAN_SCHNEE_materials"
@@ -396,6 +396,7 @@ class glTF2ExportUserExtension:
         ref.extension = light
 
     def gather_material_hook(self, gltf2_material, blender_material, export_settings):
+        blender_material = compat.gltf_original_material(blender_material)
         node = nodes.find_movable_diffuse_node(blender_material)
         if node is not None and nodes.feeds_active_output(node):
             _export_base_color(gltf2_material, node, blender_material, export_settings)
@@ -438,9 +439,11 @@ def _export_base_color(gltf2_material, node, blender_material, export_settings):
 
 def _base_color_texture(socket, export_settings):
     """The exporter's own texture gathering applied to the group's Base Color socket, or None."""
+    gather = compat.gltf_gather_texture_info()
+    if gather is None:
+        return None
     try:
-        from io_scene_gltf2.blender.exp import gltf2_blender_gather_texture_info
-        result = gltf2_blender_gather_texture_info.gather_texture_info(socket, (socket,), export_settings)
+        result = gather(socket, (socket,), export_settings)
     except Exception:  # noqa: BLE001 - exporter internals differ between versions
         return None
     texture = result[0] if isinstance(result, tuple) else result
@@ -454,11 +457,7 @@ _classes = (SchneeGltfExportSettings, SCHNEE_OT_export_warning)
 
 def _layout_draw_registry():
     """4.2+ exporter's dict of user-extension draw functions; None on 3.4 (it uses register_panel)."""
-    try:
-        import io_scene_gltf2
-    except ImportError:
-        return None
-    return getattr(io_scene_gltf2, "exporter_extension_layout_draw", None)
+    return compat.gltf_layout_draw_registry()
 
 
 def register():

@@ -14,17 +14,55 @@ re-checks every buffer's format and length. See docs/python-api.md.
 """
 from __future__ import annotations
 
+import os
+import sys
 from dataclasses import dataclass
 from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
+# The module exports only PyInit__schnee_native (hidden visibility + version script) and links only
+# libc/libm: it opens Embree itself at import (dlopen RTLD_LOCAL + dlsym, native/src/pb_embree_dyn.h),
+# preferring an Embree 3 already in the process (Blender 3.x), else the one the add-on package
+# carries in lib/ (with TBB), so its Embree calls cannot bind to the Embree 4 of Blender 4.x/5.x.
 try:
     from . import _schnee_native as _native
     _NATIVE_IMPORT_ERROR: Optional[BaseException] = None
 except ImportError as exc:  # not built yet: the pure-Python parts (dataclasses, errors) still work
     _native = None
     _NATIVE_IMPORT_ERROR = exc
+
+
+def native_problem() -> Optional[str]:
+    """None when the compiled module loaded, else what is wrong and what to do, in words for someone
+    who installed the add-on package (shown by the panel and bake.py)."""
+    if _native is not None:
+        return None
+    return _explain(_NATIVE_IMPORT_ERROR)
+
+
+def _explain(exc: Optional[BaseException]) -> str:
+    import platform
+    text = str(exc) if exc is not None else "unknown reason"
+    here = os.path.dirname(os.path.abspath(__file__))
+    found = [f for f in os.listdir(here) if f.startswith("_schnee_native")] if os.path.isdir(here) else []
+    if platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64"):
+        what = (f"this package's bake core is built for Linux x86-64, and this is "
+                f"{platform.system()} {platform.machine()}")
+    elif not found:
+        what = "the package has no compiled bake core (_schnee_native.abi3.so)"
+    elif "cannot open shared object file" in text:
+        lib = text.split(":")[0].strip()
+        what = (f"a library the bake core needs is missing: {lib} (the package ships Embree and TBB in "
+                f"{os.path.join('schnee_probes', 'lib')}; the package seems incomplete)")
+    elif "GLIBC" in text or "GLIBCXX" in text:
+        what = f"this system's C/C++ runtime is older than the package was built for ({text})"
+    else:
+        what = f"the bake core did not load ({text})"
+    return (f"Schnee Probes: {what}. Reinstall the add-on from the complete package "
+            f"(schnee_probes-<version>.zip, or the extension package for Blender 4.2+) built for "
+            f"Linux x86-64 with glibc 2.34 or newer, or build it from source (scripts/build.sh). "
+            f"Loaded from: {here}")
 
 
 class SchneeError(RuntimeError):
@@ -42,8 +80,7 @@ if _native is not None:
 
 def _lib():
     if _native is None:
-        raise ImportError("the native module _schnee_native is not built (run scripts/build.sh): "
-                          f"{_NATIVE_IMPORT_ERROR}")
+        raise ImportError(_explain(_NATIVE_IMPORT_ERROR))
     return _native
 
 
@@ -170,10 +207,87 @@ def project_equirect(pixels: np.ndarray, max_band: int = 2, rotation: Optional[n
 
 def project_file(path: str, max_band: int = 2, rotation: Optional[np.ndarray] = None,
                  negative: str = "error") -> np.ndarray:
-    """Same as :func:`project_equirect` for an image file read through OpenImageIO (EXR, HDR, ...)."""
+    """Same as :func:`project_equirect` for an image file. Single-part scanline EXR (uncompressed,
+    RLE, ZIP: what Cycles' ``save_render`` writes) is read by the add-on's own reader (``exr.py``);
+    any other format or codec is read through Blender's image API (inside Blender only). Errors are
+    SchneeError: "I/O error" (missing/unreadable file), "malformed file". Outside Blender, other
+    images are read through OpenImageIO's ``oiiotool`` when it is installed (benchmarks, tools)."""
     band = _check_band(max_band)
-    raw = _lib().project_file(path, band, _rotation(rotation), _choice(negative, _NEGATIVE, "negative"))
+    rot = _rotation(rotation)
+    policy = _choice(negative, _NEGATIVE, "negative")
+    pixels = read_image(path)
+    h, w, c = pixels.shape
+    try:
+        raw = _lib().project_equirect(pixels, w, h, c, band, rot, policy)
+    except SchneeError as exc:
+        raise SchneeError(f"{os.fspath(path)}: {exc}", exc.code) from None
     return np.frombuffer(raw, dtype=np.float64).reshape(sh_count(band), 3)
+
+
+def read_image(path: str) -> np.ndarray:
+    """Float32 pixels (H, W, C), row 0 at the top, of an EXR the add-on reads itself or (inside
+    Blender) any image Blender reads. SchneeError on failure."""
+    from . import exr
+    path = os.fspath(path)
+    try:
+        if exr.is_exr(path):
+            return exr.read(path)
+    except OSError as exc:
+        raise SchneeError(f"cannot read {path}: {exc.strerror or exc}", "I/O error") from None
+    except exr.Malformed as exc:
+        raise SchneeError(f"{path}: {exc}", "malformed file") from None
+    except exr.Unsupported:
+        pass  # e.g. DWAB-compressed HDRIs: Blender reads those
+    return _read_with_blender(path)
+
+
+def _read_with_oiiotool(path: str) -> np.ndarray:
+    """Outside Blender (benchmarks, tools on a development machine): OpenImageIO's command-line tool,
+    when installed, rewrites the image as an uncompressed float EXR, which exr.py reads exactly."""
+    import shutil
+    import subprocess
+    import tempfile
+    from . import exr
+    tool = shutil.which("oiiotool")
+    if tool is None:
+        raise SchneeError(f"{path}: outside Blender only uncompressed/RLE/ZIP scanline EXR files are read "
+                          "(or any image when OpenImageIO's oiiotool is installed)", "I/O error")
+    if not os.path.isfile(path):
+        raise SchneeError(f"cannot read {path}: no such file", "I/O error")
+    with tempfile.TemporaryDirectory(prefix="schnee-img-") as tmp:
+        out = os.path.join(tmp, "image.exr")
+        proc = subprocess.run([tool, path, "-d", "float", "--compression", "none", "-o", out],
+                              capture_output=True, text=True)
+        if proc.returncode != 0 or not os.path.isfile(out):
+            raise SchneeError(f"cannot read {path}: {proc.stderr.strip() or 'oiiotool failed'}", "I/O error")
+        try:
+            return exr.read(out)
+        except (exr.Malformed, exr.Unsupported) as exc:
+            raise SchneeError(f"cannot read {path}: {exc}", "I/O error") from None
+
+
+def _read_with_blender(path: str) -> np.ndarray:
+    try:
+        import bpy
+    except ImportError:
+        return _read_with_oiiotool(path)
+    if not os.path.isfile(path):
+        raise SchneeError(f"cannot read {path}: no such file", "I/O error")
+    try:
+        image = bpy.data.images.load(path, check_existing=False)
+    except RuntimeError as exc:
+        raise SchneeError(f"cannot read {path}: {exc}", "I/O error") from None
+    try:
+        w, h = image.size
+        c = image.channels
+        if w <= 0 or h <= 0 or c < 3:
+            raise SchneeError(f"cannot read {path}: Blender loaded {w} x {h} x {c}", "I/O error")
+        buf = np.empty(w * h * c, np.float32)
+        image.pixels.foreach_get(buf)
+    finally:
+        bpy.data.images.remove(image)
+    # Blender's Image.pixels is bottom-up; the projection wants row 0 at the top.
+    return np.ascontiguousarray(buf.reshape(h, w, c)[::-1])
 
 
 def irradiance(coeffs: np.ndarray, normals: np.ndarray) -> np.ndarray:

@@ -4,7 +4,7 @@ import os
 
 import bpy
 
-from . import light_modes
+from . import compat, light_modes
 from .operators import _draw_settings
 
 
@@ -18,6 +18,7 @@ class VIEW3D_PT_schnee_probes(bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         props = context.scene.schnee_probes
+        compat.draw_native_problem(layout)  # the bake core did not load: what is missing, what to do
         col = layout.column(align=True)
         col.scale_y = 1.3
         col.operator("schnee.bake_sh_volumes", icon='LIGHTPROBE_GRID')

@@ -69,7 +69,8 @@ class SceneState:
         self.scene = scene
         self.view_layer = view_layer
         self.render = _snapshot(scene.render)
-        self.cycles = _snapshot(scene.cycles)
+        cycles = compat.cycles_settings(scene)  # saved/restored only where Cycles' settings exist
+        self.cycles = _snapshot(cycles) if cycles is not None else {}
         self.view_layer_state = _snapshot(view_layer)
         self.camera = scene.camera
         self.frame = (scene.frame_current, scene.frame_subframe)
@@ -95,7 +96,8 @@ class SceneState:
         # Twice: an enum may be refused until another property is back (e.g. color_depth vs format).
         for _ in range(2):
             failed = ["render." + f for f in _restore(scene.render, self.render)]
-            failed += ["cycles." + f for f in _restore(scene.cycles, self.cycles)]
+            if self.cycles:
+                failed += ["cycles." + f for f in _restore(compat.cycles_settings(scene), self.cycles)]
             failed += ["view_layer." + f for f in _restore(self.view_layer, self.view_layer_state)]
             if not failed:
                 break
@@ -140,7 +142,7 @@ def apply_bake_settings(scene, view_layer, settings):
     im.color_mode = 'RGB'
     im.color_depth = '32'
     im.exr_codec = 'NONE'  # lossless either way; uncompressed is fastest to write and read
-    im.use_zbuffer = False
+    compat.set_existing(im, use_zbuffer=False)  # removed in Blender 4.x
     im.use_preview = False
 
     c = scene.cycles

@@ -15,6 +15,9 @@
 #include "schnee/pb_octree.h"
 #include "schnee/pb_sh.h"
 #include "schnee/pb_shprobe.h"
+#ifdef SCHNEE_EMBREE_DYN
+#include "pb_embree_dyn.h"
+#endif
 
 #include <math.h>
 #include <stdio.h>
@@ -894,6 +897,13 @@ static struct PyModuleDef schnee_module = {
 
 PyMODINIT_FUNC PyInit__schnee_native(void)
 {
+#ifdef SCHNEE_EMBREE_DYN
+    char embree_msg[512] = "";
+    if (pb_embree_load(embree_msg, sizeof embree_msg) != 0) { /* Embree through dlsym: pb_embree_dyn.h */
+        PyErr_SetString(PyExc_ImportError, embree_msg);
+        return NULL;
+    }
+#endif
     PyObject *m = PyModule_Create(&schnee_module);
     if (!m) return NULL;
     PyObject *error = PyErr_NewExceptionWithDoc("_schnee_native.Error", "A core error; `.code` is the pb_result name.",
