@@ -20,6 +20,7 @@ _NONE, _RLE, _ZIPS, _ZIP = 0, 1, 2, 3
 _LINES_PER_BLOCK = {_NONE: 1, _RLE: 1, _ZIPS: 1, _ZIP: 16}
 _DTYPES = {0: np.dtype("<u4"), 1: np.dtype("<f2"), 2: np.dtype("<f4")}
 _MAX_PIXELS = 1 << 28  # 16384 x 16384: far past any panorama; guards allocations from a bad header
+_MAX_HEADER_BYTES = 1 << 20  # a header (attributes) past 1 MiB is refused as malformed
 
 
 class Unsupported(ValueError):
@@ -30,10 +31,9 @@ class Malformed(ValueError):
     """The file is not a well-formed EXR (truncated, inconsistent sizes, ...)."""
 
 
-def is_exr(path: str) -> bool:
-    with open(path, "rb") as f:
-        head = f.read(4)
-    return len(head) == 4 and struct.unpack("<i", head)[0] == MAGIC
+def has_magic(head: bytes) -> bool:
+    """True when ``head`` (the first bytes of a file) starts with OpenEXR's magic number."""
+    return len(head) >= 4 and struct.unpack_from("<i", head)[0] == MAGIC
 
 
 def _cstring(data: bytes, pos: int, limit: int = 256):
@@ -129,11 +129,21 @@ def _unrle(packed: bytes, size: int) -> bytes:
     return _reorder(bytes(out), size)
 
 
-def read(path: str) -> np.ndarray:
+def read(path: str, max_bytes: int = 1 << 32) -> np.ndarray:
     """Pixels of the EXR at ``path`` as float32 (H, W, C), row 0 at the top, channels R, G, B and A
-    when present (other channels dropped). Raises OSError, :class:`Unsupported`, :class:`Malformed`."""
-    with open(path, "rb") as f:
-        data = f.read()
+    when present (other channels dropped). The file is opened as the native readers open theirs
+    (safe_open: no blocking, regular files only, at most ``max_bytes``). Raises OSError (RefusedFile
+    for special or oversized files), :class:`Unsupported`, :class:`Malformed`."""
+    from .safe_open import open_regular
+    f, size = open_regular(path, "an OpenEXR image", max_bytes)
+    with f:
+        return read_file(f, size)
+
+
+def read_file(f, size: int) -> np.ndarray:
+    """Like :func:`read` for an open binary file of ``size`` bytes, positioned at its start. Reads
+    the header first and then at most the bytes that header allows (never a whole huge file)."""
+    data = f.read(min(size, _MAX_HEADER_BYTES))
     attrs, pos = _header(data)
     try:
         channels = _channels(attrs["channels"][1])
@@ -146,17 +156,26 @@ def read(path: str) -> np.ndarray:
     width, height = xmax - xmin + 1, ymax - ymin + 1
     if width <= 0 or height <= 0 or width * height > _MAX_PIXELS:
         raise Malformed(f"bad data window {width} x {height}")
+    lines = _LINES_PER_BLOCK[compression]
+    blocks = (height + lines - 1) // lines
+    line_bytes = sum(dt.itemsize for _, dt in channels) * width
+    # OpenEXR stores a block raw when its codec would not make it smaller, so the header bounds the
+    # file: header + offset table + per block (y, size) + the raw lines.
+    most = pos + 8 * blocks + 8 * blocks + line_bytes * height
+    if size > most:
+        raise Malformed(f"the file has {size} bytes, more than its header allows ({most})")
+    if size > len(data):
+        data += f.read(size - len(data))
+    if len(data) != size:
+        raise Malformed("the file changed size while it was read")
     names = [n for n, _ in channels]
     wanted = [c for c in ("R", "G", "B", "A") if c in names]
     if wanted[:3] != ["R", "G", "B"]:
         raise Unsupported(f"channels {names} (R, G, B needed)")
 
-    lines = _LINES_PER_BLOCK[compression]
-    blocks = (height + lines - 1) // lines
     if pos + 8 * blocks > len(data):
         raise Malformed("truncated offset table")
     offsets = struct.unpack_from(f"<{blocks}Q", data, pos)
-    line_bytes = sum(dt.itemsize for _, dt in channels) * width
     planes = {n: np.empty((height, width), np.float32) for n in wanted}
     seen = np.zeros(height, bool)
     for offset in offsets:

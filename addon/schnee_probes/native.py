@@ -15,6 +15,7 @@ re-checks every buffer's format and length. See docs/python-api.md.
 from __future__ import annotations
 
 import os
+import re
 import sys
 from dataclasses import dataclass
 from typing import Callable, Optional, Sequence, Tuple
@@ -224,21 +225,53 @@ def project_file(path: str, max_band: int = 2, rotation: Optional[np.ndarray] = 
     return np.frombuffer(raw, dtype=np.float64).reshape(sh_count(band), 3)
 
 
+# Limits of image files read for projection: the native readers' (native/include/schnee/pb_image.h).
+IMAGE_MAX_FILE_BYTES = 1 << 32
+IMAGE_MAX_SIDE = 65536
+IMAGE_MAX_CHANNELS = 64
+IMAGE_MAX_VALUES = 1 << 29
+# First bytes of the image formats read through Blender or oiiotool: Radiance HDR, PFM, PNG, JPEG, TIFF.
+_IMAGE_SIGNATURES = (b"#?", b"PF", b"Pf", b"\x89PNG", b"\xff\xd8\xff", b"II*\0", b"MM\0*")
+
+
 def read_image(path: str) -> np.ndarray:
     """Float32 pixels (H, W, C), row 0 at the top, of an EXR the add-on reads itself or (inside
-    Blender) any image Blender reads. SchneeError on failure."""
-    from . import exr
+    Blender) any image Blender reads. The file is opened as the native readers open theirs: without
+    blocking, regular files only, at most IMAGE_MAX_FILE_BYTES, the header checked before the
+    pixels. SchneeError on failure; messages never quote the file's content."""
+    from . import exr, safe_open
     path = os.fspath(path)
     try:
-        if exr.is_exr(path):
-            return exr.read(path)
-    except OSError as exc:
-        raise SchneeError(f"cannot read {path}: {exc.strerror or exc}", "I/O error") from None
-    except exr.Malformed as exc:
-        raise SchneeError(f"{path}: {exc}", "malformed file") from None
-    except exr.Unsupported:
-        pass  # e.g. DWAB-compressed HDRIs: Blender reads those
+        f, size = safe_open.open_regular(path, "an image", IMAGE_MAX_FILE_BYTES)
+    except safe_open.RefusedFile as exc:
+        raise SchneeError(str(exc), exc.code) from None
+    with f:
+        head = f.read(4)
+        if exr.has_magic(head):
+            f.seek(0)
+            try:
+                return exr.read_file(f, size)
+            except OSError as exc:
+                raise SchneeError(f"{path}: cannot read: {exc.strerror or exc}", "I/O error") from None
+            except exr.Malformed as exc:
+                raise SchneeError(f"{path}: cannot read as exr: {exc}", "malformed file") from None
+            except exr.Unsupported:
+                pass  # e.g. DWAB-compressed HDRIs: Blender (or oiiotool) reads those
+        elif path.lower().endswith(".exr"):
+            raise SchneeError(f"{path}: cannot read as exr: not an OpenEXR file (bad magic number)", "malformed file")
+        elif not head.startswith(_IMAGE_SIGNATURES):
+            # Never hand an unknown file to a library that tries every reader on it (OpenImageIO
+            # took minutes on a 2 GiB sparse file): only files that announce an image format.
+            raise SchneeError(f"{path}: not an image (no EXR, HDR, PFM, PNG, JPEG or TIFF signature)",
+                              "malformed file")
     return _read_with_blender(path)
+
+
+def _check_image_size(path: str, w: int, h: int, c: int):
+    if w > IMAGE_MAX_SIDE or h > IMAGE_MAX_SIDE or c > IMAGE_MAX_CHANNELS or w * h * c > IMAGE_MAX_VALUES:
+        raise SchneeError(f"image '{path}' is too large: {w}x{h} with {c} channel(s); the limits are "
+                          f"{IMAGE_MAX_SIDE} pixels per side, {IMAGE_MAX_CHANNELS} channels and {IMAGE_MAX_VALUES} "
+                          "values (width x height x channels)", "input too large")
 
 
 def _read_with_oiiotool(path: str) -> np.ndarray:
@@ -254,6 +287,13 @@ def _read_with_oiiotool(path: str) -> np.ndarray:
                           "(or any image when OpenImageIO's oiiotool is installed)", "I/O error")
     if not os.path.isfile(path):
         raise SchneeError(f"cannot read {path}: no such file", "I/O error")
+    # The header first (oiiotool --info reads no pixels), so a file that claims gigabytes is refused
+    # before anything is decoded.
+    info = subprocess.run([tool, "--info", path], capture_output=True, text=True)
+    m = re.search(r"(\d+)\s+x\s+(\d+)(?:\s+x\s+\d+)?,\s+(\d+) channel", info.stdout)
+    if info.returncode != 0 or m is None:
+        raise SchneeError(f"cannot read {path}: OpenImageIO does not recognise it as an image", "I/O error")
+    _check_image_size(path, int(m.group(1)), int(m.group(2)), int(m.group(3)))
     with tempfile.TemporaryDirectory(prefix="schnee-img-") as tmp:
         out = os.path.join(tmp, "image.exr")
         proc = subprocess.run([tool, path, "-d", "float", "--compression", "none", "-o", out],
@@ -280,6 +320,7 @@ def _read_with_blender(path: str) -> np.ndarray:
     try:
         w, h = image.size
         c = image.channels
+        _check_image_size(path, w, h, c)
         if w <= 0 or h <= 0 or c < 3:
             raise SchneeError(f"cannot read {path}: Blender loaded {w} x {h} x {c}", "I/O error")
         buf = np.empty(w * h * c, np.float32)

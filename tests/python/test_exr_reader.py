@@ -83,4 +83,31 @@ def test_malformed_files(tmp_path):
     with pytest.raises(exr.Malformed):
         exr.read(str(bad))
     bad.write_bytes(b"P6\n1 1\n255\n\0\0\0")
-    assert not exr.is_exr(str(bad))
+    assert not exr.has_magic(bad.read_bytes()[:4])
+
+
+def test_reads_no_more_than_the_header_allows(tmp_path):
+    # A real 40x20 EXR padded to 2 GiB (sparse): its header allows at most a few kB, so the reader
+    # refuses it after reading the header, without reading or allocating the rest (issue 14).
+    import resource
+    import time
+    path = _write(tmp_path, "none")
+    size = path.stat().st_size
+    with open(path, "r+b") as f:
+        f.truncate(2 << 30)
+    rss0, t0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, time.perf_counter()
+    with pytest.raises(exr.Malformed, match=r"the file has 2147483648 bytes, more than its header allows"):
+        exr.read(str(path))
+    assert time.perf_counter() - t0 < 2.0
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0 < 64 * 1024  # KiB: nothing near 2 GiB
+    assert size < 40 * 20 * 3 * 4 + 4096  # the uncompressed original is what its header says
+
+
+def test_special_files_are_refused_without_blocking(tmp_path):
+    fifo = tmp_path / "pano.exr"
+    os.mkfifo(fifo)
+    with pytest.raises(OSError, match=r"not a regular file \(a FIFO \(named pipe\)\)"):
+        exr.read(str(fifo))   # the old reader blocked here forever
+    with pytest.raises(native.SchneeError) as err:
+        native.project_file("/dev/zero", 1)
+    assert err.value.code == "I/O error" and "not a regular file (a character device)" in str(err.value)
