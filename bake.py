@@ -41,54 +41,25 @@ def _import_addon():
         sys.path.insert(0, local)
     try:
         import schnee_probes  # noqa: F401  (the package itself; registration below)
-        from schnee_probes import bake_core, native
+        from schnee_probes import bake_core, native, settings
     except ImportError as exc:
         _fail(EXIT_ADDON, f"cannot import the schnee_probes add-on ({exc}); build it with "
                           "'cmake --build build' or install the add-on zip")
-    return schnee_probes, bake_core, native
+    return schnee_probes, bake_core, native, settings
 
 
-def _parser(bake_core):
-    d = bake_core.BakeSettings()
+def _parser(settings):
     p = argparse.ArgumentParser(
         prog="blender -b scene.blend -P bake.py --",
         description="Bake Schnee SH light probes headless. Settings default to the values saved in "
                     "the .blend (Scene > Schnee Engine panel); the defaults shown are the add-on's.")
+    settings.add_arguments(p)  # one option per setting (settings.py)
     a = p.add_argument
-    a("--volume-collection", help=f"probe volume collection (default {d.volume_collection})")
-    a("--min-cell-size", type=float, help=f"smallest octree cell in metres (default {d.min_cell_size})")
-    a("--max-cell-size", type=float, help=f"largest octree cell in metres (default {d.max_cell_size})")
-    a("--panorama-resolution", type=int, help=f"panorama width; height = width/2 (default {d.panorama_resolution})")
-    a("--max-band", type=int, choices=range(5), help=f"highest SH band L (default {d.max_band})")
-    a("--samples", type=int, help=f"Cycles samples per pixel (default {d.samples})")
-    a("--max-bounces", type=int, help=f"light bounces (default {d.max_bounces})")
-    a("--clamp-direct", type=float, help=f"direct sample clamp, 0 = off (default {d.clamp_direct})")
-    a("--clamp-indirect", type=float, help=f"indirect sample clamp, 0 = off (default {d.clamp_indirect})")
-    a("--pixel-filter", choices=bake_core.PIXEL_FILTERS, help=f"pixel filter (default {d.pixel_filter})")
-    a("--filter-width", type=float, help=f"pixel filter width in px (default {d.filter_width})")
-    a("--lights-visible", type=_bool, metavar="{on,off}", help="lamps seen by the probe cameras (default on)")
-    a("--per-volume-files", type=_bool, metavar="{on,off}",
-      help="one <volume>.shprobe per volume instead of probes.shprobe (default off)")
-    a("--persistent-data", type=_bool, metavar="{on,off}", help="keep scene data between renders (default on)")
-    a("--seed", type=int, help=f"Cycles seed (default {d.seed})")
-    a("--default-sh-scale", type=float, help=f"SH scale in the file header (default {d.default_sh_scale})")
-    a("--default-ambient", type=float, help=f"ambient term in the file header (default {d.default_ambient})")
-    a("--output", dest="output_path", metavar="PATH",
-      help=f"output .shprobe ('//' = folder of the .blend; default {d.output_path}); needed for an unsaved .blend")
     a("--cursor", type=float, nargs=3, metavar=("X", "Y", "Z"),
       help="bake one debug probe at this Blender-space position instead (Bake SH at Cursor)")
     a("--scene", help="scene name (default: the active scene)")
     a("--quiet", action="store_true", help="no progress line")
     return p
-
-
-def _bool(text):
-    t = text.lower()
-    if t in ("1", "on", "true", "yes"):
-        return True
-    if t in ("0", "off", "false", "no"):
-        return False
-    raise argparse.ArgumentTypeError(f"expected on/off, got {text!r}")
 
 
 def main():
@@ -112,8 +83,8 @@ def main():
 def _main():
     import bpy
 
-    addon, bake_core, native = _import_addon()
-    parser = _parser(bake_core)
+    addon, bake_core, native, settings = _import_addon()
+    parser = _parser(settings)
     # argparse exits 2 by itself on bad usage (with a usage line) and 0 after --help.
     args = parser.parse_args(_script_args())
 
@@ -126,9 +97,9 @@ def _main():
 
     overrides = {k: v for k, v in vars(args).items()
                  if v is not None and k not in ("cursor", "scene", "quiet")}
-    settings = bake_core.BakeSettings.from_props(scene.schnee_probes, **overrides)
+    bake_settings = settings.BakeSettings.from_props(scene.schnee_probes, **overrides)
     mode = "CURSOR" if args.cursor else "VOLUMES"
-    bake = bake_core.ProbeBake(scene, view_layer, settings, mode=mode, cursor=args.cursor,
+    bake = bake_core.ProbeBake(scene, view_layer, bake_settings, mode=mode, cursor=args.cursor,
                                log=(lambda line: None) if args.quiet else print)
     last = [0.0]
 

@@ -14,12 +14,11 @@ synchronous operator path and headless ``bake.py``::
         raise
 
 Nothing is written to the output folder before :meth:`ProbeBake.finish`; a failed or cancelled bake
-leaves existing ``.shprobe`` files untouched. Every scene setting the bake changes is captured first
-(:class:`render_settings.SceneState`) and restored by ``finish`` and ``cancel``.
+leaves existing ``.shprobe`` files untouched. Every scene setting the bake changes goes through one
+:class:`render_settings.StateGuard` and is restored by ``finish`` and ``cancel``.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import re
@@ -33,8 +32,9 @@ import bpy
 import numpy as np
 
 from . import compat, light_modes, native, render_settings, scene_export
+# The settings are declared in settings.py; re-exported here for scripts that use bake_core.*.
+from .settings import DEFAULT_OUTPUT, PIXEL_FILTERS, BakeError, BakeSettings  # noqa: F401
 
-DEFAULT_OUTPUT = "//sh_coeffs/probes.shprobe"
 # The world (sky) alone, captured by a volume bake next to the probe files; the glTF exporter
 # copies it and lists it as VULKAN_SCHNEE_engine_properties.sky (docs/export.md).
 SKY_FILE_NAME = "sky.exr"
@@ -43,72 +43,6 @@ DEBUG_TEXT_NAME = "debug_probe.txt"
 # a subfolder, so the glTF exporter (which scans sh_coeffs/*.shprobe) never exports it.
 DEBUG_SUBDIR = "debug"
 DEBUG_SHPROBE_NAME = "debug_probe.shprobe"
-
-PIXEL_FILTERS = ('BOX', 'GAUSSIAN', 'BLACKMAN_HARRIS')
-
-
-class BakeError(RuntimeError):
-    """A bake that cannot start or continue; the message is meant for the user as is."""
-
-
-@dataclass
-class BakeSettings:
-    """Every setting of a bake. Field names equal the ``Scene.schnee_probes`` property names and
-    the ``bake.py`` options; the defaults here are the documented defaults (docs/user-guide.md)."""
-    volume_collection: str = "ProbeVolumes"
-    min_cell_size: float = 0.5
-    max_cell_size: float = 16.0
-    panorama_resolution: int = 128
-    max_band: int = 2
-    samples: int = 32          # measured: bench/results/sweep.md (error vs time per setting)
-    max_bounces: int = 32
-    clamp_direct: float = 0.0
-    clamp_indirect: float = 10.0
-    pixel_filter: str = 'BOX'
-    filter_width: float = 1.0
-    lights_visible: bool = True
-    per_volume_files: bool = False
-    persistent_data: bool = True
-    seed: int = 0
-    default_sh_scale: float = 1.0
-    default_ambient: float = 0.1
-    output_path: str = DEFAULT_OUTPUT
-    capture_sky: bool = True          # volume bakes also render the world alone to sky.exr
-    sky_resolution: int = 512         # sky.exr width; height = width / 2
-
-    @classmethod
-    def from_props(cls, props, **overrides) -> "BakeSettings":
-        """Settings from a ``Scene.schnee_probes`` PropertyGroup, with keyword overrides."""
-        values = {f.name: getattr(props, f.name) for f in dataclasses.fields(cls) if hasattr(props, f.name)}
-        values.update(overrides)
-        return cls(**values)
-
-    def validate(self):
-        """Raise :class:`BakeError` naming the first invalid setting."""
-        def bad(msg):
-            raise BakeError("Invalid setting: " + msg)
-        if not self.min_cell_size > 0 or not math.isfinite(self.min_cell_size):
-            bad(f"Min Cell Size must be > 0 m (got {self.min_cell_size})")
-        if not self.max_cell_size >= self.min_cell_size:
-            bad(f"Max Cell Size ({self.max_cell_size} m) must be >= Min Cell Size ({self.min_cell_size} m)")
-        if not 0 <= self.max_band <= 4:
-            bad(f"Max SH Band must be 0..4 (got {self.max_band})")
-        if self.panorama_resolution < 4 or self.panorama_resolution % 2:
-            bad(f"Panorama Resolution must be an even width >= 4 (got {self.panorama_resolution})")
-        if self.samples < 1:
-            bad(f"Samples must be >= 1 (got {self.samples})")
-        if self.max_bounces < 0:
-            bad(f"Bounces must be >= 0 (got {self.max_bounces})")
-        if self.pixel_filter not in PIXEL_FILTERS:
-            bad(f"Pixel Filter must be one of {', '.join(PIXEL_FILTERS)} (got {self.pixel_filter!r})")
-        if not self.filter_width > 0:
-            bad(f"Filter Width must be > 0 px (got {self.filter_width})")
-        if self.clamp_direct < 0 or self.clamp_indirect < 0:
-            bad("clamps must be >= 0 (0 = no clamping)")
-        if not self.output_path:
-            bad("the output path is empty")
-        if self.sky_resolution < 4 or self.sky_resolution % 2:
-            bad(f"Sky Resolution must be an even width >= 4 (got {self.sky_resolution})")
 
 
 @dataclass
@@ -326,18 +260,28 @@ class ProbeBake:
         coll = bpy.data.collections.get(s.volume_collection)
         volume_objects = list(coll.all_objects) if coll is not None else []
         lights = compat.light_objects(scene)
-        self._state = render_settings.SceneState(scene, self.view_layer, volume_objects + lights)
+        # Every change below goes through one StateGuard, undone by _close() (finish and cancel).
+        state = self._state = render_settings.StateGuard()
+        state.snapshot(scene.render, "render")
+        state.snapshot(scene.cycles, "cycles")
+        state.snapshot(self.view_layer, "view_layer")
+        frame = (scene.frame_current, scene.frame_subframe)
+
+        def restore_frame():
+            if (scene.frame_current, scene.frame_subframe) != frame:
+                scene.frame_set(frame[0], subframe=frame[1])
+        state.on_restore(restore_frame, "scene.frame")
         render_settings.apply_bake_settings(scene, self.view_layer, s)
         for ob in volume_objects:
-            ob.hide_render = True
+            state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
         for ob in lights:
             if compat.has_visible_camera(ob):
-                ob.visible_camera = s.lights_visible
+                state.set(ob, "visible_camera", s.lights_visible, f"object[{ob.name}].visible_camera")
         # Realtime lamps are the engine's direct light (VULKAN_SCHNEE_light): the probes must not
-        # hold them too, so they are left out of every panorama render. hide_render of every lamp
-        # was recorded by the SceneState above and is restored on success, error and cancel.
+        # hold them too, so they are left out of every panorama render (restored on success, error
+        # and cancel like everything else here).
         for ob in self._realtime_lights:
-            ob.hide_render = True
+            state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
 
         cam_data = bpy.data.cameras.new("SchneeProbeCamera")
         compat.set_equirectangular(cam_data)
@@ -348,10 +292,13 @@ class ProbeBake:
         # yields engine-space coefficients.
         cam.rotation_mode = 'XYZ'
         cam.rotation_euler = (math.pi / 2, 0.0, -math.pi / 2)
+        state.on_restore(lambda: _remove_camera(cam), "the probe camera")
         scene.collection.objects.link(cam)
         self._camera = cam
-        scene.camera = cam
+        state.set(scene, "camera", cam, "scene.camera")
         self._tmpdir = tempfile.mkdtemp(prefix="schnee_bake_")
+        tmpdir = self._tmpdir
+        state.on_restore(lambda: shutil.rmtree(tmpdir, ignore_errors=True), "the temporary folder")
 
     # ------------------------------------------------------------------ steps
     def step(self) -> bool:
@@ -394,14 +341,14 @@ class ProbeBake:
         visibility is restored right after the render."""
         s, scene = self.settings, self.scene
         t0 = time.perf_counter()
-        hidden = [(ob, ob.hide_render) for ob in scene.objects if ob is not self._camera]
         render = scene.render
-        res = (render.resolution_x, render.resolution_y, render.resolution_percentage)
-        try:
-            for ob, _ in hidden:
-                ob.hide_render = True
-            render.resolution_x, render.resolution_y = s.sky_resolution, s.sky_resolution // 2
-            render.resolution_percentage = 100
+        with render_settings.StateGuard() as sky_state:
+            for ob in scene.objects:
+                if ob is not self._camera:
+                    sky_state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
+            sky_state.set(render, "resolution_x", s.sky_resolution, "render.resolution_x")
+            sky_state.set(render, "resolution_y", s.sky_resolution // 2, "render.resolution_y")
+            sky_state.set(render, "resolution_percentage", 100, "render.resolution_percentage")
             self._camera.location = (0.0, 0.0, 0.0)
             bpy.ops.render.render(write_still=False, layer=self.view_layer.name, scene=scene.name)
             image = bpy.data.images.get("Render Result")
@@ -409,11 +356,8 @@ class ProbeBake:
                 raise BakeError("Cycles produced no render result for the sky")
             path = os.path.join(self._tmpdir, SKY_FILE_NAME)
             image.save_render(path, scene=scene)
-        finally:
-            for ob, was in hidden:
-                if ob.hide_render != was:
-                    ob.hide_render = was
-            render.resolution_x, render.resolution_y, render.resolution_percentage = res
+        if sky_state.failed:
+            self.log("Schnee: could not restore " + ", ".join(sky_state.failed))
         self._sky_exr = path
         self.timings["sky"] = time.perf_counter() - t0
 
@@ -441,18 +385,9 @@ class ProbeBake:
         if self._closed:
             return
         self._closed = True
-        failed = []
-        if self._state is not None:
-            failed = self._state.restore()
-        if self._camera is not None:
-            cam_data = self._camera.data
-            bpy.data.objects.remove(self._camera, do_unlink=True)
-            if cam_data.users == 0:
-                bpy.data.cameras.remove(cam_data)
-            self._camera = None
-        if self._tmpdir:
-            shutil.rmtree(self._tmpdir, ignore_errors=True)
-            self._tmpdir = None
+        failed = self._state.restore() if self._state is not None else []
+        self._camera = None
+        self._tmpdir = None
         if failed:
             self.log("Schnee: could not restore " + ", ".join(failed))
 
@@ -543,6 +478,13 @@ class ProbeBake:
 
 class BakeCancelled(BakeError):
     """The user cancelled the bake."""
+
+
+def _remove_camera(cam):
+    cam_data = cam.data
+    bpy.data.objects.remove(cam, do_unlink=True)
+    if cam_data is not None and cam_data.users == 0:
+        bpy.data.cameras.remove(cam_data)
 
 
 def _remove_quietly(path):

@@ -10,6 +10,7 @@ import time
 import bpy
 
 from .bake_core import BakeError, BakeSettings, ProbeBake
+from .properties import draw_settings
 
 
 def _record(props, result=None, message=""):
@@ -23,31 +24,6 @@ def _record(props, result=None, message=""):
 def _summary(result):
     names = ", ".join(os.path.basename(f) for f in result.files)
     return f"Baked {result.probe_count} probes in {result.seconds:.1f} s -> {names}"
-
-
-def _draw_settings(layout, props, volumes=True):
-    col = layout.column()
-    if volumes:
-        col.prop_search(props, "volume_collection", bpy.data, "collections")
-    col.prop(props, "min_cell_size")
-    if volumes:
-        col.prop(props, "max_cell_size")
-    col.prop(props, "panorama_resolution")
-    col.prop(props, "max_band")
-    col.separator()
-    col.prop(props, "samples")
-    col.prop(props, "max_bounces")
-    row = col.row(align=True)
-    row.prop(props, "clamp_direct")
-    row.prop(props, "clamp_indirect")
-    row = col.row(align=True)
-    row.prop(props, "pixel_filter", text="")
-    row.prop(props, "filter_width", text="Width")
-    col.prop(props, "lights_visible")
-    col.prop(props, "persistent_data")
-    if volumes:
-        col.prop(props, "per_volume_files")
-    col.prop(props, "output_path")
 
 
 class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
@@ -69,7 +45,7 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
         return context.window_manager.invoke_props_dialog(self, width=380)
 
     def draw(self, context):
-        _draw_settings(self.layout, context.scene.schnee_probes)
+        draw_settings(self.layout, context.scene.schnee_probes)
 
     def execute(self, context):
         props = context.scene.schnee_probes
