@@ -4,22 +4,30 @@ Runs Bake SH in Volumes (or, with ``--cursor X Y Z``, Bake SH at Cursor) on the 
 the scene's saved settings, each overridable by an option; ``--help`` lists them. Prints a progress
 line, exits 0 on success and non-zero with a one-line reason on failure:
 
-    1  unexpected error (a traceback follows)
-    2  bad command line
-    3  the bake refused its input or failed (missing collection, open volume, unsaved .blend, ...)
-    4  the add-on or its native module could not be loaded
-    130 interrupted (Ctrl+C)
+    1   unexpected error (a traceback follows)
+    2   bad command line
+    3   the bake refused its input or failed (missing collection, open volume, unsaved .blend,
+        an output that is not a .shprobe, more probes than --probe-limit without --allow-large, ...)
+    4   the add-on or its native module could not be loaded
+    130 cancelled by SIGINT (Ctrl+C)
+    143 cancelled by SIGTERM
 
-The add-on package is taken from ``addon/`` next to this file when present, else from the installed
-add-ons. Nothing is written on failure; the .blend itself is never saved.
+SIGINT and SIGTERM cancel the bake as Esc does in Blender: the current probe's render finishes,
+then the render settings are restored, the temporary files removed and nothing is written (the
+previous output stays as it was). Before the first render a line gives the probe count and an
+estimated time. The add-on package is taken from ``addon/`` next to this file when present, else
+from the installed add-ons. Nothing is written on failure; the .blend itself is never saved.
 """
 import argparse
 import os
+import signal
 import sys
 import time
 import traceback
 
-EXIT_UNEXPECTED, EXIT_USAGE, EXIT_BAKE, EXIT_ADDON, EXIT_INTERRUPT = 1, 2, 3, 4, 130
+EXIT_UNEXPECTED, EXIT_USAGE, EXIT_BAKE, EXIT_ADDON = 1, 2, 3, 4
+EXIT_INTERRUPT = 128 + signal.SIGINT    # 130
+EXIT_TERMINATED = 128 + signal.SIGTERM  # 143
 
 
 def _fail(code, message):
@@ -57,6 +65,8 @@ def _parser(settings):
     a = p.add_argument
     a("--cursor", type=float, nargs=3, metavar=("X", "Y", "Z"),
       help="bake one debug probe at this Blender-space position instead (Bake SH at Cursor)")
+    a("--allow-large", action="store_true",
+      help="bake even when the probe count is above --probe-limit (otherwise refused, exit 3)")
     a("--scene", help="scene name (default: the active scene)")
     a("--quiet", action="store_true", help="no progress line")
     return p
@@ -96,11 +106,12 @@ def _main():
     view_layer = scene.view_layers[0] if args.scene else bpy.context.view_layer
 
     overrides = {k: v for k, v in vars(args).items()
-                 if v is not None and k not in ("cursor", "scene", "quiet")}
+                 if v is not None and k not in ("cursor", "scene", "quiet", "allow_large")}
     bake_settings = settings.BakeSettings.from_props(scene.schnee_probes, **overrides)
     mode = "CURSOR" if args.cursor else "VOLUMES"
     bake = bake_core.ProbeBake(scene, view_layer, bake_settings, mode=mode, cursor=args.cursor,
-                               log=(lambda line: None) if args.quiet else print)
+                               log=(lambda line: None) if args.quiet else print,
+                               allow_large=args.allow_large)
     last = [0.0]
 
     def progress(b):
@@ -110,16 +121,32 @@ def _main():
             end = "\n" if b.done == b.total else ""
             print("\r" + b.progress_line(), end=end, flush=True)
 
-    try:
-        result = bake.run(progress)
-    except bake_core.BakeError as exc:
-        _fail(EXIT_BAKE, str(exc))
-    except native.SchneeError as exc:
-        _fail(EXIT_BAKE, f"native core: {exc}")
-    except OSError as exc:  # bake_core turns its own file errors into BakeError; this is a backstop
-        _fail(EXIT_BAKE, f"cannot write {getattr(exc, 'filename', None) or 'the output'}: {exc}")
-    except KeyboardInterrupt:
-        _fail(EXIT_INTERRUPT, "interrupted; existing files are unchanged")
+    def note(line):
+        sys.stderr.write(line.lstrip("\n") + "\n")
+        sys.stderr.flush()
+
+    # SIGINT / SIGTERM cancel like Esc; the bake restores the scene and removes its files.
+    with bake_core.CancelOnSignals(bake, (signal.SIGINT, signal.SIGTERM), force=True, log=note) as sig:
+        try:
+            result = bake.run(progress)
+        except bake_core.BakeCancelled as exc:
+            if sig.caught:
+                first = sig.caught[0]
+                _fail(128 + first, f"cancelled by {signal.Signals(first).name}; render settings "
+                                   "restored, existing files unchanged")
+            _fail(EXIT_BAKE, str(exc))
+        except bake_core.BakeError as exc:
+            _fail(EXIT_BAKE, str(exc))
+        except native.SchneeError as exc:
+            _fail(EXIT_BAKE, f"native core: {exc}")
+        except OSError as exc:  # bake_core turns its own file errors into BakeError; a backstop
+            _fail(EXIT_BAKE, f"cannot write {getattr(exc, 'filename', None) or 'the output'}: {exc}")
+        except KeyboardInterrupt:
+            _fail(EXIT_INTERRUPT, "interrupted; existing files are unchanged")
+    _report(result)
+
+
+def _report(result):
     for msg in result.messages:
         print("bake.py: " + msg)
     t = result.timings

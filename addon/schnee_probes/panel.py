@@ -5,7 +5,7 @@ import os
 import bpy
 
 from . import light_modes
-from .properties import draw_settings
+from .properties import draw_estimate, draw_settings
 
 
 class VIEW3D_PT_schnee_probes(bpy.types.Panel):
@@ -27,6 +27,7 @@ class VIEW3D_PT_schnee_probes(bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         draw_settings(layout, props)
+        draw_estimate(layout, context.scene, props)
 
 
 class VIEW3D_PT_schnee_probes_last(bpy.types.Panel):

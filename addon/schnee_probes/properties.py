@@ -9,7 +9,7 @@ declaration; figures measured with bench/sweep/run.py, report bench/results/swee
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from .settings import SETTINGS
+from .settings import SETTINGS, BakeSettings
 
 
 def make_property(s):
@@ -60,6 +60,20 @@ def draw_settings(layout, props, volumes=True):
             target.prop_search(props, s.name, bpy.data, "collections", **kw)
         else:
             target.prop(props, s.name, **kw)
+
+
+def draw_estimate(layout, scene, props):
+    """Before a bake: at most how many probes and how long (volume bounding boxes, no placement;
+    the exact count and estimate come once placement has run)."""
+    from . import bake_core
+    bound, seconds = bake_core.volume_bound(scene, BakeSettings.from_props(props))
+    col = layout.column(align=True)
+    if bound is None:
+        col.label(text="Probes: no usable probe volumes or settings", icon='INFO')
+        return
+    col.label(text=f"Up to {bound} probes, at most ~{bake_core.format_duration(seconds)}", icon='TIME')
+    if props.probe_limit and bound > props.probe_limit:
+        col.label(text=f"May exceed Confirm Above ({props.probe_limit}): the bake will ask", icon='ERROR')
 
 
 # Bake settings from the declaration, then what the last bake produced (shown in the panel; saved

@@ -227,6 +227,14 @@ SETTINGS: Tuple[Setting, ...] = (
             "Width of sky.exr; height = width / 2",
             doc="Width of `sky.exr` (height = width/2).",
             minimum=4, maximum=16384, even=True, soft_max=4096, suffix="px", ui="volumes"),
+    Setting("probe_limit", "int", 20000, "Confirm Above (probes)",
+            "A bake of more probes than this asks for confirmation first (bake.py: needs "
+            "--allow-large); 0 = never ask",
+            doc="A bake of more probes than this asks for confirmation before the first render "
+                "(`bake.py` refuses it, exit 3, unless `--allow-large` is given); 0 = never ask. "
+                "20000 probes are about 5 h at the defaults in a closed room (estimate: see "
+                "*Before a bake starts*).",
+            minimum=0, ui="volumes"),
     Setting("seed", "int", 0, "Seed", "Cycles noise seed", doc="Cycles noise seed.", minimum=0,
             ui=None),
     Setting("default_sh_scale", "float", 1.0, "Default SH Scale",
