@@ -7,13 +7,15 @@
   by the next bake;
 - the probe count and an estimate are printed before the first render, and a bake above
   --probe-limit needs --allow-large;
-- NaN/Inf emission is refused naming the material and the object.
+- NaN/Inf emission is refused naming the material and the object; Inf in a rendered panorama
+  names the probe and its position.
 
 Runtime: about a minute on 2 cores (tiny panoramas, 1 sample).
 """
 import hashlib
 import json
 import os
+import re
 import signal
 import stat
 import subprocess
@@ -276,4 +278,18 @@ def test_non_finite_emission_is_refused_naming_it(scenes, tmp_path, blend_name, 
     msg = last_error(proc)
     for w in words:
         assert w in msg, msg
+    assert not (tmp_path / "sh_coeffs").exists()
+
+
+def test_inf_in_a_panorama_names_the_probe_and_its_position(scenes, tmp_path):
+    # Emission 1e38 is finite (not refused up front), but 4 samples of it sum past float32's
+    # range: the panorama holds Inf, which the native projection refuses. The bake says which
+    # probe, where, and what to look for; nothing is written.
+    blend = copy_blend(scenes, "emission_huge.blend", tmp_path)
+    proc = bake(blend, *CELLS_2M, "--panorama-resolution", "16", "--samples", "4")
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    msg = last_error(proc)
+    assert re.match(r"bake.py: error: Projecting the panorama of probe \d+ at Blender "
+                    r"\((-?1\.000, ){2}1\.000\) failed: .*non-finite radiance inf at pixel", msg), msg
+    assert "the render holds NaN or Inf, which the probes cannot represent" in msg
     assert not (tmp_path / "sh_coeffs").exists()

@@ -5,8 +5,9 @@ room.blend           sky.blend plus closed 0.2 m walls around the volume (render
 emission_inf.blend   sky.blend plus a 0.5 m box "HotBox" outside the volume whose material "Hot"
                      has an Emission node with Strength = inf (Blender stores 3.4e38).
 emission_nan.blend   the same box, "GlowBox", material "NaNGlow": Principled BSDF Emission colour NaN.
-emission_huge.blend  the same box, "HugeBox", material "Huge": Emission Strength 1e38 (finite, so not
-                     refused up front; the render's sum of such samples overflows to Inf).
+emission_huge.blend  a 2 m box "HugeBox" beside the volume, material "Huge": Emission Strength 1e38
+                     (finite, so not refused up front; at 4 spp the render's sum of samples
+                     overflows float32 to Inf in the panorama).
 """
 import os
 import sys
@@ -26,12 +27,12 @@ def sky():
     lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 2.0))
 
 
-def emissive(box_name, mat_name, setup):
+def emissive(box_name, mat_name, setup, lo=(3.0, -0.25, 0.75), hi=(3.5, 0.25, 1.25)):
     sky()
     mat = bpy.data.materials.new(mat_name)
     mat.use_nodes = True
     setup(mat.node_tree)
-    lib.box(box_name, (3.0, -0.25, 0.75), (3.5, 0.25, 1.25), lib.collection("Props"), mat)
+    lib.box(box_name, lo, hi, lib.collection("Props"), mat)
 
 
 def emission_node(tree, strength):
@@ -58,6 +59,6 @@ emissive("HotBox", "Hot", lambda t: emission_node(t, float("inf")))
 lib.save(os.path.join(out, "emission_inf.blend"))
 emissive("GlowBox", "NaNGlow", nan_principled)
 lib.save(os.path.join(out, "emission_nan.blend"))
-emissive("HugeBox", "Huge", lambda t: emission_node(t, 1e38))
+emissive("HugeBox", "Huge", lambda t: emission_node(t, 1e38), (2.5, -1.0, 0.0), (4.5, 1.0, 2.0))
 lib.save(os.path.join(out, "emission_huge.blend"))
 common.emit(ok=True)
