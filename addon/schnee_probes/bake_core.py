@@ -16,6 +16,14 @@ synchronous operator path and headless ``bake.py``::
 Nothing is written to the output folder before :meth:`ProbeBake.finish`; a failed or cancelled bake
 leaves existing ``.shprobe`` files untouched. Every scene setting the bake changes goes through one
 :class:`render_settings.StateGuard` and is restored by ``finish`` and ``cancel``.
+
+Before any work :meth:`ProbeBake.prepare` refuses outputs that are not ours
+(:func:`check_replaceable`: the open .blend, a file that is not a .shprobe by content, anything
+not a regular file) and NaN/Inf emission (:func:`check_finite_emission`); after placement it logs
+the probe count with an estimate (estimate.py) and refuses more than ``settings.probe_limit``
+probes unless ``allow_large``. :meth:`ProbeBake.request_cancel` (Esc, or a signal through
+:class:`CancelOnSignals`) stops the bake at the next check point: placement's progress, each
+probe, before the sky and before writing.
 """
 from __future__ import annotations
 
