@@ -24,14 +24,18 @@ _MODULE_NAMES = ("properties", "nodes", "operators", "panel", "gltf_export")
 
 
 def _modules():
+    """Every submodule, imported. A missing or broken one is an error that names it (Blender shows
+    it when enabling the add-on); nothing is skipped. The compiled native module is not among
+    them: native.py imports without it and says how to build it when a bake needs it."""
     mods = []
     for name in _MODULE_NAMES:
         try:
             mods.append(importlib.import_module("." + name, __name__))
-        except ModuleNotFoundError as exc:
-            # A submodule that does not exist yet is skipped; any other import error is real.
-            if exc.name != __name__ + "." + name:
-                raise
+        except Exception as exc:
+            raise ImportError(
+                f"Schnee Probes: the add-on's module '{name}' could not be loaded "
+                f"({type(exc).__name__}: {exc}); the installed add-on is incomplete or broken: "
+                "reinstall it from the add-on zip") from exc
     return mods
 
 

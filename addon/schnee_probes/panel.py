@@ -5,7 +5,7 @@ import os
 import bpy
 
 from . import compat, light_modes
-from .operators import _draw_settings
+from .properties import draw_estimate, draw_settings
 
 
 class VIEW3D_PT_schnee_probes(bpy.types.Panel):
@@ -27,7 +27,8 @@ class VIEW3D_PT_schnee_probes(bpy.types.Panel):
         row.operator("schnee.add_movable_diffuse", text="Movable Diffuse Material", icon='NODE_MATERIAL')
         layout.use_property_split = True
         layout.use_property_decorate = False
-        _draw_settings(layout, props)
+        draw_settings(layout, props)
+        draw_estimate(layout, context.scene, props)
 
 
 class VIEW3D_PT_schnee_probes_last(bpy.types.Panel):
