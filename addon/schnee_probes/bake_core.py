@@ -42,6 +42,7 @@ import bpy
 import numpy as np
 
 from . import compat, light_modes, native, render_settings, scene_export
+from .safe_open import file_kind
 # The settings are declared in settings.py; re-exported here for scripts that use bake_core.*.
 from .settings import DEFAULT_OUTPUT, PIXEL_FILTERS, BakeError, BakeSettings  # noqa: F401
 from .estimate import (SECONDS_PER_PIXEL_SAMPLE, estimate_seconds, format_duration,  # noqa: F401
@@ -623,14 +624,6 @@ def _vector(c):
 
 
 # ------------------------------------------------------------------ what we may replace
-def _describe_mode(mode) -> str:
-    for test, what in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a device"),
-                       (stat.S_ISBLK, "a device"), (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return what
-    return "not a regular file"
-
-
 def check_replaceable(path, kind):
     """Raise :class:`BakeError` unless ``path`` is absent or a file the bake wrote: ``kind``
     "shprobe" (magic SPHR), "exr" (the sky) or "text" (debug_probe.txt). Never the open .blend,
@@ -650,7 +643,7 @@ def check_replaceable(path, kind):
         except OSError:
             pass
     if not stat.S_ISREG(st.st_mode):
-        raise BakeError(f"Refusing to replace {path}: it exists and is {_describe_mode(st.st_mode)}; "
+        raise BakeError(f"Refusing to replace {path}: it exists and is a {file_kind(st.st_mode)}; "
                         "the bake only replaces files it wrote")
     want = {"shprobe": SHPROBE_MAGIC, "exr": EXR_MAGIC, "text": DEBUG_TEXT_FIRST_LINE.encode()}[kind]
     try:

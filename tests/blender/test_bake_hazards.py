@@ -99,7 +99,7 @@ def test_existing_output_that_is_not_ours_is_refused(scenes, tmp_path, kind):
     assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
     msg = last_error(proc)
     assert msg.startswith("bake.py: error: Refusing to replace"), msg
-    assert {"text": "not a .shprobe", "fifo": "a FIFO", "folder": "a folder",
+    assert {"text": "not a .shprobe", "fifo": "a FIFO", "folder": "a directory",
             "sky_not_exr": "not an OpenEXR"}[kind] in msg, msg
     assert "probe 1/" not in proc.stdout  # refused before any render
     assert time.monotonic() - t0 < 120  # a FIFO does not block the check
