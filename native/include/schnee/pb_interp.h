@@ -25,6 +25,7 @@
 #define SCHNEE_PB_INTERP_H
 
 #include "schnee/pb_common.h"
+#include "schnee/pb_shprobe.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -121,6 +122,27 @@ const int32_t *pb_tetra_neighbours(const pb_tetra *tetra); /* tet_count × 4: ne
 int32_t pb_tetra_locate(const pb_tetra *tetra, const double point[3]);
 pb_result pb_interp_query_tetra(const pb_tetra *tetra, const double point[3], const pb_interp_options *opt,
                                 pb_interp_weights *out);
+
+/* ---- files (.shprobe version 3) --------------------------------------------------------------------- */
+
+/* A version 3 octree file image of a finalized tree: positions, leaves (Morton order), corners and
+ * hanging rules filled, lattice frame in grid_origin/grid_spacing/grid_dims; the caller fills the
+ * probe records (coeffs: pb_shprobe_colour_count colours per probe) and writes it. */
+pb_result pb_shprobe_from_cotree(const pb_cotree *tree, uint32_t representation, uint32_t max_band, pb_shprobe **out,
+                                 pb_error *err);
+/* A version 3 tetrahedra file image (positions, tetrahedra, neighbours); records left to the caller. */
+pb_result pb_shprobe_from_tetra(const pb_tetra *tetra, const double *positions, uint32_t representation,
+                                uint32_t max_band, pb_shprobe **out, pb_error *err);
+/* The interpolation structure a file holds, with the file's own probe numbering: *tree for an
+ * octree (built from its leaves, corners and hanging rules), *tetra for tetrahedra; the other is NULL.
+ * Octree frames must have identity axes (a rotated frame is refused with a message). */
+pb_result pb_interp_from_shprobe(const pb_shprobe *file, pb_cotree **tree, pb_tetra **tetra, pb_error *err);
+/* Resamples a version 3 file's field onto a dense grid (the seed's version 1 layout, DESIGN.md §4):
+ * every grid cell whose centre the structure covers becomes a probe holding the interpolated record
+ * (coefficients, scale, ambient; validity-weighted as the query), others −1. spacing 0 = the octree's
+ * min cell (required > 0 for tetrahedra); the grid covers the lattice (octree) or the probes' bounds.
+ * SH only (version 1 cannot hold cubes); write the result with version 1 (L ≤ 2) or 0. */
+pb_result pb_interp_resample_dense(const pb_shprobe *file, double spacing, pb_shprobe **out, pb_error *err);
 
 #ifdef __cplusplus
 }
