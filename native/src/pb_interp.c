@@ -637,6 +637,9 @@ static void finish_weights(pb_interp_weights *w, const double point[3], const pb
     w->count = n;
 }
 
+static void leaf_weights(const pb_cotree *t, int32_t li, const double u[3], const double point[3],
+                         const pb_interp_options *opt, pb_interp_weights *out);
+
 pb_result pb_interp_query_cotree(const pb_cotree *t, const double point[3], const pb_interp_options *opt,
                                  pb_interp_weights *out)
 {
@@ -648,6 +651,26 @@ pb_result pb_interp_query_cotree(const pb_cotree *t, const double point[3], cons
     if (!point_cell(t, point, u, q)) return PB_SUCCESS;
     int32_t li = locate_cell(t, q);
     if (li < 0) return PB_SUCCESS;
+    leaf_weights(t, li, u, point, opt, out);
+    return PB_SUCCESS;
+}
+
+pb_result pb_interp_query_cotree_leaf(const pb_cotree *t, uint32_t leaf, const double point[3],
+                                      const pb_interp_options *opt, pb_interp_weights *out)
+{
+    if (!t || !point || !out) return PB_ERROR_INVALID_ARGUMENT;
+    out->count = 0;
+    if (!t->finalized || leaf >= t->leaf_count) return PB_ERROR_INVALID_ARGUMENT;
+    double u[3];
+    for (int k = 0; k < 3; k++) u[k] = (point[k] - t->origin[k]) / t->h;
+    leaf_weights(t, (int32_t)leaf, u, point, opt, out);
+    return PB_SUCCESS;
+}
+
+static void leaf_weights(const pb_cotree *t, int32_t li, const double u[3], const double point[3],
+                         const pb_interp_options *opt, pb_interp_weights *out)
+{
+    out->count = 0;
     const uint32_t *l = t->leaves + 4u * (uint32_t)li;
     double s = (double)(1u << l[3]), tt[3], w8[8];
     for (int k = 0; k < 3; k++) {
@@ -668,7 +691,6 @@ pb_result pb_interp_query_cotree(const pb_cotree *t, const double point[3], cons
         }
     }
     finish_weights(out, point, opt);
-    return PB_SUCCESS;
 }
 
 /* ---- tetrahedra -------------------------------------------------------------------------------------- */

@@ -99,6 +99,10 @@ int32_t pb_cotree_find_probe(const pb_cotree *tree, const uint32_t lattice[3]);
 /* Leaf holding the point (closed on the lattice's max faces), or −1. */
 int32_t pb_cotree_locate(const pb_cotree *tree, const double point[3]);
 
+/* Weights of leaf `leaf`'s own field at `point` (clamped into the leaf): for a point on a face shared
+ * by two leaves the field is the same from both sides (C0), this picks one. Requires finalize. */
+pb_result pb_interp_query_cotree_leaf(const pb_cotree *tree, uint32_t leaf, const double point[3],
+                                      const pb_interp_options *opt, pb_interp_weights *out);
 /* Weights of the probes at `point` (engine space); requires finalize. */
 pb_result pb_interp_query_cotree(const pb_cotree *tree, const double point[3], const pb_interp_options *opt,
                                  pb_interp_weights *out);
