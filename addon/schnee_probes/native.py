@@ -631,3 +631,26 @@ def resample_shprobe_dense(path: str, spacing: float = 0.0) -> ShProbeFile:
     value interpolated at its centre); write it with :func:`write_shprobe` (version 1 for L <= 2).
     ``spacing`` 0 = the octree's min cell (required for tetrahedra)."""
     return _shprobe_from_dict(_lib().shprobe_resample_dense(path, float(spacing)))
+
+
+def classify_placement(volumes: Sequence[Mesh], geometry: Sequence[Mesh], points: Optional[np.ndarray] = None,
+                       boxes: Optional[np.ndarray] = None, *, min_cell_size: float = 0.0,
+                       max_cell_size: float = 0.0, threads: int = 0, solid_ray_count: int = 0,
+                       solid_backface_ratio: float = 0.0) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Inside/solid/box classification with :func:`place_probes`' rules (Embree), for the corner
+    octree: (inside (N,) bool, backface_ratio (N,) float32, box_class (M,) uint8) for engine-space
+    ``points`` (N, 3) and ``boxes`` (M, 4) = centre x, y, z and half edge. box_class: 0 outside the
+    volumes, 1 inside, 2 crossed by a volume surface. A probe with backface_ratio > the solid ratio
+    (default 0.25) is inside solid geometry: give it validity 0 (it is then left out of the
+    interpolation) — see docs/placement.md."""
+    p = None if points is None else _vectors(points, "points")[0]
+    b = None
+    if boxes is not None:
+        b = _array(boxes, "boxes", np.float64, _FLOAT_KINDS)
+        if b.ndim != 2 or b.shape[1] != 4:
+            raise _shape_error("boxes", "(M, 4)", b)
+    inside, ratio, cls = _lib().placement_classify(
+        _meshes(volumes, "volumes"), _meshes(geometry, "geometry"), p, b, float(min_cell_size),
+        float(max_cell_size), int(threads), int(solid_ray_count), float(solid_backface_ratio))
+    return (np.frombuffer(inside, dtype=np.uint8).astype(bool), np.frombuffer(ratio, dtype=np.float32),
+            np.frombuffer(cls, dtype=np.uint8))

@@ -1243,6 +1243,72 @@ static PyObject *py_shprobe_resample_dense(PyObject *module, PyObject *args)
     return d;
 }
 
+/* placement_classify(volumes, geometry, points float64[N*3] or None, boxes float64[M*4] or None,
+ * min_cell_size=0, max_cell_size=0, threads=0, solid_ray_count=0, solid_backface_ratio=0) ->
+ * (inside uint8[N], backface_ratio float32[N], box_class uint8[M]) */
+static PyObject *py_placement_classify(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"volumes", "geometry",        "points",
+                             "boxes",   "min_cell_size",   "max_cell_size",
+                             "threads", "solid_ray_count", "solid_backface_ratio",
+                             NULL};
+    PyObject *vol_obj, *geo_obj, *p_obj = Py_None, *b_obj = Py_None;
+    double min_cell = 0.0, max_cell = 0.0, backface = 0.0;
+    Py_ssize_t threads = 0, rays = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO|OOddnnd:placement_classify", kwlist, &vol_obj, &geo_obj, &p_obj,
+                                     &b_obj, &min_cell, &max_cell, &threads, &rays, &backface))
+        return NULL;
+    uint32_t threads32, rays32;
+    if (check_u32(threads, "threads", &threads32) < 0 || check_u32(rays, "solid_ray_count", &rays32) < 0) return NULL;
+    held_buffer pts = {0}, bx = {0};
+    if (p_obj != Py_None && get_buffer(p_obj, "points", 'd', 3, -1, &pts) < 0) return NULL;
+    if (b_obj != Py_None && get_buffer(b_obj, "boxes", 'd', 4, -1, &bx) < 0) {
+        release(&pts);
+        return NULL;
+    }
+    Py_ssize_t n = pts.count / 3, m = bx.count / 4;
+    PyObject *in_o = PyByteArray_FromStringAndSize(NULL, n), *ratio_o = PyByteArray_FromStringAndSize(NULL, n * 4);
+    PyObject *cls_o = PyByteArray_FromStringAndSize(NULL, m);
+    mesh_list vols = {0}, geo = {0};
+    PyObject *result = NULL;
+    if (!in_o || !ratio_o || !cls_o || n > UINT32_MAX || m > UINT32_MAX) {
+        if (in_o && ratio_o && cls_o) PyErr_SetString(PyExc_ValueError, "too many points or boxes");
+        goto done;
+    }
+    if (mesh_list_get(vol_obj, "volumes", &vols) < 0) goto done;
+    if (mesh_list_get(geo_obj, "geometry", &geo) < 0) goto done;
+    {
+        pb_placement_desc desc = {0};
+        desc.volumes = vols.desc;
+        desc.volume_count = (uint32_t)vols.count;
+        desc.geometry = geo.desc;
+        desc.geometry_count = (uint32_t)geo.count;
+        desc.min_cell_size = min_cell;
+        desc.max_cell_size = max_cell;
+        desc.solid_ray_count = rays32;
+        desc.solid_backface_ratio = backface;
+        desc.thread_count = threads32;
+        pb_classify_query q = {pts.view.obj ? pts.view.buf : NULL,    (uint32_t)n,
+                               (uint8_t *)PyByteArray_AsString(in_o), (float *)(void *)PyByteArray_AsString(ratio_o),
+                               bx.view.obj ? bx.view.buf : NULL,      (uint32_t)m,
+                               (uint8_t *)PyByteArray_AsString(cls_o)};
+        pb_error err = {0};
+        pb_result r;
+        Py_BEGIN_ALLOW_THREADS r = pb_placement_classify(&desc, &q, &err);
+        Py_END_ALLOW_THREADS if (r != PB_SUCCESS) raise_core(module, r, &err);
+        else result = Py_BuildValue("(OOO)", in_o, ratio_o, cls_o);
+    }
+done:
+    mesh_list_free(&vols);
+    mesh_list_free(&geo);
+    Py_XDECREF(in_o);
+    Py_XDECREF(ratio_o);
+    Py_XDECREF(cls_o);
+    release(&pts);
+    release(&bx);
+    return result;
+}
+
 /* ---- module ----------------------------------------------------------------------------------- */
 
 static PyObject *py_set_error_class(PyObject *module, PyObject *cls)
@@ -1346,6 +1412,8 @@ static PyMethodDef methods[] = {
     {"ambient_cube_irradiance", py_ambient_cube_irradiance, METH_VARARGS,
      "ambient_cube_irradiance(cube: float64[18], normals: float64[N*3]) -> bytearray float64[N*3]"},
     {"result_string", py_result_string, METH_VARARGS, "result_string(code) -> str"},
+    {"placement_classify", (PyCFunction)(void (*)(void))py_placement_classify, METH_VARARGS | METH_KEYWORDS,
+     "placement_classify(volumes, geometry, points=None, boxes=None, ...) -> (inside, backface_ratio, box_class)"},
     {"cotree_create", py_cotree_create, METH_VARARGS,
      "cotree_create(origin, min_cell, root_level, root_dims) -> corner octree handle (not finalized)"},
     {"cotree_from_leaves", py_cotree_from_leaves, METH_VARARGS,

@@ -209,3 +209,42 @@ def test_errors():
         t.split(np.zeros(3, bool))
     with pytest.raises(native.SchneeError, match="unknown version 9"):
         native.read_shprobe_bytes(struct.pack("<II", 0x52485053, 9) + bytes(200))
+
+
+def _box(lo, hi):
+    v = np.array([[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1], hi[2] if i & 4 else lo[2]]
+                  for i in range(8)], float)
+    faces = [(0, 4, 6, 2), (1, 3, 7, 5), (0, 1, 5, 4), (2, 6, 7, 3), (0, 2, 3, 1), (4, 5, 7, 6)]
+    t = np.array([tri for f in faces for tri in ((f[0], f[1], f[2]), (f[0], f[2], f[3]))], np.uint32)
+    return v, t
+
+
+def test_classify_points_and_leaf_boxes():
+    """Room volume 10 x 4 x 10 m with a solid 2 m block (outward normals) at its centre: points in the
+    air see front faces only (ratio 0), points in the block back faces only (ratio 1); leaf boxes of
+    a corner octree over the room's bounding box are inside / crossed / outside by construction."""
+    room = ("room",) + _box((0, 0, 0), (10, 4, 10))
+    block = ("block",) + _box((4, 0, 4), (6, 2, 6))
+    pts = np.array([[1, 1, 1], [5, 1, 5], [11, 1, 1], [5.5, 1.5, 4.5]], float)
+    boxes = np.array([[5, 2, 5, 1], [10, 2, 5, 1], [20, 2, 20, 1]], float)
+    inside, ratio, cls = native.classify_placement([room], [block], pts, boxes, threads=2)
+    np.testing.assert_array_equal(inside, [True, True, False, True])
+    np.testing.assert_array_equal(ratio[[0, 1, 3]], [0.0, 1.0, 1.0])
+    np.testing.assert_array_equal(cls, [1, 2, 0])
+    # Drop the corner octree's leaves outside the volume, give solid probes validity 0.
+    t = native.CornerOctree.uniform((-2.0, 0.0, -2.0), 0.5, 2, (7, 2, 7))  # 14 x 4 x 14 m
+    lv = t.info()["leaves"]
+    half = 0.5 * (1 << lv[:, 3]) * 0.5
+    centres = np.array([-2.0, 0.0, -2.0]) + lv[:, :3] * 0.5 + half[:, None]
+    _, _, c = native.classify_placement([room], [block], boxes=np.column_stack([centres, half]))
+    t.drop(c == 0)
+    t.finalize()
+    # 10 / 2 m leaves: the room holds 5 x 2 x 5 = 50 leaves; the rest of the 14 m box is outside (the
+    # room's faces lie on leaf faces, which do not count as crossing).
+    assert t.leaf_count == 50
+    _, r2, _ = native.classify_placement([room], [block], t.positions())
+    solid = r2 > 0.25
+    pos = t.positions()
+    strictly_in_block = ((pos > [4, 0, 4]) & (pos < [6, 2, 6])).all(axis=1)
+    np.testing.assert_array_equal(solid[strictly_in_block], True)
+    assert solid.sum() >= strictly_in_block.sum()
