@@ -224,7 +224,8 @@ def main():
              f"{MIN_CELL} m, Max Cell Size {MIN_CELL * 2 ** ROOT_LEVEL:g} m, L = {BAND}, bake noise "
              f"{NOISE * 100:.1f} % relative RMS, {len(pts)} seeded points. Error = relative irradiance RMS over "
              "directions against the noiseless field; **P** = Pareto-optimal in (bakes, mean error); bakes = "
-             "points rendered (probes + test points that did not become probes).", ""]
+             "points rendered (probes + test points that did not become probes). Reading and the recommended "
+             "default: docs/placement.md, \"Measured on synthetic fields\".", ""]
     for fname, field in FIELDS.items():
         ref = field(pts)
         rows = uniform_rows(field, pts, ref) + geometry_rows(field, pts, ref) + refine_rows(field, pts, ref)

@@ -984,7 +984,7 @@ static PyObject *py_interp_query(PyObject *module, PyObject *args)
     }
     held_buffer pts, val = {0};
     if (get_buffer(p_obj, "points", 'd', 3, -1, &pts) < 0) return NULL;
-    Py_ssize_t probe_count = tree ? (Py_ssize_t)pb_cotree_probe_count(tree) : -1;
+    Py_ssize_t probe_count = tree ? (Py_ssize_t)pb_cotree_probe_count(tree) : (Py_ssize_t)pb_tetra_point_count(tetra);
     if (v_obj != Py_None && get_buffer(v_obj, "validity", 'f', 0, probe_count, &val) < 0) {
         release(&pts);
         return NULL;

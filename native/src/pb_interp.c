@@ -721,6 +721,7 @@ void pb_tetra_destroy(pb_tetra *t)
 }
 
 uint32_t pb_tetra_count(const pb_tetra *t) { return t ? t->tet_count : 0; }
+uint32_t pb_tetra_point_count(const pb_tetra *t) { return t ? t->point_count : 0; }
 const uint32_t *pb_tetra_tets(const pb_tetra *t) { return t ? t->tets : NULL; }
 const int32_t *pb_tetra_neighbours(const pb_tetra *t) { return t ? t->nbr : NULL; }
 

@@ -207,6 +207,9 @@ def test_errors():
     t = _tree()
     with pytest.raises(ValueError, match="flags must have shape"):
         t.split(np.zeros(3, bool))
+    # A validity array of the wrong length is refused before the core reads it.
+    with pytest.raises(ValueError, match="validity has 3 items, expected"):
+        native.Tetrahedra.create(t.positions()).query([[2.0, 2.5, 3.5]], validity=np.ones(3))
     with pytest.raises(native.SchneeError, match="unknown version 9"):
         native.read_shprobe_bytes(struct.pack("<II", 0x52485053, 9) + bytes(200))
 

@@ -120,6 +120,7 @@ pb_result pb_tetra_create_from(const double *positions, uint32_t count, const ui
                                pb_tetra **out, pb_error *err);
 void pb_tetra_destroy(pb_tetra *tetra);
 uint32_t pb_tetra_count(const pb_tetra *tetra);
+uint32_t pb_tetra_point_count(const pb_tetra *tetra);      /* probes it was built from */
 const uint32_t *pb_tetra_tets(const pb_tetra *tetra);      /* tet_count × 4 probe indices */
 const int32_t *pb_tetra_neighbours(const pb_tetra *tetra); /* tet_count × 4: neighbour opposite vertex i, or −1 */
 /* Tetrahedron holding the point, or −1 (outside the convex hull). */
