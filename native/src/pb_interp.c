@@ -1326,3 +1326,18 @@ done:
     pb_tetra_destroy(tetra);
     return r;
 }
+
+pb_result pb_shprobe_write_resampled(const char *path, const pb_shprobe *file, double spacing, uint32_t version,
+                                     pb_error *err)
+{
+    if (version != 0 && version != 1 && version != 2)
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                            "a dense grid is written as version 1, 2 or 0 (auto), not %u", version);
+    pb_shprobe *dense = NULL;
+    pb_result r = pb_interp_resample_dense(file, spacing, &dense, err);
+    if (r != PB_SUCCESS) return r;
+    dense->version = version;
+    r = pb_shprobe_write(path, dense, err);
+    pb_shprobe_destroy(dense);
+    return r;
+}

@@ -280,6 +280,17 @@ static void test_resample_dense_v1(void)
     uint8_t *b = read_all(path, &n);
     TU_CHECK(n == 48 + 160 * 512 + 4 * 512 && u32_at(b, 4) == 1);
     free(b);
+    /* The writer's option does the same in one call, byte for byte. */
+    char path2[300];
+    path_in_tmp(path2, sizeof path2, "dense_v1_option.shprobe");
+    TU_REQUIRE(pb_shprobe_write_resampled(path2, f, 0.0, 1, &err) == PB_SUCCESS);
+    size_t n2;
+    uint8_t *b1 = read_all(path, &n), *b2 = read_all(path2, &n2);
+    TU_CHECK(n2 == n && memcmp(b1, b2, n) == 0);
+    free(b1);
+    free(b2);
+    pb_error e3 = {0};
+    TU_CHECK(pb_shprobe_write_resampled(path2, f, 0.0, 3, &e3) == PB_ERROR_INVALID_ARGUMENT);
     pb_shprobe_destroy(d);
     pb_shprobe_destroy(f);
     pb_cotree_destroy(t);

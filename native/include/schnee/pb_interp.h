@@ -148,6 +148,11 @@ pb_result pb_interp_from_shprobe(const pb_shprobe *file, pb_cotree **tree, pb_te
  * min cell (required > 0 for tetrahedra); the grid covers the lattice (octree) or the probes' bounds.
  * SH only (version 1 cannot hold cubes); write the result with version 1 (L ≤ 2) or 0. */
 pb_result pb_interp_resample_dense(const pb_shprobe *file, double spacing, pb_shprobe **out, pb_error *err);
+/* The writer's option for engines that only read the seed's format: resamples `file` (version 3,
+ * SH) as pb_interp_resample_dense and writes the dense grid atomically as `version` (1, or 0 = the
+ * smallest that holds it: 1 for L <= 2, else 2). */
+pb_result pb_shprobe_write_resampled(const char *path, const pb_shprobe *file, double spacing, uint32_t version,
+                                     pb_error *err);
 
 #ifdef __cplusplus
 }
