@@ -506,11 +506,12 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
             uint32_t cp[3] = {l[0] + (c & 1 ? cs : 0), l[1] + (c & 2 ? cs : 0), l[2] + (c & 4 ? cs : 0)};
             uint32_t src;
             if (!hmap_get(&t->node_map, pack3(cp[0], cp[1], cp[2]), &src) || src >= P + hI || ns >= 4) {
+                uint32_t at[3] = {nd->p[0], nd->p[1], nd->p[2]};
                 free(nodes);
                 cotree_clear_nodes(t);
                 return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                                    "internal: hanging node (%u, %u, %u) has an unresolved source", nd->p[0], nd->p[1],
-                                    nd->p[2]);
+                                    "internal: hanging node (%u, %u, %u) has an unresolved source", at[0], at[1],
+                                    at[2]);
             }
             t->hang_src[4u * hI + ns] = src;
             t->hang_w[4u * hI + ns] = (float)w8[c];
@@ -525,12 +526,13 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
                                      w8[c] * t->exp_w[q]);
             }
             if (!fits) {
+                uint32_t at[3] = {nd->p[0], nd->p[1], nd->p[2]};
                 free(nodes);
                 cotree_clear_nodes(t);
                 return pb_error_set(err, PB_ERROR_TOO_LARGE,
                                     "hanging node (%u, %u, %u) depends on more than %u probes; the octree is too "
                                     "unbalanced",
-                                    nd->p[0], nd->p[1], nd->p[2], HANG_MAX_EXPANDED);
+                                    at[0], at[1], at[2], HANG_MAX_EXPANDED);
             }
         }
         e += cnt;
