@@ -6,7 +6,7 @@ cd "$(dirname "$0")/.."
 
 APT_PACKAGES=(
   build-essential cmake ninja-build pkg-config clang clang-format libclang-rt-14-dev
-  libembree-dev libopenimageio-dev openimageio-tools
+  libembree-dev libopenimageio-dev openimageio-tools libqhull-dev
   python3 python3-dev python3-numpy python3-scipy python3-pytest python3-matplotlib
   python3-pip python3-setuptools python3-wheel
   blender
