@@ -124,6 +124,21 @@ bool sv_probes_load(const sv_ext *ext, sv_probes *out)
             sv_probes_destroy(out);
             return false;
         }
+        /* Version 3 adds sparse structures and ambient cubes (docs/shprobe-format.md); this engine
+         * shades dense SH grids only, so anything else is refused here rather than misread. */
+        if (f->structure != PB_SHPROBE_GRID || !f->grid || f->representation != PB_SHPROBE_SH) {
+            fprintf(stderr,
+                    "schnee-view: error: shProbeGrids[%u] '%s': %s is a version %u file with a %s of %s; this "
+                    "engine reads dense grids of SH only (bake or resample to a version 1/2 grid)\n",
+                    i, e->name, e->path, f->version,
+                    f->structure == PB_SHPROBE_OCTREE  ? "corner octree"
+                    : f->structure == PB_SHPROBE_TETRA ? "tetrahedral mesh"
+                                                       : "grid",
+                    f->representation == PB_SHPROBE_SH ? "SH" : "ambient cubes");
+            pb_shprobe_destroy(f);
+            sv_probes_destroy(out);
+            return false;
+        }
         /* The reader returns identity axes for v1 and refuses all-zero or non-orthonormal ones on disk,
          * so all-zero never means "identity" here; a unit X axis row is checked as a guard. */
         double ax2 = (double)f->grid_axes[0] * f->grid_axes[0] + (double)f->grid_axes[1] * f->grid_axes[1] +

@@ -59,11 +59,13 @@ def test_size_and_contents(unpacked):
     total = sum(p.stat().st_size for p in pkg.rglob("*") if p.is_file())
     assert total < MAX_UNPACKED_BYTES, total
     binaries = sorted(str(p.relative_to(pkg)) for p in pkg.rglob("*") if ".so" in p.name)
-    assert binaries == ["_schnee_native.abi3.so", "lib/libembree3.so.3", "lib/libtbb.so.12"], binaries
+    assert binaries == ["_schnee_native.abi3.so", "lib/libembree3.so.3", "lib/libqhull_r.so.8.0",
+                        "lib/libtbb.so.12"], binaries
     assert (pkg / "bake.py").is_file() and (pkg / "__init__.py").is_file() and (pkg / "exr.py").is_file()
 
 
-@pytest.mark.parametrize("binary", ["_schnee_native.abi3.so", "lib/libembree3.so.3", "lib/libtbb.so.12"])
+@pytest.mark.parametrize("binary", ["_schnee_native.abi3.so", "lib/libembree3.so.3", "lib/libqhull_r.so.8.0",
+                                    "lib/libtbb.so.12"])
 def test_ldd_resolves_inside_the_package_or_glibc_libstdcxx_libgcc(unpacked, binary):
     _, pkg = unpacked
     out, deps = _ldd(pkg / binary)
@@ -73,8 +75,10 @@ def test_ldd_resolves_inside_the_package_or_glibc_libstdcxx_libgcc(unpacked, bin
             continue
         assert where.startswith(str(pkg) + "/lib/"), f"{binary}: {name} => {where}\n{out}"
     if binary.startswith("_schnee"):
-        # The module itself links nothing but libc/libm: Embree is opened at import (dlopen).
-        assert set(deps) <= {"linux-vdso.so.1", "ld-linux-x86-64.so.2", "libc.so.6", "libm.so.6"}, out
+        # The module itself links nothing but libc/libm and the packaged qhull: Embree is opened at
+        # import (dlopen).
+        assert set(deps) <= {"linux-vdso.so.1", "ld-linux-x86-64.so.2", "libc.so.6", "libm.so.6",
+                             "libqhull_r.so.8.0"}, out
 
 
 def test_module_exports_only_pyinit_and_no_embree_symbol(unpacked):
@@ -151,7 +155,8 @@ def test_missing_module_is_explained_to_a_package_user(unpacked, tmp_path):
     assert line and "no compiled bake core" in line[0] and "Reinstall the add-on" in line[0], proc.stderr[-2000:]
 
 
-@pytest.mark.parametrize("binary", ["_schnee_native.abi3.so", "lib/libembree3.so.3", "lib/libtbb.so.12"])
+@pytest.mark.parametrize("binary", ["_schnee_native.abi3.so", "lib/libembree3.so.3", "lib/libqhull_r.so.8.0",
+                                    "lib/libtbb.so.12"])
 def test_runtime_requirements_stay_at_glibc_2_34_and_gcc_11(unpacked, binary):
     """docs/install.md promises glibc 2.34+ and GCC 11's libstdc++ (Ubuntu 22.04, RHEL 9): the
     highest symbol versions the packaged binaries need."""
