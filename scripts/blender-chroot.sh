@@ -84,11 +84,12 @@ create() {
     in_chroot "$tmp" apt-get clean >&2
     if [ "$flavour" = dev ]; then
         # The ready marker lists the versions the build tests report (docs/install.md quotes them).
+        # shellcheck disable=SC2016  # dpkg-query's own ${...} fields
         in_chroot "$tmp" dpkg-query -W -f '${Package} ${Version}\n' cmake libembree-dev \
             libopenimageio-dev gcc g++ python3-dev >"$tmp/.schnee-dev-versions"
         in_chroot "$tmp" cc --version >/dev/null
         mv "$tmp" "$dir"
-        echo "blender-chroot: $suite ready:" $(cat "$dir/$MARK") >&2
+        echo "blender-chroot: $suite ready: $(tr '\n' ' ' <"$dir/$MARK")" >&2
         return
     fi
     local probe

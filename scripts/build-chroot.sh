@@ -21,6 +21,9 @@ suite="$1"
 dir="$(scripts/blender-chroot.sh ensure "$suite-dev")"
 work="$dir/tmp/schnee-build"
 mkdir -p "$work"
+# One build per chroot at a time (the copy and the build tree are shared by every run).
+exec 8>"$work.lock"
+flock 8
 if [ "${SCHNEE_BUILD_CHROOT_CLEAN:-0}" = 1 ]; then rm -rf "$work/build"; fi
 rm -rf "$work/src.new"
 mkdir "$work/src.new"
