@@ -70,6 +70,14 @@ in_chroot() {
     ' sh "$d" "$@"
 }
 
+# The dev flavour's ready marker: the versions the build tests report (docs/install.md quotes them).
+dev_versions() {
+    # shellcheck disable=SC2016  # dpkg-query's own ${...} fields
+    in_chroot "$1" dpkg-query -W -f '${Package} ${Version}\n' cmake libembree-dev libopenimageio-dev gcc g++ \
+        python3-dev >"$1/.schnee-dev-versions.new"
+    mv "$1/.schnee-dev-versions.new" "$1/.schnee-dev-versions"
+}
+
 create() {
     local tmp="$dir.tmp"
     rm -rf "$tmp"
@@ -83,11 +91,8 @@ create() {
     echo "$PACKAGE_LIST" >"$tmp/.schnee-packages"
     in_chroot "$tmp" apt-get clean >&2
     if [ "$flavour" = dev ]; then
-        # The ready marker lists the versions the build tests report (docs/install.md quotes them).
-        # shellcheck disable=SC2016  # dpkg-query's own ${...} fields
-        in_chroot "$tmp" dpkg-query -W -f '${Package} ${Version}\n' cmake libembree-dev \
-            libopenimageio-dev gcc g++ python3-dev >"$tmp/.schnee-dev-versions"
         in_chroot "$tmp" cc --version >/dev/null
+        dev_versions "$tmp"
         mv "$tmp" "$dir"
         echo "blender-chroot: $suite ready: $(tr '\n' ' ' <"$dir/$MARK")" >&2
         return
@@ -130,6 +135,7 @@ ensure() {
         in_chroot "$dir" apt-get -q update >&2
         in_chroot "$dir" /usr/bin/env DEBIAN_FRONTEND=noninteractive apt-get install -y -q "${PACKAGES[@]}" >&2
         in_chroot "$dir" apt-get clean >&2
+        if [ "$flavour" = dev ]; then dev_versions "$dir"; fi
         echo "$PACKAGE_LIST" >"$dir/.schnee-packages"
     fi
     flock -u 9
