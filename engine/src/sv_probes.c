@@ -7,8 +7,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include <embree3/rtcore.h>
-
+#include "schnee/pb_embree_compat.h"
 #include "schnee/pb_sh.h"
 #include "sv_clock.h"
 #include "sv_math.h"
@@ -402,9 +401,7 @@ static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene
                         ray.tnear = eps;
                         ray.tfar = 1.0f - eps;
                         ray.mask = 0xFFFFFFFFu;
-                        struct RTCIntersectContext ctx;
-                        rtcInitIntersectContext(&ctx);
-                        rtcOccluded1(rs, &ctx, &ray);
+                        pb_rtc_occluded1(rs, &ray);
                         ++rays;
                         if (ray.tfar < 0.0f) { /* occluded: -inf */
                             masks[off + ci] &= ~(1u << k);

@@ -1,18 +1,20 @@
 /* Schnee probes — Embree reached through function pointers (the Python module only).
  *
  * Force-included (-include) into pb_octree.c when it is compiled for _schnee_native: every Embree
- * call becomes a call through a pointer that pb_embree_load() fills with dlsym() from the Embree 3
- * the add-on package carries (lib/libembree3.so.3 next to the module), opened RTLD_LOCAL. The module
- * then has no undefined rtc* symbol at all, so nothing can bind its Embree calls to another Embree
- * in the process: Blender 4.x/5.x link Embree 4, which exports functions of the same names with
- * other signatures. Symbol lookup of everything else (malloc, libstdc++) stays normal. */
+ * call becomes a call through a pointer that pb_embree_load() fills with dlsym() from the Embree
+ * the add-on package carries (lib/libembree3.so.3 next to the module; libembree4.so.4 when built
+ * against Embree 4, PB_EMBREE_SONAME), opened RTLD_LOCAL. The module then has no undefined rtc*
+ * symbol at all, so nothing can bind its Embree calls to another Embree in the process: Blender
+ * 4.x/5.x link Embree 4, which exports functions of the same names as Embree 3 with other
+ * signatures. Symbol lookup of everything else (malloc, libstdc++) stays normal. */
 #ifndef SCHNEE_PB_EMBREE_DYN_H
 #define SCHNEE_PB_EMBREE_DYN_H
 
-#include <embree3/rtcore.h>
+#include "schnee/pb_embree.h"
 #include <stddef.h>
 
-/* Every exported Embree function pb_octree.c calls (the rtcInit*Context helpers are inline). */
+/* Every exported Embree function pb_octree.c calls (the rtcInit* helpers are inline), in Embree 3
+ * and 4 alike (pb_embree_compat.h). */
 #define PB_EMBREE_FUNCTIONS(X)                                                                                         \
     X(rtcAttachGeometry)                                                                                               \
     X(rtcCommitGeometry)                                                                                               \

@@ -63,6 +63,44 @@ std::string format_for(const std::string &path, const unsigned char *head, size_
     return ext.empty() ? std::string() : ext.substr(1);
 }
 
+// The documented size limits (pb_image.h), checked before any pixel is allocated or read.
+pb_result check_limits(const char *path, uint64_t w, uint64_t h, uint64_t c, pb_error *err)
+{
+    // Each factor is bounded before a product that could overflow is formed.
+    if (w > PB_IMAGE_MAX_DIM || h > PB_IMAGE_MAX_DIM || c > PB_IMAGE_MAX_CHANNELS || w * h * c > PB_IMAGE_MAX_VALUES ||
+        w * h * c > std::numeric_limits<size_t>::max() / sizeof(float))
+        return pb_error_set(err, PB_ERROR_TOO_LARGE,
+                            "image '%s' is too large: %llux%llu with %llu channel(s); the limits are %u pixels per "
+                            "side, %u channels and %llu values (width x height x channels)",
+                            path, (unsigned long long)w, (unsigned long long)h, (unsigned long long)c, PB_IMAGE_MAX_DIM,
+                            PB_IMAGE_MAX_CHANNELS, (unsigned long long)PB_IMAGE_MAX_VALUES);
+    return PB_SUCCESS;
+}
+
+// The size a PFM header ("PF" or "Pf", width, height, scale, whitespace-separated) claims, if the
+// first bytes hold one: checked against the limits before OpenImageIO sees the file, because
+// OpenImageIO 2.5 and later refuse PNM sides above 65535 themselves, with a different error.
+bool pfm_header_size(const unsigned char *head, size_t got, uint64_t *w, uint64_t *h, uint64_t *c)
+{
+    if (got < 3 || head[0] != 'P' || (head[1] != 'F' && head[1] != 'f')) return false;
+    *c = head[1] == 'F' ? 3 : 1;
+    uint64_t dims[2] = {0, 0};
+    size_t i = 2;
+    for (uint64_t &d : dims) {
+        const size_t start = i;
+        while (i < got && std::isspace(head[i])) i++;
+        if (i == start || i >= got || !std::isdigit(head[i])) return false;
+        for (; i < got && std::isdigit(head[i]); i++) {
+            if (d > (uint64_t)1 << 40) return false;
+            d = d * 10 + (uint64_t)(head[i] - '0');
+        }
+        if (i >= got || !std::isspace(head[i])) return false;
+    }
+    *w = dims[0];
+    *h = dims[1];
+    return true;
+}
+
 // Closes the descriptor (and the FILE wrapping it) on every path out of read_impl.
 struct file_guard {
     int fd = -1;
@@ -87,13 +125,18 @@ pb_result read_impl(const char *path, pb_image *out, pb_error *err)
     if (size > PB_IMAGE_MAX_FILE_BYTES)
         return pb_error_set(err, PB_ERROR_TOO_LARGE, "%s: %llu bytes is above the image file limit of %llu bytes", path,
                             (unsigned long long)size, (unsigned long long)PB_IMAGE_MAX_FILE_BYTES);
-    unsigned char head[4] = {0, 0, 0, 0};
+    unsigned char head[64] = {0};
     size_t got = 0;
     r = pb_read_full_(g.fd, path, head, sizeof head, &got, err);
     if (r != PB_SUCCESS) return r;
     if (lseek(g.fd, 0, SEEK_SET) != 0)
         return pb_error_set(err, PB_ERROR_IO, "%s: cannot seek: %s", path, std::strerror(errno));
     const std::string format = format_for(path, head, got);
+    uint64_t pfm_w, pfm_h, pfm_c;
+    if (format == "pnm" && pfm_header_size(head, got, &pfm_w, &pfm_h, &pfm_c)) {
+        r = check_limits(path, pfm_w, pfm_h, pfm_c, err);
+        if (r != PB_SUCCESS) return r;
+    }
     // 2. OpenImageIO reads through our checked descriptor where the reader supports it (all the
     // formats above do), so the file cannot be swapped for a FIFO or device after the check. The
     // proxy outlives the reader (declared before it), the FILE outlives both.
@@ -123,14 +166,8 @@ pb_result read_impl(const char *path, pb_image *out, pb_error *err)
         return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' has unsupported size %dx%dx%d with %d channel(s)", path,
                             spec.width, spec.height, spec.depth, spec.nchannels);
     const uint64_t w = (uint64_t)spec.width, h = (uint64_t)spec.height, c = (uint64_t)spec.nchannels;
-    // w, h, c < 2^31 each: w*h < 2^62 fits; w*h*c is only formed once w*h and c are bounded.
-    if (w > PB_IMAGE_MAX_DIM || h > PB_IMAGE_MAX_DIM || c > PB_IMAGE_MAX_CHANNELS || w * h * c > PB_IMAGE_MAX_VALUES ||
-        w * h * c > std::numeric_limits<size_t>::max() / sizeof(float))
-        return pb_error_set(err, PB_ERROR_TOO_LARGE,
-                            "image '%s' is too large: %dx%d with %d channel(s); the limits are %u pixels per side, "
-                            "%u channels and %llu values (width x height x channels)",
-                            path, spec.width, spec.height, spec.nchannels, PB_IMAGE_MAX_DIM, PB_IMAGE_MAX_CHANNELS,
-                            (unsigned long long)PB_IMAGE_MAX_VALUES);
+    r = check_limits(path, w, h, c, err);
+    if (r != PB_SUCCESS) return r;
     const size_t count = (size_t)(w * h * c);
     float *data = static_cast<float *>(std::malloc(count * sizeof(float)));
     if (!data)

@@ -26,11 +26,11 @@
  */
 #include "schnee/pb_octree.h"
 
+#include "schnee/pb_embree_compat.h"
 #include "schnee/pb_shprobe.h"
 
 #include "pb_file.h"
 
-#include <embree3/rtcore.h>
 #include <float.h>
 #include <math.h>
 #include <pthread.h>
@@ -367,14 +367,14 @@ static bool box_straddles_volumes(const oct_ctx *c, const double centre[3], doub
 }
 
 /* Inside test: for each of three fixed directions, a ray from the point collects every volume
- * triangle it crosses (an Embree context filter rejects each hit so traversal continues); the point
+ * triangle it crosses (an Embree filter passed with the call rejects each hit so traversal continues); the point
  * is inside the union for that direction when some volume is crossed an odd number of times. The
  * answer is the majority of the three directions, so a ray that grazes an edge or vertex (and may
  * count a crossing twice or not at all) is outvoted. */
 #define INSIDE_MAX_HITS 512
 
 typedef struct inside_ray_ctx {
-    struct RTCIntersectContext ctx; /* first member: Embree passes this pointer to the filter */
+    pb_rtc_context ctx; /* first member: Embree passes this pointer to the filter */
     uint32_t count;
     bool overflow;
     uint32_t geom[INSIDE_MAX_HITS];
@@ -418,8 +418,6 @@ static const double inside_dirs[3][3] = {
 /* Returns 1 inside, 0 outside, −1 unknown (too many crossings recorded). */
 static int inside_one_dir(const oct_ctx *c, const double p[3], const double d[3], inside_ray_ctx *r)
 {
-    rtcInitIntersectContext(&r->ctx);
-    r->ctx.filter = inside_filter;
     r->count = 0;
     r->overflow = false;
     struct RTCRayHit rh;
@@ -434,7 +432,7 @@ static int inside_one_dir(const oct_ctx *c, const double p[3], const double d[3]
     rh.ray.tfar = INFINITY;
     rh.ray.mask = 0xFFFFFFFFu;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(c->vol_scene, &r->ctx, &rh);
+    pb_rtc_intersect1_filtered(c->vol_scene, &r->ctx, inside_filter, &rh);
     if (r->overflow) return -1;
     /* Some volume crossed an odd number of times? */
     for (uint32_t k = 0; k < r->count; k++) {
@@ -948,13 +946,11 @@ typedef struct solid_job {
 /* Back-face hits and hits of the solid test's rays from `ctr` (relative coordinates). */
 static void solid_count(oct_ctx *c, const double ctr[3], uint32_t *hits_out, uint32_t *back_out)
 {
-    struct RTCIntersectContext ictx;
     struct RTCRayHit16 rh;
     _Alignas(64) int valid[16]; /* Embree requires the 16-wide valid mask 64-byte aligned */
     {
         uint32_t hits = 0, back = 0;
         for (uint32_t k0 = 0; k0 < c->solid_rays; k0 += 16) {
-            rtcInitIntersectContext(&ictx);
             for (uint32_t l = 0; l < 16; l++) {
                 uint32_t k = k0 + l;
                 valid[l] = k < c->solid_rays ? -1 : 0;
@@ -972,7 +968,7 @@ static void solid_count(oct_ctx *c, const double ctr[3], uint32_t *hits_out, uin
                 rh.ray.flags[l] = 0;
                 rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
             }
-            rtcIntersect16(valid, c->geo_scene, &ictx, &rh);
+            pb_rtc_intersect16(valid, c->geo_scene, &rh);
             for (uint32_t l = 0; l < 16; l++) {
                 if (!valid[l] || rh.hit.geomID[l] == RTC_INVALID_GEOMETRY_ID) continue;
                 uint32_t k = k0 + l;
@@ -1178,9 +1174,9 @@ static pb_result build_scenes(oct_ctx *c)
         return pb_error_set(c->err, PB_ERROR_EMBREE, "could not create an Embree device (error %d)",
                             (int)rtcGetDeviceError(NULL));
     rtcSetDeviceErrorFunction(c->device, embree_error_fn, c);
-    pb_result r = build_mesh_scene(c, c->desc->volumes, c->desc->volume_count,
-                                   RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST, &c->vol_scene,
-                                   &c->vol_mesh_of_geom);
+    pb_result r =
+        build_mesh_scene(c, c->desc->volumes, c->desc->volume_count,
+                         PB_RTC_SCENE_FLAG_FILTER_IN_CALL | RTC_SCENE_FLAG_ROBUST, &c->vol_scene, &c->vol_mesh_of_geom);
     if (r) return r;
     bool any_geometry = false;
     for (uint32_t i = 0; i < c->desc->geometry_count; i++) any_geometry |= c->desc->geometry[i].triangle_count > 0;

@@ -73,7 +73,7 @@ static void test_parser_uses_the_table(void)
         char json[256];
         snprintf(json, sizeof json,
                  "{\"asset\":{\"version\":\"2.0\"},\"materials\":[{\"extensions\":{\"VULKAN_SCHNEE_materials\":"
-                 "{\"probeMode\":\"%s\"}}}]}",
+                 "{\"probeMode\":\"%.31s\"}}}]}",
                  i < n ? names[i] : "material");
         sv_gltf *g = NULL;
         sv_gltf_error err = {0};
