@@ -228,3 +228,58 @@ def test_invalid_cli_value(tmp_path):
     proc = viewer.run(scene, "--headless", "--probe-representation", "cube", validation=False)
     assert proc.returncode == 2
     assert "cube" in proc.stderr
+
+
+def test_fallback_probe_with_a_sky_is_the_cube_of_the_sky_sh(tmp_path):
+    # No grid: probe 0 is the sky's SH from the glTF entry, and its cube is fitted from it at load.
+    # Specular off, so the pixel is DESIGN.md §3's diffuse formula with E_cube of the sky's SH.
+    from test_engine_ibl import sky_scene, smooth_sky, sphere_setup
+    w = h = 48
+    albedo, sh_scale, ambient = np.array([0.8, 0.7, 0.5]), 0.9, 0.02
+    img = smooth_sky()
+
+    def material(b):
+        m = b.material("m", base_color=(*albedo, 1), sh_scale=sh_scale, ambient_term=ambient)
+        b.doc["materials"][m]["extensions"]["VULKAN_SCHNEE_materials"]["probeRepresentation"] = "ambientCube"
+        return m
+
+    scene = sky_scene(tmp_path, img, [sphere_setup(material)],
+                      camera=lambda b: b.node("Camera", camera=b.camera("cam", 0.9), translation=(0, 0, 3)))
+    out = tmp_path / "fb.exr"
+    got = render(scene, out, "--no-specular", w=w, h=h)
+    p, hit, facing = ref.sphere_normals(w, h, 0.9, 3.0)
+    inner = hit & (facing > 0.3)
+    sky_sh = ref.project_l2(img)
+    want = albedo * (sh_scale * np.maximum(ref.cube_irradiance(ref.cube_from_sh(sky_sh), p[inner]), 0) / np.pi
+                     + ambient)
+    # Same bound as test_engine_ibl's SH fallback (96 x 48 sphere): 0.5 % of the largest value.
+    assert np.abs(got[inner] - want).max() < 5e-3 * want.max()
+    sh_want = albedo * (sh_scale * np.maximum(ref.irradiance(sky_sh, p[inner]), 0) / np.pi + ambient)
+    assert np.abs(sh_want - want).max() > 2e-2 * want.max()  # it is the cube, not the SH
+
+
+def test_cube_beyond_half_range_falls_back_to_float(tmp_path):
+    # Coefficients that fit binary16 (40000, 30000 < 65504) whose cube does not:
+    # C_{+y} = 0.886227·40000 + 1.279158·30000 = 73824. Half storage would store Inf; the engine
+    # warns, names the probe and the face, and renders with float storage.
+    c = np.zeros((1, 9, 3))
+    c[0, 0] = 40000.0
+    c[0, 1] = 30000.0
+    assert np.abs(c).max() < 65504 and ref.cube_from_sh(c[0]).max() > 65504
+    (tmp_path / "sh_coeffs").mkdir()
+    sg.write_shprobe_v1(tmp_path / "sh_coeffs" / "big.shprobe", c, np.zeros((1, 1, 1), np.int32), (-2, -2, -2), 4.0)
+    b = sg.GltfBuilder()
+    m = b.material("white", sh_scale=1e-5, ambient_term=0.0)
+    b.doc["materials"][m]["extensions"]["VULKAN_SCHNEE_materials"]["probeRepresentation"] = "ambientCube"
+    b.node("Sphere", mesh=b.mesh("sphere", sg.uv_sphere(1.0, 96, 48), m))
+    b.node("Camera", camera=b.camera("cam", YFOV), translation=(0, 0, CAM_Z))
+    b.probe_grids([sg.grid_entry("big", "sh_coeffs/big.shprobe", 1, (-2, -2, -2), (1, 1, 1), 4.0)])
+    scene = b.write(tmp_path / "big.gltf")
+    proc = viewer.run(scene, "--headless", "--output", tmp_path / "h.exr", "--width", 32, "--height", 32,
+                      "--probe-storage", "half")
+    viewer.check(proc)
+    assert "shProbeGrids[0] 'big' probe 0: ambient-cube face 2 channel 0 = 73823.8 exceeds the half-float range" in proc.stderr
+    assert "using float storage" in proc.stderr
+    f = render(scene, tmp_path / "f.exr", w=32, h=32)
+    h = viewer.read_image(tmp_path / "h.exr")
+    assert np.isfinite(h).all() and np.array_equal(h, f)
