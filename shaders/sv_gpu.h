@@ -9,7 +9,9 @@
  *
  * Adding a probe mode: a value below SV_PROBE_MODE_MATERIAL (and bump it and SV_PROBE_MODE_COUNT),
  * its name in sv_probe_mode_name(), the shading in shading.glsl/mesh.frag; the exporter's
- * PROBE_MODES list is compared with the names by tests/engine/ext/test_probe_modes.c.
+ * PROBE_MODES list is compared with the names by tests/engine/ext/test_probe_modes.c. Probe
+ * representations (SV_PROBE_REP_*) work the same way: sv_probe_representation_name(), the
+ * exporter's PROBE_REPRESENTATIONS, tests/engine/ext/test_probe_representations.c.
  */
 #ifndef SV_GPU_H
 #define SV_GPU_H
