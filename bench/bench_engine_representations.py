@@ -4,8 +4,10 @@ The generated benchmark room (tests/engine/scripts/make_room.py: 56 objects, 58 
 L2 probes) rendered headless at 1280 x 720 with --probe-mode object|pixel x --probe-representation
 sh|ambientCube x --probe-storage float|half, --no-direct (the probe term alone). Each
 configuration runs FRAMES frames per launch (schnee-view prints their median), ROUNDS launches
-interleaved over the configurations so that a load spike on the shared machine hits all of them;
-the table gives the median of the launch medians and the range of the launch medians.
+interleaved over the configurations, SH and cube of one mode and storage back to back. The table
+gives the median of the launch medians, their range, and the median over rounds of the paired
+ratio cube / SH (the two launches next to each other in time), which cancels most of the slow load
+drift of a shared machine.
 
 Usage: /usr/bin/python3 bench/bench_engine_representations.py [--frames 7] [--rounds 3] [--out FILE]
 Environment: SCHNEE_VIEW (default build/schnee-view), VK_ICD_FILENAMES as for the tests (lavapipe).
@@ -23,8 +25,8 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tests" / "engine" / "scripts"))
 import make_room  # noqa: E402
 
-CONFIGS = [(mode, rep, storage) for mode in ("object", "pixel") for rep in ("sh", "ambientCube")
-           for storage in ("float", "half")]
+CONFIGS = [(mode, rep, storage) for mode in ("object", "pixel") for storage in ("float", "half")
+           for rep in ("sh", "ambientCube")]
 
 
 def run(view, scene, out, mode, rep, storage, frames):
@@ -50,9 +52,10 @@ def main():
         times = {c: [] for c in CONFIGS}
         device = "?"
         for _ in range(a.rounds):
-            for c in CONFIGS:
+            for c in CONFIGS:  # sh before ambientCube of the same mode and storage (CONFIGS order)
                 t, device = run(view, scene, Path(tmp) / "f.png", *c, a.frames)
                 times[c].append(t)
+                print(c, f"{t:.0f} ms", file=sys.stderr, flush=True)
     try:
         load = os.getloadavg()[0]
     except OSError:
@@ -62,13 +65,16 @@ def main():
              "",
              "| probe mode | representation | storage | median frame | launch medians |",
              "|---|---|---|---|---|"]
-    base = {}
+    lines[2] = "| probe mode | representation | storage | median frame | launch medians | paired cube / SH |"
+    lines[3] = "|---|---|---|---|---|---|"
     for c in CONFIGS:
         med = statistics.median(times[c])
-        base.setdefault((c[0], c[2]), med)
-        rel = med / base[(c[0], c[2])]
-        lines.append(f"| {c[0]} | {c[1]} | {c[2]} | {med:.0f} ms ({rel:.2f}x SH) | "
-                     f"{min(times[c]):.0f}-{max(times[c]):.0f} ms |")
+        sh = times[(c[0], "sh", c[2])]
+        ratios = [x / y for x, y in zip(times[c], sh)]
+        paired = "—" if c[1] == "sh" else (f"{statistics.median(ratios):.2f} "
+                                           f"({min(ratios):.2f}-{max(ratios):.2f})")
+        lines.append(f"| {c[0]} | {c[1]} | {c[2]} | {med:.0f} ms | {min(times[c]):.0f}-{max(times[c]):.0f} ms | "
+                     f"{paired} |")
     text = "\n".join(lines) + "\n"
     if a.out:
         Path(a.out).write_text(text)
