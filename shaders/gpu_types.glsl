@@ -22,6 +22,12 @@ layout(std430, set = SV_SET_SCENE, binding = SV_BINDING_CELL_INDEX) readonly buf
 layout(std430, set = SV_SET_SCENE, binding = SV_BINDING_PROBES_HALF) readonly buffer ProbeHalfBlock {
     sv_gpu_probe_half probes_half[];
 };
+// Ambient cubes of the same probes (docs/ambient-cube.md §5), float or half like the SH; one zero
+// entry when no material and no --probe-representation asked for cubes.
+layout(std430, set = SV_SET_SCENE, binding = SV_BINDING_CUBES) readonly buffer CubeBlock { sv_gpu_cube cubes[]; };
+layout(std430, set = SV_SET_SCENE, binding = SV_BINDING_CUBES_HALF) readonly buffer CubeHalfBlock {
+    sv_gpu_cube_half cubes_half[];
+};
 // Sky: equirect radiance, mip k = GGX prefiltered at roughness k / (mips - 1); BRDF LUT (NoV, roughness).
 layout(set = SV_SET_SCENE, binding = SV_BINDING_SKY) uniform sampler2D sky_tex;
 layout(set = SV_SET_SCENE, binding = SV_BINDING_BRDF_LUT) uniform sampler2D brdf_lut;

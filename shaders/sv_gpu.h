@@ -9,7 +9,9 @@
  *
  * Adding a probe mode: a value below SV_PROBE_MODE_MATERIAL (and bump it and SV_PROBE_MODE_COUNT),
  * its name in sv_probe_mode_name(), the shading in shading.glsl/mesh.frag; the exporter's
- * PROBE_MODES list is compared with the names by tests/engine/ext/test_probe_modes.c.
+ * PROBE_MODES list is compared with the names by tests/engine/ext/test_probe_modes.c. Probe
+ * representations (SV_PROBE_REP_*) work the same way: sv_probe_representation_name(), the
+ * exporter's PROBE_REPRESENTATIONS, tests/engine/ext/test_probe_representations.c.
  */
 #ifndef SV_GPU_H
 #define SV_GPU_H
@@ -55,13 +57,15 @@
 #define SV_BINDING_MATERIALS   1  /* SSBO sv_gpu_material[] */
 #define SV_BINDING_PROBES      2  /* SSBO sv_gpu_probe[] (float storage) */
 #define SV_BINDING_LIGHTS      3  /* SSBO sv_gpu_light[] */
+#define SV_BINDING_CUBES       4  /* SSBO sv_gpu_cube[] (ambient cubes, float storage) */
 #define SV_BINDING_CELLS       5  /* SSBO sv_gpu_cell[] (probe view) */
 #define SV_BINDING_GRIDS       6  /* SSBO sv_gpu_grid[] */
 #define SV_BINDING_CELL_INDEX  7  /* SSBO int[]: cell -> probe, then visibility masks */
 #define SV_BINDING_PROBES_HALF 8  /* SSBO sv_gpu_probe_half[] (half storage) */
 #define SV_BINDING_SKY         9  /* sampler2D: equirect sky with prefiltered mips */
 #define SV_BINDING_BRDF_LUT    10 /* sampler2D: split-sum BRDF LUT */
-#define SV_SCENE_BINDING_COUNT 10 /* bindings in set 0 (binding 4 is unused) */
+#define SV_BINDING_CUBES_HALF  11 /* SSBO sv_gpu_cube_half[] (ambient cubes, half storage) */
+#define SV_SCENE_BINDING_COUNT 12 /* bindings in set 0 */
 /* Set 1 (per material). */
 #define SV_SET_MATERIAL           1
 #define SV_BINDING_BASE_COLOR_TEX 0
@@ -90,6 +94,15 @@
 #define SV_PROBE_MODE_MATERIAL 3u /* frame only: each material's own mode; always the last value */
 #define SV_PROBE_MODE_COUNT    4u
 
+/* Probe representation of a material (VULKAN_SCHNEE_materials.probeRepresentation) or of the
+ * whole frame (--probe-representation, sv_gpu_frame.probe_representation), docs/ambient-cube.md §5.
+ * Orthogonal to the probe mode (which says where the probe is sampled). Names:
+ * sv_probe_representation_name(). */
+#define SV_PROBE_REP_SH           0u /* L <= 4 SH irradiance (default) */
+#define SV_PROBE_REP_AMBIENT_CUBE 1u /* the ambient cube fitted to the probe's SH at load */
+#define SV_PROBE_REP_MATERIAL     2u /* frame only: each material's own; always the last value */
+#define SV_PROBE_REP_COUNT        3u
+
 #define SV_DRAW_MIRRORED 1u /* sv_gpu_draw.flags: det(model 3x3) < 0, front faces wind clockwise */
 
 /* Frame flags (sv_gpu_frame.flags). */
@@ -110,13 +123,13 @@ SV_STRUCT(sv_gpu_frame)
     SV_MAT4(inv_view_proj); /* clip -> world (sky background directions) */
     SV_VEC4(camera_pos);    /* xyz world position, w = prefiltered sky mip count (0 = no sky) */
     SV_UINT(light_count);
-    SV_UINT(debug_mode);   /* SV_DEBUG_* */
-    SV_UINT(flags);        /* SV_FRAME_* */
-    SV_UINT(probe_count);  /* entries in the probe buffer, fallback included */
-    SV_UINT(grid_count);   /* entries in the grid buffer (per-pixel mode) */
-    SV_UINT(probe_mode);   /* SV_PROBE_MODE_*: override for every material, or _MATERIAL */
-    SV_FLOAT(normal_bias); /* per-pixel: sample point moved along n by this many grid spacings */
-    SV_FLOAT(pad_);
+    SV_UINT(debug_mode);           /* SV_DEBUG_* */
+    SV_UINT(flags);                /* SV_FRAME_* */
+    SV_UINT(probe_count);          /* entries in the probe buffer, fallback included */
+    SV_UINT(grid_count);           /* entries in the grid buffer (per-pixel mode) */
+    SV_UINT(probe_mode);           /* SV_PROBE_MODE_*: override for every material, or _MATERIAL */
+    SV_FLOAT(normal_bias);         /* per-pixel: sample point moved along n by this many grid spacings */
+    SV_UINT(probe_representation); /* SV_PROBE_REP_*: override for every material, or _MATERIAL */
 }
 SV_END(sv_gpu_frame)
 SV_SIZE_CHECK(sv_gpu_frame, 176)
@@ -143,10 +156,10 @@ SV_STRUCT(sv_gpu_material)
     SV_FLOAT(ambient_term); /* VULKAN_SCHNEE_materials.ambientTerm, default 0.1 */
     SV_FLOAT(metallic);
     SV_FLOAT(roughness);
-    SV_INT(base_color_texture); /* glTF texture index, -1 = none (set 1 holds it) */
-    SV_INT(emissive_texture);   /* glTF texture index, -1 = none */
-    SV_UINT(probe_mode);        /* SV_PROBE_MODE_OFF/OBJECT/PIXEL (VULKAN_SCHNEE_materials.probeMode) */
-    SV_UINT(pad_);
+    SV_INT(base_color_texture);    /* glTF texture index, -1 = none (set 1 holds it) */
+    SV_INT(emissive_texture);      /* glTF texture index, -1 = none */
+    SV_UINT(probe_mode);           /* SV_PROBE_MODE_OFF/OBJECT/PIXEL (VULKAN_SCHNEE_materials.probeMode) */
+    SV_UINT(probe_representation); /* SV_PROBE_REP_SH/AMBIENT_CUBE (...probeRepresentation) */
 }
 SV_END(sv_gpu_material)
 SV_SIZE_CHECK(sv_gpu_material, 64)
@@ -171,6 +184,27 @@ SV_STRUCT(sv_gpu_probe_half)
 }
 SV_END(sv_gpu_probe_half)
 SV_SIZE_CHECK(sv_gpu_probe_half, 208)
+
+/* One probe as an ambient cube, float storage (std430, SV_BINDING_CUBES; docs/ambient-cube.md §4,
+ * §5): same indexing as the SH probes (0 = fallback), filled at load from each probe's SH by
+ * pb_ambient_cube_from_sh (least squares) when a material or --probe-representation asks for it. */
+SV_STRUCT(sv_gpu_cube)
+{
+    SV_VEC4(params);         /* x = band the cube was fitted from, y = per-probe scale, z = 0, w = validity */
+    SV_VEC4_ARRAY(faces, 6); /* irradiance C_j, RGB in xyz, faces +X, -X, +Y, -Y, +Z, -Z (engine space) */
+}
+SV_END(sv_gpu_cube)
+SV_SIZE_CHECK(sv_gpu_cube, 112)
+
+/* The same cube in half storage (std430, SV_BINDING_CUBES_HALF; --probe-storage half), packed as
+ * GLSL's packHalf2x16 (first value in the low bits). */
+SV_STRUCT(sv_gpu_cube_half)
+{
+    SV_UINT_ARRAY(params, 2); /* (band, scale), (validity, 0) */
+    SV_UVEC2_ARRAY(faces, 6); /* (R, G), (B, 0) of C_j */
+}
+SV_END(sv_gpu_cube_half)
+SV_SIZE_CHECK(sv_gpu_cube_half, 56)
 
 /* One probe grid for per-pixel sampling (std430, SV_BINDING_GRIDS), in glTF order. Cell (x, y, z)
  * has its centre at sv_cell_centre() (C, sv_probes.h) / cell_centre() (GLSL, shading.glsl). */
@@ -236,6 +270,24 @@ static inline int sv_probe_mode_from_name(const char *name, int with_material)
     uint32_t n = with_material ? SV_PROBE_MODE_COUNT : SV_PROBE_MODE_MATERIAL;
     for (uint32_t m = 0; m < n; ++m)
         if (strcmp(name, sv_probe_mode_name(m)) == 0) return (int)m;
+    return -1;
+}
+
+/* The one table of probe-representation names (index = SV_PROBE_REP_* value): the glTF's
+ * VULKAN_SCHNEE_materials.probeRepresentation values are the names below SV_PROBE_REP_MATERIAL; the
+ * command line's --probe-representation takes all of them. NULL past the end. */
+static inline const char *sv_probe_representation_name(uint32_t rep)
+{
+    static const char *const names[SV_PROBE_REP_COUNT] = {"sh", "ambientCube", "material"};
+    return rep < SV_PROBE_REP_COUNT ? names[rep] : NULL;
+}
+
+/* SV_PROBE_REP_* for a name, or -1. `with_material`: accept "material" (the command line). */
+static inline int sv_probe_representation_from_name(const char *name, int with_material)
+{
+    uint32_t n = with_material ? SV_PROBE_REP_COUNT : SV_PROBE_REP_MATERIAL;
+    for (uint32_t m = 0; m < n; ++m)
+        if (strcmp(name, sv_probe_representation_name(m)) == 0) return (int)m;
     return -1;
 }
 

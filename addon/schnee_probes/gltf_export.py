@@ -47,6 +47,11 @@ SKY_FILE = "sky.exr"  # bake_core.SKY_FILE_NAME
 SKY_MAX_BAND = 2
 PROBE_MODE_PROPERTY = "schnee_probe_mode"
 PROBE_MODES = ("off", "object", "pixel")
+# How a material evaluates its probe (docs/ambient-cube.md §4-§5): its custom property
+# "schnee_probe_representation"; the engine's name table is compared with this list by
+# tests/engine/ext/test_probe_representations.c.
+PROBE_REPRESENTATION_PROPERTY = "schnee_probe_representation"
+PROBE_REPRESENTATIONS = ("sh", "ambientCube")
 
 
 # --------------------------------------------------------------------------------------------
@@ -312,8 +317,9 @@ def collect_sky(export_settings):
 
 def material_settings(blender_material, export_settings=None):
     """``VULKAN_SCHNEE_materials`` of a material, or None when it has nothing to say:
-    ``shScale``/``ambientTerm`` from its "VS Movable Diffuse" node, ``probeMode`` from its custom
-    property (any material: a large static wall samples the grid per pixel without being movable)."""
+    ``shScale``/``ambientTerm`` from its "VS Movable Diffuse" node, ``probeMode`` and
+    ``probeRepresentation`` from its custom properties (any material: a large static wall samples
+    the grid per pixel without being movable)."""
     out = {}
     node = nodes.find_movable_diffuse_node(blender_material)
     if node is not None:
@@ -327,6 +333,14 @@ def material_settings(blender_material, export_settings=None):
     elif mode is not None and export_settings is not None:
         _warn(export_settings, f"material '{blender_material.name}': custom property "
               f"{PROBE_MODE_PROPERTY} = {mode!r} is not one of {', '.join(PROBE_MODES)}; ignored")
+    # Probe representation (docs/ambient-cube.md §4 "glTF"): "sh" | "ambientCube"; absent = sh.
+    rep = blender_material.get(PROBE_REPRESENTATION_PROPERTY) if hasattr(blender_material, "get") else None
+    if isinstance(rep, str) and rep in PROBE_REPRESENTATIONS:
+        out["probeRepresentation"] = rep
+    elif rep is not None and export_settings is not None:
+        _warn(export_settings, f"material '{blender_material.name}': custom property "
+              f"{PROBE_REPRESENTATION_PROPERTY} = {rep!r} is not one of {', '.join(PROBE_REPRESENTATIONS)}; "
+              f"ignored")
     return out or None
 
 

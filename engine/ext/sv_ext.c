@@ -187,17 +187,19 @@ static bool parse_material(ectx_ *c, uint32_t i, sv_ext_material *m)
     m->sh_scale = SV_EXT_DEFAULT_SH_SCALE;
     m->ambient_term = SV_EXT_DEFAULT_AMBIENT_TERM;
     m->probe_mode = SV_PROBE_MODE_OBJECT;
+    m->probe_representation = SV_PROBE_REP_SH;
     char path[96];
     snprintf(path, sizeof path, "materials[%u].extensions", i);
     cJSON *j = parse_raw(c, gm->extensions, gm->extension_count, "VULKAN_SCHNEE_materials", path);
     if (!j) return c->result == SV_GLTF_SUCCESS;
     snprintf(path, sizeof path, "materials[%u].extensions.VULKAN_SCHNEE_materials", i);
-    const cJSON *mode = NULL;
+    const cJSON *mode = NULL, *rep = NULL;
     bool ok =
         expect_object(c, j, path) &&
         get_float(c, j, "shScale", path, false, SV_EXT_DEFAULT_SH_SCALE, -FLT_MAX, FLT_MAX, &m->sh_scale) &&
         get_float(c, j, "ambientTerm", path, false, SV_EXT_DEFAULT_AMBIENT_TERM, -FLT_MAX, FLT_MAX, &m->ambient_term) &&
-        get_typed(c, j, "probeMode", path, cJSON_String, &mode);
+        get_typed(c, j, "probeMode", path, cJSON_String, &mode) &&
+        get_typed(c, j, "probeRepresentation", path, cJSON_String, &rep);
     if (ok && mode) {
         int pm = sv_probe_mode_from_name(mode->valuestring, 0);
         if (pm < 0) {
@@ -207,6 +209,14 @@ static bool parse_material(ectx_ *c, uint32_t i, sv_ext_material *m)
         } else {
             m->probe_mode = (uint32_t)pm;
         }
+    }
+    if (ok && rep) { /* docs/ambient-cube.md §4 "glTF" */
+        int pr = sv_probe_representation_from_name(rep->valuestring, 0);
+        if (pr < 0)
+            ok = efail(c, SV_GLTF_ERROR_FORMAT, "%s.probeRepresentation: '%.40s' is not sh or ambientCube", path,
+                       rep->valuestring);
+        else
+            m->probe_representation = (uint32_t)pr;
     }
     m->present = true;
     cJSON_Delete(j);

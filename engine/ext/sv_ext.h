@@ -1,7 +1,7 @@
 /* The engine's own glTF extensions (DESIGN.md §5, docs/export.md), parsed from the raw extension
  * JSON the generic loader hands over (sv_gltf_extension), outside the loader:
  *   scene   VULKAN_SCHNEE_engine_properties: shProbeGrids[] and sky
- *   material VULKAN_SCHNEE_materials: shScale, ambientTerm, probeMode
+ *   material VULKAN_SCHNEE_materials: shScale, ambientTerm, probeMode, probeRepresentation
  *   light   VULKAN_SCHNEE_light: mode
  *
  *   sv_gltf_desc desc = {.app_extensions = sv_ext_names, .app_extension_count = SV_EXT_NAME_COUNT};
@@ -36,10 +36,11 @@ typedef enum sv_light_mode {
 } sv_light_mode;
 
 typedef struct sv_ext_material {
-    bool present;        /* the material has VULKAN_SCHNEE_materials */
-    float sh_scale;      /* default SV_EXT_DEFAULT_SH_SCALE */
-    float ambient_term;  /* default SV_EXT_DEFAULT_AMBIENT_TERM */
-    uint32_t probe_mode; /* SV_PROBE_MODE_OFF/OBJECT/PIXEL (shaders/sv_gpu.h), default OBJECT */
+    bool present;                  /* the material has VULKAN_SCHNEE_materials */
+    float sh_scale;                /* default SV_EXT_DEFAULT_SH_SCALE */
+    float ambient_term;            /* default SV_EXT_DEFAULT_AMBIENT_TERM */
+    uint32_t probe_mode;           /* SV_PROBE_MODE_OFF/OBJECT/PIXEL (shaders/sv_gpu.h), default OBJECT */
+    uint32_t probe_representation; /* SV_PROBE_REP_SH/AMBIENT_CUBE (shaders/sv_gpu.h), default SH */
 } sv_ext_material;
 
 /* scenes[scene].extensions.VULKAN_SCHNEE_engine_properties.shProbeGrids[i]. */

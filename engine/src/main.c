@@ -33,7 +33,10 @@ static void usage(FILE *f)
         "                           (--probe-cells is the same)\n"
         "  --probe-mode %s  probe lighting for every material (default material =\n"
         "                           each material's VULKAN_SCHNEE_materials.probeMode, itself default object)\n"
-        "  --probe-storage float|half  GPU storage of the SH coefficients (default float)\n"
+        "  --probe-representation sh|ambientCube|material  how every material evaluates its probe (default\n"
+        "                           material = each material's VULKAN_SCHNEE_materials.probeRepresentation,\n"
+        "                           itself default sh); ambientCube = the cube fitted to each probe's SH\n"
+        "  --probe-storage float|half  GPU storage of the SH coefficients and ambient cubes (default float)\n"
         "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
         "  --no-sky                 ignore the scene's sky (no background, no specular, constant fallback)\n"
         "  --no-specular            no sky reflections (image-based specular)\n"
@@ -87,6 +90,7 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
     o->tonemap = SV_TONEMAP_PBR_NEUTRAL;
     o->fallback_radiance = SV_FALLBACK_RADIANCE;
     o->probe_mode = SV_PROBE_MODE_MATERIAL;
+    o->probe_representation = SV_PROBE_REP_MATERIAL;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *next = i + 1 < argc ? argv[i + 1] : NULL;
@@ -159,6 +163,12 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
             int mode = sv_probe_mode_from_name(next, 1);
             if (mode < 0) BAD_VALUE(next);
             o->probe_mode = (uint32_t)mode;
+        } else if (strcmp(a, "--probe-representation") == 0) {
+            NEED(1);
+            ++i;
+            int rep = sv_probe_representation_from_name(next, 1);
+            if (rep < 0) BAD_VALUE(next);
+            o->probe_representation = (uint32_t)rep;
         } else if (strcmp(a, "--probe-storage") == 0) {
             NEED(1);
             ++i;

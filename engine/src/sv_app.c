@@ -20,6 +20,7 @@ bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *
     v->flags = opt->no_direct ? SV_FRAME_NO_DIRECT : 0;
     v->show_cells = opt->show_cells;
     v->probe_mode = opt->probe_mode;
+    v->probe_representation = opt->probe_representation;
     v->normal_bias = opt->normal_bias;
     if (opt->no_specular) v->flags |= SV_FRAME_NO_SPECULAR;
     if (opt->no_renorm) v->flags |= SV_FRAME_NO_RENORM;
@@ -112,6 +113,7 @@ sv_renderer_desc sv_app_renderer_desc(const sv_options *opt, const sv_sky *sky)
     sv_renderer_desc d = SV_RENDERER_DESC_DEFAULT;
     d.fallback_radiance = opt->fallback_radiance;
     d.half_probes = opt->half_probes;
+    d.cube_probes = opt->probe_representation == SV_PROBE_REP_AMBIENT_CUBE;
     d.sky = sky && sky->present && !opt->no_sky ? sky : NULL;
     return d;
 }

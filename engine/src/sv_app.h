@@ -36,14 +36,15 @@ typedef struct sv_options {
                                   headless: frames rendered (timed), default 1 */
     const char *screenshot; /* window: write the last presented frame here */
     float fallback_radiance;
-    uint32_t probe_mode;        /* SV_PROBE_MODE_*, default _MATERIAL (each material's probeMode) */
-    bool half_probes;           /* --probe-storage half */
-    float normal_bias;          /* --normal-bias, grid spacings (default 0) */
-    bool no_specular;           /* --no-specular: no sky reflections */
-    bool no_renorm;             /* --no-renorm: sky specular not scaled by probe / sky irradiance */
-    bool no_sky;                /* --no-sky: ignore the glTF's sky */
-    const char *write_brdf_lut; /* --write-brdf-lut PATH: write the split-sum LUT and exit */
-    bool look;                  /* --look FROM_X FROM_Y FROM_Z AT_X AT_Y AT_Z: free camera (0.8 rad fov) */
+    uint32_t probe_mode;           /* SV_PROBE_MODE_*, default _MATERIAL (each material's probeMode) */
+    uint32_t probe_representation; /* SV_PROBE_REP_*, default _MATERIAL (each material's probeRepresentation) */
+    bool half_probes;              /* --probe-storage half */
+    float normal_bias;             /* --normal-bias, grid spacings (default 0) */
+    bool no_specular;              /* --no-specular: no sky reflections */
+    bool no_renorm;                /* --no-renorm: sky specular not scaled by probe / sky irradiance */
+    bool no_sky;                   /* --no-sky: ignore the glTF's sky */
+    const char *write_brdf_lut;    /* --write-brdf-lut PATH: write the split-sum LUT and exit */
+    bool look;                     /* --look FROM_X FROM_Y FROM_Z AT_X AT_Y AT_Z: free camera (0.8 rad fov) */
     float look_from[3], look_at[3];
 } sv_options;
 

@@ -36,6 +36,12 @@ static void record_readback(VkCommandBuffer cmd, VkImage image, VkImageLayout la
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 0, NULL, 1, &b, 0, NULL);
 }
 
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
 static bool submit_and_wait(sv_context *ctx, VkCommandBuffer cmd, VkFence fence)
 {
     VkSubmitInfo submit = {.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO, .commandBufferCount = 1, .pCommandBuffers = &cmd};
@@ -72,6 +78,7 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
     VkCommandBuffer cmd = gpu.cmd;
     uint32_t frames = opt->frames ? opt->frames : 1;
     double frame_total = 0.0, frame_min = 1e30;
+    double *frame_ms = calloc(frames, sizeof *frame_ms); /* for the median (benchmarks); NULL: none */
     for (uint32_t f = 0; f < frames; ++f) {
         bool last = f + 1 == frames;
         double fs = sv_now_ms();
@@ -93,11 +100,18 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
         double ms = sv_now_ms() - fs;
         frame_total += ms;
         if (ms < frame_min) frame_min = ms;
+        if (frame_ms) frame_ms[f] = ms;
     }
-    fprintf(
-        stderr,
-        "schnee-view: %u frame(s) at %ux%u: mean %.2f ms, min %.2f ms (submit to fence, incl. readback on the last)\n",
-        frames, w, h, frame_total / frames, frame_min);
+    double median = 0.0;
+    if (frame_ms) {
+        qsort(frame_ms, frames, sizeof *frame_ms, cmp_double);
+        median = frames % 2 ? frame_ms[frames / 2] : 0.5 * (frame_ms[frames / 2 - 1] + frame_ms[frames / 2]);
+        free(frame_ms);
+    }
+    fprintf(stderr,
+            "schnee-view: %u frame(s) at %ux%u: mean %.2f ms, median %.2f ms, min %.2f ms (submit to fence, incl. "
+            "readback on the last)\n",
+            frames, w, h, frame_total / frames, median, frame_min);
 
     /* Drop alpha: PNG/EXR outputs are RGB. 8-bit readback holds sRGB-encoded bytes already. */
     pixels = malloc((size_t)w * h * 3 * sizeof(float));

@@ -7,6 +7,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "schnee/pb_ambient_cube.h"
 #include "schnee/pb_embree_compat.h"
 #include "schnee/pb_sh.h"
 #include "sv_clock.h"
@@ -256,6 +257,17 @@ uint16_t sv_half_from_float(float f)
     return (uint16_t)h;
 }
 
+/* "shProbeGrids[g] 'name' probe k" for buffer index p, or the fallback probe 0. */
+static void probe_where(const sv_probes *probes, uint32_t p, char *where, size_t cap)
+{
+    snprintf(where, cap, "the fallback probe 0 (the sky's SH)");
+    for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        const sv_probe_grid *gr = &probes->grids[g];
+        if (p >= gr->base && p - gr->base < gr->file->probe_count)
+            snprintf(where, cap, "shProbeGrids[%u] '%.60s' probe %u", g, gr->name, p - gr->base);
+    }
+}
+
 bool sv_probes_fit_half(const sv_probes *probes, const sv_gpu_probe *packed, char *msg, size_t cap)
 {
     for (uint32_t p = 0; p < probes->total; ++p) {
@@ -269,12 +281,8 @@ bool sv_probes_fit_half(const sv_probes *probes, const sv_gpu_probe *packed, cha
                     at = i;
                 }
         if (worst <= SV_HALF_MAX) continue;
-        char where[160] = "the fallback probe 0 (the sky's SH)";
-        for (uint32_t g = 0; g < probes->grid_count; ++g) {
-            const sv_probe_grid *gr = &probes->grids[g];
-            if (p >= gr->base && p - gr->base < gr->file->probe_count)
-                snprintf(where, sizeof where, "shProbeGrids[%u] '%.60s' probe %u", g, gr->name, p - gr->base);
-        }
+        char where[160];
+        probe_where(probes, p, where, sizeof where);
         if (at < 0)
             snprintf(msg, cap, "%s: scale %g exceeds the half-float range (%g)", where, worst, SV_HALF_MAX);
         else
@@ -304,6 +312,65 @@ sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t coun
         }
     }
     return out;
+}
+
+sv_gpu_cube *sv_probes_pack_cubes(const sv_gpu_probe *packed, uint32_t count)
+{
+    sv_gpu_cube *out = calloc(count ? count : 1, sizeof(*out));
+    if (!out) return NULL;
+    for (uint32_t p = 0; p < count; ++p) {
+        const sv_gpu_probe *s = &packed[p];
+        uint32_t band = (uint32_t)(s->params[0] + 0.5f);
+        if (band > 4) band = 4;
+        double coeffs[SV_SH_MAX_COEFFS * 3], cube[18];
+        uint32_t n = (band + 1) * (band + 1);
+        for (uint32_t i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c) coeffs[3 * i + c] = s->sh[i][c];
+        pb_error err = {0};
+        /* The packed coefficients are finite (the reader and the sky parser check), so the fit
+         * cannot fail; should it, the probe stays a black cube rather than garbage. */
+        if (pb_ambient_cube_from_sh(band, coeffs, PB_AMBIENT_CUBE_LEAST_SQUARES, cube, &err) != PB_SUCCESS)
+            memset(cube, 0, sizeof cube);
+        out[p].params[0] = s->params[0];
+        out[p].params[1] = s->params[1];
+        out[p].params[3] = s->params[3];
+        for (int f = 0; f < 6; ++f)
+            for (int c = 0; c < 3; ++c) out[p].faces[f][c] = (float)cube[3 * f + c];
+    }
+    return out;
+}
+
+sv_gpu_cube_half *sv_probes_pack_cubes_half(const sv_gpu_cube *cubes, uint32_t count)
+{
+    sv_gpu_cube_half *out = calloc(count ? count : 1, sizeof(*out));
+    if (!out) return NULL;
+    for (uint32_t p = 0; p < count; ++p) {
+        const sv_gpu_cube *s = &cubes[p];
+        out[p].params[0] = pack2(s->params[0], s->params[1]);
+        out[p].params[1] = pack2(s->params[3], 0.0f);
+        for (int f = 0; f < 6; ++f) {
+            out[p].faces[f][0] = pack2(s->faces[f][0], s->faces[f][1]);
+            out[p].faces[f][1] = pack2(s->faces[f][2], 0.0f);
+        }
+    }
+    return out;
+}
+
+bool sv_probes_cubes_fit_half(const sv_probes *probes, const sv_gpu_cube *cubes, char *msg, size_t cap)
+{
+    for (uint32_t p = 0; p < probes->total; ++p) {
+        for (int f = 0; f < 6; ++f)
+            for (int c = 0; c < 3; ++c) {
+                float v = fabsf(cubes[p].faces[f][c]);
+                if (v <= SV_HALF_MAX) continue; /* NaN fails too */
+                char where[160];
+                probe_where(probes, p, where, sizeof where);
+                snprintf(msg, cap, "%s: ambient-cube face %d channel %d = %g exceeds the half-float range (%g)", where,
+                         f, c, v, SV_HALF_MAX);
+                return false;
+            }
+    }
+    return true;
 }
 
 void sv_cell_centre(const pb_shprobe *f, int x, int y, int z, float out[3])

@@ -68,6 +68,16 @@ bool sv_probes_fit_half(const sv_probes *probes, const sv_gpu_probe *packed, cha
 /* IEEE 754 binary16 of a float (round to nearest even), as GLSL's packHalf2x16 stores it. */
 uint16_t sv_half_from_float(float f);
 
+/* Ambient cubes of the packed probes (docs/ambient-cube.md §5): each probe's SH fitted by
+ * pb_ambient_cube_from_sh (PB_AMBIENT_CUBE_LEAST_SQUARES), params copied (band, scale, validity).
+ * Same indexing as `packed` (0 = the fallback, from the sky's SH or the constant). Caller frees. */
+sv_gpu_cube *sv_probes_pack_cubes(const sv_gpu_probe *packed, uint32_t count);
+/* The same cubes in half storage (packHalf2x16 layout of sv_gpu_cube_half). Caller frees. */
+sv_gpu_cube_half *sv_probes_pack_cubes_half(const sv_gpu_cube *cubes, uint32_t count);
+/* As sv_probes_fit_half for the cube colours (a cube colour can exceed the SH coefficients it came
+ * from: C = 0.886 L0 + ...). */
+bool sv_probes_cubes_fit_half(const sv_probes *probes, const sv_gpu_cube *cubes, char *msg, size_t cap);
+
 /* Per-pixel sampling data: one sv_gpu_grid per grid and the concatenated occupancy grids (n
  * int32 cell -> probe indices) followed by one neighbour-visibility mask per cell (n uint32, grid
  * g's at base[1]; *cell_count = 2n). The masks come from Embree occlusion rays between cell centres

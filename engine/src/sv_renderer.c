@@ -157,6 +157,7 @@ static bool upload_materials(sv_renderer *r, const sv_gltf *g, const sv_ext *ext
             m[i].roughness = 1.0f;
             m[i].base_color_texture = m[i].emissive_texture = -1;
             m[i].probe_mode = SV_PROBE_MODE_OBJECT;
+            m[i].probe_representation = SV_PROBE_REP_SH;
             continue;
         }
         const sv_gltf_material *s = &g->materials[i];
@@ -169,6 +170,7 @@ static bool upload_materials(sv_renderer *r, const sv_gltf *g, const sv_ext *ext
         m[i].base_color_texture = texture_slot(g, &s->base_color_texture);
         m[i].emissive_texture = texture_slot(g, &s->emissive_texture);
         m[i].probe_mode = ext->materials[i].probe_mode;
+        m[i].probe_representation = ext->materials[i].probe_representation;
     }
     bool ok = sv_buffer_create_with_data(r->ctx, m, n * sizeof(*m), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->materials);
     free(m);
@@ -315,12 +317,23 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
         fprintf(stderr, "schnee-view: warning: --probe-storage half: %s; using float storage\n", msg);
         half = false;
     }
+    /* Ambient cubes (docs/ambient-cube.md §5) only when asked for: by the command line or by a
+     * material. They follow the SH storage; a cube colour beyond the half range sends both to float. */
+    bool want_cubes = desc->cube_probes;
+    for (uint32_t i = 0; i < scene->ext.material_count; ++i)
+        want_cubes = want_cubes || scene->ext.materials[i].probe_representation == SV_PROBE_REP_AMBIENT_CUBE;
+    sv_gpu_cube *cubes = p && want_cubes ? sv_probes_pack_cubes(p, probes->total) : NULL;
+    if (cubes && half && !sv_probes_cubes_fit_half(probes, cubes, msg, sizeof msg)) {
+        fprintf(stderr, "schnee-view: warning: --probe-storage half: %s; using float storage\n", msg);
+        half = false;
+    }
+    sv_gpu_cube_half *cubes_half = cubes && half ? sv_probes_pack_cubes_half(cubes, probes->total) : NULL;
     sv_gpu_probe_half *ph = p && half ? sv_probes_pack_half(p, probes->total) : NULL;
     uint32_t nspheres = 0, ncells = 0, grid_cells = 0;
     sv_gpu_cell *cells = sv_probes_cells(probes, &nspheres, &ncells);
     sv_gpu_grid *grids = NULL;
     int32_t *cell_index = NULL;
-    bool ok = p && cells && (!half || ph);
+    bool ok = p && cells && (!half || ph) && (!want_cubes || (cubes && (!half || cubes_half)));
     if (!ok) fail_msg("out of memory packing probes");
     ok = ok && sv_probes_gpu_grids(probes, scene, &grids, &cell_index, &grid_cells);
     /* Only the storage in use holds the probes; the other binding gets one zero entry. */
@@ -332,6 +345,15 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
     ok = ok && sv_buffer_create_with_data(r->ctx, half ? (const void *)ph : &zero_half,
                                           half ? probes->total * sizeof(*ph) : sizeof(*ph),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->probes_half);
+    static const sv_gpu_cube zero_cube;
+    static const sv_gpu_cube_half zero_cube_half;
+    bool float_cubes = cubes && !half;
+    ok = ok && sv_buffer_create_with_data(r->ctx, float_cubes ? (const void *)cubes : &zero_cube,
+                                          float_cubes ? probes->total * sizeof(*cubes) : sizeof(*cubes),
+                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cubes);
+    ok = ok && sv_buffer_create_with_data(r->ctx, cubes_half ? (const void *)cubes_half : &zero_cube_half,
+                                          cubes_half ? probes->total * sizeof(*cubes_half) : sizeof(*cubes_half),
+                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cubes_half);
     ok = ok && sv_buffer_create_with_data(r->ctx, cells, (nspheres + ncells ? nspheres + ncells : 1) * sizeof(*cells),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cells);
     ok = ok && sv_buffer_create_with_data(r->ctx, grids, (probes->grid_count ? probes->grid_count : 1) * sizeof(*grids),
@@ -343,6 +365,9 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
     r->sphere_count = nspheres;
     r->outline_count = ncells;
     r->half_probes = half;
+    r->has_cubes = cubes != NULL;
+    free(cubes);
+    free(cubes_half);
     free(p);
     free(ph);
     free(cells);
@@ -440,7 +465,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
     VK_CHECK(vkCreateSampler(dev, &si, NULL, &r->sky_sampler));
 
     const VkShaderStageFlags vf = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
-    /* Set 0; the first 8 are buffers (in the order of bufs[] below), the last 2 images. */
+    /* Set 0; the first 10 are buffers (in the order of bufs[] below), the last 2 images. */
     VkDescriptorSetLayoutBinding scene_b[SV_SCENE_BINDING_COUNT] = {
         {SV_BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, vf, NULL},
         {SV_BINDING_MATERIALS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
@@ -450,6 +475,8 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
         {SV_BINDING_GRIDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, vf, NULL},
         {SV_BINDING_CELL_INDEX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
         {SV_BINDING_PROBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_CUBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_CUBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
         {SV_BINDING_SKY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
         {SV_BINDING_BRDF_LUT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     };
@@ -476,7 +503,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
 
     VkDescriptorPoolSize sizes[] = {
         {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 7},
+        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 9},
         {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2 * r->material_count + 3},
     };
     VkDescriptorPoolCreateInfo pi = {
@@ -525,11 +552,13 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
         vkUpdateDescriptorSets(dev, 1, &mw, 0, NULL);
     }
 
-    VkDescriptorBufferInfo bufs[8] = {
+    enum { SCENE_BUFFERS = 10 };
+    VkDescriptorBufferInfo bufs[SCENE_BUFFERS] = {
         {r->frame.buffer, 0, VK_WHOLE_SIZE},      {r->materials.buffer, 0, VK_WHOLE_SIZE},
         {r->probes.buffer, 0, VK_WHOLE_SIZE},     {r->lights.buffer, 0, VK_WHOLE_SIZE},
         {r->cells.buffer, 0, VK_WHOLE_SIZE},      {r->grids.buffer, 0, VK_WHOLE_SIZE},
         {r->cell_index.buffer, 0, VK_WHOLE_SIZE}, {r->probes_half.buffer, 0, VK_WHOLE_SIZE},
+        {r->cubes.buffer, 0, VK_WHOLE_SIZE},      {r->cubes_half.buffer, 0, VK_WHOLE_SIZE},
     };
     VkDescriptorImageInfo imgs[2] = {
         {r->sky_sampler, r->sky.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
@@ -543,8 +572,8 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
             .dstBinding = scene_b[i].binding,
             .descriptorCount = 1,
             .descriptorType = scene_b[i].descriptorType,
-            .pBufferInfo = i < 8 ? &bufs[i] : NULL,
-            .pImageInfo = i >= 8 ? &imgs[i - 8] : NULL,
+            .pBufferInfo = i < SCENE_BUFFERS ? &bufs[i] : NULL,
+            .pImageInfo = i >= SCENE_BUFFERS ? &imgs[i - SCENE_BUFFERS] : NULL,
         };
     vkUpdateDescriptorSets(dev, SV_SCENE_BINDING_COUNT, w, 0, NULL);
     return true;
@@ -849,6 +878,11 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     frame.probe_count = r->probe_count;
     frame.grid_count = r->grid_count;
     frame.probe_mode = view->probe_mode;
+    /* Without a cube buffer (no material and no --probe-representation asked for cubes) an
+     * ambient-cube override would read zeros: it falls back to SH. */
+    frame.probe_representation = view->probe_representation == SV_PROBE_REP_AMBIENT_CUBE && !r->has_cubes
+                                     ? SV_PROBE_REP_SH
+                                     : view->probe_representation;
     frame.normal_bias = view->normal_bias;
     memcpy(r->frame.mapped, &frame, sizeof(frame));
 
@@ -1015,8 +1049,8 @@ void sv_renderer_destroy(sv_renderer *r)
     sv_image_destroy(ctx, &r->white);
     sv_image_destroy(ctx, &r->hdr);
     sv_image_destroy(ctx, &r->depth);
-    sv_buffer *bufs[] = {&r->vertices,    &r->indices, &r->frame, &r->materials, &r->probes,
-                         &r->probes_half, &r->lights,  &r->cells, &r->grids,     &r->cell_index};
+    sv_buffer *bufs[] = {&r->vertices, &r->indices,    &r->frame,  &r->materials, &r->probes, &r->probes_half,
+                         &r->cubes,    &r->cubes_half, &r->lights, &r->cells,     &r->grids,  &r->cell_index};
     for (size_t i = 0; i < sizeof(bufs) / sizeof(bufs[0]); ++i) sv_buffer_destroy(ctx, bufs[i]);
     free(r->prim_first_index);
     free(r->prim_index_count);
