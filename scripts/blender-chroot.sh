@@ -24,7 +24,7 @@ PACKAGES=(blender python3-numpy)
 # The dev flavour: exactly the build dependencies of the C core, the engine and the Python module,
 # patchelf for the add-on zip that the default build also writes (cmake/addon_zip.cmake), and
 # blender-data (data only, no Blender) for the studio HDRIs the native test test_sh_hdri reads.
-DEV_PACKAGES=(build-essential cmake ninja-build pkg-config libembree-dev libopenimageio-dev
+DEV_PACKAGES=(build-essential cmake ninja-build pkg-config libembree-dev libopenimageio-dev libqhull-dev
     libvulkan-dev glslc libcjson-dev libglfw3-dev python3-dev python3-numpy patchelf blender-data)
 
 usage() {
