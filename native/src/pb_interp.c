@@ -16,6 +16,8 @@
 
 #include "schnee/pb_sh.h"
 
+#include "pb_morton.h"
+
 #include <libqhull_r/qhull_ra.h>
 
 #include <math.h>
@@ -103,23 +105,6 @@ static inline uint64_t pack3(uint32_t x, uint32_t y, uint32_t z)
     return (uint64_t)x | (uint64_t)y << 21 | (uint64_t)z << 42;
 }
 
-static inline uint64_t spread21(uint64_t v)
-{
-    v &= 0x1fffff;
-    v = (v | v << 32) & UINT64_C(0x1f00000000ffff);
-    v = (v | v << 16) & UINT64_C(0x1f0000ff0000ff);
-    v = (v | v << 8) & UINT64_C(0x100f00f00f00f00f);
-    v = (v | v << 4) & UINT64_C(0x10c30c30c30c30c3);
-    v = (v | v << 2) & UINT64_C(0x1249249249249249);
-    return v;
-}
-
-/* z most significant, as the placement's probe order (docs/placement.md, "Probe order"). */
-static inline uint64_t morton3(uint32_t x, uint32_t y, uint32_t z)
-{
-    return spread21(x) | spread21(y) << 1 | spread21(z) << 2;
-}
-
 /* ---- corner octree ------------------------------------------------------------------------------------ */
 
 struct pb_cotree {
@@ -175,7 +160,7 @@ void pb_cotree_destroy(pb_cotree *tree)
 static int cmp_leaf_morton(const void *pa, const void *pb)
 {
     const uint32_t *a = pa, *b = pb;
-    uint64_t ma = morton3(a[0], a[1], a[2]), mb = morton3(b[0], b[1], b[2]);
+    uint64_t ma = pb_morton3_(a[0], a[1], a[2]), mb = pb_morton3_(b[0], b[1], b[2]);
     if (ma != mb) return ma < mb ? -1 : 1;
     return a[3] < b[3] ? 1 : (a[3] > b[3] ? -1 : 0); /* larger first: an overlap shows as nesting */
 }
@@ -205,7 +190,7 @@ static pb_result cotree_index_leaves(pb_cotree *t, pb_error *err)
                                     "leaf %u at (%u, %u, %u) level %u reaches past the lattice extent %u on axis %c", i,
                                     l[0], l[1], l[2], l[3], t->dims[k], "XYZ"[k]);
         }
-        uint64_t start = morton3(l[0], l[1], l[2]);
+        uint64_t start = pb_morton3_(l[0], l[1], l[2]);
         if (i > 0 && start < prev_end)
             return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
                                 "leaf %u at (%u, %u, %u) level %u overlaps another leaf", i, l[0], l[1], l[2], l[3]);
@@ -434,7 +419,7 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
             memcpy(nd->p, p, sizeof nd->p);
             nd->host = -1;
             nd->level = 0;
-            nd->morton = morton3(p[0], p[1], p[2]);
+            nd->morton = pb_morton3_(p[0], p[1], p[2]);
         }
     }
     /* Hanging test: the largest leaf around p that has p on its boundary but not as a corner. */

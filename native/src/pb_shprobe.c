@@ -11,6 +11,7 @@
 #include "schnee/pb_sh.h"
 
 #include "pb_file.h"
+#include "pb_morton.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -353,19 +354,6 @@ static pb_result check_header_values(const pb_shprobe *p, const layout *lay, pb_
     return PB_SUCCESS;
 }
 
-/* Per-probe values and grid entries. `code` is the result for a range error (format when reading,
- * invalid argument when writing); NaN/Inf is always PB_ERROR_NON_FINITE. */
-static inline uint64_t spread21(uint64_t v)
-{
-    v &= 0x1fffff;
-    v = (v | v << 32) & UINT64_C(0x1f00000000ffff);
-    v = (v | v << 16) & UINT64_C(0x1f0000ff0000ff);
-    v = (v | v << 8) & UINT64_C(0x100f00f00f00f00f);
-    v = (v | v << 4) & UINT64_C(0x10c30c30c30c30c3);
-    v = (v | v << 2) & UINT64_C(0x1249249249249249);
-    return v;
-}
-
 /* Octree leaves, corner references and hanging rules; tetrahedra and neighbours. Leaves must be in
  * Morton order of their min corners (z most significant): aligned cubes in that order do not overlap
  * exactly when each one's Morton range ends before the next one starts, so one pass proves it. */
@@ -388,7 +376,7 @@ static pb_result check_structure(const pb_shprobe *p, const layout *lay, pb_resu
                                         "reaches past the lattice extent %u x %u x %u",
                                         i, l[0], l[1], l[2], l[3], (unsigned long long)off, p->grid_dims[0],
                                         p->grid_dims[1], p->grid_dims[2]);
-            uint64_t start = spread21(l[0]) | spread21(l[1]) << 1 | spread21(l[2]) << 2;
+            uint64_t start = pb_morton3_(l[0], l[1], l[2]);
             if (i > 0 && start < prev_end)
                 return pb_error_set(err, code,
                                     "leaf %u at (%u, %u, %u) (offset %llu) overlaps the leaf before it or is out of "
@@ -453,6 +441,8 @@ static pb_result check_structure(const pb_shprobe *p, const layout *lay, pb_resu
     return PB_SUCCESS;
 }
 
+/* Per-probe values and grid entries. `code` is the result for a range error (format when reading,
+ * invalid argument when writing); NaN/Inf is always PB_ERROR_NON_FINITE. */
 static pb_result check_contents(const pb_shprobe *p, const layout *lay, pb_result code, pb_error *err)
 {
     uint32_t count = lay->disk_coeffs;
