@@ -101,6 +101,128 @@ bool pfm_header_size(const unsigned char *head, size_t got, uint64_t *w, uint64_
     return true;
 }
 
+// Reads n bytes at offset off, or fewer only at end of file; EINTR is retried.
+bool pread_full(int fd, uint64_t off, unsigned char *buf, size_t n, size_t *got)
+{
+    *got = 0;
+    while (*got < n) {
+        const ssize_t r = pread(fd, buf + *got, n - *got, (off_t)(off + *got));
+        if (r < 0 && errno == EINTR) continue;
+        if (r < 0) return false;
+        if (r == 0) break;
+        *got += (size_t)r;
+    }
+    return true;
+}
+
+// The OpenEXR header structure (every part's attributes), walked before OpenEXR sees the file.
+// OpenEXR allocates each attribute's announced size before reading it (an 840-byte file announcing
+// a 270 MB attribute made the sky fuzzer run out of memory), and sizes its chunk offset tables from
+// the dataWindow and tiles; so: every attribute must fit in the file, every part's dataWindow and
+// tile size must be within the limits, and the offset tables those announce (8 bytes per chunk,
+// stored in the file) must fit in the file too. Layout: magic, version (flags 0x200 tiled, 0x400
+// long names, 0x800 non-image / deep, 0x1000 multi-part), then headers of attributes
+// (name\0 type\0 int32 size, value) each ended by an empty name; multi-part files end the list of
+// headers with an empty header.
+pb_result exr_check_header(int fd, const char *path, uint64_t size, pb_error *err)
+{
+    const uint64_t max_attributes = 1u << 16;
+    unsigned char v[8];
+    size_t got = 0;
+    if (!pread_full(fd, 0, v, sizeof v, &got)) return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
+    if (got < sizeof v) return pb_error_set(err, PB_ERROR_FORMAT, "%s: truncated OpenEXR header", path);
+    const uint32_t flags = (uint32_t)v[5] << 8 | (uint32_t)v[6] << 16 | (uint32_t)v[7] << 24;
+    if (v[4] != 2)
+        return pb_error_set(err, PB_ERROR_FORMAT, "%s: OpenEXR file version %u is not supported (only 2)", path,
+                            (unsigned)v[4]);
+    if (flags & 0x800)
+        return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' is a deep image; flat pixels are required", path);
+    const bool multipart = (flags & 0x1000) != 0;
+    const size_t max_name = (flags & 0x400) ? 256 : 32; // including the terminating zero
+    uint64_t off = 8, attributes = 0, chunks_total = 0;
+    for (int part = 0;; part++) {
+        int64_t dw[4] = {0, 0, -1, -1};
+        uint64_t tile_x = 0, tile_y = 0;
+        bool have_dw = false, empty = true;
+        for (;;) {
+            // name\0 type\0 size: at most 2 * max_name + 4 bytes.
+            unsigned char buf[2 * 256 + 4];
+            if (!pread_full(fd, off, buf, 2 * max_name + 4, &got))
+                return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
+            if (got == 0) return pb_error_set(err, PB_ERROR_FORMAT, "%s: truncated OpenEXR header", path);
+            if (buf[0] == 0) { // end of this header
+                off += 1;
+                break;
+            }
+            empty = false;
+            if (++attributes > max_attributes)
+                return pb_error_set(err, PB_ERROR_FORMAT, "%s: more than %llu OpenEXR header attributes", path,
+                                    (unsigned long long)max_attributes);
+            const unsigned char *name_end = (const unsigned char *)std::memchr(buf, 0, std::min(got, max_name));
+            if (!name_end) return pb_error_set(err, PB_ERROR_FORMAT, "%s: malformed OpenEXR attribute name", path);
+            const size_t type_at = (size_t)(name_end - buf) + 1;
+            const unsigned char *type_end =
+                type_at < got ? (const unsigned char *)std::memchr(buf + type_at, 0, std::min(got - type_at, max_name))
+                              : nullptr;
+            if (!type_end) return pb_error_set(err, PB_ERROR_FORMAT, "%s: malformed OpenEXR attribute type", path);
+            const size_t size_at = (size_t)(type_end - buf) + 1;
+            if (size_at + 4 > got) return pb_error_set(err, PB_ERROR_FORMAT, "%s: truncated OpenEXR header", path);
+            const int32_t asize = (int32_t)((uint32_t)buf[size_at] | (uint32_t)buf[size_at + 1] << 8 |
+                                            (uint32_t)buf[size_at + 2] << 16 | (uint32_t)buf[size_at + 3] << 24);
+            const uint64_t value_at = off + size_at + 4;
+            if (asize < 0 || value_at + (uint64_t)asize > size)
+                return pb_error_set(err, PB_ERROR_FORMAT,
+                                    "%s: OpenEXR attribute at offset %llu announces %lld bytes, past the end of the "
+                                    "%llu-byte file",
+                                    path, (unsigned long long)off, (long long)asize, (unsigned long long)size);
+            const char *name = (const char *)buf;
+            const char *type = (const char *)buf + type_at;
+            unsigned char value[16];
+            if ((std::strcmp(name, "dataWindow") == 0 && std::strcmp(type, "box2i") == 0 && asize == 16) ||
+                (std::strcmp(name, "tiles") == 0 && std::strcmp(type, "tiledesc") == 0 && asize == 9)) {
+                if (!pread_full(fd, value_at, value, (size_t)asize, &got) || got != (size_t)asize)
+                    return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
+                int32_t f[4] = {0, 0, 0, 0};
+                for (int i = 0; i < 4 && 4 * i + 4 <= asize; i++)
+                    f[i] = (int32_t)((uint32_t)value[4 * i] | (uint32_t)value[4 * i + 1] << 8 |
+                                     (uint32_t)value[4 * i + 2] << 16 | (uint32_t)value[4 * i + 3] << 24);
+                if (asize == 16) {
+                    for (int i = 0; i < 4; i++) dw[i] = f[i];
+                    have_dw = true;
+                } else {
+                    tile_x = (uint32_t)f[0];
+                    tile_y = (uint32_t)f[1];
+                }
+            }
+            off = value_at + (uint64_t)asize;
+        }
+        if (multipart && empty) break; // the empty header that ends a multi-part file's list
+        if (!have_dw) return pb_error_set(err, PB_ERROR_FORMAT, "%s: OpenEXR part %d has no dataWindow", path, part);
+        const int64_t w = dw[2] - dw[0] + 1, h = dw[3] - dw[1] + 1;
+        if (w <= 0 || h <= 0)
+            return pb_error_set(err, PB_ERROR_FORMAT, "%s: OpenEXR part %d has an empty dataWindow", path, part);
+        pb_result r = check_limits(path, (uint64_t)w, (uint64_t)h, 1, err);
+        if (r != PB_SUCCESS) return r;
+        // The level-0 chunk count (a lower bound of the offset table; scan-line chunks hold at most
+        // 256 lines, DWAB's maximum). Mip/rip levels only add chunks.
+        uint64_t chunks = ((uint64_t)h + 255) / 256;
+        if ((flags & 0x200) || tile_x || tile_y) {
+            if (tile_x == 0 || tile_y == 0 || tile_x > PB_IMAGE_MAX_DIM || tile_y > PB_IMAGE_MAX_DIM)
+                return pb_error_set(err, PB_ERROR_FORMAT, "%s: OpenEXR part %d has tiles of %llux%llu pixels", path,
+                                    part, (unsigned long long)tile_x, (unsigned long long)tile_y);
+            chunks = (((uint64_t)w + tile_x - 1) / tile_x) * (((uint64_t)h + tile_y - 1) / tile_y);
+        }
+        chunks_total += chunks;
+        if (chunks_total * 8 > size)
+            return pb_error_set(err, PB_ERROR_FORMAT,
+                                "%s: the OpenEXR header announces at least %llu chunks, whose offset table alone "
+                                "is larger than the %llu-byte file",
+                                path, (unsigned long long)chunks_total, (unsigned long long)size);
+        if (!multipart) break;
+    }
+    return PB_SUCCESS;
+}
+
 // Closes the descriptor (and the FILE wrapping it) on every path out of read_impl.
 struct file_guard {
     int fd = -1;
@@ -133,6 +255,10 @@ pb_result read_impl(const char *path, pb_image *out, pb_error *err)
         return pb_error_set(err, PB_ERROR_IO, "%s: cannot seek: %s", path, std::strerror(errno));
     const std::string format = format_for(path, head, got);
     uint64_t pfm_w, pfm_h, pfm_c;
+    if (format == "openexr") {
+        r = exr_check_header(g.fd, path, size, err);
+        if (r != PB_SUCCESS) return r;
+    }
     if (format == "pnm" && pfm_header_size(head, got, &pfm_w, &pfm_h, &pfm_c)) {
         r = check_limits(path, pfm_w, pfm_h, pfm_c, err);
         if (r != PB_SUCCESS) return r;
