@@ -115,6 +115,80 @@ bool pread_full(int fd, uint64_t off, unsigned char *buf, size_t n, size_t *got)
     return true;
 }
 
+uint32_t le32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+// Whether an attribute's declared size is the size OpenEXR will read for its type: OpenEXR reads
+// a known fixed-size type's own size whatever the declared one says, a channel list up to its
+// terminating empty name, a string vector by its inner lengths, a preview by its width x height;
+// a declared size that disagrees would make OpenEXR read the rest of the header somewhere else than
+// this walk does (a fuzzer file did exactly that to reach a 1.6 GB "attribute"). nullptr when it
+// agrees, else the reason.
+const char *exr_attribute_mismatch(int fd, const char *type, uint64_t at, uint64_t size, size_t max_name)
+{
+    static const struct {
+        const char *type;
+        uint64_t size;
+    } fixed[] = {{"box2i", 16},
+                 {"box2f", 16},
+                 {"v2i", 8},
+                 {"v2f", 8},
+                 {"v2d", 16},
+                 {"v3i", 12},
+                 {"v3f", 12},
+                 {"v3d", 24},
+                 {"m33f", 36},
+                 {"m33d", 72},
+                 {"m44f", 64},
+                 {"m44d", 128},
+                 {"int", 4},
+                 {"float", 4},
+                 {"double", 8},
+                 {"compression", 1},
+                 {"lineOrder", 1},
+                 {"envmap", 1},
+                 {"tiledesc", 9},
+                 {"rational", 8},
+                 {"timecode", 8},
+                 {"keycode", 28},
+                 {"chromaticities", 32},
+                 {"deepImageState", 1}};
+    for (const auto &f : fixed)
+        if (std::strcmp(type, f.type) == 0) return size == f.size ? nullptr : "its size is not its type's size";
+    if (std::strcmp(type, "idmanifest") == 0) return "ID manifests are not read";
+    if (std::strcmp(type, "floatvector") == 0) return size % 4 == 0 ? nullptr : "its size is not a multiple of 4";
+    const bool chlist = std::strcmp(type, "chlist") == 0, strings = std::strcmp(type, "stringvector") == 0,
+               preview = std::strcmp(type, "preview") == 0;
+    if (!chlist && !strings && !preview) return nullptr; // read as exactly `size` bytes
+    if (size > (1u << 20) && !preview) return "its value is larger than 1 MiB";
+    std::string v((size_t)(preview ? std::min<uint64_t>(size, 8) : size), '\0');
+    size_t got = 0;
+    if (!pread_full(fd, at, (unsigned char *)&v[0], v.size(), &got) || got != v.size()) return "it is truncated";
+    const unsigned char *b = (const unsigned char *)v.data();
+    if (preview) {
+        if (size < 8) return "its preview has no size";
+        return size == 8 + 4 * (uint64_t)le32(b) * le32(b + 4) ? nullptr : "its preview's size disagrees";
+    }
+    size_t i = 0;
+    while (i < v.size()) {
+        if (chlist) {
+            const void *z = std::memchr(b + i, 0, std::min(v.size() - i, max_name));
+            if (!z) return "a channel name is not terminated";
+            const size_t n = (size_t)((const unsigned char *)z - (b + i));
+            if (n == 0) return i + 1 == v.size() ? nullptr : "its channel list ends before its size";
+            i += n + 1 + 16;
+        } else {
+            if (v.size() - i < 4) return "a string is truncated";
+            const uint64_t n = le32(b + i);
+            if (n > v.size() - i - 4) return "a string is longer than the attribute";
+            i += 4 + (size_t)n;
+        }
+    }
+    return chlist ? "its channel list is not terminated" : (i == v.size() ? nullptr : "its strings overrun it");
+}
+
 // The OpenEXR header structure (every part's attributes), walked before OpenEXR sees the file.
 // OpenEXR allocates each attribute's announced size before reading it (an 840-byte file announcing
 // a 270 MB attribute made the sky fuzzer run out of memory), and sizes its chunk offset tables from
@@ -177,15 +251,17 @@ pb_result exr_check_header(int fd, const char *path, uint64_t size, pb_error *er
                                     path, (unsigned long long)off, (long long)asize, (unsigned long long)size);
             const char *name = (const char *)buf;
             const char *type = (const char *)buf + type_at;
+            if (const char *why = exr_attribute_mismatch(fd, type, value_at, (uint64_t)asize, max_name))
+                return pb_error_set(err, PB_ERROR_FORMAT,
+                                    "%s: OpenEXR attribute at offset %llu (type %.32s, %lld bytes) is malformed: %s",
+                                    path, (unsigned long long)off, type, (long long)asize, why);
             unsigned char value[16];
             if ((std::strcmp(name, "dataWindow") == 0 && std::strcmp(type, "box2i") == 0 && asize == 16) ||
                 (std::strcmp(name, "tiles") == 0 && std::strcmp(type, "tiledesc") == 0 && asize == 9)) {
                 if (!pread_full(fd, value_at, value, (size_t)asize, &got) || got != (size_t)asize)
                     return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
                 int32_t f[4] = {0, 0, 0, 0};
-                for (int i = 0; i < 4 && 4 * i + 4 <= asize; i++)
-                    f[i] = (int32_t)((uint32_t)value[4 * i] | (uint32_t)value[4 * i + 1] << 8 |
-                                     (uint32_t)value[4 * i + 2] << 16 | (uint32_t)value[4 * i + 3] << 24);
+                for (int i = 0; i < 4 && 4 * i + 4 <= asize; i++) f[i] = (int32_t)le32(value + 4 * i);
                 if (asize == 16) {
                     for (int i = 0; i < 4; i++) dw[i] = f[i];
                     have_dw = true;

@@ -274,7 +274,7 @@ static void test_image_limits(void)
 
 /* OpenEXR headers are walked before OpenEXR sees them (OpenEXR allocates an attribute's announced
  * size, and offset tables from the dataWindow and tiles, before reading): an attribute announcing
- * 270 MB in a tiny file (what the sky fuzzer found), a 16384 x 16384 window of 1 x 1 tiles whose
+ * 270 MB in a tiny file (what the sky fuzzer found), sizes that disagree with their type, a 16384 x 16384 window of 1 x 1 tiles whose
  * offset table (2 GiB) cannot be in a 100-byte file, a window beyond the size limit, a deep file. */
 static size_t exr_attr(unsigned char *p, const char *name, const char *type, int32_t size, const void *value,
                        size_t value_len)
@@ -302,6 +302,9 @@ static void test_exr_header_announcements(void)
         {1, PB_ERROR_FORMAT, "announces at least 268435456 chunks"},
         {2, PB_ERROR_TOO_LARGE, "70000x1"},
         {3, PB_ERROR_FORMAT, "deep image"},
+        {4, PB_ERROR_FORMAT, "(type box2i, 11 bytes) is malformed: its size is not its type's size"},
+        {5, PB_ERROR_FORMAT, "(type preview, 8 bytes) is malformed: its preview's size disagrees"},
+        {6, PB_ERROR_FORMAT, "(type chlist, 20 bytes) is malformed: its channel list is not terminated"},
     };
     char path[128];
     join(path, sizeof path, "header.exr");
@@ -316,6 +319,12 @@ static void test_exr_header_announcements(void)
         }
         if (cases[i].kind == 2) n += exr_attr(buf + n, "dataWindow", "box2i", 16, wide_window, 16);
         if (cases[i].kind == 3) buf[5] = 0x08; /* non-image (deep) */
+        /* OpenEXR reads a box2i's 16 bytes whatever size is declared, a preview's 4 * w * h bytes,
+         * a channel list up to its empty name: a disagreeing size desynchronises the walk. */
+        if (cases[i].kind == 4) n += exr_attr(buf + n, "displayWindow", "box2i", 11, wide_window, 11);
+        if (cases[i].kind == 5) n += exr_attr(buf + n, "preview", "preview", 8, "\0\0\1\0\0\0\1\0", 8);
+        if (cases[i].kind == 6)
+            n += exr_attr(buf + n, "channels", "chlist", 20, "R\0\1\0\0\0\0\0\0\0\1\0\0\0\1\0\0\0G\0", 20);
         buf[n++] = 0;
         FILE *f = fopen(path, "wb");
         TU_REQUIRE(f);
