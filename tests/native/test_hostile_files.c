@@ -334,6 +334,19 @@ static void test_exr_header_announcements(void)
         TU_CHECK_EQ_INT(run_reader(READ_IMAGE, path, &err), cases[i].code);
         TU_CHECK_CONTAINS(err.message, cases[i].needle);
     }
+    /* PNG: a chunk announcing 1.9 GB in a small file (the fuzzer's second finding: libpng allocates
+     * the announced length first); a PNG without IEND. */
+    {
+        static const unsigned char png[] = {0x89, 'P',  'N', 'G', '\r', '\n', 0x1a, '\n', 0x71, 0x00,
+                                            0x00, 0x0e, 't', 'E', 'X',  't',  'a',  'b',  'c',  'd'};
+        FILE *f = fopen(path, "wb");
+        TU_REQUIRE(f);
+        TU_CHECK(fwrite(png, 1, sizeof png, f) == sizeof png);
+        fclose(f);
+        pb_error e;
+        TU_CHECK_EQ_INT(run_reader(READ_IMAGE, path, &e), PB_ERROR_FORMAT);
+        TU_CHECK_CONTAINS(e.message, "PNG chunk at offset 8 announces 1895825422 bytes, past the end of the 20-byte");
+    }
     /* A real EXR (written by OpenImageIO, scan lines) still passes the walk and reads back. */
     const float px[6] = {1.5f, 2.0f, -3.0f, 0.25f, 8.0f, 16.0f};
     pb_error err = {0};
