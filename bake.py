@@ -89,6 +89,26 @@ def _installed_package_name(here):
     return mods[0].__name__ if mods else "schnee_probes"
 
 
+def _shard(text):
+    try:
+        k, n = (int(x) for x in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not K/N (e.g. 0/4)") from None
+    if not 0 <= k < n:
+        raise argparse.ArgumentTypeError(f"'{text}': K must be in 0..N-1")
+    return k, n
+
+
+def _positive(text):
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a positive integer")
+    return n
+
+
 def _parser(settings):
     p = argparse.ArgumentParser(
         prog="blender -b scene.blend -P bake.py --",
@@ -100,6 +120,13 @@ def _parser(settings):
       help="bake one debug probe at this Blender-space position instead (Bake SH at Cursor)")
     a("--allow-large", action="store_true",
       help="bake even when the probe count is above --probe-limit (otherwise refused, exit 3)")
+    a("--shard", type=_shard, metavar="K/N",
+      help="farm bakes: bake only share K of N (probes i with i %% N == K) into the shard journal "
+           "<output>.shard-K-of-N.journal and write no .shprobe (docs/farm.md)")
+    a("--merge-shards", type=_positive, metavar="N",
+      help="farm bakes: take every probe from the N shard journals and write the output files")
+    a("--restart", action="store_true",
+      help="discard this bake's journal (the probes a cancelled or crashed run kept) and bake from scratch")
     a("--scene", help="scene name (default: the active scene)")
     a("--quiet", action="store_true", help="no progress line")
     return p
@@ -139,12 +166,14 @@ def _main():
     view_layer = scene.view_layers[0] if args.scene else bpy.context.view_layer
 
     overrides = {k: v for k, v in vars(args).items()
-                 if v is not None and k not in ("cursor", "scene", "quiet", "allow_large")}
+                 if v is not None and k not in ("cursor", "scene", "quiet", "allow_large", "shard", "merge_shards",
+                                                "restart")}
     bake_settings = settings.BakeSettings.from_props(scene.schnee_probes, **overrides)
     mode = "CURSOR" if args.cursor else "VOLUMES"
     bake = bake_core.ProbeBake(scene, view_layer, bake_settings, mode=mode, cursor=args.cursor,
                                log=(lambda line: None) if args.quiet else print,
-                               allow_large=args.allow_large)
+                               allow_large=args.allow_large, shard=args.shard, merge_shards=args.merge_shards,
+                               restart=args.restart)
     last = [0.0]
 
     def progress(b):
@@ -163,13 +192,14 @@ def _main():
         try:
             result = bake.run(progress)
         except bake_core.BakeCancelled as exc:
+            kept = f"; {bake.kept_message}" if bake.kept_message else ""
             if sig.caught:
                 first = sig.caught[0]
                 _fail(128 + first, f"cancelled by {signal.Signals(first).name}; render settings "
-                                   "restored, existing files unchanged")
-            _fail(EXIT_BAKE, str(exc))
+                                   f"restored, existing files unchanged{kept}")
+            _fail(EXIT_BAKE, str(exc) + kept)
         except bake_core.BakeError as exc:
-            _fail(EXIT_BAKE, str(exc))
+            _fail(EXIT_BAKE, str(exc) + (f"; {bake.kept_message}" if bake.kept_message else ""))
         except native.SchneeError as exc:
             _fail(EXIT_BAKE, f"native core: {exc}")
         except OSError as exc:  # bake_core turns its own file errors into BakeError; a backstop

@@ -36,12 +36,12 @@ import stat
 import tempfile
 import time
 from dataclasses import dataclass, field
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 import bpy
 import numpy as np
 
-from . import compat, light_modes, native, render_settings, scene_export
+from . import compat, fingerprint, journal, light_modes, native, render_settings, scene_export
 from .safe_open import file_kind
 # The settings are declared in settings.py; re-exported here for scripts that use bake_core.*.
 from .settings import DEFAULT_OUTPUT, PIXEL_FILTERS, BakeError, BakeSettings  # noqa: F401
@@ -63,6 +63,17 @@ EXR_MAGIC = b"\x76\x2f\x31\x01"     # OpenEXR
 # Temporary folders: schnee_bake_<pid>_<random> in the system temporary folder; a folder whose
 # process is gone was left by a killed bake and is removed by the next one.
 TMP_PREFIX = "schnee_bake_"
+# The journal beside the output (docs/farm.md): <output>.journal, a shard's <output>.shard-K-of-N.journal.
+JOURNAL_SUFFIX = ".journal"
+
+
+def journal_path_for(output_path: str) -> str:
+    """The local journal of a bake writing ``output_path`` (may start with ``//``)."""
+    return _abspath(output_path) + JOURNAL_SUFFIX
+
+
+def shard_journal_path(output: str, k: int, n: int) -> str:
+    return f"{output}.shard-{k}-of-{n}{JOURNAL_SUFFIX}"
 
 
 
@@ -108,7 +119,9 @@ class ProbeBake:
     ``cursor`` = Blender-space position). ``log`` receives human-readable lines."""
 
     def __init__(self, scene, view_layer, settings: BakeSettings, mode: str = "VOLUMES",
-                 cursor: Optional[Sequence[float]] = None, log=print, allow_large=False):
+                 cursor: Optional[Sequence[float]] = None, log=print, allow_large=False,
+                 shard: Optional[Tuple[int, int]] = None, merge_shards: Optional[int] = None,
+                 restart: bool = False):
         if mode not in ("VOLUMES", "CURSOR"):
             raise ValueError(f"unknown bake mode {mode!r}")
         if mode == "CURSOR" and cursor is None:
@@ -136,6 +149,21 @@ class ProbeBake:
         self.estimated_seconds = None       # the cost model's estimate, set after placement
         self._cancel_requested = False
         self._first_probe_seconds = None
+        # The journal (journal.py, docs/farm.md): every finished probe is appended durably; a bake
+        # that finds a matching journal resumes from it. shard = (k, n): bake only probes i with
+        # i % n == k into a shard journal and write no .shprobe; merge_shards = n: take every probe
+        # from the n shard journals (and the local one) and write the files.
+        if shard is not None and not (len(shard) == 2 and 0 <= shard[0] < shard[1]):
+            raise ValueError(f"shard must be (k, n) with 0 <= k < n, not {shard!r}")
+        if shard is not None and merge_shards is not None:
+            raise ValueError("a bake is either one shard or the merge of the shards")
+        self.shard = None if shard is None else (int(shard[0]), int(shard[1]))
+        self.merge_shards = merge_shards
+        self.restart = restart
+        self.journal_path = None
+        self.resumed = 0                    # probes taken from journals instead of rendered
+        self._journal = None
+        self._todo: List[int] = []          # indices still to render, in order
 
     def request_cancel(self):
         """Ask the bake to stop (signal handlers, Esc): the next check point raises
@@ -154,6 +182,17 @@ class ProbeBake:
     @property
     def total(self) -> int:
         return int(len(self.positions))
+
+    @property
+    def to_render(self) -> int:
+        """Probes this run renders (the total less what journals held, less other shards' share)."""
+        return len(self._todo) + self._rendered
+
+    @property
+    def _rendered(self) -> int:
+        return self.done - self.resumed - self._others_share
+
+    _others_share = 0
 
     def prepare(self, placement_progress=None):
         """Validate the input, place the probes and set up rendering. Raises :class:`BakeError`."""
@@ -181,7 +220,78 @@ class ProbeBake:
         if s.probe_limit and self.total > s.probe_limit and not self.allow_large:
             raise BakeTooLarge(self.total, self.estimated_seconds, s.probe_limit)
         self.coeffs = np.zeros((self.total, native.sh_count(s.max_band), 3))
+        self._todo = list(range(self.total))
+        if self.mode == "VOLUMES":
+            self._open_journal()  # before _setup_render: the fingerprint is of the user's settings
         self._setup_render()
+
+    def _open_journal(self):
+        """Open (or create) this bake's journal and take every probe it and, for a merge, the shard
+        journals already hold; a journal of another bake is an error unless ``restart``."""
+        main = _abspath(self.settings.output_path)
+        manifest = journal.make_manifest(fingerprint.parts(self.scene, self.view_layer, self.settings),
+                                         scene=self.scene.name, blend=bpy.data.filepath)
+        count = native.sh_count(self.settings.max_band)
+        if self.shard is not None:
+            k, n = self.shard
+            self.journal_path = shard_journal_path(main, k, n)
+        else:
+            self.journal_path = main + JOURNAL_SUFFIX
+        check_replaceable(self.journal_path, "journal")
+        if self.restart and os.path.lexists(self.journal_path):
+            os.unlink(self.journal_path)
+        if self.shard is None and self.merge_shards is None and os.path.lexists(self.journal_path):
+            # A local journal of another bake (settings or scene changed since a cancel): kept one
+            # generation back as <journal>.previous, and this bake starts from scratch. Shards and
+            # merges refuse instead: mixing farm jobs of different scenes is a mistake to report.
+            try:
+                journal.read(self.journal_path, expect_manifest=manifest)
+            except journal.JournalError as exc:
+                previous = self.journal_path + ".previous"
+                try:
+                    os.replace(self.journal_path, previous)
+                except OSError as exc2:
+                    raise BakeError(f"{exc}; and it cannot be moved aside: {exc2}") from exc2
+                self.log(f"Schnee: {exc}: not resumed; it was moved to {previous} and this bake starts from "
+                         "scratch")
+                self.messages.append(f"An earlier, different bake's journal was moved to {previous}")
+        try:
+            self._journal = journal.Writer(self.journal_path, manifest, count, shard=self.shard)
+            known = dict(self._journal.values)
+            if self.merge_shards is not None:
+                paths = [shard_journal_path(main, k, self.merge_shards) for k in range(self.merge_shards)]
+                missing = [p for p in paths if not os.path.exists(p)]
+                if missing:
+                    raise BakeError(f"Cannot merge: {len(missing)} of {self.merge_shards} shard journal(s) "
+                                    f"missing ({', '.join(os.path.basename(p) for p in missing)}); bake them "
+                                    "first (--shard K/N)")
+                merged, _ = journal.merge(paths, manifest)
+                for key, v in merged.items():
+                    known.setdefault(key, v)
+        except journal.JournalError as exc:
+            raise BakeError(f"{exc} (or bake with --restart to discard it)") from exc
+        except OSError as exc:
+            raise BakeError(f"Cannot open the bake journal {self.journal_path}: {exc}") from exc
+        if self._journal.torn_bytes:
+            self.log(f"Schnee: the journal's last {self._journal.torn_bytes} bytes were an incomplete record "
+                     "(a crash mid-write); cut off")
+        todo = []
+        for i, p in enumerate(self.positions):
+            v = known.get(journal.key_of(p))
+            if v is not None and v.shape == self.coeffs[i].shape:
+                self.coeffs[i] = v
+                self.resumed += 1
+            elif self.shard is None or i % self.shard[1] == self.shard[0]:
+                todo.append(i)
+        self._others_share = self.total - self.resumed - len(todo)
+        self.done = self.resumed + self._others_share
+        self._todo = todo
+        if self.merge_shards is not None and todo:
+            raise BakeError(f"Cannot merge: {len(todo)} of {self.total} probes are in no shard journal (shards "
+                            f"still running or failed); re-run the incomplete shards, then merge again")
+        if self.resumed:
+            self.log(f"Schnee: resuming from {self.journal_path if self.merge_shards is None else 'the journals'}: "
+                     f"{self.resumed} of {self.total} probes already baked, {len(todo)} to render")
 
     def _check_light_modes(self):
         """The lamps marked realtime (``schnee_light_mode``, light_modes.py); refuses a bad value
@@ -372,11 +482,11 @@ class ProbeBake:
     # ------------------------------------------------------------------ steps
     def step(self) -> bool:
         """Render and project the next probe. Returns True while probes remain."""
-        if self.done >= self.total:
+        if not self._todo:
             return False
         self._check_cancel()
         s = self.settings
-        i = self.done
+        i = self._todo[0]
         self._camera.location = tuple(scene_export.engine_to_blender(self.positions[i]))
         exr = os.path.join(self._tmpdir, "probe.exr")
         t0 = time.perf_counter()
@@ -405,22 +515,29 @@ class ProbeBake:
         self.timings["render"] += t1 - t0
         self.timings["write_exr"] += t2 - t1
         self.timings["project"] += t3 - t2
-        if self.done == 0:
+        if self._journal is not None:
+            try:
+                self._journal.append(journal.key_of(self.positions[i]), self.coeffs[i])
+            except OSError as exc:
+                raise BakeError(f"Cannot write the bake journal {self.journal_path}: {exc}") from exc
+        if self._rendered == 0:
             self._first_probe_seconds = t3 - t0
+        self._todo.pop(0)
         self.done += 1
-        return self.done < self.total
+        return bool(self._todo)
 
     def remaining_seconds(self) -> float:
         """Time left: the cost model before the first probe, then the measured mean per probe
         (without the first probe's scene upload once a second one is done)."""
-        left = self.total - self.done
-        if self.done == 0:
+        left = len(self._todo)
+        rendered = self._rendered
+        if rendered == 0:
             return estimate_seconds(left, self.settings, sky=self.mode == "VOLUMES")
         spent = self.timings["render"] + self.timings["write_exr"] + self.timings["project"]
-        if self.done >= 2 and self._first_probe_seconds is not None:
-            per = (spent - self._first_probe_seconds) / (self.done - 1)
+        if rendered >= 2 and self._first_probe_seconds is not None:
+            per = (spent - self._first_probe_seconds) / (rendered - 1)
         else:
-            per = spent / self.done
+            per = spent / rendered
         return per * left
 
     def progress_line(self) -> str:
@@ -459,13 +576,19 @@ class ProbeBake:
     def finish(self) -> BakeResult:
         """Write every output file (all or none), restore the scene and return the result."""
         try:
-            if self.done < self.total:
-                raise BakeError(f"finish() after {self.done} of {self.total} probes")
+            if self._todo:
+                raise BakeError(f"finish() with {len(self._todo)} probes left")
             self._check_cancel()
-            if self.mode == "VOLUMES" and self.settings.capture_sky and self._sky_exr is None:
-                self.capture_sky()
-            self._check_cancel()
-            files = self._write_outputs()
+            if self.shard is not None:
+                files = [self.journal_path]  # a shard writes its journal only; the merge writes the files
+            else:
+                if self.mode == "VOLUMES" and self.settings.capture_sky and self._sky_exr is None:
+                    self.capture_sky()
+                self._check_cancel()
+                files = self._write_outputs()
+                if self.journal_path is not None:  # the output is complete: the local journal is spent
+                    self._close_journal()
+                    _remove_quietly(self.journal_path)
         finally:
             self._close()
         result = BakeResult(files=files, probe_count=self.total,
@@ -474,13 +597,29 @@ class ProbeBake:
         return result
 
     def cancel(self):
-        """Abandon the bake: restore the scene and remove temporary files; write nothing."""
+        """Abandon the bake: restore the scene and remove temporary files; write no output. The
+        probes already baked stay in the journal, and the same bake run again resumes from them."""
         self._close()
+
+    @property
+    def kept_message(self) -> str:
+        """What a cancelled or failed bake kept, for the user ('' when nothing)."""
+        kept = self.done - self._others_share
+        if self.journal_path is None or kept <= 0:
+            return ""
+        return (f"{kept} of {self.total} probes kept in {self.journal_path}; the same bake run again "
+                "resumes from them")
+
+    def _close_journal(self):
+        if self._journal is not None:
+            self._journal.close()
+            self._journal = None
 
     def _close(self):
         if self._closed:
             return
         self._closed = True
+        self._close_journal()
         failed = self._state.restore() if self._state is not None else []
         self._camera = None
         self._tmpdir = None
@@ -569,7 +708,7 @@ class ProbeBake:
         return False to cancel (raises :class:`BakeCancelled`). Restores the scene on any exit."""
         try:
             self.prepare()
-            while self.done < self.total:
+            while self._todo:
                 self.step()
                 if progress is not None and progress(self) is False:
                     raise BakeCancelled("Bake cancelled")
@@ -645,7 +784,8 @@ def check_replaceable(path, kind):
     if not stat.S_ISREG(st.st_mode):
         raise BakeError(f"Refusing to replace {path}: it exists and is a {file_kind(st.st_mode)}; "
                         "the bake only replaces files it wrote")
-    want = {"shprobe": SHPROBE_MAGIC, "exr": EXR_MAGIC, "text": DEBUG_TEXT_FIRST_LINE.encode()}[kind]
+    want = {"shprobe": SHPROBE_MAGIC, "exr": EXR_MAGIC, "text": DEBUG_TEXT_FIRST_LINE.encode(),
+            "journal": journal.MAGIC}[kind]
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
         try:
@@ -658,6 +798,7 @@ def check_replaceable(path, kind):
         raise BakeError(f"Cannot check {path} before replacing it: {exc.strerror}") from exc
     if head != want:
         what = {"shprobe": "a .shprobe file (no Schnee probe header)", "exr": "an OpenEXR image",
+                "journal": "a Schnee bake journal",
                 "text": "a debug_probe.txt written by Bake SH at Cursor"}[kind]
         raise BakeError(f"Refusing to replace {path}: it exists and is not {what}; move it away or "
                         "choose another output")

@@ -103,6 +103,8 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
             result = bake.run(progress)
         except (BakeError, OSError) as exc:
             print()
+            if bake.kept_message:
+                exc = f"{exc}; {bake.kept_message}"
             _record(props, message=str(exc))
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
@@ -157,6 +159,8 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
         if cancelled or error is not None:
             bake.cancel()
             msg = "Bake cancelled; existing files are unchanged" if cancelled else f"Bake failed: {error}"
+            if bake.kept_message:
+                msg += "; " + bake.kept_message
             _record(props, message=msg)
             self.report({'WARNING'} if cancelled else {'ERROR'}, msg)
             return {'CANCELLED'}

@@ -4,7 +4,7 @@ import os
 
 import bpy
 
-from . import compat, light_modes
+from . import bake_core, compat, journal, light_modes
 from .properties import draw_estimate, draw_settings
 
 
@@ -29,6 +29,22 @@ class VIEW3D_PT_schnee_probes(bpy.types.Panel):
         layout.use_property_decorate = False
         draw_settings(layout, props)
         draw_estimate(layout, context.scene, props)
+        _draw_journal(layout, props)
+
+
+def _draw_journal(layout, props):
+    """A bake that was cancelled, failed or crashed left a journal next to the output: say that
+    Bake SH in Volumes resumes it (journal.py; the header and the file size only, cheap to draw)."""
+    try:
+        path = bake_core.journal_path_for(props.output_path)
+    except Exception:  # an unsaved file with a '//' output: no journal can exist
+        return
+    info = journal.summary(path)
+    if info is None:
+        return
+    box = layout.box()
+    box.label(text=f"Resumable bake: {info['records']} probe(s) kept", icon='RECOVER_LAST')
+    box.label(text=os.path.basename(path))
 
 
 class VIEW3D_PT_schnee_probes_last(bpy.types.Panel):

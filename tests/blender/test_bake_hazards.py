@@ -26,6 +26,7 @@ from pathlib import Path
 import pytest
 
 from conftest import ADDON_DIR, REPO, requires_native, run_blender
+from schnee_probes import journal as journal_mod
 
 SCRIPTS = Path(__file__).resolve().parent / "scripts"
 BAKE_PY = REPO / "bake.py"
@@ -207,14 +208,20 @@ def test_signal_cancels_headless_bake_like_esc(scenes, tmp_path, sig, code):
     rc, stdout, stderr = run.finish()
     assert rc == code, stdout[-2000:] + stderr[-2000:]
     last = stderr.strip().splitlines()[-1]
-    assert last == (f"bake.py: error: cancelled by {signal.Signals(sig).name}; render settings restored, "
-                    "existing files unchanged"), last
+    journal = out / "probes.shprobe.journal"
+    m = re.fullmatch(rf"bake\.py: error: cancelled by {signal.Signals(sig).name}; render settings restored, "
+                     rf"existing files unchanged; (\d+) of 256 probes kept in {re.escape(str(journal))}; the same "
+                     "bake run again resumes from them", last)
+    assert m and 1 <= int(m.group(1)) < 256, last
     assert "Traceback" not in stderr
     assert "probe 256/256" not in stdout
     result = json.loads([l for l in stdout.splitlines() if l.startswith("RESULT ")][-1][7:])
     assert result["diff"] == [] and result["engine"] == "BLENDER_EEVEE"  # scene state restored
     assert list(tmp.iterdir()) == []  # temporary folder removed
-    assert {p.name: digest(p) for p in out.iterdir()} == before  # old output intact, no .partial
+    # Old output intact, no .partial; the probes baked so far are in the journal (docs/farm.md).
+    after = {p.name: digest(p) for p in out.iterdir()}
+    assert after.pop(journal.name) and after == before
+    assert len(journal_mod.read(str(journal)).values) == int(m.group(1))
 
 
 def test_killed_bake_leaves_a_folder_the_next_bake_removes(scenes, tmp_path):
@@ -284,12 +291,22 @@ def test_non_finite_emission_is_refused_naming_it(scenes, tmp_path, blend_name, 
 def test_inf_in_a_panorama_names_the_probe_and_its_position(scenes, tmp_path):
     # Emission 1e38 is finite (not refused up front), but 4 samples of it sum past float32's
     # range: the panorama holds Inf, which the native projection refuses. The bake says which
-    # probe, where, and what to look for; nothing is written.
+    # probe, where, and what to look for; no output is written, only the journal of the probes
+    # before it (docs/farm.md).
     blend = copy_blend(scenes, "emission_huge.blend", tmp_path)
     proc = bake(blend, *CELLS_2M, "--panorama-resolution", "16", "--samples", "4")
     assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
     msg = last_error(proc)
-    assert re.match(r"bake.py: error: Projecting the panorama of probe \d+ at Blender "
-                    r"\((-?1\.000, ){2}1\.000\) failed: .*non-finite radiance inf at pixel", msg), msg
+    m = re.match(r"bake.py: error: Projecting the panorama of probe (\d+) at Blender "
+                 r"\((-?1\.000, ){2}1\.000\) failed: .*non-finite radiance inf at pixel", msg)
+    assert m, msg
     assert "the render holds NaN or Inf, which the probes cannot represent" in msg
-    assert not (tmp_path / "sh_coeffs").exists()
+    out = tmp_path / "sh_coeffs"
+    kept = int(m.group(1)) - 1  # the probes rendered before the failing one
+    if kept:
+        assert [p.name for p in out.iterdir()] == ["probes.shprobe.journal"]
+        assert len(journal_mod.read(str(out / "probes.shprobe.journal")).values) == kept
+        assert msg.endswith(f"; {kept} of 4 probes kept in {out / 'probes.shprobe.journal'}; the same bake run "
+                            "again resumes from them"), msg
+    else:
+        assert not out.exists()

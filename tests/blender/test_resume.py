@@ -1,0 +1,136 @@
+"""A bake that survives a crash (issue 15; docs/farm.md), in real Blender + Cycles through bake.py:
+killed with SIGKILL at a random probe, then run again, it renders only what was missing and writes
+the same bytes as an uninterrupted bake with the same seed (and the same sky pixels); the same after a cancel (SIGINT); shards
+baked separately and merged give the same bytes; a merge refuses shards of other settings and names
+what changed; a journal of other settings is moved aside, not resumed. The expected bytes come from
+an uninterrupted bake of the same scene (Cycles renders the same bits for the same seed). Runtime:
+~2 min on 2 cores."""
+import hashlib
+import random
+import re
+import signal
+import time
+
+import pytest
+
+from conftest import requires_native
+from schnee_probes import journal, native
+from test_bake_hazards import SCRIPTS, TINY, Running, bake, copy_blend, last_error, run_blender  # noqa: F401
+
+pytestmark = requires_native
+
+CELLS = ["--min-cell-size", "1", "--max-cell-size", "1"]  # 32 probes
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory):
+    out = tmp_path_factory.mktemp("resume_scenes")
+    run_blender(SCRIPTS / "resume_scene.py", out, timeout=120)
+    return out
+
+
+@pytest.fixture(scope="module")
+def reference(scenes, tmp_path_factory):
+    """The uninterrupted bake: (probe count, sha256 of probes.shprobe, of sky.exr)."""
+    d = tmp_path_factory.mktemp("reference")
+    blend = copy_blend(scenes, "window_room.blend", d)
+    proc = bake(blend, *CELLS, *TINY)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    out = d / "sh_coeffs"
+    assert not (out / "probes.shprobe.journal").exists()  # spent once the output is written
+    count = int(re.search(r"bake\.py: (\d+) probes in", proc.stdout).group(1))
+    return count, _sha(out / "probes.shprobe"), _pixels(out / "sky.exr")
+
+
+def _sha(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _pixels(path):
+    """The sky's pixels (its EXR header holds the render's date, so the bytes differ run to run)."""
+    return hashlib.sha256(native.read_image(str(path)).tobytes()).hexdigest()
+
+
+def _interrupt(blend, sig, at):
+    """Start the bake (each render slowed by 0.2 s), send ``sig`` once the journal holds ``at``
+    probes."""
+    run = Running(blend, [*CELLS, *TINY], {}, pre=SCRIPTS / "slow_render.py")
+    path = str(blend.parent / "sh_coeffs" / "probes.shprobe.journal")
+    end = time.monotonic() + 240
+    while time.monotonic() < end and run.proc.poll() is None:
+        info = journal.summary(path)
+        if info and info["records"] >= at:
+            break
+        time.sleep(0.01)
+    run.proc.send_signal(sig)
+    return run.finish()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT], ids=["kill-9", "cancel"])
+def test_interrupted_then_resumed_equals_uninterrupted(scenes, tmp_path, reference, sig):
+    count, shprobe, sky = reference
+    blend = copy_blend(scenes, "window_room.blend", tmp_path)
+    at = random.Random(str(sig)).randrange(2, count - 2)
+    rc, stdout, stderr = _interrupt(blend, sig, at)
+    assert rc == (-9 if sig == signal.SIGKILL else 130), stderr[-2000:]
+    out = tmp_path / "sh_coeffs"
+    kept = len(journal.read(str(out / "probes.shprobe.journal")).values)
+    assert at <= kept < count  # everything up to the probe it was rendering when interrupted
+    assert not (out / "probes.shprobe").exists()
+    proc = bake(blend, *CELLS, *TINY)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert f"resuming from {out / 'probes.shprobe.journal'}: {kept} of {count} probes already baked, " \
+           f"{count - kept} to render" in proc.stdout
+    assert f"probe {count}/{count}" in proc.stdout
+    assert _sha(out / "probes.shprobe") == shprobe and _pixels(out / "sky.exr") == sky
+    assert not (out / "probes.shprobe.journal").exists()
+
+
+def test_shards_merge_to_the_same_bytes(scenes, tmp_path, reference):
+    count, shprobe, sky = reference
+    blend = copy_blend(scenes, "window_room.blend", tmp_path)
+    out = tmp_path / "sh_coeffs"
+    for k in range(3):
+        proc = bake(blend, *CELLS, *TINY, "--shard", f"{k}/3")
+        assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+        assert f"wrote {out / f'probes.shprobe.shard-{k}-of-3.journal'}" in proc.stdout
+        assert len(journal.read(str(out / f"probes.shprobe.shard-{k}-of-3.journal")).values) == \
+            len(range(k, count, 3))
+    assert not (out / "probes.shprobe").exists()  # shards write no output
+    proc = bake(blend, *CELLS, *TINY, "--merge-shards", "3")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert f"{count} of {count} probes already baked, 0 to render" in proc.stdout
+    assert _sha(out / "probes.shprobe") == shprobe and _pixels(out / "sky.exr") == sky
+
+
+def test_merge_refuses_missing_and_foreign_shards(scenes, tmp_path):
+    blend = copy_blend(scenes, "window_room.blend", tmp_path)
+    out = tmp_path / "sh_coeffs"
+    assert bake(blend, *CELLS, *TINY, "--shard", "0/2").returncode == 0
+    proc = bake(blend, *CELLS, *TINY, "--merge-shards", "2")
+    assert proc.returncode == 3
+    assert "1 of 2 shard journal(s) missing (probes.shprobe.shard-1-of-2.journal)" in last_error(proc)
+    # Shard 1 baked with other samples: another bake; the merge names what changed.
+    assert bake(blend, *CELLS, "--panorama-resolution", "16", "--samples", "2", "--shard", "1/2").returncode == 0
+    proc = bake(blend, *CELLS, *TINY, "--merge-shards", "2")
+    assert proc.returncode == 3
+    msg = last_error(proc)
+    assert "probes.shprobe.shard-1-of-2.journal belongs to another bake (changed since it was written: " \
+           "settings)" in msg, msg
+    assert not (out / "probes.shprobe").exists()
+
+
+def test_journal_of_other_settings_is_moved_aside(scenes, tmp_path, reference):
+    count, shprobe, _ = reference
+    blend = copy_blend(scenes, "window_room.blend", tmp_path)
+    out = tmp_path / "sh_coeffs"
+    rc, _, _ = _interrupt(blend, signal.SIGKILL, 3)
+    old = (out / "probes.shprobe.journal").read_bytes()
+    # Another panorama size: not resumed (its probes would be wrong), kept as .previous, baked from
+    # scratch.
+    proc = bake(blend, *CELLS, "--panorama-resolution", "32", "--samples", "1")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "belongs to another bake (changed since it was written: settings)" in proc.stdout
+    assert "resuming" not in proc.stdout
+    assert (out / "probes.shprobe.journal.previous").read_bytes() == old
+    assert _sha(out / "probes.shprobe") != shprobe
