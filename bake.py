@@ -125,6 +125,13 @@ def _parser(settings):
            "<output>.shard-K-of-N.journal and write no .shprobe (docs/farm.md)")
     a("--merge-shards", type=_positive, metavar="N",
       help="farm bakes: take every probe from the N shard journals and write the output files")
+    a("--farm", choices=["slurm"],
+      help="submit the bake to a farm instead of baking here: N shard jobs (--shards) and the merge "
+           "job that writes the files once every shard succeeded (docs/farm.md)")
+    a("--shards", type=_positive, default=4, metavar="N", help="with --farm: number of shards (default 4)")
+    a("--sbatch-option", action="append", default=[], metavar="OPT",
+      help="with --farm slurm: an #SBATCH option for every job, e.g. --sbatch-option=--partition=bake "
+           "(repeatable)")
     a("--restart", action="store_true",
       help="discard this bake's journal (the probes a cancelled or crashed run kept) and bake from scratch")
     a("--scene", help="scene name (default: the active scene)")
@@ -167,8 +174,11 @@ def _main():
 
     overrides = {k: v for k, v in vars(args).items()
                  if v is not None and k not in ("cursor", "scene", "quiet", "allow_large", "shard", "merge_shards",
-                                                "restart")}
+                                                "restart", "farm", "shards", "sbatch_option")}
     bake_settings = settings.BakeSettings.from_props(scene.schnee_probes, **overrides)
+    if args.farm:
+        _submit(args, bake_core, bake_settings)
+        return
     mode = "CURSOR" if args.cursor else "VOLUMES"
     bake = bake_core.ProbeBake(scene, view_layer, bake_settings, mode=mode, cursor=args.cursor,
                                log=(lambda line: None) if args.quiet else print,
@@ -207,6 +217,28 @@ def _main():
         except KeyboardInterrupt:
             _fail(EXIT_INTERRUPT, "interrupted; existing files are unchanged")
     _report(result)
+
+
+def _submit(args, bake_core, bake_settings):
+    """--farm slurm: write the batch scripts next to the output and submit them; bake nothing here."""
+    import importlib
+
+    import bpy
+
+    farm = importlib.import_module(bake_core.__name__.rsplit(".", 1)[0] + ".farm")
+    if args.cursor or args.shard or args.merge_shards:
+        _fail(EXIT_USAGE, "--farm bakes volumes; it cannot be combined with --cursor, --shard or --merge-shards")
+    if not bpy.data.filepath:
+        _fail(EXIT_USAGE, "--farm needs a saved .blend (farm nodes open the file)")
+    try:
+        output = bake_core._abspath(bake_settings.output_path)
+        ids = farm.submit_slurm(bpy.app.binary_path, os.path.abspath(bpy.data.filepath), os.path.abspath(__file__),
+                                farm.forwarded_args(_script_args(), output=output), args.shards, output,
+                                sbatch_options=args.sbatch_option)
+    except (farm.FarmError, bake_core.BakeError, OSError) as exc:
+        _fail(EXIT_BAKE, f"farm submission failed: {exc}")
+    print(f"bake.py: submitted shard array {ids[0]} ({args.shards} tasks) and merge job {ids[1]} (runs after every "
+          f"shard succeeded); scripts and logs in {output}.farm")
 
 
 def _report(result):

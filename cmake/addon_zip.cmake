@@ -98,7 +98,8 @@ endif()
 set(SCHNEE_ADDON_ZIP ${CMAKE_SOURCE_DIR}/dist/schnee_probes-${SCHNEE_ADDON_VERSION}.zip
     CACHE INTERNAL "Path of the add-on zip")
 
-file(GLOB_RECURSE _addon_inputs CONFIGURE_DEPENDS ${_addon_src}/*.py ${_addon_src}/*.toml ${_addon_src}/*.json)
+file(GLOB_RECURSE _addon_inputs CONFIGURE_DEPENDS ${_addon_src}/*.py ${_addon_src}/*.toml ${_addon_src}/*.json
+     ${_addon_src}/*.js)
 list(FILTER _addon_inputs EXCLUDE REGEX "/__pycache__/")
 
 # The extension manifest, its version from bl_info (one version for both packages).

@@ -14,6 +14,7 @@ APT_PACKAGES=(
   libcjson-dev libglfw3-dev xvfb xauth
   nodejs npm
   debootstrap patchelf
+  slurm-wlm munge
 )
 
 missing=()

@@ -1,0 +1,120 @@
+"""Farm bakes on an existing farm engine (docs/farm.md): Slurm job arrays submitted with ``sbatch``,
+and a Flamenco job type (``flamenco/schnee_probes_bake.js``). No scheduling here: the farm engine
+runs the shards (``bake.py -- --shard K/N``), requeues what fails, and runs the merge
+(``--merge-shards N``) after every shard succeeded. Shards resume from their journals, so a
+requeued task re-renders only what it had not finished.
+
+Plain Python (no Blender): ``bake.py --farm slurm`` calls :func:`submit_slurm`.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+from typing import List, Optional, Sequence
+
+
+class FarmError(RuntimeError):
+    """Submission failed; the message says what to do."""
+
+
+FLAMENCO_JOB_TYPE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "flamenco", "schnee_probes_bake.js")
+
+
+def _script(lines: Sequence[str]) -> str:
+    return "\n".join(["#!/bin/sh"] + list(lines)) + "\n"
+
+
+def slurm_scripts(blender: str, blend: str, bake_py: str, bake_args: Sequence[str], shards: int, folder: str,
+                  sbatch_options: Sequence[str] = ()) -> dict:
+    """The two batch scripts of a Slurm bake: ``shards.sbatch`` (a job array, one task per shard,
+    requeueable; each task bakes share $SLURM_ARRAY_TASK_ID of ``shards``) and ``merge.sbatch``.
+    ``bake_args`` are bake.py's options (settings, --output) shared by every job."""
+    if shards < 1:
+        raise FarmError("--shards must be at least 1")
+    base = [blender, "-b", blend, "-P", bake_py, "--", *bake_args]
+    common = [f"#SBATCH {o}" for o in sbatch_options]
+    shard = _script([
+        "#SBATCH --job-name=schnee-shard",
+        f"#SBATCH --array=0-{shards - 1}",
+        # Requeued after a node failure or preemption (or `scontrol requeue`): the task resumes
+        # from its shard journal, so nothing finished is rendered twice.
+        "#SBATCH --requeue",
+        "#SBATCH --open-mode=append",
+        f"#SBATCH --output={os.path.join(folder, 'shard-%A_%a.log')}",
+        *common,
+        "exec " + " ".join(shlex.quote(a) for a in base) + f' --shard "$SLURM_ARRAY_TASK_ID/{shards}"',
+    ])
+    merge = _script([
+        "#SBATCH --job-name=schnee-merge",
+        "#SBATCH --requeue",
+        "#SBATCH --open-mode=append",
+        f"#SBATCH --output={os.path.join(folder, 'merge-%j.log')}",
+        *common,
+        "exec " + " ".join(shlex.quote(a) for a in base) + f" --merge-shards {shards}",
+    ])
+    return {"shards.sbatch": shard, "merge.sbatch": merge}
+
+
+def _sbatch(sbatch: str, script: str, extra: Sequence[str] = ()) -> str:
+    try:
+        proc = subprocess.run([sbatch, "--parsable", *extra, script], capture_output=True, text=True, timeout=120)
+    except FileNotFoundError:
+        raise FarmError(f"'{sbatch}' not found: run the submission on a Slurm login node (or pass --sbatch)") from None
+    except subprocess.TimeoutExpired:
+        raise FarmError(f"{sbatch} did not answer within 120 s: is slurmctld reachable?") from None
+    if proc.returncode != 0:
+        raise FarmError(f"{sbatch} {os.path.basename(script)} failed (exit {proc.returncode}): "
+                        f"{proc.stderr.strip() or proc.stdout.strip()}")
+    m = re.match(r"\s*(\d+)", proc.stdout)
+    if not m:
+        raise FarmError(f"{sbatch} printed no job id: {proc.stdout.strip()!r}")
+    return m.group(1)
+
+
+def submit_slurm(blender: str, blend: str, bake_py: str, bake_args: Sequence[str], shards: int, output: str,
+                 sbatch_options: Sequence[str] = (), sbatch: str = "sbatch") -> List[str]:
+    """Write the batch scripts into ``<output>.farm/`` and submit: the shard array, then the merge
+    with ``--dependency=afterok:<array>`` (it runs only once every shard task succeeded, requeues
+    included). Returns [array job id, merge job id]."""
+    if not os.path.isabs(blend):
+        raise FarmError(f"the .blend path must be absolute for farm nodes: {blend}")
+    folder = output + ".farm"
+    os.makedirs(folder, exist_ok=True)
+    paths = {}
+    for name, text in slurm_scripts(blender, blend, bake_py, bake_args, shards, folder, sbatch_options).items():
+        path = os.path.join(folder, name)
+        tmp = f"{path}.{os.getpid()}.partial"
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.chmod(tmp, 0o755)
+        os.replace(tmp, path)
+        paths[name] = path
+    array = _sbatch(sbatch, paths["shards.sbatch"])
+    merge = _sbatch(sbatch, paths["merge.sbatch"], [f"--dependency=afterok:{array}", "--kill-on-invalid-dep=yes"])
+    return [array, merge]
+
+
+def forwarded_args(argv: Sequence[str], drop_with_value=("--farm", "--shards", "--sbatch-option", "--shard",
+                                                         "--merge-shards"),
+                   drop_flags=("--restart",), output: Optional[str] = None) -> List[str]:
+    """bake.py's own options minus the farm ones, with ``--output`` made absolute (farm nodes may
+    start in another folder)."""
+    out, skip = [], False
+    for a in argv:
+        if skip:
+            skip = False
+            continue
+        name = a.split("=", 1)[0]
+        if name in drop_with_value:
+            skip = "=" not in a
+            continue
+        if name in drop_flags or name == "--output":
+            if name == "--output":
+                skip = "=" not in a
+            continue
+        out.append(a)
+    if output is not None:
+        out += ["--output", output]
+    return out
