@@ -6,6 +6,7 @@ what changed; a journal of other settings is moved aside, not resumed. The expec
 an uninterrupted bake of the same scene (Cycles renders the same bits for the same seed). Runtime:
 ~2 min on 2 cores."""
 import hashlib
+import json
 import random
 import re
 import signal
@@ -51,6 +52,11 @@ def _pixels(path):
     return hashlib.sha256(native.read_image(str(path)).tobytes()).hexdigest()
 
 
+def _panel_labels(blend):
+    proc = run_blender(SCRIPTS / "journal_panel.py", blend=blend, timeout=120)
+    return json.loads([l for l in proc.stdout.splitlines() if l.startswith("RESULT ")][-1][7:])["labels"]
+
+
 def _interrupt(blend, sig, at):
     """Start the bake (each render slowed by 0.2 s), send ``sig`` once the journal holds ``at``
     probes."""
@@ -77,8 +83,11 @@ def test_interrupted_then_resumed_equals_uninterrupted(scenes, tmp_path, referen
     kept = len(journal.read(str(out / "probes.shprobe.journal")).values)
     assert at <= kept < count  # everything up to the probe it was rendering when interrupted
     assert not (out / "probes.shprobe").exists()
+    # The panel says a resumable bake exists (and says nothing once it is spent, below).
+    assert _panel_labels(blend) == [f"Resumable bake: {kept} probe(s) kept", "probes.shprobe.journal"]
     proc = bake(blend, *CELLS, *TINY)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert _panel_labels(blend) == []
     assert f"resuming from {out / 'probes.shprobe.journal'}: {kept} of {count} probes already baked, " \
            f"{count - kept} to render" in proc.stdout
     assert f"probe {count}/{count}" in proc.stdout
