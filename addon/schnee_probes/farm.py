@@ -34,6 +34,9 @@ def slurm_scripts(blender: str, blend: str, bake_py: str, bake_args: Sequence[st
     if shards < 1:
         raise FarmError("--shards must be at least 1")
     base = [blender, "-b", blend, "-P", bake_py, "--", *bake_args]
+    # Cycles uses the CPUs Slurm gave the task (--cpus-per-task), all of the node's without it.
+    cmd = " ".join(shlex.quote(a) for a in base[:3]) + ' -t "${SLURM_CPUS_PER_TASK:-0}" ' + " ".join(
+        shlex.quote(a) for a in base[3:])
     common = [f"#SBATCH {o}" for o in sbatch_options]
     shard = _script([
         "#SBATCH --job-name=schnee-shard",
@@ -44,7 +47,7 @@ def slurm_scripts(blender: str, blend: str, bake_py: str, bake_args: Sequence[st
         "#SBATCH --open-mode=append",
         f"#SBATCH --output={os.path.join(folder, 'shard-%A_%a.log')}",
         *common,
-        "exec " + " ".join(shlex.quote(a) for a in base) + f' --shard "$SLURM_ARRAY_TASK_ID/{shards}"',
+        "exec " + cmd + f' --shard "$SLURM_ARRAY_TASK_ID/{shards}"',
     ])
     merge = _script([
         "#SBATCH --job-name=schnee-merge",
@@ -52,7 +55,7 @@ def slurm_scripts(blender: str, blend: str, bake_py: str, bake_args: Sequence[st
         "#SBATCH --open-mode=append",
         f"#SBATCH --output={os.path.join(folder, 'merge-%j.log')}",
         *common,
-        "exec " + " ".join(shlex.quote(a) for a in base) + f" --merge-shards {shards}",
+        "exec " + cmd + f" --merge-shards {shards}",
     ])
     return {"shards.sbatch": shard, "merge.sbatch": merge}
 
