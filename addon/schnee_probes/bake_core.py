@@ -265,7 +265,7 @@ class ProbeBake:
                     raise BakeError(f"Cannot merge: {len(missing)} of {self.merge_shards} shard journal(s) "
                                     f"missing ({', '.join(os.path.basename(p) for p in missing)}); bake them "
                                     "first (--shard K/N)")
-                merged, _ = journal.merge(paths, manifest)
+                merged, _, _ = journal.merge(paths, manifest)
                 for key, v in merged.items():
                     known.setdefault(key, v)
         except journal.JournalError as exc:

@@ -5,7 +5,7 @@ journal too (docs/farm.md, "Journal file", normative).
 A journal is append-only: a fixed header, a JSON manifest (what the bake is: its fingerprint and
 the parts it was computed from, so a mismatch can say what changed), then one fixed-size record
 per probe (the probe's key — its engine-space position as three float64 — its coefficients as
-float64 and a CRC-32). Each record is written with one ``write`` on an ``O_APPEND`` descriptor and
+float64, its measured relative noise as float64 (0 when not measured) and a CRC-32). Each record is written with one ``write`` on an ``O_APPEND`` descriptor and
 ``fdatasync``ed before the bake goes on, so at any instant the file is readable up to its last
 complete record; a torn or corrupt tail is ignored by readers and cut off by the next writer.
 
@@ -54,19 +54,21 @@ def key_of(position) -> bytes:
 
 
 def record_size(coeff_count: int) -> int:
-    return KEY.size + 8 * coeff_count * CHANNELS + 4
+    return KEY.size + 8 * coeff_count * CHANNELS + 8 + 4
 
 
 class Contents:
     """What a journal holds: ``manifest`` (dict), ``shard`` ((k, n) or None), ``values`` (key →
-    (coeff_count, 3) float64 array), ``torn_bytes`` (bytes after the last good record)."""
+    (coeff_count, 3) float64 array), ``noise`` (key → float), ``torn_bytes`` (bytes after the last
+    good record)."""
 
-    def __init__(self, path, manifest, coeff_count, shard, values, good_bytes, torn_bytes):
+    def __init__(self, path, manifest, coeff_count, shard, values, noise, good_bytes, torn_bytes):
         self.path = path
         self.manifest = manifest
         self.coeff_count = coeff_count
         self.shard = shard
         self.values = values
+        self.noise = noise
         self.good_bytes = good_bytes
         self.torn_bytes = torn_bytes
 
@@ -116,16 +118,19 @@ def read(path: str, expect_manifest: Optional[dict] = None) -> Contents:
             raise JournalError(f"{path}: {size} bytes is more than {MAX_RECORDS} probes can fill")
         body = f.read()
     values: Dict[bytes, np.ndarray] = {}
+    noise: Dict[bytes, float] = {}
     good = 0
     for off in range(0, len(body) - rs + 1, rs):
         rec = body[off:off + rs]
         if zlib.crc32(rec[:-4]) != struct.unpack("<I", rec[-4:])[0]:
             break
         key = rec[:KEY.size]
-        values.setdefault(key, np.frombuffer(rec[KEY.size:-4], dtype="<f8").reshape(count, CHANNELS).copy())
+        if key not in values:
+            values[key] = np.frombuffer(rec[KEY.size:-12], dtype="<f8").reshape(count, CHANNELS).copy()
+            noise[key] = struct.unpack("<d", rec[-12:-4])[0]
         good = off + rs
     start = HEADER.size + mlen
-    return Contents(path, manifest, count, (k, n) if n else None, values, start + good, len(body) - good)
+    return Contents(path, manifest, count, (k, n) if n else None, values, noise, start + good, len(body) - good)
 
 
 def summary(path: str) -> Optional[dict]:
@@ -155,12 +160,13 @@ class Writer:
         self.coeff_count = coeff_count
         self.rs = record_size(coeff_count)
         self.values: Dict[bytes, np.ndarray] = {}
+        self.noise: Dict[bytes, float] = {}
         self.torn_bytes = 0
         if os.path.lexists(path):
             old = read(path, expect_manifest=manifest)
             if old.coeff_count != coeff_count or old.shard != (tuple(shard) if shard else None):
                 raise JournalError(f"{path}: written for another band or shard; delete it to bake from scratch")
-            self.values = old.values
+            self.values, self.noise = old.values, old.noise
             self.torn_bytes = old.torn_bytes
             fd = os.open(path, os.O_WRONLY | os.O_CLOEXEC | os.O_NOFOLLOW)
             try:
@@ -174,13 +180,14 @@ class Writer:
         if os.path.lexists(path):  # else created by the first append: no empty journals
             self._fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CLOEXEC | os.O_NOFOLLOW)
 
-    def append(self, key: bytes, coeffs: np.ndarray) -> None:
-        """Write one probe durably (returns after the data is on disk)."""
+    def append(self, key: bytes, coeffs: np.ndarray, noise: float = 0.0) -> None:
+        """Write one probe durably (returns after the data is on disk); ``noise`` is its measured
+        relative Monte-Carlo noise, if any."""
         if self._fd < 0:
             _create(self.path, self._manifest, self.coeff_count, self._shard)
             self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CLOEXEC | os.O_NOFOLLOW)
         c = np.ascontiguousarray(coeffs, dtype="<f8").reshape(self.coeff_count, CHANNELS)
-        body = key + c.tobytes()
+        body = key + c.tobytes() + struct.pack("<d", float(noise))
         rec = body + struct.pack("<I", zlib.crc32(body))
         n = os.write(self._fd, rec)
         if n != len(rec):  # a short write (disk full): cut it off so the file stays well formed
@@ -188,7 +195,8 @@ class Writer:
             os.ftruncate(self._fd, size - n)
             raise OSError(28, f"{self.path}: short write (disk full?)")
         os.fdatasync(self._fd)
-        self.values.setdefault(key, c.copy())
+        if key not in self.values:
+            self.values[key], self.noise[key] = c.copy(), float(noise)
 
     def close(self) -> None:
         if self._fd >= 0:
@@ -239,11 +247,12 @@ def make_manifest(parts: Dict[str, str], **info) -> dict:
     return {"fingerprint": fingerprint_of(parts).hex(), "parts": dict(parts), "info": info}
 
 
-def merge(paths: Iterable[str], manifest: dict) -> Tuple[Dict[bytes, np.ndarray], List[Contents]]:
+def merge(paths: Iterable[str], manifest: dict) -> Tuple[Dict[bytes, np.ndarray], Dict[bytes, float], List[Contents]]:
     """The union of several journals of the same bake (shards): every one must have ``manifest``'s
     fingerprint, and a probe present in two must have the same bits in both (else the renders are
     not deterministic and the merge would depend on order: an error)."""
     out: Dict[bytes, np.ndarray] = {}
+    noise: Dict[bytes, float] = {}
     contents = []
     for p in paths:
         c = read(p, expect_manifest=manifest)
@@ -251,9 +260,9 @@ def merge(paths: Iterable[str], manifest: dict) -> Tuple[Dict[bytes, np.ndarray]
         for key, v in c.values.items():
             old = out.get(key)
             if old is None:
-                out[key] = v
-            elif old.tobytes() != v.tobytes():
+                out[key], noise[key] = v, c.noise[key]
+            elif old.tobytes() != v.tobytes() or noise[key] != c.noise[key]:
                 x, y, z, _ = KEY.unpack(key)
                 raise JournalError(f"{p}: probe at ({x:.4f}, {y:.4f}, {z:.4f}) differs from the same probe in "
                                    "another shard; the shards were not baked with the same renderer")
-    return out, contents
+    return out, noise, contents

@@ -39,9 +39,19 @@ def test_round_trip_bits(tmp_path):
     assert len(c.values) == 50 and c.torn_bytes == 0
     for k, v in vals:
         assert c.values[k].tobytes() == v.astype("<f8").tobytes()
-    # Header + manifest + 50 records of 24 + 4 + 9*3*8 + 4 bytes: nothing else in the file.
+    # Header + manifest + 50 records: nothing else in the file.
     assert os.path.getsize(path) == c.good_bytes
-    assert (os.path.getsize(path) - 50 * journal.record_size(9)) == c.good_bytes - 50 * 248
+    assert journal.record_size(9) == 24 + 4 + 9 * 3 * 8 + 8 + 4
+
+
+def test_noise_round_trip(tmp_path):
+    path = str(tmp_path / "j")
+    vals = _values(3)
+    with journal.Writer(path, _manifest(), 9) as w:
+        for i, (k, v) in enumerate(vals):
+            w.append(k, v, noise=0.001 * (i + 1))
+    c = journal.read(path)
+    assert [c.noise[k] for k, _ in vals] == [0.001, 0.002, 0.003]
 
 
 def test_resume_appends(tmp_path):
@@ -164,8 +174,9 @@ def test_merge_shards(tmp_path):
                 if i % 3 == k or i == 0:  # probe 0 in every shard: duplicates with equal bits are fine
                     w.append(key, v)
         paths.append(p)
-    merged, contents = journal.merge(paths, _manifest())
+    merged, noise, contents = journal.merge(paths, _manifest())
     assert len(merged) == 20 and [c.shard for c in contents] == [(0, 3), (1, 3), (2, 3)]
+    assert all(noise[k] == 0.0 for k in merged)
     # A shard holding different bits for a probe another shard has: refused.
     bad = str(tmp_path / "bad")
     with journal.Writer(bad, _manifest(), 9, shard=(0, 3)) as w:
