@@ -128,8 +128,9 @@ def parts(scene, view_layer, settings) -> Dict[str, str]:
     for ob in sorted(scene.objects, key=lambda o: o.name):
         if ob.hide_render:
             continue
-        geometry.update(repr((ob.name, ob.type, np.asarray(ob.matrix_world, dtype=np.float64).tolist(),
-                              _simple(ob))).encode())
+        placed = repr((ob.name, ob.type, np.asarray(ob.matrix_world, dtype=np.float64).tolist(), _simple(ob)))
+        if ob.type != "LIGHT":
+            geometry.update(placed.encode())
         if ob.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
             _mesh_digest(ob, depsgraph, geometry)
             for slot in ob.material_slots:
@@ -140,7 +141,7 @@ def parts(scene, view_layer, settings) -> Dict[str, str]:
                                                                      set())])
         elif ob.type == "LIGHT":
             light = ob.data
-            lights.append([ob.name, _simple(light), getattr(light, "cycles", None) and _simple(light.cycles),
+            lights.append([placed, _simple(light), getattr(light, "cycles", None) and _simple(light.cycles),
                            _tree(light.node_tree if light.use_nodes else None, set())])
     world = scene.world
     world_data = ["none"] if world is None else [_simple(world), _tree(world.node_tree if world.use_nodes else None,
