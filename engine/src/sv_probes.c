@@ -504,6 +504,12 @@ uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
         if (!P->slot_count) fprintf(stderr, "schnee-view: warning: out of memory for per-object probes\n");
     }
     if (any_v3 && !P->vis && scene->object_count) P->vis = static_vis_create(scene);
+    /* An object that left the static scene no longer blocks anyone's probes: re-query the others. */
+    uint32_t movable = 0;
+    for (uint32_t i = 0; i < scene->object_count; ++i) movable += scene->objects[i].movable;
+    if (any_v3 && movable != P->movable_seen)
+        for (uint32_t i = 0; i < scene->object_count; ++i) scene->objects[i].needs_probe = true;
+    P->movable_seen = movable;
     for (uint32_t i = 0; i < scene->object_count; ++i) {
         sv_object *o = &scene->objects[i];
         if (!o->needs_probe) continue;

@@ -60,8 +60,10 @@ typedef struct sv_probes {
     /* For the §5 mismatch warning (docs/ambient-cube.md): the frame's overrides (SV_PROBE_MODE_MATERIAL
      * / SV_PROBE_REP_MATERIAL = each material's own) and which (material, grid) pairs were named. */
     uint32_t probe_mode_override, probe_rep_override;
-    uint8_t *warned;    /* (material_count + 1) x grid_count */
-    sv_static_vis *vis; /* Embree scene of the static objects, built at the first v3 query */
+    uint8_t *warned;       /* (material_count + 1) x grid_count */
+    sv_static_vis *vis;    /* Embree scene of every object, built at the first v3 query; hits on moved
+                              objects are ignored (docs/engine.md "Static scene") */
+    uint32_t movable_seen; /* movable objects at the last assignment (a change re-queries every object) */
 } sv_probes;
 
 /* Reads every grid of the scene. A file that cannot be read or is malformed is an error (message
