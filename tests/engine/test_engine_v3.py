@@ -169,15 +169,16 @@ def test_octree_per_pixel_and_per_object_equal_the_cpu_model(tmp_path, storage):
     keep, p = floor_mask()
     want = np.maximum(sh_e(interpolate(tree, p[keep], c)), 0) / np.pi
     err = np.abs(img[keep] - want).max()
-    # Float: float32 on the GPU vs float64 (measured 1.2e-6). Half: the engine also stores the resolved
-    # hanging nodes and the probes as binary16 (relative rounding <= 4.9e-4 each).
-    bound = 1e-5 + 1e-5 * want.max() if storage == "float32" else 2e-3 * want.max()
+    # Float: float32 on the GPU vs float64 (measured 3.4e-7 per pixel, 1.1e-7 per object). Half: the
+    # engine also stores the probes, resolved hanging nodes and slots as binary16 (relative rounding
+    # <= 4.9e-4 each; measured 2.7e-4 = 2.2e-4 of the peak, both modes).
+    bound = 1e-5 + 1e-5 * want.max() if storage == "float32" else 1e-3 * want.max()
     assert err < bound, (err, bound)
     assert keep.sum() > 0.8 * N * N
     for k, centre in enumerate(CUBE_CENTRES):
         e = np.maximum(cpu_object_e(tree, c, centre), 0) / np.pi
         got = img[pixel_of(centre[0], centre[2], 2.0, 2.0, 2.0)]
-        assert np.abs(got - e).max() < (1e-5 + 1e-5 * e.max() if storage == "float32" else 2e-3 * e.max()), (k, got, e)
+        assert np.abs(got - e).max() < (1e-5 + 1e-5 * e.max() if storage == "float32" else 1e-3 * e.max()), (k, got, e)
     # --print-assignments: each cube's slot and the CPU's weights (the probes of the query).
     out = viewer.run(scene, "--headless", "--print-assignments", *moves)
     slots = re.findall(r"^  grid 0 weights (\d+):((?: \d+:[0-9.e-]+)+)", out.stdout, re.M)
@@ -318,7 +319,7 @@ def test_cube_grid_and_the_sh_mismatch_warning(tmp_path):
     scene_h, _ = lattice_scene(tmp_path, entry_h)
     img_h, _ = render(scene_h, tmp_path / "half.exr", *moves, "--probe-storage", "half")
     want_h = np.maximum(cube_e(interpolate(tree, p[keep], half(cubes))), 0) / np.pi
-    assert np.abs(img_h[keep] - want_h).max() < 2e-3 * want_h.max()
+    assert np.abs(img_h[keep] - want_h).max() < 1e-3 * want_h.max()
 
 
 def test_tetrahedra_per_object_and_per_pixel_falls_back_to_it(tmp_path):
