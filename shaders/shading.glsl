@@ -73,35 +73,34 @@ vec3 probe_scaled_irradiance(uint index, vec3 n, bool cube) {
 }
 
 // ---- .shprobe version 3 corner octrees, per pixel (docs/engine.md "Version 3 grids") ----------------
-// Morton code of a lattice point (x, y, z < 2^20) as (low 32 bits, high 32 bits): bit i of x at 3i,
-// y at 3i + 1, z at 3i + 2; the C twin is sv_morton3() (engine/src/sv_probes.c).
-uvec2 morton3(uvec3 q) {
-    uvec2 m = uvec2(0u);
-    for (uint i = 0u; i < 20u; ++i) {
-        for (uint k = 0u; k < 3u; ++k) {
-            uint pos = 3u * i + k;
-            uint bit = (q[k] >> i) & 1u;
-            if (pos < 32u) m.x |= bit << pos; else m.y |= bit << (pos - 32u);
-        }
-    }
-    return m;
+// Morton order of two lattice points without computing their codes (Chan's most-significant-bit
+// comparison): the axis whose coordinates differ in the highest bit decides, z before y before x
+// at the same bit (Morton bit 3i + axis, z most significant: the file's leaf order).
+bool less_msb(uint a, uint b) { return a < b && a < (a ^ b); }
+bool morton_less(uvec3 a, uvec3 b) {
+    uvec3 d = a ^ b;
+    uint k = 2u;
+    if (less_msb(d[k], d.y)) k = 1u;
+    if (less_msb(d[k], d.x)) k = 0u;
+    return a[k] < b[k];
 }
-bool morton_less(uvec2 a, uvec2 b) { return a.y < b.y || (a.y == b.y && a.x < b.x); }
-uvec2 leaf_word2(uint at) { return uvec2(uint(cell_probe[at]), uint(cell_probe[at + 1u])); }
+uvec3 leaf_min(uint at) { return uvec3(uint(cell_probe[at]), uint(cell_probe[at + 1u]), uint(cell_probe[at + 2u])); }
 
 // Leaf holding the unit lattice cell q, or -1: the leaves are in Morton order of their min corners and
-// an aligned leaf covers the Morton range [start, end), so a binary search for the last start <= m(q)
-// finds the only candidate (at most 27 steps for the 2^26 leaves a file may hold).
+// an aligned leaf covers a contiguous Morton range, so a binary search for the last leaf whose min
+// corner is not after q finds the only candidate (at most 27 steps for the 2^26 leaves a file may
+// hold); it holds q when q lies in its cube.
 int octree_locate(sv_gpu_grid gr, uvec3 q) {
-    uvec2 m = morton3(q);
     uint lo = 0u, hi = gr.base.w;
     while (lo < hi) {
         uint mid = (lo + hi) / 2u;
-        if (morton_less(m, leaf_word2(gr.dims.w + SV_LEAF_INTS * mid + 4u))) hi = mid; else lo = mid + 1u;
+        if (morton_less(q, leaf_min(gr.dims.w + SV_LEAF_INTS * mid))) hi = mid; else lo = mid + 1u;
     }
     if (lo == 0u) return -1;
-    uint li = lo - 1u;
-    return morton_less(m, leaf_word2(gr.dims.w + SV_LEAF_INTS * li + 6u)) ? int(li) : -1;
+    uint at = gr.dims.w + SV_LEAF_INTS * (lo - 1u);
+    uvec3 l = leaf_min(at);
+    uint size = 1u << uint(cell_probe[at + 3u]);
+    return all(greaterThanEqual(q, l)) && all(lessThan(q - l, uvec3(size))) ? int(lo - 1u) : -1;
 }
 
 // E(n) of a corner octree at p: mirrors leaf_weights() of native/src/pb_interp.c line by line (leaf

@@ -115,8 +115,8 @@
 #define SV_GRID_OCTREE    1u /* corner octree (.shprobe v3 structure 1): leaves in the cell buffer */
 #define SV_GRID_CUBE_ONLY 2u /* the grid's file holds ambient cubes only (representation 1) */
 #define SV_GRID_TETRA     4u /* tetrahedra: not sampled per pixel (objects use their per-object probe) */
-/* Ints per octree leaf in the cell buffer: x, y, z, level, Morton start (lo, hi), Morton end (lo, hi),
- * then the 8 corner nodes (corner bit 0 = +x, 1 = +y, 2 = +z; node = probe-buffer index - base.x). */
+/* Ints per octree leaf in the cell buffer: x, y, z (lattice min corner), level, 4 reserved (0), then
+ * the 8 corner nodes (corner bit 0 = +x, 1 = +y, 2 = +z; node = probe-buffer index - base.x). */
 #define SV_LEAF_INTS 16u
 
 /* Frame flags (sv_gpu_frame.flags). */

@@ -829,15 +829,6 @@ void sv_cell_centre(const pb_shprobe *f, int x, int y, int z, float out[3])
         out[k] = f->grid_origin[k] + l[0] * ax[0 * 3 + k] + l[1] * ax[1 * 3 + k] + l[2] * ax[2 * 3 + k];
 }
 
-uint64_t sv_morton3(uint32_t x, uint32_t y, uint32_t z)
-{
-    uint64_t m = 0;
-    for (uint32_t i = 0; i < 21; ++i)
-        m |= (uint64_t)((x >> i) & 1u) << (3 * i) | (uint64_t)((y >> i) & 1u) << (3 * i + 1) |
-             (uint64_t)((z >> i) & 1u) << (3 * i + 2);
-    return m;
-}
-
 /* World position of a lattice point of an octree file (identity axes: pb_interp_from_shprobe refuses
  * others). */
 static void lattice_point(const pb_shprobe *f, double x, double y, double z, float out[3])
@@ -990,16 +981,7 @@ bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_
             for (uint32_t i = 0; i < f->element_count; ++i) {
                 const uint32_t *l = f->leaves + 4u * i;
                 int32_t *o = cells + leaf_base + SV_LEAF_INTS * (loff + i);
-                uint64_t start = sv_morton3(l[0], l[1], l[2]), end = start + ((uint64_t)1 << (3u * l[3]));
-                uint32_t words[8] = {l[0],
-                                     l[1],
-                                     l[2],
-                                     l[3],
-                                     (uint32_t)start,
-                                     (uint32_t)(start >> 32),
-                                     (uint32_t)end,
-                                     (uint32_t)(end >> 32)};
-                memcpy(o, words, sizeof words);
+                memcpy(o, l, 4 * sizeof(uint32_t)); /* x, y, z, level; ints 4..7 reserved (0) */
                 memcpy(o + 8, f->leaf_corners + 8u * i, 8 * sizeof(int32_t));
                 cells[mask_base + loff + i] = (int32_t)leaf_masks[loff + i];
             }

@@ -126,10 +126,6 @@ bool sv_probes_cubes_fit_half(const sv_probes *probes, const sv_gpu_cube *cubes,
 bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_grid **grids, int32_t **cells,
                          uint32_t *cell_count);
 
-/* Morton code of a lattice point (x, y, z < 2^20; bit i of x at 3i, y at 3i + 1, z at 3i + 2), the
- * leaf order of .shprobe v3; the GLSL twin is morton3() in shaders/shading.glsl. */
-uint64_t sv_morton3(uint32_t x, uint32_t y, uint32_t z);
-
 /* One sphere per probe (at its v2 position, else the mean centre of the cells that map to it;
  * radius 0.1 x the grid spacing), then one entry per occupied cell (its centre, for the
  * outlines). Caller frees. */
