@@ -503,7 +503,9 @@ uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
         P->slot_count = P->slot_sh && P->slot_cube && P->slot_weights ? scene->object_count : 0;
         if (!P->slot_count) fprintf(stderr, "schnee-view: warning: out of memory for per-object probes\n");
     }
-    if (any_v3 && !P->vis && scene->object_count) P->vis = static_vis_create(scene);
+    double t0 = sv_now_ms();
+    bool first = any_v3 && !P->vis && scene->object_count;
+    if (first) P->vis = static_vis_create(scene);
     /* An object that left the static scene no longer blocks anyone's probes: re-query the others. */
     uint32_t movable = 0;
     for (uint32_t i = 0; i < scene->object_count; ++i) movable += scene->objects[i].movable;
@@ -552,6 +554,11 @@ uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
             o->probe_flags |= SV_DRAW_CUBE_ONLY;
         warn_mismatch(P, scene, o, from);
     }
+    if (first)
+        fprintf(stderr,
+                "schnee-view: per-object probes from version 3 grids: %u object(s) queried in %.1f ms "
+                "(static-scene Embree build included)\n",
+                n, sv_now_ms() - t0);
     return n;
 }
 
