@@ -378,7 +378,8 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
     r->probe_count = count;
     r->grid_count = probes->grid_count;
     r->probes_src = probes;
-    r->slots_uploaded = probes->slots_version;
+    /* The first frame rewrites the slots through upload_slots(), the path a moving object takes. */
+    r->slots_uploaded = probes->slots_version - 1u;
     r->sphere_count = nspheres;
     r->outline_count = ncells;
     r->half_probes = half;

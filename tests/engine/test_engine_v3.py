@@ -9,6 +9,7 @@ for a field linear in position, from the closed form. Materials are white with s
 ambientTerm 0 and the cameras look straight down on +y faces, so an EXR pixel is max(E(+y), 0) / pi.
 """
 import re
+import shutil
 import sys
 from pathlib import Path
 
@@ -353,3 +354,21 @@ def test_entry_fields_are_compared_with_the_file(tmp_path):
     scene, _ = lattice_scene(tmp_path, entry, cubes=False)
     proc = viewer.run(scene, "--headless", "--output", tmp_path / "y.exr", "--width", 8, "--height", 8)
     assert "representation: 'cube' is not sh or ambientCube" in proc.stderr
+
+
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run not installed (apt: xvfb)")
+def test_window_frame_matches_headless(tmp_path):
+    # The window path (swapchain, per-frame sv_probes_assign, slot uploads between frames) on an octree
+    # scene: its last frame equals the headless PNG (±2/255, as tests/engine/test_engine_window.py).
+    tree = octree()
+    entry = write_grid(tmp_path, tree, random_sh(tree.probe_count, 12))
+    scene, moves = lattice_scene(tmp_path, entry)
+    shot, png = tmp_path / "window.png", tmp_path / "headless.png"
+    proc = viewer.check(viewer.run(scene, "--frames", 3, "--screenshot", shot, "--width", 96, "--height", 96, *moves,
+                                   xvfb=True, timeout=180))
+    assert "3 frame(s) presented" in proc.stderr
+    viewer.check(viewer.run(scene, "--headless", "--output", png, "--width", 96, "--height", 96, *moves))
+    a, b = viewer.read_image(shot), viewer.read_image(png)
+    assert a.shape == b.shape == (96, 96, 3)
+    assert a.min() > 0.05  # the floor fills the frame
+    assert np.abs(a - b).max() <= 2.0 / 255
