@@ -305,6 +305,14 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext)
     return ok;
 }
 
+/* Objects that left the static scene (moved at least once). */
+static uint32_t count_movable(const sv_scene *scene)
+{
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < scene->object_count; ++i) n += scene->objects[i].movable;
+    return n;
+}
+
 static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, const sv_renderer_desc *desc)
 {
     const sv_sky *sky = desc->sky && desc->sky->present ? desc->sky : NULL;
@@ -378,6 +386,7 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
     r->probe_count = count;
     r->grid_count = probes->grid_count;
     r->probes_src = probes;
+    r->masks_movable = count_movable(scene);
     /* The first frame rewrites the slots through upload_slots(), the path a moving object takes. */
     r->slots_uploaded = probes->slots_version - 1u;
     r->sphere_count = nspheres;
@@ -928,6 +937,31 @@ static void upload_slots(sv_renderer *r, VkCommandBuffer cmd)
                          NULL, 0, NULL);
 }
 
+/* When objects left the static scene since the masks were traced (the window's first move of an
+ * object), traces the per-pixel visibility masks again without them and rewrites the cell buffer
+ * (same layout, so the grid buffer stays valid): a one-time hitch of the mask time per newly moved
+ * object (docs/engine.md "Static scene"). */
+static void retrace_masks(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene)
+{
+    uint32_t movable = count_movable(scene);
+    if (!r->probes_src || movable == r->masks_movable) return;
+    r->masks_movable = movable;
+    sv_gpu_grid *grids = NULL;
+    int32_t *cells = NULL;
+    uint32_t n = 0;
+    if (!sv_probes_gpu_grids(r->probes_src, scene, &grids, &cells, &n)) return;
+    if ((VkDeviceSize)n * sizeof(int32_t) <= r->cell_index.size) {
+        update_buffer(cmd, r->cell_index.buffer, 0, cells, n * sizeof(int32_t));
+        VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+                              .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+                              .dstAccessMask = VK_ACCESS_SHADER_READ_BIT};
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0, 1, &mb, 0,
+                             NULL, 0, NULL);
+    }
+    free(grids);
+    free(cells);
+}
+
 void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene, const sv_view *view,
                         VkImage out_image, VkImageView out_view, VkImageLayout out_final)
 {
@@ -952,6 +986,7 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     frame.normal_bias = view->normal_bias;
     memcpy(r->frame.mapped, &frame, sizeof(frame));
     upload_slots(r, cmd);
+    retrace_masks(r, cmd, scene);
 
     sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                      VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
