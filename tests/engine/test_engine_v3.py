@@ -455,3 +455,32 @@ def test_octree_per_pixel_on_a_sphere_follows_the_documented_rule(tmp_path):
     # The back-face weights matter here: the plain CPU model (every corner) differs.
     plain = np.maximum([ref.irradiance(x, nn) for x, nn in zip(interpolate(tree, p[on], coeffs), nrm[on])], 0) / np.pi
     assert np.abs(plain - want).max() > 0.05  # measured 0.25
+
+
+def test_octree_floor_next_to_a_wall_does_not_leak(tmp_path):
+    # Three 1 m leaves along x: probes at x = 0, 1 see radiance 0.05, at x = 2, 3 radiance 5. A static
+    # two-sided wall at x = 1.7 and a floor at y = 0.1 for x in [0, 1.68]. The bright corners of the
+    # leaf [1, 2] are above the floor (the back-face weight keeps them), but the segments from the
+    # leaf's centre (x = 1.5) to them cross the wall: its mask drops them and the floor stays dark.
+    # The same wall moved by 1 cm is no longer static: the floor shows the gradient towards x = 2.
+    tree = native.CornerOctree.uniform((0.0, 0.0, 0.0), 1.0, 0, (3, 1, 1))
+    tree.finalize()
+    pos = tree.positions()
+    coeffs = np.stack([ref.uniform_coeffs(0.05 if x < 1.5 else 5.0) for x in pos[:, 0]])
+    entry = write_grid(tmp_path, tree, coeffs)
+    b = sg.GltfBuilder()
+    m = b.material("White", sh_scale=1.0, ambient_term=0.0, probe_mode="pixel")
+    b.node("Floor", mesh=b.mesh("floor", sg.quad(1.0, 1.68, 1), m), translation=(0.84, 0.1, 0.5))
+    b.node("WallA", mesh=b.mesh("wall_a", sg.quad(1.0, 1.0, 0, -1.0), m), translation=(1.7, 0.5, 0.5))
+    b.node("WallB", mesh=b.mesh("wall_b", sg.quad(1.0, 1.0, 0, 1.0), m), translation=(1.7, 0.5, 0.5))
+    b.node("Camera", camera=b.ortho_camera("top", 0.84), translation=(0.84, 3.1, 0.5), rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids([entry])
+    scene = b.write(tmp_path / "wall.gltf")
+    p = pixel_points(0.84, 0.5, 0.84, 0.1)
+    on_floor = (p[..., 2] > 0.02) & (p[..., 2] < 0.98)
+    img, proc = render(scene, tmp_path / "w.exr")
+    assert "probe visibility masks: 24 segment(s)" in proc.stderr  # 3 leaves x 8 corners
+    assert np.allclose(img[on_floor], 0.05, rtol=1e-5), img[on_floor].max()
+    img, _ = render(scene, tmp_path / "m.exr", "--move", "WallA", 1.71, 0.5, 0.5, "--move", "WallB", 1.71, 0.5, 0.5)
+    # No occluder: the plain rule, t = x - 1 of the bright corners' weight near x = 1.68.
+    assert img[on_floor].max() > 0.05 + 0.6 * 4.95
