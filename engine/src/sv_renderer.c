@@ -914,9 +914,31 @@ static void upload_slots(sv_renderer *r, VkCommandBuffer cmd)
             free(ch);
             return;
         }
+        bool clamped = false;
         for (uint32_t i = 0; i < n; ++i) {
-            sv_probe_to_half(&P->slot_sh[i], &h[i]);
-            if (ch) sv_cube_to_half(&P->slot_cube[i], &ch[i]);
+            /* A slot blends scale x colour, which can exceed the half range where each factor fits:
+             * clamped to +-65504 (never Inf), with a warning. */
+            sv_gpu_probe sp = P->slot_sh[i];
+            sv_gpu_cube sc = P->slot_cube[i];
+            for (int k = 0; k < SV_SH_MAX_COEFFS; ++k)
+                for (int c = 0; c < 3; ++c) {
+                    float v = fminf(fmaxf(sp.sh[k][c], -SV_HALF_MAX), SV_HALF_MAX);
+                    clamped |= v != sp.sh[k][c];
+                    sp.sh[k][c] = v;
+                }
+            for (int k = 0; k < 6; ++k)
+                for (int c = 0; c < 3; ++c) {
+                    float v = fminf(fmaxf(sc.faces[k][c], -SV_HALF_MAX), SV_HALF_MAX);
+                    clamped |= v != sc.faces[k][c];
+                    sc.faces[k][c] = v;
+                }
+            sv_probe_to_half(&sp, &h[i]);
+            if (ch) sv_cube_to_half(&sc, &ch[i]);
+        }
+        if (clamped && !r->slot_clamp_warned) {
+            r->slot_clamp_warned = true;
+            fprintf(stderr, "schnee-view: warning: --probe-storage half: an object's interpolated probe exceeds the "
+                            "half-float range (65504); clamped\n");
         }
         update_buffer(cmd, r->probes_half.buffer, (VkDeviceSize)base * sizeof *h, h, n * sizeof *h);
         if (ch) update_buffer(cmd, r->cubes_half.buffer, (VkDeviceSize)base * sizeof *ch, ch, n * sizeof *ch);

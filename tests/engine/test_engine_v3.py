@@ -484,3 +484,31 @@ def test_octree_floor_next_to_a_wall_does_not_leak(tmp_path):
     img, _ = render(scene, tmp_path / "m.exr", "--move", "WallA", 1.71, 0.5, 0.5, "--move", "WallB", 1.71, 0.5, 0.5)
     # No occluder: the plain rule, t = x - 1 of the bright corners' weight near x = 1.68.
     assert img[on_floor].max() > 0.05 + 0.6 * 4.95
+
+
+def test_half_slot_beyond_the_half_range_is_clamped(tmp_path):
+    # One 1 m leaf, no hanging nodes: L00 = 40000 with probe scale 2 fits binary16 factor by factor
+    # (so --probe-storage half is kept), but the object's blended slot (scale folded in) is 80000:
+    # clamped to 65504 with a warning, never Inf.
+    tree = native.CornerOctree.uniform((0.0, 0.0, 0.0), 1.0, 0, (1, 1, 1))
+    tree.finalize()
+    c = np.zeros((tree.probe_count, 9, 3))
+    c[:, 0] = 40000.0
+    (tmp_path / "sh_coeffs").mkdir()
+    native.write_shprobe_v3(str(tmp_path / "sh_coeffs" / "p.shprobe"), tree, c, probe_scale=np.full(8, 2.0))
+    e = sg.grid_entry("p", "sh_coeffs/p.shprobe", 8, (0, 0, 0), (1, 1, 1), 1.0)
+    e["structure"] = "octree"
+    b = sg.GltfBuilder()
+    m = b.material("White", sh_scale=1.0, ambient_term=0.0)
+    b.node("Cube", mesh=b.mesh("cube", sg.cube(0.1), m), translation=(0.5, 0.5, 0.5))
+    b.node("Camera", camera=b.ortho_camera("top", 0.2), translation=(0.5, 3.0, 0.5), rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids([e])
+    scene = b.write(tmp_path / "big.gltf")
+    img, proc = render(scene, tmp_path / "h.exr", "--probe-storage", "half")
+    assert "an object's interpolated probe exceeds the half-float range (65504); clamped" in proc.stderr
+    assert "using float storage" not in proc.stderr
+    centre = img[N // 2, N // 2]
+    assert np.isfinite(img).all()
+    assert np.allclose(centre, Y0 * 65504.0, rtol=1e-3), centre
+    img, proc = render(scene, tmp_path / "f.exr")  # float storage: the exact value
+    assert np.allclose(img[N // 2, N // 2], Y0 * 80000.0, rtol=1e-5)
