@@ -47,13 +47,17 @@ void main() {
     bool cube = rep == SV_PROBE_REP_AMBIENT_CUBE;
     vec3 e_probe;
     bool probe_lit; // E came from a baked probe rather than the fallback probe 0 (for baked lights)
-    if (mode == SV_PROBE_MODE_PIXEL) {
-        probe_lit = grid_irradiance(v_world, n, cube, e_probe);
-        if (!probe_lit) e_probe = probe_scaled_irradiance(0u, n, cube);
-    } else {
+    // Per pixel, a fragment no octree or dense grid holds takes the object's own probe when that was
+    // interpolated from tetrahedra (no GPU point location for them), else the fallback probe 0.
+    if (mode == SV_PROBE_MODE_PIXEL) probe_lit = grid_irradiance(v_world, n, cube, e_probe);
+    if (mode != SV_PROBE_MODE_PIXEL || (!probe_lit && (draw.flags & SV_DRAW_TETRA) != 0u)) {
         uint index = mode == SV_PROBE_MODE_OFF ? 0u : draw.probe_index;
         probe_lit = index != 0u;
-        e_probe = probe_scaled_irradiance(index, n, cube);
+        // A probe from a grid that holds cubes only is shaded with its cube (docs/ambient-cube.md §5).
+        bool cube_obj = cube || (index != 0u && (draw.flags & SV_DRAW_CUBE_ONLY) != 0u);
+        e_probe = probe_scaled_irradiance(index, n, cube_obj);
+    } else if (!probe_lit) {
+        e_probe = probe_scaled_irradiance(0u, n, cube);
     }
     vec3 color = albedo * (m.sh_scale * max(e_probe, vec3(0.0)) / SH_PI + m.ambient_term);
 

@@ -72,6 +72,102 @@ vec3 probe_scaled_irradiance(uint index, vec3 n, bool cube) {
     return cube ? cube_scale(index) * cube_irradiance(index, n) : probe_scale(index) * probe_irradiance(index, n);
 }
 
+// ---- .shprobe version 3 corner octrees, per pixel (docs/engine.md "Version 3 grids") ----------------
+// Morton order of two lattice points without computing their codes (Chan's most-significant-bit
+// comparison): the axis whose coordinates differ in the highest bit decides, z before y before x
+// at the same bit (Morton bit 3i + axis, z most significant: the file's leaf order).
+bool less_msb(uint a, uint b) { return a < b && a < (a ^ b); }
+bool morton_less(uvec3 a, uvec3 b) {
+    uvec3 d = a ^ b;
+    uint k = 2u;
+    if (less_msb(d[k], d.y)) k = 1u;
+    if (less_msb(d[k], d.x)) k = 0u;
+    return a[k] < b[k];
+}
+uvec3 leaf_min(uint at) { return uvec3(uint(cell_probe[at]), uint(cell_probe[at + 1u]), uint(cell_probe[at + 2u])); }
+
+// Leaf holding the unit lattice cell q, or -1: the leaves are in Morton order of their min corners and
+// an aligned leaf covers a contiguous Morton range, so a binary search for the last leaf whose min
+// corner is not after q finds the only candidate (at most 27 steps for the 2^26 leaves a file may
+// hold); it holds q when q lies in its cube.
+int octree_locate(sv_gpu_grid gr, uvec3 q) {
+    uint lo = 0u, hi = gr.base.w;
+    while (lo < hi) {
+        uint mid = (lo + hi) / 2u;
+        if (morton_less(q, leaf_min(gr.dims.w + SV_LEAF_INTS * mid))) hi = mid; else lo = mid + 1u;
+    }
+    if (lo == 0u) return -1;
+    uint at = gr.dims.w + SV_LEAF_INTS * (lo - 1u);
+    uvec3 l = leaf_min(at);
+    uint size = 1u << uint(cell_probe[at + 3u]);
+    return all(greaterThanEqual(q, l)) && all(lessThan(q - l, uvec3(size))) ? int(lo - 1u) : -1;
+}
+
+// E(n) of a corner octree at p: mirrors leaf_weights() of native/src/pb_interp.c line by line (leaf
+// of the point, t = clamp((u - corner0) / 2^level, 0, 1), trilinear weights of the 8 corners, zero
+// weights skipped, probes of validity 0 dropped, renormalised). The hanging corners were resolved at
+// load into the entries after the probes (value and validity mass, sv_probes.c resolve_hanging), so
+// the 8 fetches give exactly the CPU's expanded and merged weights. On top, as the dense grids: the
+// back-face weight smoothstep(-0.1, 0.1, dot(c - p, n) / leaf size) of each corner, and the leaf's
+// visibility mask (Embree segments from the leaf's centre to its corners through the static scene);
+// when these leave no weight, the plain CPU weights are used (the leaf's own field). False: no leaf
+// holds p, or every corner is invalid (the caller tries the next grid).
+bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, out vec3 e_out) {
+    e_out = vec3(0.0);
+    float h = gr.origin_spacing.w;
+    vec3 p = p_surface + n * (frame.normal_bias * h);
+    vec3 u = (p - gr.origin_spacing.xyz) / h; // lattice coordinates (octree axes are the identity)
+    vec3 dims = vec3(gr.dims.xyz);
+    // The CPU's point_cell() with the grids' margin of 1/100 min cell (surfaces on the lattice faces).
+    if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, dims + 0.01))) return false;
+    u = clamp(u, vec3(0.0), dims);
+    uvec3 q = uvec3(min(floor(u), dims - 1.0));
+    int li = octree_locate(gr, q);
+    if (li < 0) return false;
+    uint lb = gr.dims.w + SV_LEAF_INTS * uint(li);
+    vec3 l = vec3(float(cell_probe[lb]), float(cell_probe[lb + 1u]), float(cell_probe[lb + 2u]));
+    float s = float(1u << uint(cell_probe[lb + 3u]));
+    vec3 tt = clamp((u - l) / s, vec3(0.0), vec3(1.0));
+    uint vis = uint(cell_probe[gr.base.y + uint(li)]);
+    uint band = 0u;
+    float Y[25];
+    bool have_basis = false;
+    for (int pass = 0; pass < 2; ++pass) { // 0: with back-face weights and the mask; 1: without
+        vec3 e = vec3(0.0);
+        float wsum = 0.0;
+        for (uint c = 0u; c < 8u; ++c) {
+            vec3 o = vec3(uvec3(c & 1u, (c >> 1) & 1u, (c >> 2) & 1u));
+            vec3 w3 = mix(1.0 - tt, tt, o);
+            float w = w3.x * w3.y * w3.z;
+            if (w <= 0.0) continue;
+            uint pi = gr.base.x + uint(cell_probe[lb + 8u + c]);
+            w *= cube ? cube_validity(pi) : probe_validity(pi);
+            if (pass == 0) {
+                if ((vis & (1u << c)) == 0u) continue;
+                vec3 corner = gr.origin_spacing.xyz + (l + o * s) * h;
+                w *= smoothstep(-0.1, 0.1, dot(corner - p_surface, n) / (s * h));
+            }
+            if (w <= 0.0) continue;
+            if (cube) {
+                e += w * cube_scale(pi) * cube_irradiance(pi, n);
+            } else {
+                if (!have_basis) {
+                    band = probe_band(pi);
+                    sh_eval_basis(band, n, Y);
+                    have_basis = true;
+                }
+                e += w * probe_scale(pi) * probe_irradiance_basis(pi, band, Y);
+            }
+            wsum += w;
+        }
+        if (wsum > 0.0) {
+            e_out = e / wsum;
+            return true;
+        }
+    }
+    return false;
+}
+
 // Per-pixel probe lighting (DESIGN.md §7, docs/engine.md "Per-pixel probes"): the first grid
 // whose box holds p (moved by normal_bias grid spacings along n) is sampled trilinearly between
 // the centres of the 8 neighbouring cells (indices clamped at the grid's faces). A neighbour gets
@@ -84,10 +180,17 @@ vec3 probe_scaled_irradiance(uint index, vec3 n, bool cube) {
 // Returns E(n) including each probe's own scale; false when no grid holds p. `cube`: the probes'
 // ambient cubes instead of their SH, with the same weights, validity and visibility rules
 // (docs/ambient-cube.md §5; the fit is linear, so this is the cube of the interpolated SH).
-bool grid_irradiance(vec3 p_surface, vec3 n, bool cube, out vec3 e_out) {
+bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, out vec3 e_out) {
     e_out = vec3(0.0);
     for (uint g = 0u; g < frame.grid_count; ++g) {
         sv_gpu_grid gr = grids[g];
+        // A grid that holds cubes only shades with them whatever the material asks (docs/ambient-cube.md §5).
+        bool cube = cube_asked || (gr.base.z & SV_GRID_CUBE_ONLY) != 0u;
+        if ((gr.base.z & SV_GRID_TETRA) != 0u) continue; // tetrahedra: per object only
+        if ((gr.base.z & SV_GRID_OCTREE) != 0u) {
+            if (octree_irradiance(gr, p_surface, n, cube, e_out)) return true;
+            continue;
+        }
         float h = gr.origin_spacing.w;
         vec3 p = p_surface + n * (frame.normal_bias * h);
         vec3 rel = p - gr.origin_spacing.xyz;

@@ -104,6 +104,20 @@
 #define SV_PROBE_REP_COUNT        3u
 
 #define SV_DRAW_MIRRORED 1u /* sv_gpu_draw.flags: det(model 3x3) < 0, front faces wind clockwise */
+#define SV_DRAW_CUBE_ONLY                                                                                              \
+    2u /* the object's probe comes from a grid that holds ambient cubes only (.shprobe v3,
+                                representation 1): shaded with the cube whatever the material asks for */
+#define SV_DRAW_TETRA                                                                                                  \
+    4u /* the object's probe comes from a tetrahedra grid: per pixel falls back to the
+                                object's own interpolated probe (no GPU point location for tetrahedra) */
+
+/* Grid flags (sv_gpu_grid.base.z). */
+#define SV_GRID_OCTREE    1u /* corner octree (.shprobe v3 structure 1): leaves in the cell buffer */
+#define SV_GRID_CUBE_ONLY 2u /* the grid's file holds ambient cubes only (representation 1) */
+#define SV_GRID_TETRA     4u /* tetrahedra: not sampled per pixel (objects use their per-object probe) */
+/* Ints per octree leaf in the cell buffer: x, y, z (lattice min corner), level, 4 reserved (0), then
+ * the 8 corner nodes (corner bit 0 = +x, 1 = +y, 2 = +z; node = probe-buffer index - base.x). */
+#define SV_LEAF_INTS 16u
 
 /* Frame flags (sv_gpu_frame.flags). */
 #define SV_FRAME_NO_DIRECT   1u /* skip KHR_lights_punctual direct light */
@@ -212,9 +226,12 @@ SV_STRUCT(sv_gpu_grid)
 {
     SV_VEC4(origin_spacing); /* xyz = min corner of cell (0,0,0), w = spacing (metres) */
     SV_VEC4_ARRAY(axes, 3);  /* rows: the grid's unit X, Y, Z axes in world space */
-    SV_UVEC4(dims);          /* xyz = cell counts, w = offset of cell (0,0,0) in the cell buffer */
-    SV_UVEC4(base);          /* x = probe-buffer index of the grid's probe 0, y = offset of its
-                                 visibility masks in the cell buffer */
+    SV_UVEC4(dims);          /* xyz = cell counts (octree: lattice extent in min cells), w = offset of
+                                cell (0,0,0) (octree: of leaf 0, SV_LEAF_INTS each) in the cell buffer */
+    SV_UVEC4(base);          /* x = probe-buffer index of the grid's probe 0 (octree: node 0; hanging
+                                nodes follow the probes), y = offset of its visibility masks in the cell
+                                buffer (octree: one 8-bit corner mask per leaf), z = SV_GRID_* flags,
+                                w = octree leaf count */
 }
 SV_END(sv_gpu_grid)
 SV_SIZE_CHECK(sv_gpu_grid, 96)

@@ -247,6 +247,33 @@ static bool parse_light(ectx_ *c, uint32_t i, sv_light_mode *mode_out)
 
 /* ---------------------------------------------------------------- probe grids, sky */
 
+static const char *const grid_representations[] = {"sh", "ambientCube", NULL};
+static const char *const grid_storages[] = {"float32", "float16", NULL};
+static const char *const grid_structures[] = {"grid", "octree", "tetrahedra", NULL};
+const char *sv_ext_grid_representation_name(uint32_t v) { return v < 2 ? grid_representations[v] : NULL; }
+const char *sv_ext_grid_storage_name(uint32_t v) { return v < 2 ? grid_storages[v] : NULL; }
+const char *sv_ext_grid_structure_name(uint32_t v) { return v < 3 ? grid_structures[v] : NULL; }
+
+/* An optional string field of an entry that must be one of `names` (NULL-terminated); absent = 0. */
+static bool get_choice(ectx_ *c, const cJSON *j, const char *key, const char *gpath, const char *const *names,
+                       uint32_t *out)
+{
+    const cJSON *v = NULL;
+    *out = 0;
+    if (!get_typed(c, j, key, gpath, cJSON_String, &v)) return false;
+    if (!v) return true;
+    char list[96] = "";
+    for (uint32_t i = 0; names[i]; ++i) {
+        if (strcmp(v->valuestring, names[i]) == 0) {
+            *out = i;
+            return true;
+        }
+        size_t o = strlen(list);
+        snprintf(list + o, sizeof list - o, "%s%s", i ? (names[i + 1] ? ", " : " or ") : "", names[i]);
+    }
+    return efail(c, SV_GLTF_ERROR_FORMAT, "%s.%s: '%.40s' is not %s", gpath, key, v->valuestring, list);
+}
+
 /* One shProbeGrids entry, checked on a scratch context so that a bad entry becomes a warning. */
 static bool check_probe_grid(ectx_ *c, const cJSON *j, const char *gpath, sv_ext_probe_grid *pg, const char **uri,
                              const char **name)
@@ -261,7 +288,10 @@ static bool check_probe_grid(ectx_ *c, const cJSON *j, const char *gpath, sv_ext
         !get_uint(c, j, "maxBand", gpath, true, 0, 0, 4, &band) ||
         !get_floats(c, j, "gridOrigin", gpath, 3, pg->grid_origin) || !get_floats(c, j, "gridDims", gpath, 3, dims) ||
         !get_float(c, j, "gridSpacing", gpath, true, 0, 1e-30, FLT_MAX, &pg->grid_spacing) ||
-        !get_typed(c, j, "gridAxes", gpath, cJSON_Array, &axes))
+        !get_typed(c, j, "gridAxes", gpath, cJSON_Array, &axes) ||
+        !get_choice(c, j, "representation", gpath, grid_representations, &pg->representation) ||
+        !get_choice(c, j, "storage", gpath, grid_storages, &pg->storage) ||
+        !get_choice(c, j, "structure", gpath, grid_structures, &pg->structure))
         return false;
     const char *missing = !u ? "uri" : !get(j, "gridOrigin") ? "gridOrigin" : !get(j, "gridDims") ? "gridDims" : NULL;
     if (missing) return efail(c, SV_GLTF_ERROR_FORMAT, "%s.%s: missing", gpath, missing);

@@ -54,7 +54,18 @@ typedef struct sv_ext_probe_grid {
     uint32_t grid_dims[3];
     float grid_spacing;
     float grid_axes[3][3]; /* rows = X, Y, Z axis; identity when absent */
+    /* docs/ambient-cube.md §4 "glTF" and docs/engine.md: what the file holds (.shprobe v3 header
+     * fields), compared with the file like the fields above. Absent = the version 1/2 values. */
+    uint32_t representation; /* "sh" (default) = 0, "ambientCube" = 1 (pb_shprobe_representation) */
+    uint32_t storage;        /* "float32" (default) = 0, "float16" = 1 (pb_shprobe_storage) */
+    uint32_t structure;      /* "grid" (default) = 0, "octree" = 1, "tetrahedra" = 2 (pb_shprobe_structure) */
 } sv_ext_probe_grid;
+
+/* Names of the entry's representation / storage / structure values (index = the value), NULL past
+ * the end; the same strings the exporter writes (docs/ambient-cube.md §4). */
+const char *sv_ext_grid_representation_name(uint32_t v);
+const char *sv_ext_grid_storage_name(uint32_t v);
+const char *sv_ext_grid_structure_name(uint32_t v);
 
 /* ...VULKAN_SCHNEE_engine_properties.sky: the world captured by the bake (equirect HDR + its
  * radiance SH, engine space). */

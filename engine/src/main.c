@@ -354,6 +354,8 @@ int main(int argc, char **argv)
         }
         goto done;
     }
+    probes.probe_mode_override = opt.probe_mode; /* for the §5 mismatch warning */
+    probes.probe_rep_override = opt.probe_representation;
     sv_probes_assign(&probes, &scene);
     for (uint32_t i = 0; i < opt.move_count; ++i) {
         int32_t node = sv_scene_find_node(&scene, opt.moves[i].node);
@@ -366,7 +368,7 @@ int main(int argc, char **argv)
         uint32_t n = sv_probes_assign(&probes, &scene);
         fprintf(stderr, "schnee-view: moved '%s'; %u object(s) re-assigned\n", opt.moves[i].node, n);
     }
-    if (opt.print_assignments) sv_app_print_assignments(&scene);
+    if (opt.print_assignments) sv_app_print_assignments(&scene, &probes);
     if (opt.headless && !opt.output) goto done; /* --print-assignments only */
     rc = opt.headless ? sv_run_headless(&opt, &scene, &probes, &sky) : sv_run_window(&opt, &scene, &probes, &sky);
 done:

@@ -86,13 +86,18 @@ bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *
     return true;
 }
 
-void sv_app_print_assignments(const sv_scene *scene)
+void sv_app_print_assignments(const sv_scene *scene, const sv_probes *probes)
 {
     for (uint32_t i = 0; i < scene->object_count; ++i) {
         const sv_object *o = &scene->objects[i];
         printf("object %u '%s' probe %u center (%g, %g, %g)\n", i, o->name, o->probe,
                0.5 * (o->aabb_min[0] + o->aabb_max[0]), 0.5 * (o->aabb_min[1] + o->aabb_max[1]),
                0.5 * (o->aabb_min[2] + o->aabb_max[2]));
+        if (i >= probes->slot_count || o->probe != probes->total + i) continue;
+        const sv_object_weights *w = &probes->slot_weights[i];
+        printf("  grid %u weights %u:", w->grid, w->count);
+        for (uint32_t k = 0; k < w->count; ++k) printf(" %u:%.9g", w->probe[k], w->weight[k]);
+        printf("\n");
     }
     fflush(stdout);
 }

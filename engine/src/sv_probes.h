@@ -9,6 +9,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "schnee/pb_interp.h"
 #include "schnee/pb_shprobe.h"
 #include "sv_gpu.h"
 #include "sv_scene.h"
@@ -29,13 +30,40 @@
 typedef struct sv_probe_grid {
     pb_shprobe *file;
     uint32_t base;    /* buffer index of the grid's probe 0 */
+    uint32_t entries; /* buffer entries: the probes, then (octree) its hanging nodes resolved */
     const char *name; /* entry name (owned by the glTF) */
+    pb_cotree *tree;  /* .shprobe v3 octree: the CPU interpolation (pb_interp_from_shprobe), else NULL */
+    pb_tetra *tetra;  /* .shprobe v3 tetrahedra, else NULL */
 } sv_probe_grid;
+
+/* The last per-object query of an object whose probe came from a v3 grid (for --print-assignments). */
+typedef struct sv_object_weights {
+    uint32_t grid;                         /* grid index, UINT32_MAX = none */
+    uint32_t count;                        /* probes with weight > 0 */
+    uint32_t probe[PB_INTERP_MAX_WEIGHTS]; /* probe-buffer indices */
+    float weight[PB_INTERP_MAX_WEIGHTS];
+} sv_object_weights;
+
+typedef struct sv_static_vis sv_static_vis;
 
 typedef struct sv_probes {
     sv_probe_grid *grids;
     uint32_t grid_count;
-    uint32_t total; /* probes in the buffer, fallback included (>= 1) */
+    uint32_t total; /* fallback + every grid's entries (>= 1); the per-object slots follow */
+    /* Per-object probes interpolated on the CPU from v3 grids (docs/engine.md "Version 3 grids"):
+     * object o's slot is buffer entry total + o; allocated by the first sv_probes_assign. */
+    uint32_t slot_count;
+    sv_gpu_probe *slot_sh;  /* interpolated SH (scale folded in: params.y = 1, validity 1) */
+    sv_gpu_cube *slot_cube; /* its ambient cube (fit of the SH, or blended cubes of a cube grid) */
+    sv_object_weights *slot_weights;
+    uint32_t slots_version; /* bumped whenever a slot changes (the renderer re-uploads) */
+    /* For the §5 mismatch warning (docs/ambient-cube.md): the frame's overrides (SV_PROBE_MODE_MATERIAL
+     * / SV_PROBE_REP_MATERIAL = each material's own) and which (material, grid) pairs were named. */
+    uint32_t probe_mode_override, probe_rep_override;
+    uint8_t *warned;       /* (material_count + 1) x grid_count */
+    sv_static_vis *vis;    /* Embree scene of every object, built at the first v3 query; hits on moved
+                              objects are ignored (docs/engine.md "Static scene") */
+    uint32_t movable_seen; /* movable objects at the last assignment (a change re-queries every object) */
 } sv_probes;
 
 /* Reads every grid of the scene. A file that cannot be read or is malformed is an error (message
@@ -51,8 +79,12 @@ void sv_cell_centre(const pb_shprobe *file, int x, int y, int z, float out[3]);
 /* Buffer index for a world-space point (DESIGN.md §7). */
 uint32_t sv_probes_lookup(const sv_probes *probes, const float point[3]);
 
-/* Re-queries every object flagged needs_probe (centre of its world bounds); returns how many. */
-uint32_t sv_probes_assign(const sv_probes *probes, sv_scene *scene);
+/* Re-queries every object flagged needs_probe (centre of its world bounds); returns how many.
+ * Dense grids (v1/v2, v3 structure 0): the probe of the cell holding the centre. Octree and
+ * tetrahedra grids: pb_interp_query_cotree / _tetra at the centre with the file's validity and a
+ * visibility judge that traces probe -> centre through the static scene (objects never moved,
+ * without the queried object itself); the weighted probes are blended into the object's slot. */
+uint32_t sv_probes_assign(sv_probes *probes, sv_scene *scene);
 
 /* GPU buffer contents: total entries, caller frees. Probe 0 (the fallback) is `sky_sh` (band
  * `sky_band`, radiance SH) when sky_sh is not NULL, else uniform `fallback_radiance`. */
@@ -72,6 +104,14 @@ uint16_t sv_half_from_float(float f);
  * pb_ambient_cube_from_sh (PB_AMBIENT_CUBE_LEAST_SQUARES), params copied (band, scale, validity).
  * Same indexing as `packed` (0 = the fallback, from the sky's SH or the constant). Caller frees. */
 sv_gpu_cube *sv_probes_pack_cubes(const sv_gpu_probe *packed, uint32_t count);
+/* As sv_probes_pack_cubes for `probes->total` entries, with the entries of grids whose file holds
+ * ambient cubes (v3 representation 1) taken from the file (hanging nodes resolved as for the SH). */
+sv_gpu_cube *sv_probes_pack_all_cubes(const sv_probes *probes, const sv_gpu_probe *packed);
+/* One entry in half storage (the layouts of sv_probes_pack_half / _cubes_half). */
+void sv_probe_to_half(const sv_gpu_probe *in, sv_gpu_probe_half *out);
+void sv_cube_to_half(const sv_gpu_cube *in, sv_gpu_cube_half *out);
+/* True when some grid's file holds ambient cubes only. */
+bool sv_probes_have_cube_grids(const sv_probes *probes);
 /* The same cubes in half storage (packHalf2x16 layout of sv_gpu_cube_half). Caller frees. */
 sv_gpu_cube_half *sv_probes_pack_cubes_half(const sv_gpu_cube *cubes, uint32_t count);
 /* As sv_probes_fit_half for the cube colours (a cube colour can exceed the SH coefficients it came

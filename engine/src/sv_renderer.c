@@ -305,6 +305,14 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext)
     return ok;
 }
 
+/* Objects that left the static scene (moved at least once). */
+static uint32_t count_movable(const sv_scene *scene)
+{
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < scene->object_count; ++i) n += scene->objects[i].movable;
+    return n;
+}
+
 static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, const sv_renderer_desc *desc)
 {
     const sv_sky *sky = desc->sky && desc->sky->present ? desc->sky : NULL;
@@ -319,16 +327,31 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
     }
     /* Ambient cubes (docs/ambient-cube.md §5) only when asked for: by the command line or by a
      * material. They follow the SH storage; a cube colour beyond the half range sends both to float. */
-    bool want_cubes = desc->cube_probes;
+    bool want_cubes = desc->cube_probes || sv_probes_have_cube_grids(probes);
     for (uint32_t i = 0; i < scene->ext.material_count; ++i)
         want_cubes = want_cubes || scene->ext.materials[i].probe_representation == SV_PROBE_REP_AMBIENT_CUBE;
-    sv_gpu_cube *cubes = p && want_cubes ? sv_probes_pack_cubes(p, probes->total) : NULL;
+    sv_gpu_cube *cubes = p && want_cubes ? sv_probes_pack_all_cubes(probes, p) : NULL;
     if (cubes && half && !sv_probes_cubes_fit_half(probes, cubes, msg, sizeof msg)) {
         fprintf(stderr, "schnee-view: warning: --probe-storage half: %s; using float storage\n", msg);
         half = false;
     }
-    sv_gpu_cube_half *cubes_half = cubes && half ? sv_probes_pack_cubes_half(cubes, probes->total) : NULL;
-    sv_gpu_probe_half *ph = p && half ? sv_probes_pack_half(p, probes->total) : NULL;
+    /* The per-object slots of v3 grids follow the grids' entries (rewritten when objects move). */
+    uint32_t count = probes->total + probes->slot_count;
+    if (p && probes->slot_count) {
+        sv_gpu_probe *grown = realloc(p, count * sizeof(*p));
+        if (grown) memcpy(grown + probes->total, probes->slot_sh, probes->slot_count * sizeof(*p));
+        p = grown;
+        if (cubes) {
+            sv_gpu_cube *gc = realloc(cubes, count * sizeof(*cubes));
+            if (gc)
+                memcpy(gc + probes->total, probes->slot_cube, probes->slot_count * sizeof(*cubes));
+            else
+                free(cubes);
+            cubes = gc;
+        }
+    }
+    sv_gpu_cube_half *cubes_half = cubes && half ? sv_probes_pack_cubes_half(cubes, count) : NULL;
+    sv_gpu_probe_half *ph = p && half ? sv_probes_pack_half(p, count) : NULL;
     uint32_t nspheres = 0, ncells = 0, grid_cells = 0;
     sv_gpu_cell *cells = sv_probes_cells(probes, &nspheres, &ncells);
     sv_gpu_grid *grids = NULL;
@@ -340,19 +363,19 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
     static const sv_gpu_probe zero_probe;
     static const sv_gpu_probe_half zero_half;
     ok = ok && sv_buffer_create_with_data(r->ctx, half ? &zero_probe : (const void *)p,
-                                          half ? sizeof(*p) : probes->total * sizeof(*p),
-                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->probes);
+                                          half ? sizeof(*p) : count * sizeof(*p), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                          &r->probes);
     ok = ok && sv_buffer_create_with_data(r->ctx, half ? (const void *)ph : &zero_half,
-                                          half ? probes->total * sizeof(*ph) : sizeof(*ph),
-                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->probes_half);
+                                          half ? count * sizeof(*ph) : sizeof(*ph), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                          &r->probes_half);
     static const sv_gpu_cube zero_cube;
     static const sv_gpu_cube_half zero_cube_half;
     bool float_cubes = cubes && !half;
     ok = ok && sv_buffer_create_with_data(r->ctx, float_cubes ? (const void *)cubes : &zero_cube,
-                                          float_cubes ? probes->total * sizeof(*cubes) : sizeof(*cubes),
+                                          float_cubes ? count * sizeof(*cubes) : sizeof(*cubes),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cubes);
     ok = ok && sv_buffer_create_with_data(r->ctx, cubes_half ? (const void *)cubes_half : &zero_cube_half,
-                                          cubes_half ? probes->total * sizeof(*cubes_half) : sizeof(*cubes_half),
+                                          cubes_half ? count * sizeof(*cubes_half) : sizeof(*cubes_half),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cubes_half);
     ok = ok && sv_buffer_create_with_data(r->ctx, cells, (nspheres + ncells ? nspheres + ncells : 1) * sizeof(*cells),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cells);
@@ -360,8 +383,12 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->grids);
     ok = ok && sv_buffer_create_with_data(r->ctx, cell_index, (grid_cells ? grid_cells : 1) * sizeof(int32_t),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cell_index);
-    r->probe_count = probes->total;
+    r->probe_count = count;
     r->grid_count = probes->grid_count;
+    r->probes_src = probes;
+    r->masks_movable = count_movable(scene);
+    /* The first frame rewrites the slots through upload_slots(), the path a moving object takes. */
+    r->slots_uploaded = probes->slots_version - 1u;
     r->sphere_count = nspheres;
     r->outline_count = ncells;
     r->half_probes = half;
@@ -862,6 +889,101 @@ static void normal_matrix(const float m[16], float out[3][4])
     }
 }
 
+/* vkCmdUpdateBuffer of `size` bytes at `offset`, in the 65536-byte pieces the command allows. */
+static void update_buffer(VkCommandBuffer cmd, VkBuffer buf, VkDeviceSize offset, const void *data, size_t size)
+{
+    for (size_t o = 0; o < size; o += 65536) {
+        size_t n = size - o < 65536 ? size - o : 65536;
+        vkCmdUpdateBuffer(cmd, buf, offset + o, n, (const char *)data + o);
+    }
+}
+
+/* Rewrites the per-object probe slots (v3 grids, sv_probes_assign) when they changed since the last
+ * upload: before the frame's rendering, in the storage in use, then a barrier to the shaders. */
+static void upload_slots(sv_renderer *r, VkCommandBuffer cmd)
+{
+    const sv_probes *P = r->probes_src;
+    if (!P || !P->slot_count || P->slots_version == r->slots_uploaded) return;
+    r->slots_uploaded = P->slots_version;
+    uint32_t n = P->slot_count, base = P->total;
+    if (r->half_probes) {
+        sv_gpu_probe_half *h = calloc(n, sizeof *h);
+        sv_gpu_cube_half *ch = r->has_cubes ? calloc(n, sizeof *ch) : NULL;
+        if (!h || (r->has_cubes && !ch)) {
+            free(h);
+            free(ch);
+            return;
+        }
+        bool clamped = false;
+        for (uint32_t i = 0; i < n; ++i) {
+            /* A slot blends scale x colour, which can exceed the half range where each factor fits:
+             * clamped to +-65504 (never Inf), with a warning. */
+            sv_gpu_probe sp = P->slot_sh[i];
+            sv_gpu_cube sc = P->slot_cube[i];
+            for (int k = 0; k < SV_SH_MAX_COEFFS; ++k)
+                for (int c = 0; c < 3; ++c) {
+                    float v = fminf(fmaxf(sp.sh[k][c], -SV_HALF_MAX), SV_HALF_MAX);
+                    clamped |= v != sp.sh[k][c];
+                    sp.sh[k][c] = v;
+                }
+            for (int k = 0; k < 6; ++k)
+                for (int c = 0; c < 3; ++c) {
+                    float v = fminf(fmaxf(sc.faces[k][c], -SV_HALF_MAX), SV_HALF_MAX);
+                    clamped |= v != sc.faces[k][c];
+                    sc.faces[k][c] = v;
+                }
+            sv_probe_to_half(&sp, &h[i]);
+            if (ch) sv_cube_to_half(&sc, &ch[i]);
+        }
+        if (clamped && !r->slot_clamp_warned) {
+            r->slot_clamp_warned = true;
+            fprintf(stderr, "schnee-view: warning: --probe-storage half: an object's interpolated probe exceeds the "
+                            "half-float range (65504); clamped\n");
+        }
+        update_buffer(cmd, r->probes_half.buffer, (VkDeviceSize)base * sizeof *h, h, n * sizeof *h);
+        if (ch) update_buffer(cmd, r->cubes_half.buffer, (VkDeviceSize)base * sizeof *ch, ch, n * sizeof *ch);
+        free(h);
+        free(ch);
+    } else {
+        update_buffer(cmd, r->probes.buffer, (VkDeviceSize)base * sizeof(sv_gpu_probe), P->slot_sh,
+                      n * sizeof(sv_gpu_probe));
+        if (r->has_cubes)
+            update_buffer(cmd, r->cubes.buffer, (VkDeviceSize)base * sizeof(sv_gpu_cube), P->slot_cube,
+                          n * sizeof(sv_gpu_cube));
+    }
+    VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+                          .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+                          .dstAccessMask = VK_ACCESS_SHADER_READ_BIT};
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_PIPELINE_STAGE_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0, 1, &mb, 0,
+                         NULL, 0, NULL);
+}
+
+/* When objects left the static scene since the masks were traced (the window's first move of an
+ * object), traces the per-pixel visibility masks again without them and rewrites the cell buffer
+ * (same layout, so the grid buffer stays valid): a one-time hitch of the mask time per newly moved
+ * object (docs/engine.md "Static scene"). */
+static void retrace_masks(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene)
+{
+    uint32_t movable = count_movable(scene);
+    if (!r->probes_src || movable == r->masks_movable) return;
+    r->masks_movable = movable;
+    sv_gpu_grid *grids = NULL;
+    int32_t *cells = NULL;
+    uint32_t n = 0;
+    if (!sv_probes_gpu_grids(r->probes_src, scene, &grids, &cells, &n)) return;
+    if ((VkDeviceSize)n * sizeof(int32_t) <= r->cell_index.size) {
+        update_buffer(cmd, r->cell_index.buffer, 0, cells, n * sizeof(int32_t));
+        VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+                              .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+                              .dstAccessMask = VK_ACCESS_SHADER_READ_BIT};
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0, 1, &mb, 0,
+                             NULL, 0, NULL);
+    }
+    free(grids);
+    free(cells);
+}
+
 void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene, const sv_view *view,
                         VkImage out_image, VkImageView out_view, VkImageLayout out_final)
 {
@@ -885,6 +1007,8 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
                                      : view->probe_representation;
     frame.normal_bias = view->normal_bias;
     memcpy(r->frame.mapped, &frame, sizeof(frame));
+    upload_slots(r, cmd);
+    retrace_masks(r, cmd, scene);
 
     sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                      VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
@@ -953,7 +1077,7 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
         const float *w = obj->world; /* column-major: det of the upper 3x3 */
         float det = w[0] * (w[5] * w[10] - w[9] * w[6]) - w[4] * (w[1] * w[10] - w[9] * w[2]) +
                     w[8] * (w[1] * w[6] - w[5] * w[2]);
-        draw.flags = det < 0.0f ? SV_DRAW_MIRRORED : 0u;
+        draw.flags = (det < 0.0f ? SV_DRAW_MIRRORED : 0u) | obj->probe_flags;
         const sv_gltf_mesh *mesh = &g->meshes[obj->mesh];
         for (uint32_t p = 0; p < mesh->primitive_count; ++p) {
             uint32_t pi = r->mesh_prim_base[obj->mesh] + p;

@@ -63,7 +63,11 @@ typedef struct sv_renderer {
     bool half_probes;
     bool has_cubes; /* the cube buffer (float or half by half_probes) holds the probes' ambient cubes */
     bool has_sky;
-    sv_image sky, brdf_lut; /* prefiltered equirect mips (1x1 black without a sky), split-sum LUT */
+    const sv_probes *probes_src; /* the probes uploaded (their per-object slots are re-uploaded) */
+    uint32_t slots_uploaded;     /* probes_src->slots_version last written to the GPU */
+    uint32_t masks_movable;      /* movable objects when the visibility masks were last traced */
+    bool slot_clamp_warned;      /* a half-storage slot was clamped to the half range (warned once) */
+    sv_image sky, brdf_lut;      /* prefiltered equirect mips (1x1 black without a sky), split-sum LUT */
     VkSampler sky_sampler, lut_sampler;
 
     sv_image *textures; /* per glTF texture (image NULL when it could not be read) */

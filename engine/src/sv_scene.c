@@ -140,6 +140,7 @@ void sv_scene_set_translation(sv_scene *scene, uint32_t node, const float transl
         memcpy(o->world, w, sizeof(o->world));
         object_bounds(&scene->gltf->meshes[o->mesh], o->world, o->aabb_min, o->aabb_max);
         o->needs_probe = true;
+        o->movable = true; /* left the static set for good (docs/engine.md "Static scene") */
     }
     update_scene_bounds(scene);
 }

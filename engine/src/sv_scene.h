@@ -19,8 +19,11 @@ typedef struct sv_object {
     float world[16];   /* current object -> world */
     float aabb_min[3]; /* current world-space bounds (8 corners of the mesh bounds transformed) */
     float aabb_max[3];
-    uint32_t probe;   /* assigned index in the probe buffer (0 = fallback) */
-    bool needs_probe; /* moved since the last probe query */
+    uint32_t probe;       /* assigned index in the probe buffer (0 = fallback) */
+    uint32_t probe_flags; /* SV_DRAW_CUBE_ONLY / SV_DRAW_TETRA of the grid the probe came from */
+    bool needs_probe;     /* moved since the last probe query */
+    bool movable;         /* moved at least once (--move, window keys): not part of the static scene whose
+                         triangles judge probe visibility (docs/engine.md "Static scene") */
 } sv_object;
 
 typedef struct sv_scene {
@@ -45,7 +48,7 @@ int32_t sv_scene_find_node(const sv_scene *scene, const char *name);
 
 /* Moves a node: sets its local translation (keeps rotation/scale; a node given by "matrix" gets
  * its translation column replaced), recomputes the world transforms of its subtree and marks every
- * affected object as needing a new probe query. */
+ * affected object as needing a new probe query and as movable. */
 void sv_scene_set_translation(sv_scene *scene, uint32_t node, const float translation[3]);
 
 #endif

@@ -121,9 +121,11 @@ def test_empty_scene_renders_black(tmp_path):
     assert np.all(viewer.read_image(out) == 0)
 
 
-def test_version3_octree_is_refused_not_misread(tmp_path):
-    # A valid version 3 file (corner octree, 8 probes) reads fine in the native reader, but this engine
-    # shades dense SH grids only: it must say so instead of dereferencing a grid that is not there.
+def test_version3_octree_loads_and_rotated_octree_is_refused(tmp_path):
+    # A valid version 3 file (corner octree, 8 probes) is read by the engine (docs/engine.md "Version 3
+    # grids"); the entry written for a dense grid disagrees with it and is reported, the file is used.
+    # The same file with rotated axes (orthonormal, so the reader accepts it) is refused with the core's
+    # message, never misread.
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "addon"))
     from schnee_probes import native
     tree = native.CornerOctree.uniform((0, 0, 0), 1.0, 0, (1, 1, 1))
@@ -132,7 +134,13 @@ def test_version3_octree_is_refused_not_misread(tmp_path):
     assert native.write_shprobe_v3(str(src), tree, np.ones((tree.probe_count, 9, 3))) == 8
     assert native.read_shprobe(str(src)).version == 3
     gltf = scene_with_probe_bytes(tmp_path, src.read_bytes())
-    proc = viewer.run(gltf, "--headless", "--output", tmp_path / "x.png", "--width", 8, "--height", 8)
-    expect_error(proc, "shProbeGrids[0]", "is a version 3 file with a corner octree of SH",
-                 "this engine reads dense grids of SH only")
-    assert not (tmp_path / "x.png").exists()
+    proc = viewer.check(viewer.run(gltf, "--headless", "--output", tmp_path / "x.png", "--width", 8, "--height", 8))
+    assert "shProbeGrids[0] 'p': structure 'grid' but the file has 'octree' (using the file)" in proc.stderr
+    assert "probeCount 2 but the file has 8" in proc.stderr
+    assert (tmp_path / "x.png").exists()
+    # Axes at offset 48 (docs/shprobe-format.md "Version 3"): x and z swapped, still orthonormal.
+    rotated = corrupt(src.read_bytes(), 48, struct.pack("<9f", 0, 0, 1, 0, 1, 0, 1, 0, 0))
+    gltf = scene_with_probe_bytes(tmp_path, rotated)
+    proc = viewer.run(gltf, "--headless", "--output", tmp_path / "y.png", "--width", 8, "--height", 8)
+    expect_error(proc, "shProbeGrids[0]", "p.shprobe", "rotated axes")
+    assert not (tmp_path / "y.png").exists()
