@@ -66,8 +66,7 @@ def run(settings, probes, split=None):
     project_file - project_equirect; one (t_file, t_project) pair per probe is appended."""
     b = bake_core.ProbeBake(scene, layer, settings, mode="CURSOR", cursor=(0, 0, 1), log=lambda s: None)
     b.prepare()
-    b.positions = np.asarray(probes)
-    b.coeffs = np.zeros((len(probes), native.sh_count(settings.max_band), 3))
+    b.bake_positions(probes)
     rows = []
     orig = native.project_file
 

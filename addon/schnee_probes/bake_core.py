@@ -225,6 +225,16 @@ class ProbeBake:
             self._open_journal()  # before _setup_render: the fingerprint is of the user's settings
         self._setup_render()
 
+    def bake_positions(self, positions):
+        """After :meth:`prepare` of a cursor bake: render these engine-space positions instead (the
+        benchmarks' references at arbitrary points, with the bake's own render settings and camera)."""
+        if self.mode != "CURSOR":
+            raise BakeError("bake_positions() is for cursor bakes")
+        self.positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        self.coeffs = np.zeros((len(self.positions), native.sh_count(self.settings.max_band), 3))
+        self._todo = list(range(len(self.positions)))
+        self.done = 0
+
     def _open_journal(self):
         """Open (or create) this bake's journal and take every probe it and, for a merge, the shard
         journals already hold; a journal of another bake is an error unless ``restart``."""

@@ -76,8 +76,7 @@ def run_fixed(job, spec, tmp):
     bake.prepare()
     try:
         # The cursor bake's stepper with our positions: same render settings, camera and projection.
-        bake.positions = eng
-        bake.coeffs = np.zeros((len(eng), native.sh_count(s.max_band), 3))
+        bake.bake_positions(eng)
         rows = _stepped(bake, s.seed)
         return {"coeffs": bake.coeffs.tolist(), "times": rows, "positions": eng.tolist(),
                 "settings_effective": dataclasses.asdict(s)}
