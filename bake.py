@@ -183,6 +183,9 @@ def _report(result):
     for msg in result.messages:
         print("bake.py: " + msg)
     t = result.timings
+    if result.passes:
+        print(f"bake.py: adaptive placement: {len(result.passes)} pass(es), {result.renders} points rendered "
+              f"(probes and test points)")
     print(f"bake.py: {result.probe_count} probes in {result.seconds:.1f} s (placement {t['placement']:.2f} s, "
           f"render {t['render']:.2f} s, EXR write {t['write_exr']:.2f} s, projection {t['project']:.2f} s)")
     for f in result.files:

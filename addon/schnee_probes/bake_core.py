@@ -41,7 +41,7 @@ from typing import List, Optional, Sequence
 import bpy
 import numpy as np
 
-from . import compat, light_modes, native, render_settings, scene_export
+from . import adaptive, compat, light_modes, native, render_settings, scene_export
 from .safe_open import file_kind
 # The settings are declared in settings.py; re-exported here for scripts that use bake_core.*.
 from .settings import DEFAULT_OUTPUT, PIXEL_FILTERS, BakeError, BakeSettings  # noqa: F401
@@ -77,6 +77,7 @@ class _Target:
     grid_origin: tuple
     grid_spacing: float
     validity: Optional[np.ndarray] = None  # (P,) float32 1 - solid-test back-face ratio; None = all 1
+    group: Optional["adaptive.AdaptiveGroup"] = None  # Adaptive placement: the refined octree
 
 
 @dataclass
@@ -87,6 +88,8 @@ class BakeResult:
     seconds: float
     timings: dict = field(default_factory=dict)  # stage -> seconds summed over probes
     messages: List[str] = field(default_factory=list)
+    renders: int = 0            # points rendered (Adaptive: probes and test points, 2 half renders each)
+    passes: list = field(default_factory=list)  # Adaptive: adaptive.PassRecord per pass (first group)
 
 
 def _safe_file_stem(name: str) -> str:
@@ -136,6 +139,16 @@ class ProbeBake:
         self.estimated_seconds = None       # the cost model's estimate, set after placement
         self._cancel_requested = False
         self._first_probe_seconds = None
+        # The render queue: indices into positions/coeffs, rendered in order. Adaptive placement
+        # appends to it pass by pass (adaptive.py); the other modes fill it once in prepare().
+        self._todo: List[int] = []
+        self._cache: Optional[adaptive.PointCache] = None
+        self._groups: List[adaptive.AdaptiveGroup] = []
+        self._pass_start = 0                # self.done when the current adaptive stage began
+
+    @property
+    def adaptive(self) -> bool:
+        return self.mode == "VOLUMES" and self.settings.placement == "ADAPTIVE"
 
     def request_cancel(self):
         """Ask the bake to stop (signal handlers, Esc): the next check point raises
@@ -153,7 +166,8 @@ class ProbeBake:
     # ------------------------------------------------------------------ prepare
     @property
     def total(self) -> int:
-        return int(len(self.positions))
+        """Points to render so far (Adaptive: grows pass by pass until the refinement ends)."""
+        return len(self._todo)
 
     def prepare(self, placement_progress=None):
         """Validate the input, place the probes and set up rendering. Raises :class:`BakeError`."""
@@ -168,19 +182,30 @@ class ProbeBake:
                             f"{s.max_band}: at least {min_w}x{min_h} is needed")
         if self.mode == "CURSOR":
             self._prepare_cursor()
+            self._todo = list(range(len(self.positions)))
+        elif self.adaptive:
+            self._prepare_volumes(placement_progress)
         else:
             self._prepare_volumes(placement_progress)
+            self._todo = list(range(len(self.positions)))
         if self.total == 0:
             raise BakeError("No probe could be placed: every candidate position is inside solid "
                             "geometry. Check the probe volumes or use a smaller Min Cell Size.")
         self._check_cancel()
         self.estimated_seconds = estimate_seconds(self.total, s, sky=self.mode == "VOLUMES")
-        self.log(f"Schnee: {self.total} probe(s) to bake, estimated {format_duration(self.estimated_seconds)} "
-                 f"(at most; {SECONDS_PER_PIXEL_SAMPLE * 1e6:.1f} µs per pixel-sample, refined after the "
-                 "first probes)")
+        if self.adaptive:
+            self.log(f"Schnee: pass 1: {self.total} probe(s) of Max Cell Size to bake, estimated "
+                     f"{format_duration(self.estimated_seconds)} (at most; then test points and finer "
+                     f"cells only where the light needs them, at most "
+                     f"{max(g.stage_count() for g in self._groups)} stages)")
+        else:
+            self.log(f"Schnee: {self.total} probe(s) to bake, estimated {format_duration(self.estimated_seconds)} "
+                     f"(at most; {SECONDS_PER_PIXEL_SAMPLE * 1e6:.1f} µs per pixel-sample, refined after the "
+                     "first probes)")
         if s.probe_limit and self.total > s.probe_limit and not self.allow_large:
             raise BakeTooLarge(self.total, self.estimated_seconds, s.probe_limit)
-        self.coeffs = np.zeros((self.total, native.sh_count(s.max_band), 3))
+        if not self.adaptive:
+            self.coeffs = np.zeros((self.total, native.sh_count(s.max_band), 3))
         self._setup_render()
 
     def _check_light_modes(self):
@@ -268,6 +293,10 @@ class ProbeBake:
             return not self._cancel_requested
 
         t = time.perf_counter()
+        if self.adaptive:
+            self._prepare_adaptive(groups, geometry)
+            self.timings["placement"] = time.perf_counter() - t
+            return
         unique = {}
         positions = []
         for name, path, vols in groups:
@@ -296,6 +325,54 @@ class ProbeBake:
                                         validity.astype(np.float32)))
         self.timings["placement"] = time.perf_counter() - t
         self.positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
+
+    def _prepare_adaptive(self, groups, geometry):
+        """The first layer of every group's corner octree (adaptive.py); its probes start the queue."""
+        s = self.settings
+        self._cache = adaptive.PointCache(s.max_band)
+        self._geometry = geometry
+        for name, path, vols in groups:
+            self._check_cancel()
+            try:
+                group = adaptive.AdaptiveGroup(name, path, vols, geometry, s.min_cell_size, s.max_cell_size,
+                                               s.error_tolerance)
+                todo = group.start(self._cache)
+            except native.SchneeError as exc:
+                raise BakeError(f"Probe placement failed: {exc}") from exc
+            self._groups.append(group)
+            self._todo += todo
+            rec = group.passes[0]
+            self.log(f"Schnee: '{name}': Adaptive placement, lattice {s.min_cell_size:g} m, first layer "
+                     f"{rec.leaves} cell(s) of {rec.smallest_cell:g} m with {rec.probes} probes "
+                     f"({rec.probes - len(todo)} inside solid geometry or shared)")
+            self.targets.append(_Target(path, name, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int32),
+                                        (0, 0, 0), (0.0, 0.0, 0.0), float(s.min_cell_size), None, group))
+        self.positions = self._cache.positions
+
+    def _advance_adaptive(self):
+        """Every queued point is rendered: move each group on (tests -> decision -> split -> new
+        probes) until something is queued or every group has finished."""
+        while self.done == len(self._todo) and not all(g.finished for g in self._groups):
+            self._check_cancel()
+            for g in self._groups:
+                if g.finished:
+                    continue
+                before = len(g.passes)
+                try:
+                    self._todo += g.advance(self._cache)
+                except native.SchneeError as exc:
+                    raise BakeError(f"Refinement of '{g.name}' failed: {exc}") from exc
+                if len(g.passes) > before:
+                    prev, rec = g.passes[-2], g.passes[-1]
+                    self.log(f"Schnee: '{g.name}': pass {prev.pass_index}: {prev.split} of {prev.leaves} "
+                             f"cell(s) split ({prev.tests} test points); pass {rec.pass_index}: {rec.leaves} "
+                             f"cells down to {rec.smallest_cell:g} m, {rec.probes} probes")
+                elif g.finished:
+                    rec = g.passes[-1]
+                    self.log(f"Schnee: '{g.name}': refinement done after {rec.pass_index} pass(es): "
+                             f"{rec.leaves} cells, {rec.probes} probes")
+        self.positions = self._cache.positions
+        self._pass_start = self.done
 
     def _prepare_cursor(self):
         s = self.settings
@@ -371,13 +448,43 @@ class ProbeBake:
 
     # ------------------------------------------------------------------ steps
     def step(self) -> bool:
-        """Render and project the next probe. Returns True while probes remain."""
+        """Render and project the next point. Returns True while points remain (Adaptive placement:
+        when the last point of a stage is done, the refinement decides the next stage here)."""
         if self.done >= self.total:
             return False
         self._check_cancel()
         s = self.settings
-        i = self.done
-        self._camera.location = tuple(scene_export.engine_to_blender(self.positions[i]))
+        i = self._todo[self.done]
+        t0 = time.perf_counter()
+        if self.adaptive:
+            # Two renders of half the samples with different seeds: their difference measures this
+            # point's Monte-Carlo noise, which the refinement must not mistake for light changing.
+            # Cycles' persistent data ignores changed integrator settings unless the scene is
+            # tagged (measured: identical renders for seeds 0 and 1 without update_tag).
+            s1, s2 = adaptive.split_samples(s.samples)
+            cycles = self.scene.cycles
+            cycles.samples, cycles.seed = s1, s.seed
+            self.scene.update_tag()
+            a = self._render_point(self._cache.positions[i], i)
+            cycles.samples, cycles.seed = s2, s.seed + 1
+            self.scene.update_tag()
+            b = self._render_point(self._cache.positions[i], i)
+            cycles.samples, cycles.seed = s.samples, s.seed
+            self._cache.coeffs[i], self._cache.noise[i] = adaptive.combine_halves(a, b, s1, s2)
+            self._cache.rendered[i] = True
+        else:
+            self.coeffs[i] = self._render_point(self.positions[i], i)
+        if self.done == 0:
+            self._first_probe_seconds = time.perf_counter() - t0
+        self.done += 1
+        if self.adaptive and self.done == self.total:
+            self._advance_adaptive()
+        return self.done < self.total
+
+    def _render_point(self, position, i):
+        """Render the panorama at an engine-space position and project it: (C, 3) radiance SH."""
+        s = self.settings
+        self._camera.location = tuple(scene_export.engine_to_blender(position))
         exr = os.path.join(self._tmpdir, "probe.exr")
         t0 = time.perf_counter()
         bpy.ops.render.render(write_still=False, layer=self.view_layer.name, scene=self.scene.name)
@@ -388,9 +495,9 @@ class ProbeBake:
         image.save_render(exr, scene=self.scene)
         t2 = time.perf_counter()
         try:
-            self.coeffs[i] = native.project_file(exr, s.max_band, negative="clamp")
+            coeffs = native.project_file(exr, s.max_band, negative="clamp")
         except native.SchneeError as exc:
-            where = tuple(float(c) for c in scene_export.engine_to_blender(self.positions[i]))
+            where = tuple(float(c) for c in scene_export.engine_to_blender(position))
             hint = ""
             if getattr(exc, "code", None) == "non-finite value":
                 hint = (": the render holds NaN or Inf, which the probes cannot represent (an "
@@ -399,16 +506,13 @@ class ProbeBake:
             raise BakeError(f"Projecting the panorama of probe {i + 1} at Blender "
                             f"({where[0]:.3f}, {where[1]:.3f}, {where[2]:.3f}) failed: {exc}{hint}") from exc
         t3 = time.perf_counter()
-        if not np.isfinite(self.coeffs[i]).all():
+        if not np.isfinite(coeffs).all():
             raise BakeError(f"Probe {i + 1}: the projected coefficients are not finite (NaN/Inf in "
                             "the render, e.g. an infinite emission)")
         self.timings["render"] += t1 - t0
         self.timings["write_exr"] += t2 - t1
         self.timings["project"] += t3 - t2
-        if self.done == 0:
-            self._first_probe_seconds = t3 - t0
-        self.done += 1
-        return self.done < self.total
+        return coeffs
 
     def remaining_seconds(self) -> float:
         """Time left: the cost model before the first probe, then the measured mean per probe
@@ -426,7 +530,28 @@ class ProbeBake:
     def progress_line(self) -> str:
         elapsed = time.perf_counter() - (self._t0 or time.perf_counter())
         eta = self.remaining_seconds()
+        if self.adaptive:
+            g = max(self._groups, key=lambda g: g.stage_index())
+            rec = g.passes[-1]
+            what = "test points" if g.stage == "tests" else "probes"
+            if all(x.finished for x in self._groups):
+                what = "done"
+            return (f"Schnee bake: pass {rec.pass_index} ({what}, cells down to {rec.smallest_cell:g} m): "
+                    f"{self.done - self._pass_start}/{self.total - self._pass_start}, {self.done} points "
+                    f"rendered, {elapsed:.1f} s elapsed, ~{eta:.0f} s left in this pass")
         return f"Schnee bake: probe {self.done}/{self.total}, {elapsed:.1f} s elapsed, ~{eta:.0f} s left"
+
+    def fraction(self) -> float:
+        """Progress in [0, 1] for a progress bar. Adaptive: by stages (each stage's share of the most
+        stages the refinement can take), as the number of points of later stages is not known yet."""
+        if not self.adaptive:
+            return self.done / self.total if self.total else 1.0
+        if all(g.finished for g in self._groups):
+            return 1.0
+        g = max(self._groups, key=lambda g: g.stage_index())
+        n = self.total - self._pass_start
+        within = (self.done - self._pass_start) / n if n else 1.0
+        return min(1.0, (g.stage_index() + within) / g.stage_count())
 
     def capture_sky(self):
         """Render the world alone (every object hidden from the render) as an equirect panorama of
@@ -459,7 +584,7 @@ class ProbeBake:
     def finish(self) -> BakeResult:
         """Write every output file (all or none), restore the scene and return the result."""
         try:
-            if self.done < self.total:
+            if self.done < self.total or not all(g.finished for g in self._groups):
                 raise BakeError(f"finish() after {self.done} of {self.total} probes")
             self._check_cancel()
             if self.mode == "VOLUMES" and self.settings.capture_sky and self._sky_exr is None:
@@ -468,9 +593,13 @@ class ProbeBake:
             files = self._write_outputs()
         finally:
             self._close()
-        result = BakeResult(files=files, probe_count=self.total,
+        probes = self.total
+        if self.adaptive:  # the probes in the files (shared positions once), not the test points
+            probes = len(np.unique(np.concatenate([g.probe_index for g in self._groups])))
+        result = BakeResult(files=files, probe_count=probes,
                             seconds=time.perf_counter() - self._t0, timings=dict(self.timings),
-                            messages=list(self.messages))
+                            messages=list(self.messages), renders=self.done,
+                            passes=list(self._groups[0].passes) if self._groups else [])
         return result
 
     def cancel(self):
@@ -517,6 +646,10 @@ class ProbeBake:
                 current = t.path
                 os.makedirs(os.path.dirname(t.path), exist_ok=True)
                 tmp = tmp_name(t.path)
+                if t.group is not None:
+                    self._write_adaptive(t, tmp)
+                    pending.append((tmp, t.path))
+                    continue
                 coeffs = self.coeffs[t.probe_render_index].astype(np.float32)
                 extra = {}
                 if s.max_band > 2:
@@ -563,6 +696,22 @@ class ProbeBake:
                 raise BakeError(f"Cannot write {final}: {exc}"
                                 + (f" (already replaced: {', '.join(done)})" if done else "")) from exc
         return [final for _, final in pending]
+
+    def _write_adaptive(self, target, tmp):
+        """Version 3 (the corner octree), or with File Version 1 the same field resampled onto the
+        dense grid of Min Cell Size (version 2 above L = 2), to ``tmp``."""
+        s = self.settings
+        coeffs, validity = target.group.probe_values(self._cache)
+        kw = dict(default_sh_scale=s.default_sh_scale, default_ambient=s.default_ambient)
+        if s.file_version == "V3":
+            native.write_shprobe_v3(tmp, target.group.tree, coeffs.astype(np.float32), validity=validity, **kw)
+            return
+        v3 = os.path.join(self._tmpdir, "octree.shprobe")
+        native.write_shprobe_v3(v3, target.group.tree, coeffs.astype(np.float32), validity=validity, **kw)
+        dense = native.resample_shprobe_dense(v3)
+        os.remove(v3)
+        native.write_shprobe(tmp, dense.coeffs, dense.grid, dense.grid_dims, dense.grid_origin,
+                             dense.grid_spacing, version=1 if s.max_band <= 2 else 0, **kw)
 
     def run(self, progress=None) -> BakeResult:
         """prepare + every step + finish, synchronously; ``progress(bake)`` after each probe may

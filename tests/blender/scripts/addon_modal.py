@@ -22,6 +22,7 @@ lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 2.0))
 lib.save(os.path.join(out, "modal.blend"))
 schnee_probes.register()
 props = bpy.context.scene.schnee_probes
+props.placement = "OCTREE"                          # the geometry octree (adaptive: test_refine_bake.py)
 props.min_cell_size = props.max_cell_size = 1.0   # 16 probes: long enough to cancel in between
 props.panorama_resolution = 16
 props.samples = 1

@@ -142,7 +142,7 @@ def main():
     make_odd_settings()
     scene = bpy.context.scene
     output = os.path.join(out_dir, "sh_coeffs", "probes.shprobe")
-    settings = bake_core.BakeSettings(min_cell_size=2.0, max_cell_size=2.0, panorama_resolution=16,
+    settings = bake_core.BakeSettings(placement="OCTREE", min_cell_size=2.0, max_cell_size=2.0, panorama_resolution=16,
                                       samples=1, output_path=output)
     results = {}
     before = snapshot()
