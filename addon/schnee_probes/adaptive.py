@@ -32,6 +32,7 @@ import numpy as np
 from . import native
 
 SOLID_RATIO = 0.25          # the placement's default back-face ratio (docs/placement.md)
+RENDER_INSET = 0.01         # m: nodes on or beyond the volumes' bounding box render this far inside it
 NOISE_K = 2.0               # refine only where error > tolerance + NOISE_K · noise (pb_refine's default)
 # Lambert band factors A_l (irradiance = Σ A_l L_lm Y_lm), l = 0..4.
 _LAMBERT = (math.pi, 2.0 * math.pi / 3.0, math.pi / 4.0, 0.0, -math.pi / 24.0)
@@ -115,8 +116,10 @@ class PointCache:
     def key(p) -> tuple:
         return tuple(int(round(c * 1e6)) for c in p)
 
-    def index(self, points: np.ndarray, classify: Callable[[np.ndarray], np.ndarray]) -> (np.ndarray, List[int]):
-        """(cache index per point, indices of new points that need a render)."""
+    def index(self, points: np.ndarray, classify: Callable[[np.ndarray], np.ndarray],
+              render_at: Optional[Callable[[np.ndarray], np.ndarray]] = None) -> (np.ndarray, List[int]):
+        """(cache index per point, indices of new points that need a render). ``render_at`` maps a
+        node position to where its panorama is rendered (and solid-tested); default: the node."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         out = np.empty(len(pts), dtype=np.int64)
         new_pts = []
@@ -131,6 +134,8 @@ class PointCache:
         if not new_pts:
             return out, []
         new = np.array(new_pts)
+        if render_at is not None:
+            new = np.asarray(render_at(new), dtype=np.float64).reshape(-1, 3)
         ratio = np.asarray(classify(new), dtype=np.float32)
         first = len(self.positions)
         self.positions = np.concatenate([self.positions, new])
@@ -174,6 +179,7 @@ class AdaptiveGroup:
         self.tolerance = float(tolerance)
         verts = np.concatenate([np.asarray(v[1], dtype=np.float64).reshape(-1, 3) for v in volumes])
         self.origin, self.root_level, dims = lattice_frame(verts, min_cell, max_cell)
+        self.box_min, self.box_max = verts.min(axis=0), verts.max(axis=0)
         self.tree = native.CornerOctree.uniform(tuple(self.origin), self.min_cell, self.root_level, tuple(dims))
         self._drop_outside()
         self.tree.finalize()
@@ -214,6 +220,15 @@ class AdaptiveGroup:
     def lattice_positions(self, lattice: np.ndarray) -> np.ndarray:
         return self.origin + np.asarray(lattice, dtype=np.float64) * self.min_cell
 
+    def render_positions(self, nodes: np.ndarray) -> np.ndarray:
+        """Where a node's panorama is rendered: the node, moved into the volumes' bounding box by
+        RENDER_INSET. The lattice starts at the volumes' min corner, so in a room whose volume is its
+        interior the outer nodes lie exactly on the floor, walls and ceiling (a camera there sees
+        half of the surface edge-on and the solid test is a coin toss) or beyond them (outside the
+        building, seeing the exterior): rendered 1 cm inside, they hold the light at the room's
+        boundary, which is what the interpolation next to it needs."""
+        return np.clip(nodes, self.box_min + RENDER_INSET, self.box_max - RENDER_INSET)
+
     def smallest_cell(self) -> float:
         leaves = self.tree.info()["leaves"]
         return self.min_cell * float(2 ** int(leaves[:, 3].min())) if len(leaves) else self.min_cell
@@ -222,7 +237,7 @@ class AdaptiveGroup:
     def start(self, cache: PointCache) -> List[int]:
         """Request the first layer's probes; returns the cache indices to render."""
         self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()),
-                                             self.classify_points)
+                                             self.classify_points, self.render_positions)
         info = self.tree.info()
         self.passes.append(PassRecord(1, len(info["leaves"]), int(info["probe_count"]), self.smallest_cell()))
         return todo
@@ -240,7 +255,7 @@ class AdaptiveGroup:
                 return []
             self.tests = tests
             self.test_index = np.full(len(tests.positions), -1, dtype=np.int64)
-            idx, todo = cache.index(self.lattice_positions(tests.lattice[need]), self.classify_points)
+            idx, todo = cache.index(self.lattice_positions(tests.lattice[need]), self.classify_points, self.render_positions)
             self.test_index[need] = idx
             self.passes[-1].tests = int(need.sum())
             self.stage = "tests"
@@ -272,7 +287,7 @@ class AdaptiveGroup:
         self._drop_outside()
         self.tree.finalize()
         self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()),
-                                             self.classify_points)
+                                             self.classify_points, self.render_positions)
         info = self.tree.info()
         self.passes.append(PassRecord(len(self.passes) + 1, len(info["leaves"]), int(info["probe_count"]),
                                       self.smallest_cell()))

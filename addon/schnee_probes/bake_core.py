@@ -111,8 +111,8 @@ class ProbeBake:
     ``cursor`` = Blender-space position). ``log`` receives human-readable lines."""
 
     def __init__(self, scene, view_layer, settings: BakeSettings, mode: str = "VOLUMES",
-                 cursor: Optional[Sequence[float]] = None, log=print, allow_large=False):
-        if mode not in ("VOLUMES", "CURSOR"):
+                 cursor: Optional[Sequence[float]] = None, log=print, allow_large=False, points=None):
+        if mode not in ("VOLUMES", "CURSOR", "POINTS"):
             raise ValueError(f"unknown bake mode {mode!r}")
         if mode == "CURSOR" and cursor is None:
             raise ValueError("a cursor bake needs a cursor position")
@@ -121,6 +121,7 @@ class ProbeBake:
         self.settings = settings
         self.mode = mode
         self.cursor = None if cursor is None else tuple(float(c) for c in cursor)
+        self.points = points  # mode "POINTS" (bake_points): engine-space positions, nothing written
         self.log = log
         self.positions = np.zeros((0, 3))   # unique probe positions, engine space
         self.coeffs = None                  # (P, sh_count, 3) float64
@@ -182,6 +183,9 @@ class ProbeBake:
                             f"{s.max_band}: at least {min_w}x{min_h} is needed")
         if self.mode == "CURSOR":
             self._prepare_cursor()
+            self._todo = list(range(len(self.positions)))
+        elif self.mode == "POINTS":
+            self.positions = np.asarray(self.points, dtype=np.float64).reshape(-1, 3)
             self._todo = list(range(len(self.positions)))
         elif self.adaptive:
             self._prepare_volumes(placement_progress)
@@ -704,7 +708,13 @@ class ProbeBake:
         coeffs, validity = target.group.probe_values(self._cache)
         kw = dict(default_sh_scale=s.default_sh_scale, default_ambient=s.default_ambient)
         if s.file_version == "V3":
-            native.write_shprobe_v3(tmp, target.group.tree, coeffs.astype(np.float32), validity=validity, **kw)
+            if s.probe_representation == "SH":
+                native.write_shprobe_v3(tmp, target.group.tree, coeffs.astype(np.float32), validity=validity, **kw)
+            else:  # issue 16: the ambient cube fitted to each probe's SH
+                native.write_shprobe_v3(tmp, target.group.tree, native.ambient_cube_from_sh(coeffs),
+                                        representation="ambientCube",
+                                        storage="float16" if s.probe_representation == "CUBE_HALF" else "float32",
+                                        validity=validity, **kw)
             return
         v3 = os.path.join(self._tmpdir, "octree.shprobe")
         native.write_shprobe_v3(v3, target.group.tree, coeffs.astype(np.float32), validity=validity, **kw)
@@ -726,6 +736,15 @@ class ProbeBake:
         except BaseException:
             self.cancel()
             raise
+
+
+def bake_points(scene, view_layer, settings, points, log=print) -> np.ndarray:
+    """Radiance SH (N, sh_count, 3) baked at engine-space ``points`` (N, 3) with ``settings``'
+    render quality, one panorama each, writing nothing: the reference of tests and benchmarks (the
+    light a probe at exactly that point would hold). The scene is restored as after any bake."""
+    bake = ProbeBake(scene, view_layer, settings, mode="POINTS", points=points, log=log)
+    bake.run()
+    return np.array(bake.coeffs)
 
 
 class BakeCancelled(BakeError):

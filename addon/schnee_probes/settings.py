@@ -188,6 +188,17 @@ SETTINGS: Tuple[Setting, ...] = (
             choices=(('V3', "3 (octree)", "Version 3: the corner octree, interpolated continuously"),
                      ('V1', "1 (dense grid)", "Version 1: resampled onto a dense grid of Min Cell Size")),
             ui="volumes"),
+    Setting("probe_representation", "enum", 'SH', "Probe Representation",
+            "Adaptive placement, File Version 3: what each probe record holds: the SH coefficients, "
+            "or the ambient cube fitted to them (6 irradiance colours, float32 or half floats)",
+            doc="Adaptive only, File Version 3 (issue 16): **SH** writes the radiance SH; **Ambient "
+                "cube** writes the 6-colour irradiance cube fitted to it (least squares, "
+                "docs/ambient-cube.md), float32 or binary16 (half the size, 0.03 % rounding). The "
+                "glTF entry says which (`representation`, `storage`).",
+            choices=(('SH', "SH", "Radiance SH coefficients"),
+                     ('CUBE_FLOAT', "Ambient cube (float)", "6 irradiance colours per probe, float32"),
+                     ('CUBE_HALF', "Ambient cube (half)", "6 irradiance colours per probe, binary16")),
+            ui="volumes"),
     Setting("panorama_resolution", "int", 128, "Panorama Resolution",
             "Width of each per-probe equirectangular render; height = width / 2",
             doc="Panorama width (height = width/2). Time grows with the pixel count (×4 per "
@@ -295,6 +306,9 @@ PIXEL_FILTERS = SETTINGS_BY_NAME["pixel_filter"].choice_ids
 
 def _cross_checks(s) -> Optional[str]:
     """Rules between settings (each single setting's limits are in :data:`SETTINGS`)."""
+    if s.probe_representation != "SH" and not (s.placement == "ADAPTIVE" and s.file_version == "V3"):
+        return ("Probe Representation (--probe-representation) 'Ambient cube' needs Placement Adaptive "
+                "and File Version 3 (versions 1 and 2 hold SH only)")
     if s.max_cell_size < s.min_cell_size:
         return (f"Max Cell Size (m) (--max-cell-size) must be >= Min Cell Size (m) "
                 f"(--min-cell-size) (got {s.max_cell_size:g} < {s.min_cell_size:g})")

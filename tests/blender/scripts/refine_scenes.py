@@ -7,10 +7,12 @@ jumps across the near-vertical plane x = boundary_x(y) (0.28-0.32 m for y in -1.
 penumbra of ±penumbra_half(y) (0.18-0.42 m). The dark side is exactly black (no other light), the
 lit side varies smoothly. Probe volume: the box x in [-4, 4], y in [-1, 1], z in [0, 2].
 
-``open``: the same volume under a uniform world and nothing else: the light is the same everywhere.
+``open``: the same volume under a uniform world above a 200 m grey ground plane 1 m below it: the
+light is the same everywhere (up to the plane's far edge), but bounces off the ground make it noisy.
 
 Usage: blender -b --factory-startup -P refine_scenes.py -- OUT_DIR
 """
+import math
 import os
 import sys
 
@@ -85,6 +87,10 @@ def build(kind):
                        scene_lib.diffuse_material("Black", (0, 0, 0)))
     elif kind == "open":
         uniform_world(0.5)
+        ground = vertical_plane("Ground", -100.0, 100.0, -100.0, 100.0, 0.0,
+                                scene_lib.diffuse_material("Grey", (0.5, 0.5, 0.5)))
+        ground.rotation_euler = (-math.pi / 2, 0.0, 0.0)   # the plane y = 0 turned into z = 0, facing up
+        ground.location = (0.0, 0.0, -1.0)
     else:
         raise ValueError(kind)
     scene_lib.probe_volume("Volume", (-4, -1, 0), (4, 1, 2))
