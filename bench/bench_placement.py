@@ -14,6 +14,7 @@ report is bench/results/placement.md (numbers copied by hand with the command li
 import argparse
 import json
 import os
+import resource
 import sys
 import tempfile
 import time
@@ -39,7 +40,8 @@ def main():
     ap.add_argument("--bounces", type=int, default=32)
     ap.add_argument("--min-cell", type=float, default=0.5)
     ap.add_argument("--max-cell", type=float, default=16.0)
-    ap.add_argument("--tolerance", type=float, nargs="+", default=[0.05])
+    ap.add_argument("--tolerance", type=float, nargs="*", default=[0.05],
+                    help="Error Tolerance values of the adaptive bakes (none: only --old)")
     ap.add_argument("--points", type=int, default=64)
     ap.add_argument("--ref-samples", type=int, default=128)
     ap.add_argument("--old", action="store_true", help="also bake the geometry octree")
@@ -70,7 +72,7 @@ def main():
     blender_pts = np.array(pts)
     engine_pts = np.stack([blender_pts[:, 0], blender_pts[:, 2], -blender_pts[:, 1]], axis=1)
 
-    out = {"settings": vars(a), "rows": []}
+    out = {"settings": vars(a), "rows": [], "load_start": os.getloadavg()}
     t = time.perf_counter()
     ref = bake_core.bake_points(scene, layer, settings(samples=a.ref_samples), engine_pts, log=lambda s: None)
     out["reference_seconds"] = time.perf_counter() - t
@@ -81,12 +83,13 @@ def main():
         path = os.path.join(tmp, f"adaptive_{tol:g}.shprobe")
         b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", error_tolerance=tol, output_path=path),
                                 log=print)
-        t = time.perf_counter()
+        t, cpu = time.perf_counter(), cpu_seconds()
         r = b.run()
-        sec = time.perf_counter() - t
+        sec, cpu = time.perf_counter() - t, cpu_seconds() - cpu
         f = native.read_shprobe(path)
         got = native.interpolation_from_file(path).interpolate(engine_pts, f.coeffs, f.validity)
-        out["rows"].append({"placement": "adaptive", "tolerance": tol, "seconds": sec, "probes": r.probe_count,
+        out["rows"].append({"placement": "adaptive", "tolerance": tol, "seconds": sec, "cpu_seconds": cpu,
+                            "probes": r.probe_count, "render_seconds": r.timings["render"],
                             "renders": r.renders, "passes": [vars(p) for p in r.passes],
                             "file_bytes": os.path.getsize(path),
                             "error": stats(adaptive.irradiance_error(got, ref))})
@@ -94,19 +97,27 @@ def main():
     if a.old:
         path = os.path.join(tmp, "octree.shprobe")
         b = bake_core.ProbeBake(scene, layer, settings(placement="OCTREE", output_path=path), log=print)
-        t = time.perf_counter()
+        t, cpu = time.perf_counter(), cpu_seconds()
         r = b.run()
-        sec = time.perf_counter() - t
+        sec, cpu = time.perf_counter() - t, cpu_seconds() - cpu
         f = native.read_shprobe(path)
         idx = f.lookup(engine_pts)
         got = f.coeffs[np.maximum(idx, 0)]
-        out["rows"].append({"placement": "geometry octree", "seconds": sec, "probes": r.probe_count,
+        out["rows"].append({"placement": "geometry octree", "seconds": sec, "cpu_seconds": cpu,
+                            "probes": r.probe_count, "render_seconds": r.timings["render"],
                             "renders": r.renders or r.probe_count, "file_bytes": os.path.getsize(path),
                             "error": stats(adaptive.irradiance_error(got, ref))})
         print("ROW", json.dumps(out["rows"][-1]), flush=True)
+    out["load_end"] = os.getloadavg()
     with open(a.out, "w", encoding="utf-8") as fh:
         json.dump(out, fh, indent=1)
     print("WROTE", a.out)
+
+
+def cpu_seconds():
+    """CPU seconds of this process (all threads, user + system): load-independent cost."""
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_utime + u.ru_stime
 
 
 def stats(e):
