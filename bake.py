@@ -230,21 +230,29 @@ def _submit(args, bake_core, bake_settings):
         _fail(EXIT_USAGE, "--farm bakes volumes; it cannot be combined with --cursor, --shard or --merge-shards")
     if not bpy.data.filepath:
         _fail(EXIT_USAGE, "--farm needs a saved .blend (farm nodes open the file)")
+    adaptive = importlib.import_module(bake_core.__name__.rsplit(".", 1)[0] + ".adaptive")
+    stages = 1
+    if bake_settings.placement == "ADAPTIVE":  # one job array per refinement stage
+        stages = adaptive.stage_bound(bake_settings.min_cell_size, bake_settings.max_cell_size)
     try:
         output = bake_core._abspath(bake_settings.output_path)
         ids = farm.submit_slurm(bpy.app.binary_path, os.path.abspath(bpy.data.filepath), os.path.abspath(__file__),
                                 farm.forwarded_args(_script_args(), output=output), args.shards, output,
-                                sbatch_options=args.sbatch_option)
+                                sbatch_options=args.sbatch_option, stages=stages)
     except (farm.FarmError, bake_core.BakeError, OSError) as exc:
         _fail(EXIT_BAKE, f"farm submission failed: {exc}")
-    print(f"bake.py: submitted shard array {ids[0]} ({args.shards} tasks) and merge job {ids[1]} (runs after every "
-          f"shard succeeded); scripts and logs in {output}.farm")
+    print(f"bake.py: submitted {stages} shard array(s) {', '.join(ids[:-1])} ({args.shards} tasks each, one per "
+          f"placement stage, each after the previous succeeded) and merge job {ids[-1]}; scripts and logs in "
+          f"{output}.farm")
 
 
 def _report(result):
     for msg in result.messages:
         print("bake.py: " + msg)
     t = result.timings
+    if result.passes:
+        print(f"bake.py: adaptive placement: {len(result.passes)} pass(es), {result.renders} points rendered "
+              f"(probes and test points)")
     print(f"bake.py: {result.probe_count} probes in {result.seconds:.1f} s (placement {t['placement']:.2f} s, "
           f"render {t['render']:.2f} s, EXR write {t['write_exr']:.2f} s, projection {t['project']:.2f} s)")
     for f in result.files:

@@ -41,7 +41,7 @@ from typing import List, Optional, Sequence, Tuple
 import bpy
 import numpy as np
 
-from . import compat, fingerprint, journal, light_modes, native, render_settings, scene_export
+from . import adaptive, compat, fingerprint, journal, light_modes, native, render_settings, scene_export
 from .safe_open import file_kind
 # The settings are declared in settings.py; re-exported here for scripts that use bake_core.*.
 from .settings import DEFAULT_OUTPUT, PIXEL_FILTERS, BakeError, BakeSettings  # noqa: F401
@@ -88,6 +88,7 @@ class _Target:
     grid_origin: tuple
     grid_spacing: float
     validity: Optional[np.ndarray] = None  # (P,) float32 1 - solid-test back-face ratio; None = all 1
+    group: Optional["adaptive.AdaptiveGroup"] = None  # Adaptive placement: the refined octree
 
 
 @dataclass
@@ -98,6 +99,8 @@ class BakeResult:
     seconds: float
     timings: dict = field(default_factory=dict)  # stage -> seconds summed over probes
     messages: List[str] = field(default_factory=list)
+    renders: int = 0            # points rendered (Adaptive: probes and test points, 2 half renders each)
+    passes: list = field(default_factory=list)  # Adaptive: adaptive.PassRecord per pass (first group)
 
 
 def _safe_file_stem(name: str) -> str:
@@ -119,10 +122,10 @@ class ProbeBake:
     ``cursor`` = Blender-space position). ``log`` receives human-readable lines."""
 
     def __init__(self, scene, view_layer, settings: BakeSettings, mode: str = "VOLUMES",
-                 cursor: Optional[Sequence[float]] = None, log=print, allow_large=False,
+                 cursor: Optional[Sequence[float]] = None, log=print, allow_large=False, points=None,
                  shard: Optional[Tuple[int, int]] = None, merge_shards: Optional[int] = None,
                  restart: bool = False):
-        if mode not in ("VOLUMES", "CURSOR"):
+        if mode not in ("VOLUMES", "CURSOR", "POINTS"):
             raise ValueError(f"unknown bake mode {mode!r}")
         if mode == "CURSOR" and cursor is None:
             raise ValueError("a cursor bake needs a cursor position")
@@ -131,6 +134,7 @@ class ProbeBake:
         self.settings = settings
         self.mode = mode
         self.cursor = None if cursor is None else tuple(float(c) for c in cursor)
+        self.points = points  # mode "POINTS" (bake_points): engine-space positions, nothing written
         self.log = log
         self.positions = np.zeros((0, 3))   # unique probe positions, engine space
         self.coeffs = None                  # (P, sh_count, 3) float64
@@ -149,21 +153,39 @@ class ProbeBake:
         self.estimated_seconds = None       # the cost model's estimate, set after placement
         self._cancel_requested = False
         self._first_probe_seconds = None
-        # The journal (journal.py, docs/farm.md): every finished probe is appended durably; a bake
-        # that finds a matching journal resumes from it. shard = (k, n): bake only probes i with
-        # i % n == k into a shard journal and write no .shprobe; merge_shards = n: take every probe
-        # from the n shard journals (and the local one) and write the files.
+        # The render queue: indices into positions/coeffs, rendered in order. Adaptive placement
+        # appends to it pass by pass (adaptive.py); the other modes fill it once in prepare().
+        self._todo: List[int] = []
+        self._cache: Optional[adaptive.PointCache] = None
+        self._groups: List[adaptive.AdaptiveGroup] = []
+        self._pass_start = 0                # self.done when the current adaptive stage began
+        # The journal (journal.py, docs/farm.md): every rendered point is appended durably; a bake
+        # that finds a matching journal takes its points from it instead of rendering them again.
+        # shard = (k, n): render only the k-th of every n points of each stage (the rest come from
+        # the other shards' journals) and write no .shprobe; merge_shards = n: take every point from
+        # the n shard journals (and the local one) and write the files.
         if shard is not None and not (len(shard) == 2 and 0 <= shard[0] < shard[1]):
             raise ValueError(f"shard must be (k, n) with 0 <= k < n, not {shard!r}")
         if shard is not None and merge_shards is not None:
             raise ValueError("a bake is either one shard or the merge of the shards")
+        if merge_shards is not None and merge_shards < 1:
+            raise ValueError("merge_shards must be at least 1")
         self.shard = None if shard is None else (int(shard[0]), int(shard[1]))
         self.merge_shards = merge_shards
         self.restart = restart
         self.journal_path = None
-        self.resumed = 0                    # probes taken from journals instead of rendered
+        self.resumed = 0                    # points taken from journals instead of rendered
+        self.rendered = 0                   # points rendered by this run
         self._journal = None
-        self._todo: List[int] = []          # indices still to render, in order
+        self._known = {}                    # journal key -> coefficients, from journals at prepare
+        self._known_noise = {}
+        self._missing = 0                   # points of the current stage left to other shards
+        self.shard_waiting = False          # a shard whose stage needs the other shards' points
+        self._kept = 0                      # points in the journal when it was closed
+
+    @property
+    def adaptive(self) -> bool:
+        return self.mode == "VOLUMES" and self.settings.placement == "ADAPTIVE"
 
     def request_cancel(self):
         """Ask the bake to stop (signal handlers, Esc): the next check point raises
@@ -181,18 +203,8 @@ class ProbeBake:
     # ------------------------------------------------------------------ prepare
     @property
     def total(self) -> int:
-        return int(len(self.positions))
-
-    @property
-    def to_render(self) -> int:
-        """Probes this run renders (the total less what journals held, less other shards' share)."""
-        return len(self._todo) + self._rendered
-
-    @property
-    def _rendered(self) -> int:
-        return self.done - self.resumed - self._others_share
-
-    _others_share = 0
+        """Points to render so far (Adaptive: grows pass by pass until the refinement ends)."""
+        return len(self._todo)
 
     def prepare(self, placement_progress=None):
         """Validate the input, place the probes and set up rendering. Raises :class:`BakeError`."""
@@ -207,20 +219,33 @@ class ProbeBake:
                             f"{s.max_band}: at least {min_w}x{min_h} is needed")
         if self.mode == "CURSOR":
             self._prepare_cursor()
+            self._todo = list(range(len(self.positions)))
+        elif self.mode == "POINTS":
+            self.positions = np.asarray(self.points, dtype=np.float64).reshape(-1, 3)
+            self._todo = list(range(len(self.positions)))
+        elif self.adaptive:
+            self._prepare_volumes(placement_progress)
         else:
             self._prepare_volumes(placement_progress)
+            self._todo = list(range(len(self.positions)))
         if self.total == 0:
             raise BakeError("No probe could be placed: every candidate position is inside solid "
                             "geometry. Check the probe volumes or use a smaller Min Cell Size.")
         self._check_cancel()
         self.estimated_seconds = estimate_seconds(self.total, s, sky=self.mode == "VOLUMES")
-        self.log(f"Schnee: {self.total} probe(s) to bake, estimated {format_duration(self.estimated_seconds)} "
-                 f"(at most; {SECONDS_PER_PIXEL_SAMPLE * 1e6:.1f} µs per pixel-sample, refined after the "
-                 "first probes)")
+        if self.adaptive:
+            self.log(f"Schnee: pass 1: {self.total} probe(s) of Max Cell Size to bake, estimated "
+                     f"{format_duration(self.estimated_seconds)} (at most; then test points and finer "
+                     f"cells only where the light needs them, at most "
+                     f"{max(g.stage_count() for g in self._groups)} stages)")
+        else:
+            self.log(f"Schnee: {self.total} probe(s) to bake, estimated {format_duration(self.estimated_seconds)} "
+                     f"(at most; {SECONDS_PER_PIXEL_SAMPLE * 1e6:.1f} µs per pixel-sample, refined after the "
+                     "first probes)")
         if s.probe_limit and self.total > s.probe_limit and not self.allow_large:
             raise BakeTooLarge(self.total, self.estimated_seconds, s.probe_limit)
-        self.coeffs = np.zeros((self.total, native.sh_count(s.max_band), 3))
-        self._todo = list(range(self.total))
+        if not self.adaptive:
+            self.coeffs = np.zeros((self.total, native.sh_count(s.max_band), 3))
         if self.mode == "VOLUMES":
             self._open_journal()  # before _setup_render: the fingerprint is of the user's settings
         self._setup_render()
@@ -236,15 +261,15 @@ class ProbeBake:
         self.done = 0
 
     def _open_journal(self):
-        """Open (or create) this bake's journal and take every probe it and, for a merge, the shard
-        journals already hold; a journal of another bake is an error unless ``restart``."""
+        """Open (or create at the first point) this bake's journal and load the points it and, for
+        a merge, the shard journals already hold. A local journal of another bake is moved aside;
+        a shard's or a merge's is an error."""
         main = _abspath(self.settings.output_path)
         manifest = journal.make_manifest(fingerprint.parts(self.scene, self.view_layer, self.settings),
                                          scene=self.scene.name, blend=bpy.data.filepath)
         count = native.sh_count(self.settings.max_band)
         if self.shard is not None:
-            k, n = self.shard
-            self.journal_path = shard_journal_path(main, k, n)
+            self.journal_path = shard_journal_path(main, *self.shard)
         else:
             self.journal_path = main + JOURNAL_SUFFIX
         check_replaceable(self.journal_path, "journal")
@@ -267,17 +292,24 @@ class ProbeBake:
                 self.messages.append(f"An earlier, different bake's journal was moved to {previous}")
         try:
             self._journal = journal.Writer(self.journal_path, manifest, count, shard=self.shard)
-            known = dict(self._journal.values)
+            self._known, self._known_noise = dict(self._journal.values), dict(self._journal.noise)
+            others = []
             if self.merge_shards is not None:
-                paths = [shard_journal_path(main, k, self.merge_shards) for k in range(self.merge_shards)]
-                missing = [p for p in paths if not os.path.exists(p)]
+                others = [shard_journal_path(main, k, self.merge_shards) for k in range(self.merge_shards)]
+                missing = [p for p in others if not os.path.exists(p)]
                 if missing:
                     raise BakeError(f"Cannot merge: {len(missing)} of {self.merge_shards} shard journal(s) "
                                     f"missing ({', '.join(os.path.basename(p) for p in missing)}); bake them "
                                     "first (--shard K/N)")
-                merged, _, _ = journal.merge(paths, manifest)
-                for key, v in merged.items():
-                    known.setdefault(key, v)
+            elif self.shard is not None:
+                k, n = self.shard
+                others = [p for p in (shard_journal_path(main, j, n) for j in range(n) if j != k)
+                          if os.path.exists(p)]
+            if others:
+                values, noise, _ = journal.merge(others, manifest)
+                for key, v in values.items():
+                    if key not in self._known:
+                        self._known[key], self._known_noise[key] = v, noise[key]
         except journal.JournalError as exc:
             raise BakeError(f"{exc} (or bake with --restart to discard it)") from exc
         except OSError as exc:
@@ -285,23 +317,13 @@ class ProbeBake:
         if self._journal.torn_bytes:
             self.log(f"Schnee: the journal's last {self._journal.torn_bytes} bytes were an incomplete record "
                      "(a crash mid-write); cut off")
-        todo = []
-        for i, p in enumerate(self.positions):
-            v = known.get(journal.key_of(p))
-            if v is not None and v.shape == self.coeffs[i].shape:
-                self.coeffs[i] = v
-                self.resumed += 1
-            elif self.shard is None or i % self.shard[1] == self.shard[0]:
-                todo.append(i)
-        self._others_share = self.total - self.resumed - len(todo)
-        self.done = self.resumed + self._others_share
-        self._todo = todo
-        if self.merge_shards is not None and todo:
-            raise BakeError(f"Cannot merge: {len(todo)} of {self.total} probes are in no shard journal (shards "
-                            f"still running or failed); re-run the incomplete shards, then merge again")
-        if self.resumed:
-            self.log(f"Schnee: resuming from {self.journal_path if self.merge_shards is None else 'the journals'}: "
-                     f"{self.resumed} of {self.total} probes already baked, {len(todo)} to render")
+        if self._known:
+            where = self.journal_path if self.merge_shards is None else "the journals"
+            pos = self._cache.positions if self.adaptive else self.positions
+            hits = sum(journal.key_of(pos[i]) in self._known for i in self._todo)
+            more = f" in the first pass ({len(self._known)} points in the journals)" if self.adaptive else ""
+            self.log(f"Schnee: resuming from {where}: {hits} of {self.total} probes already baked, "
+                     f"{self.total - hits} to render{more}")
 
     def _check_light_modes(self):
         """The lamps marked realtime (``schnee_light_mode``, light_modes.py); refuses a bad value
@@ -388,6 +410,10 @@ class ProbeBake:
             return not self._cancel_requested
 
         t = time.perf_counter()
+        if self.adaptive:
+            self._prepare_adaptive(groups, geometry)
+            self.timings["placement"] = time.perf_counter() - t
+            return
         unique = {}
         positions = []
         for name, path, vols in groups:
@@ -416,6 +442,54 @@ class ProbeBake:
                                         validity.astype(np.float32)))
         self.timings["placement"] = time.perf_counter() - t
         self.positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
+
+    def _prepare_adaptive(self, groups, geometry):
+        """The first layer of every group's corner octree (adaptive.py); its probes start the queue."""
+        s = self.settings
+        self._cache = adaptive.PointCache(s.max_band)
+        self._geometry = geometry
+        for name, path, vols in groups:
+            self._check_cancel()
+            try:
+                group = adaptive.AdaptiveGroup(name, path, vols, geometry, s.min_cell_size, s.max_cell_size,
+                                               s.error_tolerance)
+                todo = group.start(self._cache)
+            except native.SchneeError as exc:
+                raise BakeError(f"Probe placement failed: {exc}") from exc
+            self._groups.append(group)
+            self._todo += todo
+            rec = group.passes[0]
+            self.log(f"Schnee: '{name}': Adaptive placement, lattice {s.min_cell_size:g} m, first layer "
+                     f"{rec.leaves} cell(s) of {rec.smallest_cell:g} m with {rec.probes} probes "
+                     f"({rec.probes - len(todo)} inside solid geometry or shared)")
+            self.targets.append(_Target(path, name, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int32),
+                                        (0, 0, 0), (0.0, 0.0, 0.0), float(s.min_cell_size), None, group))
+        self.positions = self._cache.positions
+
+    def _advance_adaptive(self):
+        """Every queued point is rendered: move each group on (tests -> decision -> split -> new
+        probes) until something is queued or every group has finished."""
+        while self.done == len(self._todo) and not all(g.finished for g in self._groups):
+            self._check_cancel()
+            for g in self._groups:
+                if g.finished:
+                    continue
+                before = len(g.passes)
+                try:
+                    self._todo += g.advance(self._cache)
+                except native.SchneeError as exc:
+                    raise BakeError(f"Refinement of '{g.name}' failed: {exc}") from exc
+                if len(g.passes) > before:
+                    prev, rec = g.passes[-2], g.passes[-1]
+                    self.log(f"Schnee: '{g.name}': pass {prev.pass_index}: {prev.split} of {prev.leaves} "
+                             f"cell(s) split ({prev.tests} test points); pass {rec.pass_index}: {rec.leaves} "
+                             f"cells down to {rec.smallest_cell:g} m, {rec.probes} probes")
+                elif g.finished:
+                    rec = g.passes[-1]
+                    self.log(f"Schnee: '{g.name}': refinement done after {rec.pass_index} pass(es): "
+                             f"{rec.leaves} cells, {rec.probes} probes")
+        self.positions = self._cache.positions
+        self._pass_start = self.done
 
     def _prepare_cursor(self):
         s = self.settings
@@ -491,13 +565,86 @@ class ProbeBake:
 
     # ------------------------------------------------------------------ steps
     def step(self) -> bool:
-        """Render and project the next probe. Returns True while probes remain."""
-        if not self._todo:
+        """Render and project the next point (points the journals hold are taken from them, and a
+        shard passes over the other shards' points). Returns True while points remain (Adaptive
+        placement: when the last point of a stage is done, the refinement decides the next stage
+        here; a shard whose stage needs points of other shards stops there: ``shard_waiting``)."""
+        if self.shard_waiting or self.done >= self.total:
             return False
         self._check_cancel()
+        while self.done < self.total:
+            i = self._todo[self.done]
+            pos = self._cache.positions[i] if self.adaptive else self.positions[i]
+            key = journal.key_of(pos) if self._journal is not None else None
+            rendered = False
+            if key is not None and key in self._known:
+                self._store(i, self._known[key], self._known_noise[key])
+                self.resumed += 1
+            elif self.shard is not None and (self.done - self._pass_start) % self.shard[1] != self.shard[0]:
+                self._missing += 1  # another shard's point
+            elif self.merge_shards is not None:
+                where = tuple(float(c) for c in scene_export.engine_to_blender(pos))
+                raise BakeError(f"Cannot merge: the point at Blender ({where[0]:.3f}, {where[1]:.3f}, "
+                                f"{where[2]:.3f}) is in no shard journal (shards still running or failed); "
+                                "re-run the incomplete shards, then merge again")
+            else:
+                self._render_and_record(i, pos, key)
+                rendered = True
+            self.done += 1
+            if self.adaptive and self.done == self.total:
+                if self._missing:
+                    self.shard_waiting = True
+                    self.log(f"Schnee: shard {self.shard[0]}/{self.shard[1]}: its share of this pass is baked; "
+                             "the next pass needs the other shards' points (the farm's next job continues)")
+                    return False
+                self._advance_adaptive()
+            if rendered:
+                break
+        return self.done < self.total
+
+    def _store(self, i, coeffs, noise):
+        if self.adaptive:
+            self._cache.coeffs[i], self._cache.noise[i] = coeffs, noise
+            self._cache.rendered[i] = True
+        else:
+            self.coeffs[i] = coeffs
+
+    def _render_and_record(self, i, pos, key):
         s = self.settings
-        i = self._todo[0]
-        self._camera.location = tuple(scene_export.engine_to_blender(self.positions[i]))
+        t0 = time.perf_counter()
+        if self.adaptive:
+            # Two renders of half the samples with different seeds: their difference measures this
+            # point's Monte-Carlo noise, which the refinement must not mistake for light changing.
+            # Cycles' persistent data ignores changed integrator settings unless the scene is
+            # tagged (measured: identical renders for seeds 0 and 1 without update_tag).
+            s1, s2 = adaptive.split_samples(s.samples)
+            cycles = self.scene.cycles
+            cycles.samples, cycles.seed = s1, s.seed
+            self.scene.update_tag()
+            a = self._render_point(pos, i)
+            cycles.samples, cycles.seed = s2, s.seed + 1
+            self.scene.update_tag()
+            b = self._render_point(pos, i)
+            cycles.samples, cycles.seed = s.samples, s.seed
+            self._cache.coeffs[i], self._cache.noise[i] = adaptive.combine_halves(a, b, s1, s2)
+            self._cache.rendered[i] = True
+            value, noise = self._cache.coeffs[i], float(self._cache.noise[i])
+        else:
+            value, noise = self._render_point(pos, i), 0.0
+            self.coeffs[i] = value
+        if self._journal is not None:
+            try:
+                self._journal.append(key, value, noise)
+            except OSError as exc:
+                raise BakeError(f"Cannot write the bake journal {self.journal_path}: {exc}") from exc
+        if self.rendered == 0:
+            self._first_probe_seconds = time.perf_counter() - t0
+        self.rendered += 1
+
+    def _render_point(self, position, i):
+        """Render the panorama at an engine-space position and project it: (C, 3) radiance SH."""
+        s = self.settings
+        self._camera.location = tuple(scene_export.engine_to_blender(position))
         exr = os.path.join(self._tmpdir, "probe.exr")
         t0 = time.perf_counter()
         bpy.ops.render.render(write_still=False, layer=self.view_layer.name, scene=self.scene.name)
@@ -508,9 +655,9 @@ class ProbeBake:
         image.save_render(exr, scene=self.scene)
         t2 = time.perf_counter()
         try:
-            self.coeffs[i] = native.project_file(exr, s.max_band, negative="clamp")
+            coeffs = native.project_file(exr, s.max_band, negative="clamp")
         except native.SchneeError as exc:
-            where = tuple(float(c) for c in scene_export.engine_to_blender(self.positions[i]))
+            where = tuple(float(c) for c in scene_export.engine_to_blender(position))
             hint = ""
             if getattr(exc, "code", None) == "non-finite value":
                 hint = (": the render holds NaN or Inf, which the probes cannot represent (an "
@@ -519,41 +666,52 @@ class ProbeBake:
             raise BakeError(f"Projecting the panorama of probe {i + 1} at Blender "
                             f"({where[0]:.3f}, {where[1]:.3f}, {where[2]:.3f}) failed: {exc}{hint}") from exc
         t3 = time.perf_counter()
-        if not np.isfinite(self.coeffs[i]).all():
+        if not np.isfinite(coeffs).all():
             raise BakeError(f"Probe {i + 1}: the projected coefficients are not finite (NaN/Inf in "
                             "the render, e.g. an infinite emission)")
         self.timings["render"] += t1 - t0
         self.timings["write_exr"] += t2 - t1
         self.timings["project"] += t3 - t2
-        if self._journal is not None:
-            try:
-                self._journal.append(journal.key_of(self.positions[i]), self.coeffs[i])
-            except OSError as exc:
-                raise BakeError(f"Cannot write the bake journal {self.journal_path}: {exc}") from exc
-        if self._rendered == 0:
-            self._first_probe_seconds = t3 - t0
-        self._todo.pop(0)
-        self.done += 1
-        return bool(self._todo)
+        return coeffs
 
     def remaining_seconds(self) -> float:
         """Time left: the cost model before the first probe, then the measured mean per probe
         (without the first probe's scene upload once a second one is done)."""
-        left = len(self._todo)
-        rendered = self._rendered
-        if rendered == 0:
+        left = self.total - self.done
+        if self.rendered == 0:
             return estimate_seconds(left, self.settings, sky=self.mode == "VOLUMES")
         spent = self.timings["render"] + self.timings["write_exr"] + self.timings["project"]
-        if rendered >= 2 and self._first_probe_seconds is not None:
-            per = (spent - self._first_probe_seconds) / (rendered - 1)
+        if self.rendered >= 2 and self._first_probe_seconds is not None:
+            per = (spent - self._first_probe_seconds) / (self.rendered - 1)
         else:
-            per = spent / rendered
+            per = spent / self.rendered
         return per * left
 
     def progress_line(self) -> str:
         elapsed = time.perf_counter() - (self._t0 or time.perf_counter())
         eta = self.remaining_seconds()
+        if self.adaptive:
+            g = max(self._groups, key=lambda g: g.stage_index())
+            rec = g.passes[-1]
+            what = "test points" if g.stage == "tests" else "probes"
+            if all(x.finished for x in self._groups):
+                what = "done"
+            return (f"Schnee bake: pass {rec.pass_index} ({what}, cells down to {rec.smallest_cell:g} m): "
+                    f"{self.done - self._pass_start}/{self.total - self._pass_start}, {self.done} points "
+                    f"rendered, {elapsed:.1f} s elapsed, ~{eta:.0f} s left in this pass")
         return f"Schnee bake: probe {self.done}/{self.total}, {elapsed:.1f} s elapsed, ~{eta:.0f} s left"
+
+    def fraction(self) -> float:
+        """Progress in [0, 1] for a progress bar. Adaptive: by stages (each stage's share of the most
+        stages the refinement can take), as the number of points of later stages is not known yet."""
+        if not self.adaptive:
+            return self.done / self.total if self.total else 1.0
+        if all(g.finished for g in self._groups):
+            return 1.0
+        g = max(self._groups, key=lambda g: g.stage_index())
+        n = self.total - self._pass_start
+        within = (self.done - self._pass_start) / n if n else 1.0
+        return min(1.0, (g.stage_index() + within) / g.stage_count())
 
     def capture_sky(self):
         """Render the world alone (every object hidden from the render) as an equirect panorama of
@@ -586,12 +744,16 @@ class ProbeBake:
     def finish(self) -> BakeResult:
         """Write every output file (all or none), restore the scene and return the result."""
         try:
-            if self._todo:
-                raise BakeError(f"finish() with {len(self._todo)} probes left")
-            self._check_cancel()
             if self.shard is not None:
-                files = [self.journal_path]  # a shard writes its journal only; the merge writes the files
+                # A shard writes its journal only (the merge writes the files); the stage may wait
+                # for other shards (shard_waiting), which is this job's success.
+                if self.done < self.total and not self.shard_waiting:
+                    raise BakeError(f"finish() after {self.done} of {self.total} points")
+                files = [self.journal_path] if os.path.exists(self.journal_path) else []
             else:
+                if self.done < self.total or not all(g.finished for g in self._groups):
+                    raise BakeError(f"finish() after {self.done} of {self.total} probes")
+                self._check_cancel()
                 if self.mode == "VOLUMES" and self.settings.capture_sky and self._sky_exr is None:
                     self.capture_sky()
                 self._check_cancel()
@@ -601,27 +763,32 @@ class ProbeBake:
                     _remove_quietly(self.journal_path)
         finally:
             self._close()
-        result = BakeResult(files=files, probe_count=self.total,
+        probes = self.total
+        if self.adaptive and self.shard is None:  # the probes in the files (shared positions once), not the tests
+            probes = len(np.unique(np.concatenate([g.probe_index for g in self._groups])))
+        result = BakeResult(files=files, probe_count=probes,
                             seconds=time.perf_counter() - self._t0, timings=dict(self.timings),
-                            messages=list(self.messages))
+                            messages=list(self.messages), renders=self.done,
+                            passes=list(self._groups[0].passes) if self._groups else [])
         return result
 
     def cancel(self):
         """Abandon the bake: restore the scene and remove temporary files; write no output. The
-        probes already baked stay in the journal, and the same bake run again resumes from them."""
+        points already baked stay in the journal, and the same bake run again resumes from them."""
         self._close()
 
     @property
     def kept_message(self) -> str:
-        """What a cancelled or failed bake kept, for the user ('' when nothing)."""
-        kept = self.done - self._others_share
+        """What a cancelled or failed bake kept in its journal, for the user ('' when nothing)."""
+        kept = self._kept if self._journal is None else len(self._journal.values)
         if self.journal_path is None or kept <= 0:
             return ""
-        return (f"{kept} of {self.total} probes kept in {self.journal_path}; the same bake run again "
-                "resumes from them")
+        what = f"{kept} of {self.total} probes" if not self.adaptive else f"{kept} baked point(s)"
+        return f"{what} kept in {self.journal_path}; the same bake run again resumes from them"
 
     def _close_journal(self):
         if self._journal is not None:
+            self._kept = len(self._journal.values)
             self._journal.close()
             self._journal = None
 
@@ -666,6 +833,10 @@ class ProbeBake:
                 current = t.path
                 os.makedirs(os.path.dirname(t.path), exist_ok=True)
                 tmp = tmp_name(t.path)
+                if t.group is not None:
+                    self._write_adaptive(t, tmp)
+                    pending.append((tmp, t.path))
+                    continue
                 coeffs = self.coeffs[t.probe_render_index].astype(np.float32)
                 extra = {}
                 if s.max_band > 2:
@@ -713,12 +884,34 @@ class ProbeBake:
                                 + (f" (already replaced: {', '.join(done)})" if done else "")) from exc
         return [final for _, final in pending]
 
+    def _write_adaptive(self, target, tmp):
+        """Version 3 (the corner octree), or with File Version 1 the same field resampled onto the
+        dense grid of Min Cell Size (version 2 above L = 2), to ``tmp``."""
+        s = self.settings
+        coeffs, validity = target.group.probe_values(self._cache)
+        kw = dict(default_sh_scale=s.default_sh_scale, default_ambient=s.default_ambient)
+        if s.file_version == "V3":
+            if s.probe_representation == "SH":
+                native.write_shprobe_v3(tmp, target.group.tree, coeffs.astype(np.float32), validity=validity, **kw)
+            else:  # issue 16: the ambient cube fitted to each probe's SH
+                native.write_shprobe_v3(tmp, target.group.tree, native.ambient_cube_from_sh(coeffs),
+                                        representation="ambientCube",
+                                        storage="float16" if s.probe_representation == "CUBE_HALF" else "float32",
+                                        validity=validity, **kw)
+            return
+        v3 = os.path.join(self._tmpdir, "octree.shprobe")
+        native.write_shprobe_v3(v3, target.group.tree, coeffs.astype(np.float32), validity=validity, **kw)
+        dense = native.resample_shprobe_dense(v3)
+        os.remove(v3)
+        native.write_shprobe(tmp, dense.coeffs, dense.grid, dense.grid_dims, dense.grid_origin,
+                             dense.grid_spacing, version=1 if s.max_band <= 2 else 0, **kw)
+
     def run(self, progress=None) -> BakeResult:
         """prepare + every step + finish, synchronously; ``progress(bake)`` after each probe may
         return False to cancel (raises :class:`BakeCancelled`). Restores the scene on any exit."""
         try:
             self.prepare()
-            while self._todo:
+            while self.done < self.total and not self.shard_waiting:
                 self.step()
                 if progress is not None and progress(self) is False:
                     raise BakeCancelled("Bake cancelled")
@@ -726,6 +919,15 @@ class ProbeBake:
         except BaseException:
             self.cancel()
             raise
+
+
+def bake_points(scene, view_layer, settings, points, log=print) -> np.ndarray:
+    """Radiance SH (N, sh_count, 3) baked at engine-space ``points`` (N, 3) with ``settings``'
+    render quality, one panorama each, writing nothing: the reference of tests and benchmarks (the
+    light a probe at exactly that point would hold). The scene is restored as after any bake."""
+    bake = ProbeBake(scene, view_layer, settings, mode="POINTS", points=points, log=log)
+    bake.run()
+    return np.array(bake.coeffs)
 
 
 class BakeCancelled(BakeError):

@@ -77,10 +77,13 @@ def _sbatch(sbatch: str, script: str, extra: Sequence[str] = ()) -> str:
 
 
 def submit_slurm(blender: str, blend: str, bake_py: str, bake_args: Sequence[str], shards: int, output: str,
-                 sbatch_options: Sequence[str] = (), sbatch: str = "sbatch") -> List[str]:
-    """Write the batch scripts into ``<output>.farm/`` and submit: the shard array, then the merge
-    with ``--dependency=afterok:<array>`` (it runs only once every shard task succeeded, requeues
-    included). Returns [array job id, merge job id]."""
+                 sbatch_options: Sequence[str] = (), sbatch: str = "sbatch", stages: int = 1) -> List[str]:
+    """Write the batch scripts into ``<output>.farm/`` and submit: one shard array per stage of the
+    placement (``stages``: 1 for a one-pass placement, the refinement's bound for Adaptive), each
+    with ``--dependency=afterok:<previous array>``, then the merge after the last (each runs only
+    once every task before it succeeded, requeues included). Every array runs the same command: a
+    shard takes the finished stages from the journals and bakes its share of the first unfinished
+    one. Returns [array job ids..., merge job id]."""
     if not os.path.isabs(blend):
         raise FarmError(f"the .blend path must be absolute for farm nodes: {blend}")
     folder = output + ".farm"
@@ -94,9 +97,14 @@ def submit_slurm(blender: str, blend: str, bake_py: str, bake_args: Sequence[str
         os.chmod(tmp, 0o755)
         os.replace(tmp, path)
         paths[name] = path
-    array = _sbatch(sbatch, paths["shards.sbatch"])
-    merge = _sbatch(sbatch, paths["merge.sbatch"], [f"--dependency=afterok:{array}", "--kill-on-invalid-dep=yes"])
-    return [array, merge]
+    if stages < 1:
+        raise FarmError("stages must be at least 1")
+    arrays: List[str] = []
+    for _ in range(stages):
+        dep = [f"--dependency=afterok:{arrays[-1]}", "--kill-on-invalid-dep=yes"] if arrays else []
+        arrays.append(_sbatch(sbatch, paths["shards.sbatch"], dep))
+    merge = _sbatch(sbatch, paths["merge.sbatch"], [f"--dependency=afterok:{arrays[-1]}", "--kill-on-invalid-dep=yes"])
+    return arrays + [merge]
 
 
 def forwarded_args(argv: Sequence[str], drop_with_value=("--farm", "--shards", "--sbatch-option", "--shard",

@@ -52,6 +52,9 @@ PROBE_MODES = ("off", "object", "pixel")
 # tests/engine/ext/test_probe_representations.c.
 PROBE_REPRESENTATION_PROPERTY = "schnee_probe_representation"
 PROBE_REPRESENTATIONS = ("sh", "ambientCube")
+# Version 3 files (docs/shprobe-format.md): the entry's "structure" and "storage" values.
+STRUCTURES = ("grid", "octree", "tetrahedra")
+STORAGES = ("float32", "float16")
 
 
 # --------------------------------------------------------------------------------------------
@@ -211,8 +214,10 @@ def _copy_atomic(src, dst):
         raise
 
 
-def _grid_entry(path, header):
-    """The shProbeGrids entry of one file (DESIGN.md §5) from its validated header."""
+def _grid_entry(path, header, probes=None):
+    """The shProbeGrids entry of one file (DESIGN.md §5) from its validated header; for a version 3
+    file also ``version``, ``structure``, ``representation`` and ``storage`` from the whole file
+    ``probes`` (native.read_shprobe). Versions 1 and 2 keep exactly their entry of before."""
     name = os.path.splitext(os.path.basename(path))[0]
     dims = [int(d) for d in header["grid_dims"]]
     origin = [_f32(v) for v in header["grid_origin"]]
@@ -234,7 +239,22 @@ def _grid_entry(path, header):
         "gridDims": dims,
         "gridSpacing": spacing,
         "gridAxes": axes,
+        **_v3_fields(header, probes),
     }
+
+
+def _v3_fields(header, probes):
+    """Version 3 (docs/export.md): the interpolation structure, what the records hold and how.
+    For an octree gridOrigin / gridSpacing / gridDims are the lattice origin, Min Cell Size and the
+    lattice extent in min cells; for tetrahedra gridDims is [0, 0, 0]."""
+    if int(header["version"]) < 3 or probes is None:
+        return {}
+    if probes.structure not in STRUCTURES or probes.representation not in PROBE_REPRESENTATIONS \
+            or probes.storage not in STORAGES:
+        raise ValueError(f"unknown version 3 layout: structure {probes.structure!r}, representation "
+                         f"{probes.representation!r}, storage {probes.storage!r}")
+    return {"version": 3, "structure": probes.structure, "representation": probes.representation,
+            "storage": probes.storage}
 
 
 def collect_probe_grids(export_settings):
@@ -267,10 +287,10 @@ def collect_probe_grids(export_settings):
     for fname in files:
         src = os.path.join(src_dir, fname)
         try:
-            entry = _grid_entry(src, native.read_shprobe_header(src))
+            header = native.read_shprobe_header(src)
             # The header alone passes a file whose body the engine would refuse (grid entries out
             # of range, NaN coefficients): validate all of it with the same reader.
-            native.read_shprobe(src)
+            entry = _grid_entry(src, header, native.read_shprobe(src))
         except Exception as exc:  # noqa: BLE001 - SchneeError, OSError, bad header values, ...
             reason = str(exc)
             _warn(export_settings, "skipped " + (reason if src in reason else f"{src}: {reason}"))

@@ -775,6 +775,17 @@ def write_shprobe_v3(path: str, structure: _Interpolation, coeffs: np.ndarray, *
                                    default_ambient=float(default_ambient))
 
 
+def ambient_cube_from_sh(coeffs: np.ndarray) -> np.ndarray:
+    """Ambient cubes (P, 6, 3) (irradiance +X, −X, +Y, −Y, +Z, −Z; the shipped least-squares fit,
+    docs/ambient-cube.md) of radiance SH ``coeffs`` (P, sh_count, 3)."""
+    c = _array(coeffs, "coeffs", np.float64, _FLOAT_KINDS)
+    if c.ndim != 3 or c.shape[2] != 3:
+        raise _shape_error("coeffs", "(P, sh_count, 3)", c)
+    band = _band_of(c.shape[1], "coeffs")
+    raw = _lib().ambient_cube_from_sh(c.reshape(-1), band, 0)
+    return np.frombuffer(raw, dtype=np.float64).reshape(-1, 6, 3)
+
+
 def interpolation_from_file(path: str) -> _Interpolation:
     """The interpolation structure of a version 3 file, with the file's own probe numbering."""
     h = _lib().interp_from_file(path)

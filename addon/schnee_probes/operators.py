@@ -26,6 +26,10 @@ def _record(props, result=None, message=""):
 
 def _summary(result):
     names = ", ".join(os.path.basename(f) for f in result.files)
+    if result.passes:
+        return (f"Baked {result.probe_count} probes ({result.renders} points rendered in "
+                f"{len(result.passes)} pass{'' if len(result.passes) == 1 else 'es'}) in "
+                f"{result.seconds:.1f} s -> {names}")
     return f"Baked {result.probe_count} probes in {result.seconds:.1f} s -> {names}"
 
 
@@ -87,10 +91,14 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
         self._signals = CancelOnSignals(bake, (signal.SIGINT,))
         self._signals.__enter__()
         wm = context.window_manager
-        wm.progress_begin(0, bake.total)
+        wm.progress_begin(0, 1000)  # per mille of bake.fraction(): Adaptive's total grows pass by pass
         self._timer = wm.event_timer_add(0.01, window=context.window)
         wm.modal_handler_add(self)
-        msg = f"Baking {bake.total} probes, estimated {format_duration(bake.estimated_seconds)} (Esc cancels)"
+        if bake.adaptive:
+            msg = (f"Baking pass 1: {bake.total} probes, estimated {format_duration(bake.estimated_seconds)}; "
+                   "finer passes follow where the light needs them (Esc cancels)")
+        else:
+            msg = f"Baking {bake.total} probes, estimated {format_duration(bake.estimated_seconds)} (Esc cancels)"
         self.report({'INFO'}, msg)
         if context.workspace is not None:
             context.workspace.status_text_set(msg)
@@ -127,7 +135,7 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
             return self._end(context, cancelled=True)
         except BaseException as exc:  # restore the scene whatever went wrong, then report
             return self._end(context, error=exc)
-        context.window_manager.progress_update(bake.done)
+        context.window_manager.progress_update(int(1000 * bake.fraction()))
         line = bake.progress_line()
         context.workspace.status_text_set(line + "  (Esc cancels)")
         print("\r" + line, end="", flush=True)

@@ -140,16 +140,65 @@ SETTINGS: Tuple[Setting, ...] = (
             "from the probe renders and left out of the glTF export",
             doc="Collection of closed meshes; probes fill their union.", ui="volumes"),
     Setting("min_cell_size", "float", 0.5, "Min Cell Size (m)",
-            "Smallest octree cell, used near scene geometry; also the spacing of the occupancy "
-            "grid written to the .shprobe",
-            doc="Smallest octree cell, used near geometry; also the `.shprobe` grid spacing. Halving "
-                "it gives up to 8× the probes (and 8× the bake time) and an 8× larger grid.",
+            "Smallest octree cell: where the light changes (Adaptive) or near scene geometry "
+            "(Geometry Octree); also the lattice / grid spacing written to the .shprobe",
+            doc="Smallest octree cell: Adaptive refines down to it where the light changes, Geometry "
+                "Octree near geometry; also the `.shprobe` lattice / grid spacing. Halving it gives up "
+                "to 8× the probes where cells reach it (Geometry Octree: 8× the bake time).",
             minimum=0.01, soft_max=4.0, unit='LENGTH', suffix="m"),
     Setting("max_cell_size", "float", 16.0, "Max Cell Size (m)",
-            "Largest octree cell, used in open space away from geometry",
-            doc="Largest cell, used in open space; at least Min Cell Size. Smaller = more probes in "
-                "empty space.",
+            "Largest octree cell: Adaptive's first layer, Geometry Octree's cells away from geometry",
+            doc="Largest cell: the first layer Adaptive bakes and refines (wherever the light is "
+                "smooth it stays); Geometry Octree's cells in open space. At least Min Cell Size.",
             minimum=0.01, soft_max=64.0, unit='LENGTH', suffix="m", ui="volumes"),
+    Setting("placement", "enum", 'ADAPTIVE', "Placement",
+            "Where the probes go: Adaptive bakes a coarse layer of Max Cell Size and refines, pass by "
+            "pass, only where a test probe shows the interpolation is off by more than the Error "
+            "Tolerance (writes .shprobe version 3, an octree the engine interpolates continuously); "
+            "Geometry Octree refines every cell that touches geometry to Min Cell Size and writes the "
+            "dense grid of versions 1/2",
+            doc="**Adaptive**: a layer of Max Cell Size cells, then pass by pass a test probe at each "
+                "cell's centre and face centres; a cell splits where the light interpolated from its "
+                "corners misses a test by more than Error Tolerance (+ 2× the probes' measured noise); "
+                "test probes become the finer cells' probes. Writes `.shprobe` version 3 (corner "
+                "octree, trilinear, continuous). **Geometry Octree**: the placement before issue 12 "
+                "(every cell touching geometry down to Min Cell Size, one probe per leaf, versions "
+                "1/2); in a room that is a uniform grid (2458 probes in the bundled room).",
+            choices=(('ADAPTIVE', "Adaptive", "Refine where the light's interpolation error is above "
+                                              "the tolerance; .shprobe version 3 (octree)"),
+                     ('OCTREE', "Geometry Octree", "Refine every cell touching geometry to Min Cell "
+                                                   "Size; .shprobe version 1/2 dense grid")),
+            ui="volumes"),
+    Setting("error_tolerance", "float", 0.05, "Error Tolerance",
+            "Adaptive placement: relative irradiance error (RMS over directions) a cell's "
+            "interpolation may have at its test points before it splits; smaller = more probes",
+            doc="Adaptive only: the relative irradiance error (RMS over directions and RGB) a cell's "
+                "interpolation may show at its test points before it splits, on top of twice the "
+                "measured Monte-Carlo noise. Smaller = more probes near light changes; it does not add "
+                "probes where the light is smooth.",
+            minimum=0.0, min_exclusive=True, maximum=1.0, ui="volumes"),
+    Setting("file_version", "enum", 'V3', "File Version",
+            "Adaptive placement: version 3 (the octree, interpolated continuously) or version 1 (the "
+            "same light resampled onto a dense grid of Min Cell Size, for engines that read only "
+            "the first format)",
+            doc="Adaptive only. **3**: the corner octree as baked. **1 (dense grid)**: the octree's "
+                "field sampled at the centre of every Min Cell Size cell of the volumes, written as "
+                "version 1 (version 2 above L = 2), for engines that read only the seed's format; "
+                "larger file, light constant per cell.",
+            choices=(('V3', "3 (octree)", "Version 3: the corner octree, interpolated continuously"),
+                     ('V1', "1 (dense grid)", "Version 1: resampled onto a dense grid of Min Cell Size")),
+            ui="volumes"),
+    Setting("probe_representation", "enum", 'SH', "Probe Representation",
+            "Adaptive placement, File Version 3: what each probe record holds: the SH coefficients, "
+            "or the ambient cube fitted to them (6 irradiance colours, float32 or half floats)",
+            doc="Adaptive only, File Version 3 (issue 16): **SH** writes the radiance SH; **Ambient "
+                "cube** writes the 6-colour irradiance cube fitted to it (least squares, "
+                "docs/ambient-cube.md), float32 or binary16 (half the size, 0.03 % rounding). The "
+                "glTF entry says which (`representation`, `storage`).",
+            choices=(('SH', "SH", "Radiance SH coefficients"),
+                     ('CUBE_FLOAT', "Ambient cube (float)", "6 irradiance colours per probe, float32"),
+                     ('CUBE_HALF', "Ambient cube (half)", "6 irradiance colours per probe, binary16")),
+            ui="volumes"),
     Setting("panorama_resolution", "int", 128, "Panorama Resolution",
             "Width of each per-probe equirectangular render; height = width / 2",
             doc="Panorama width (height = width/2). Time grows with the pixel count (×4 per "
@@ -257,6 +306,9 @@ PIXEL_FILTERS = SETTINGS_BY_NAME["pixel_filter"].choice_ids
 
 def _cross_checks(s) -> Optional[str]:
     """Rules between settings (each single setting's limits are in :data:`SETTINGS`)."""
+    if s.probe_representation != "SH" and not (s.placement == "ADAPTIVE" and s.file_version == "V3"):
+        return ("Probe Representation (--probe-representation) 'Ambient cube' needs Placement Adaptive "
+                "and File Version 3 (versions 1 and 2 hold SH only)")
     if s.max_cell_size < s.min_cell_size:
         return (f"Max Cell Size (m) (--max-cell-size) must be >= Min Cell Size (m) "
                 f"(--min-cell-size) (got {s.max_cell_size:g} < {s.min_cell_size:g})")

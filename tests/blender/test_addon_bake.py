@@ -50,7 +50,8 @@ def copy_blend(scenes, name, dest):
 
 
 def bake_cli(blend, *args, check=False):
-    return run_blender(BAKE_PY, *args, blend=blend, check=check, timeout=300)
+    # The geometry octree these tests were written for (Adaptive placement: test_refine_bake.py).
+    return run_blender(BAKE_PY, "--placement", "OCTREE", *args, blend=blend, check=check, timeout=300)
 
 
 # ----------------------------------------------------------------------------------- accuracy

@@ -42,3 +42,28 @@ def test_modal_bake_finishes_and_esc_cancels(tmp_path):
     assert r["large_file_unchanged"]
     assert r["confirmed_result"] == ["RUNNING_MODAL"]
     assert r["confirmed_message"].startswith("Baked 32 probes"), r["confirmed_message"]
+
+
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run not installed")
+def test_modal_adaptive_bake_finishes_and_esc_and_sigint_cancel(tmp_path):
+    # The same session with Placement Adaptive: the modal operator steps through the passes (one
+    # point, two half renders, per timer tick), Esc and SIGINT cancel it mid-pass and nothing is
+    # written; Confirm Above applies to the first pass's probe count.
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", "blender", "--factory-startup",
+           "--enable-event-simulate", "--python-exit-code", "1", "-P", str(SCRIPT), "--", str(tmp_path)]
+    env = {**os.environ, "PYTHONPATH": str(ADDON_DIR), "SCHNEE_REPO": str(REPO),
+           "SCHNEE_MODAL_PLACEMENT": "ADAPTIVE"}
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env)
+    lines = [l for l in proc.stdout.splitlines() if l.startswith("RESULT ")]
+    assert lines, proc.stdout[-3000:] + proc.stderr[-2000:]
+    r = json.loads(lines[-1][7:])
+    assert r["start"] == ["RUNNING_MODAL"] and r["running_after_start"]
+    # Sky only: the light is the same everywhere, so the 2 m cells stay (3 x 2 x 3 corners, 1 pass).
+    assert r["finished_message"].startswith("Baked 18 probes (") and "in 1 pass)" in r["finished_message"], r
+    assert r["file"] and r["engine_after"] == "BLENDER_EEVEE"
+    assert r["cancel_message"].startswith("Bake cancelled") and r["file_unchanged"]
+    assert r["sigint_message"].startswith("Bake cancelled") and r["sigint_file_unchanged"]
+    assert r["sigint_handler_after"]
+    assert r["large_result"] == ["CANCELLED"] and "18 probes" in r["large_message"]
+    assert r["large_file_unchanged"]
+    assert r["confirmed_message"].startswith("Baked 18 probes (")

@@ -51,7 +51,8 @@ def copy_blend(scenes, name, dest):
 
 
 def bake(blend, *args, env=None):
-    return run_blender(BAKE_PY, *args, blend=blend, check=False, timeout=300, env=env)
+    # The geometry octree these tests were written for (Adaptive placement: test_refine_bake.py).
+    return run_blender(BAKE_PY, "--placement", "OCTREE", *args, blend=blend, check=False, timeout=300, env=env)
 
 
 def digest(path):
@@ -154,7 +155,7 @@ class Running:
         cmd = ["blender", "-b", str(blend), "--factory-startup"]
         if pre:
             cmd += ["-P", str(pre)]
-        cmd += ["-P", str(BAKE_PY), "--"] + [str(a) for a in args]
+        cmd += ["-P", str(BAKE_PY), "--", "--placement", "OCTREE"] + [str(a) for a in args]
         full_env = {**os.environ, "PYTHONPATH": str(ADDON_DIR), "SCHNEE_REPO": str(REPO), **env}
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=full_env)
         self.out, self.err = bytearray(), bytearray()

@@ -57,10 +57,10 @@ def _panel_labels(blend):
     return json.loads([l for l in proc.stdout.splitlines() if l.startswith("RESULT ")][-1][7:])["labels"]
 
 
-def _interrupt(blend, sig, at):
+def _interrupt(blend, sig, at, args=()):
     """Start the bake (each render slowed by 0.2 s), send ``sig`` once the journal holds ``at``
     probes."""
-    run = Running(blend, [*CELLS, *TINY], {}, pre=SCRIPTS / "slow_render.py")
+    run = Running(blend, [*CELLS, *TINY, *args], {}, pre=SCRIPTS / "slow_render.py")
     path = str(blend.parent / "sh_coeffs" / "probes.shprobe.journal")
     end = time.monotonic() + 240
     while time.monotonic() < end and run.proc.poll() is None:
@@ -115,12 +115,21 @@ def test_shards_merge_to_the_same_bytes(scenes, tmp_path, reference):
 def test_merge_refuses_missing_and_foreign_shards(scenes, tmp_path):
     blend = copy_blend(scenes, "window_room.blend", tmp_path)
     out = tmp_path / "sh_coeffs"
-    assert bake(blend, *CELLS, *TINY, "--shard", "0/2").returncode == 0
+    # Shard 1 baked with other samples: another bake.
+    assert bake(blend, *CELLS, "--panorama-resolution", "16", "--samples", "2", "--shard", "1/2").returncode == 0
     proc = bake(blend, *CELLS, *TINY, "--merge-shards", "2")
     assert proc.returncode == 3
-    assert "1 of 2 shard journal(s) missing (probes.shprobe.shard-1-of-2.journal)" in last_error(proc)
-    # Shard 1 baked with other samples: another bake; the merge names what changed.
-    assert bake(blend, *CELLS, "--panorama-resolution", "16", "--samples", "2", "--shard", "1/2").returncode == 0
+    assert "1 of 2 shard journal(s) missing (probes.shprobe.shard-0-of-2.journal)" in last_error(proc)
+    # A shard reads the other shards' journals (their points feed its refinement): refused early.
+    proc = bake(blend, *CELLS, *TINY, "--shard", "0/2")
+    assert proc.returncode == 3
+    msg = last_error(proc)
+    assert "probes.shprobe.shard-1-of-2.journal belongs to another bake (changed since it was written: " \
+           "settings)" in msg, msg
+    # Shard 0 alone is fine (moved aside from the foreign one); the merge names what changed.
+    (out / "probes.shprobe.shard-1-of-2.journal").rename(tmp_path / "foreign")
+    assert bake(blend, *CELLS, *TINY, "--shard", "0/2").returncode == 0
+    (tmp_path / "foreign").rename(out / "probes.shprobe.shard-1-of-2.journal")
     proc = bake(blend, *CELLS, *TINY, "--merge-shards", "2")
     assert proc.returncode == 3
     msg = last_error(proc)
@@ -155,3 +164,47 @@ def test_fingerprint_names_what_changed(scenes):
         "world strength": ["world"], "bounces": ["render"], "lamp added": ["lights"],
         "samples setting": ["settings"], "output path only": [],
     }
+
+
+def test_adaptive_shards_pass_by_pass(scenes, tmp_path):
+    """Adaptive placement refines pass by pass, so a shard bakes its share of one stage and stops
+    until the other shards' points of that stage exist (what the farm's chained arrays do): shards
+    run in turn, then the merge writes the same bytes as a local bake."""
+    cells = ["--placement", "ADAPTIVE", "--min-cell-size", "0.5", "--max-cell-size", "1"]
+    local = tmp_path / "local"
+    blend = copy_blend(scenes, "window_room.blend", local)
+    proc = bake(blend, *cells, *TINY)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    farm = tmp_path / "farm"
+    blend = copy_blend(scenes, "window_room.blend", farm)
+    waits = 0
+    for _ in range(3):  # at most 3 stages (1 m down to 0.5 m)
+        for k in range(2):
+            proc = bake(blend, *cells, *TINY, "--shard", f"{k}/2")
+            assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+            waits += "its share of this pass is baked" in proc.stdout
+    assert waits >= 2  # the shards did wait for each other at a stage boundary
+    proc = bake(blend, *cells, *TINY, "--merge-shards", "2")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert _sha(farm / "sh_coeffs" / "probes.shprobe") == _sha(local / "sh_coeffs" / "probes.shprobe")
+
+
+def test_adaptive_killed_then_resumed_equals_uninterrupted(scenes, tmp_path):
+    """The default placement: killed in its second stage (test points), resumed, same bytes."""
+    cells = ["--placement", "ADAPTIVE", "--min-cell-size", "0.5", "--max-cell-size", "1"]
+    local = tmp_path / "local"
+    blend = copy_blend(scenes, "window_room.blend", local)
+    proc = bake(blend, *CELLS, *TINY, *cells)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    first_layer = int(re.search(r"first layer \d+ cell\(s\) of 1 m with (\d+) probes", proc.stdout).group(1))
+    blend = copy_blend(scenes, "window_room.blend", tmp_path / "killed")
+    rc, _, _ = _interrupt(blend, signal.SIGKILL, first_layer + 3, cells)
+    assert rc == -9
+    out = tmp_path / "killed" / "sh_coeffs"
+    kept = len(journal.read(str(out / "probes.shprobe.journal")).values)
+    assert kept >= first_layer + 3
+    proc = bake(blend, *CELLS, *TINY, *cells)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert f"{first_layer} of {first_layer} probes already baked, 0 to render in the first pass ({kept} points" \
+        in proc.stdout, proc.stdout[-3000:]
+    assert _sha(out / "probes.shprobe") == _sha(local / "sh_coeffs" / "probes.shprobe")

@@ -1,7 +1,8 @@
 """The farm bake on a real Slurm cluster (issue 15; docs/farm.md): a one-node cluster of Debian's
 slurm-wlm on localhost, started and stopped here (slurm_cluster.py). `bake.py --farm slurm
---shards 2` writes and submits a requeueable job array and a merge job with afterok; one array
-task is killed mid-run and requeued by Slurm (`scontrol requeue`, what Slurm does on a node failure
+--shards 2` writes and submits one requeueable job array per stage of the adaptive placement, each
+after the previous (afterok), and a merge job after the last; one task of the first array is killed
+mid-run and requeued by Slurm (`scontrol requeue`, what Slurm does on a node failure
 or preemption); it resumes from its shard journal; the merged .shprobe equals a local bake of the
 same scene byte for byte (the expected bytes come from that local bake). Runtime: ~2 min."""
 import hashlib
@@ -21,7 +22,9 @@ from slurm_cluster import SlurmCluster  # noqa: E402
 
 pytestmark = requires_native
 SCRIPTS = REPO / "tests" / "blender" / "scripts"
-BAKE_ARGS = ["--min-cell-size", "0.5", "--max-cell-size", "0.5", "--panorama-resolution", "16", "--samples", "1"]
+# Adaptive placement from 1 m cells down to 0.5 m: 3 stages (first layer, tests, finer probes), so 3
+# chained job arrays.
+BAKE_ARGS = ["--min-cell-size", "0.5", "--max-cell-size", "1", "--panorama-resolution", "16", "--samples", "2"]
 
 
 @pytest.fixture(scope="module")
@@ -46,13 +49,13 @@ def test_farm_bake_with_a_requeued_task_equals_a_local_bake(cluster, tmp_path):
         d.mkdir()
         shutil.copy(tmp_path / "window_room.blend", d / "scene.blend")
     proc = run_blender(REPO / "bake.py", *BAKE_ARGS, blend=local / "scene.blend", timeout=600)
-    count = int(re.search(r"bake\.py: (\d+) probes in", proc.stdout).group(1))
+    count = int(re.search(r"bake\.py: adaptive placement: \d+ pass\(es\), (\d+) points rendered", proc.stdout).group(1))
 
     proc = run_blender(REPO / "bake.py", *BAKE_ARGS, "--farm", "slurm", "--shards", "2",
                        blend=farm / "scene.blend", env={"SLURM_CONF": cluster.env["SLURM_CONF"]})
-    m = re.search(r"submitted shard array (\d+) \(2 tasks\) and merge job (\d+)", proc.stdout)
+    m = re.search(r"submitted 3 shard array\(s\) (\d+), (\d+), (\d+) \(2 tasks each.* merge job (\d+)", proc.stdout)
     assert m, proc.stdout[-2000:]
-    array, merge = m.groups()
+    array, merge = m.group(1), m.group(4)
     out = farm / "sh_coeffs"
     assert (out / "probes.shprobe.farm" / "shards.sbatch").exists()
 

@@ -22,7 +22,12 @@ lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 2.0))
 lib.save(os.path.join(out, "modal.blend"))
 schnee_probes.register()
 props = bpy.context.scene.schnee_probes
-props.min_cell_size = props.max_cell_size = 1.0   # 16 probes: long enough to cancel in between
+# SCHNEE_MODAL_PLACEMENT=ADAPTIVE: the Adaptive placement (18 corner probes of 2 m cells, then 24
+# test points: long enough to cancel in between); default the geometry octree (32 probes of 1 m).
+props.placement = os.environ.get("SCHNEE_MODAL_PLACEMENT", "OCTREE")
+props.min_cell_size = props.max_cell_size = 1.0
+if props.placement == "ADAPTIVE":
+    props.max_cell_size = 2.0
 props.panorama_resolution = 16
 props.samples = 1
 shprobe = os.path.join(out, "sh_coeffs", "probes.shprobe")

@@ -30,7 +30,7 @@ def viewport_state():
 
 
 state_before = viewport_state()
-settings = bake_core.BakeSettings(min_cell_size=lo, max_cell_size=hi, panorama_resolution=32, samples=1)
+settings = bake_core.BakeSettings(placement="OCTREE", min_cell_size=lo, max_cell_size=hi, panorama_resolution=32, samples=1)
 bake = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings)
 try:
     bake.prepare()

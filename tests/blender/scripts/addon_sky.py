@@ -35,7 +35,7 @@ lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 2.0))
 blend = lib.save(os.path.join(a.out_dir, "sky.blend"))
 schnee_probes.register()
 
-settings = bake_core.BakeSettings(min_cell_size=2.0, max_cell_size=2.0, panorama_resolution=a.res,
+settings = bake_core.BakeSettings(placement="OCTREE", min_cell_size=2.0, max_cell_size=2.0, panorama_resolution=a.res,
                                   samples=a.samples, pixel_filter=a.filter, filter_width=a.width,
                                   max_band=a.band)
 if a.cursor:

@@ -142,7 +142,7 @@ def main():
     make_odd_settings()
     scene = bpy.context.scene
     output = os.path.join(out_dir, "sh_coeffs", "probes.shprobe")
-    settings = bake_core.BakeSettings(min_cell_size=2.0, max_cell_size=2.0, panorama_resolution=16,
+    settings = bake_core.BakeSettings(placement="OCTREE", min_cell_size=2.0, max_cell_size=2.0, panorama_resolution=16,
                                       samples=1, output_path=output)
     results = {}
     before = snapshot()
@@ -199,6 +199,7 @@ def main():
 
     # 5. the operator (synchronous in background mode) leaves the scene as it found it too
     scene.schnee_probes.output_path = output
+    scene.schnee_probes.placement = "OCTREE"  # the 4-probe geometry octree this test counts
     scene.schnee_probes.min_cell_size = scene.schnee_probes.max_cell_size = 2.0
     scene.schnee_probes.panorama_resolution = 16
     scene.schnee_probes.samples = 1

@@ -50,7 +50,7 @@ results["cursor_files"] = sorted(os.listdir(folder))
 
 # 3. The estimate: the cost model before the first probe, then the measured mean per probe
 #    (sky only renders ~25x faster than the closed-room model).
-s = bake_core.BakeSettings(min_cell_size=1.0, max_cell_size=1.0, panorama_resolution=128, samples=16,
+s = bake_core.BakeSettings(placement="OCTREE", min_cell_size=1.0, max_cell_size=1.0, panorama_resolution=128, samples=16,
                            output_path=os.path.join(out, "est", "probes.shprobe"), capture_sky=False)
 bake = bake_core.ProbeBake(scene, bpy.context.view_layer, s, log=lambda line: None)
 bake.prepare()

@@ -55,7 +55,7 @@ def flags():
 
 
 def settings(out, name, seed=0):
-    return bake_core.BakeSettings(min_cell_size=1.0, max_cell_size=1.0, panorama_resolution=32,
+    return bake_core.BakeSettings(placement="OCTREE", min_cell_size=1.0, max_cell_size=1.0, panorama_resolution=32,
                                   samples=16, max_bounces=4, seed=seed, capture_sky=False,
                                   output_path=os.path.join(out, name, "probes.shprobe"))
 

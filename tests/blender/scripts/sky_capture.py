@@ -31,7 +31,7 @@ box = bpy.context.active_object
 box.name = "BoxAroundOrigin"
 blend = lib.save(os.path.join(out_dir, "sky.blend"))
 
-settings = bake_core.BakeSettings(min_cell_size=2.0, max_cell_size=2.0, panorama_resolution=16, samples=4,
+settings = bake_core.BakeSettings(placement="OCTREE", min_cell_size=2.0, max_cell_size=2.0, panorama_resolution=16, samples=4,
                                   sky_resolution=128)
 bake = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings)
 result = bake.run()

@@ -1,0 +1,314 @@
+"""Adaptive placement: the pass-by-pass refinement of a corner octree driven by the light's own error.
+
+Plain Python + the native core (no ``bpy``): :class:`bake_core.ProbeBake` renders, this module
+decides where. The algorithm is docs/placement.md, "Error-driven refinement"; the bake loop:
+
+1. a layer of Max Cell Size leaves over the volumes' bounding box, leaves outside the volumes
+   dropped; its corner probes are baked;
+2. every leaf above Min Cell Size gets its test points (centre, face centres); those that are not
+   probes yet are baked (a point is baked once: :class:`PointCache` keys it by position);
+3. ``refine_decide`` compares each test's value with the leaf's interpolation there, allowing
+   ``tolerance + 2σ`` with σ the Monte-Carlo noise of the probes and tests involved; flagged leaves
+   split; children entirely outside the volumes are dropped; the new corners (test points: already
+   baked, edge midpoints: new) are baked; back to 2 until nothing splits or every leaf is at Min Cell
+   Size.
+
+Points inside solid geometry (the placement's solid test: more than ``SOLID_RATIO`` of 64 rays hit
+back faces) are never rendered: as probes they get validity 0 (left out of the interpolation), as
+tests they are not compared.
+
+The noise of a probe is measured, not assumed: each point is rendered twice with half the samples and
+different seeds (:func:`split_samples`); the value is the sample-weighted mean and its noise the
+relative irradiance RMS of the difference, halved (:func:`noise_of_halves`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, List, Optional, Sequence
+
+import numpy as np
+
+from . import native
+
+SOLID_RATIO = 0.25          # the placement's default back-face ratio (docs/placement.md)
+RENDER_INSET = 0.01         # m: nodes on or beyond the volumes' bounding box render this far inside it
+NOISE_K = 2.0               # refine only where error > tolerance + NOISE_K · noise (pb_refine's default)
+# Lambert band factors A_l (irradiance = Σ A_l L_lm Y_lm), l = 0..4.
+_LAMBERT = (math.pi, 2.0 * math.pi / 3.0, math.pi / 4.0, 0.0, -math.pi / 24.0)
+
+
+def _band_weights(count: int) -> np.ndarray:
+    band = int(round(math.sqrt(count))) - 1
+    return np.concatenate([np.full(2 * l + 1, _LAMBERT[l]) for l in range(band + 1)])
+
+
+def irradiance_error(a: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Relative irradiance error, RMS over directions and RGB, of radiance SH ``a`` against ``ref``
+    ((..., C, 3) each): ‖A·(a − ref)‖ / ‖A·ref‖ (the metric of pb_refine_irradiance_error); 0 where
+    both are 0, 1 where only ref is."""
+    a = np.asarray(a, dtype=np.float64)
+    ref = np.asarray(ref, dtype=np.float64)
+    w = _band_weights(a.shape[-2])[:, None]
+    num = np.sqrt(np.sum((w * (a - ref)) ** 2, axis=(-2, -1)))
+    den = np.sqrt(np.sum((w * ref) ** 2, axis=(-2, -1)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num > 0, 1.0, 0.0))
+    return out
+
+
+def split_samples(samples: int):
+    """Samples of the two half renders of one point: (s1, s2), s1 + s2 = samples, at least 1 each."""
+    s1 = max(1, samples // 2)
+    return s1, max(1, samples - s1)
+
+
+def combine_halves(a: np.ndarray, b: np.ndarray, s1: int, s2: int):
+    """(value, relative noise) of a point rendered twice with independent seeds: the sample-weighted
+    mean, and σ of that mean estimated from the difference (for equal halves σ_mean = ‖d‖/2; in
+    general Var(mean) = Var(d) · s1·s2/(s1+s2)²)."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    mean = (s1 * a + s2 * b) / (s1 + s2)
+    scale = math.sqrt(s1 * s2) / (s1 + s2)
+    noise = _rel(a - b, mean) * scale
+    return mean, noise
+
+
+def _rel(d: np.ndarray, ref: np.ndarray) -> float:
+    w = _band_weights(ref.shape[-2])[:, None]
+    den = math.sqrt(float(np.sum((w * ref) ** 2)))
+    num = math.sqrt(float(np.sum((w * d) ** 2)))
+    return num / den if den > 0 else 0.0
+
+
+def lattice_frame(volume_vertices: np.ndarray, min_cell: float, max_cell: float):
+    """(origin (3,), root_level, root_dims (3,)) of the corner octree over the volumes' bounding box:
+    origin = its min corner, leaves of Max Cell Size rounded down to Min Cell Size · 2^k (as the
+    geometry octree rounds it), as many as cover the box."""
+    v = np.asarray(volume_vertices, dtype=np.float64).reshape(-1, 3)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    level = max(0, int(math.floor(math.log2(max_cell / min_cell) + 1e-9)))
+    level = min(level, 20)
+    root = min_cell * (1 << level)
+    dims = np.maximum(1, np.ceil((hi - lo) / root - 1e-6)).astype(int)
+    return lo, level, dims
+
+
+def stage_bound(min_cell: float, max_cell: float) -> int:
+    """An upper bound of the stages (probe bakes and test bakes) of any group's refinement with
+    these cell sizes (AdaptiveGroup.stage_count before the group exists): the farm submits one job
+    array per stage."""
+    level = min(20, max(0, int(math.floor(math.log2(max_cell / min_cell) + 1e-9))))
+    return 2 * level + 1
+
+
+class PointCache:
+    """Every point the bake needs a value at, keyed by position (1 µm): probes and test points of
+    every group share renders. ``index(points)`` returns the cache index of each point, appending new
+    ones; new points inside solid geometry (``ratio > SOLID_RATIO``) are marked done with value 0."""
+
+    def __init__(self, band: int):
+        self.count_coeffs = native.sh_count(band)
+        self._keys = {}
+        self.positions = np.zeros((0, 3))
+        self.coeffs = np.zeros((0, self.count_coeffs, 3))
+        self.noise = np.zeros(0, dtype=np.float32)
+        self.ratio = np.zeros(0, dtype=np.float32)       # solid test's back-face ratio
+        self.rendered = np.zeros(0, dtype=bool)
+
+    def __len__(self):
+        return len(self.positions)
+
+    @staticmethod
+    def key(p) -> tuple:
+        return tuple(int(round(c * 1e6)) for c in p)
+
+    def index(self, points: np.ndarray, classify: Callable[[np.ndarray], np.ndarray],
+              render_at: Optional[Callable[[np.ndarray], np.ndarray]] = None) -> (np.ndarray, List[int]):
+        """(cache index per point, indices of new points that need a render). ``render_at`` maps a
+        node position to where its panorama is rendered (and solid-tested); default: the node."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        out = np.empty(len(pts), dtype=np.int64)
+        new_pts = []
+        for i, p in enumerate(pts):
+            k = self.key(p)
+            j = self._keys.get(k)
+            if j is None:
+                j = len(self.positions) + len(new_pts)
+                self._keys[k] = j
+                new_pts.append(p)
+            out[i] = j
+        if not new_pts:
+            return out, []
+        new = np.array(new_pts)
+        if render_at is not None:
+            new = np.asarray(render_at(new), dtype=np.float64).reshape(-1, 3)
+        ratio = np.asarray(classify(new), dtype=np.float32)
+        first = len(self.positions)
+        self.positions = np.concatenate([self.positions, new])
+        self.coeffs = np.concatenate([self.coeffs, np.zeros((len(new), self.count_coeffs, 3))])
+        self.noise = np.concatenate([self.noise, np.zeros(len(new), dtype=np.float32)])
+        self.ratio = np.concatenate([self.ratio, ratio])
+        self.rendered = np.concatenate([self.rendered, np.zeros(len(new), dtype=bool)])
+        todo = [first + i for i in range(len(new)) if ratio[i] <= SOLID_RATIO]
+        return out, todo
+
+    def solid(self, idx) -> np.ndarray:
+        return self.ratio[idx] > SOLID_RATIO
+
+    def validity(self, idx) -> np.ndarray:
+        """1 − back-face ratio, 0 inside solid geometry (the interpolation leaves those out)."""
+        r = self.ratio[idx]
+        return np.where(r > SOLID_RATIO, 0.0, np.clip(1.0 - r, 0.0, 1.0)).astype(np.float32)
+
+
+@dataclass
+class PassRecord:
+    """What one refinement pass did (for the log, the result and the benchmark)."""
+    pass_index: int
+    leaves: int
+    probes: int
+    smallest_cell: float
+    tests: int = 0
+    split: int = 0
+
+
+class AdaptiveGroup:
+    """The corner octree of one output file (the union of the volumes, or one volume) and where its
+    refinement stands: ``stage`` "probes" (the tree's probes are being baked) or "tests" (test points
+    are being baked), ``finished`` when nothing splits any more."""
+
+    def __init__(self, name: str, path: str, volumes, geometry, min_cell: float, max_cell: float,
+                 tolerance: float):
+        self.name, self.path = name, path
+        self.volumes, self.geometry = volumes, geometry
+        self.min_cell = float(min_cell)
+        self.tolerance = float(tolerance)
+        verts = np.concatenate([np.asarray(v[1], dtype=np.float64).reshape(-1, 3) for v in volumes])
+        self.origin, self.root_level, dims = lattice_frame(verts, min_cell, max_cell)
+        self.box_min, self.box_max = verts.min(axis=0), verts.max(axis=0)
+        self.tree = native.CornerOctree.uniform(tuple(self.origin), self.min_cell, self.root_level, tuple(dims))
+        self._drop_outside()
+        self.tree.finalize()
+        if self.tree.leaf_count == 0:
+            raise native.SchneeError(f"no cell of Max Cell Size lies inside '{name}'", "invalid argument")
+        self.stage = "probes"
+        self.finished = False
+        self.passes: List[PassRecord] = []
+        self.tests = None
+        self.test_index = None      # cache index per test point
+        self.probe_index = None     # cache index per tree probe
+        self.last_errors = None
+
+    # -- geometry queries through the placement's rules
+    def _classify_boxes(self, leaves: np.ndarray) -> np.ndarray:
+        size = self.min_cell * (2.0 ** leaves[:, 3].astype(np.float64))
+        centre = self.origin + (leaves[:, :3].astype(np.float64) + 0.5 * (2.0 ** leaves[:, 3])[:, None]) * self.min_cell
+        boxes = np.concatenate([centre, (size / 2)[:, None]], axis=1)
+        _, _, cls = native.classify_placement(self.volumes, self.geometry, boxes=boxes,
+                                              min_cell_size=self.min_cell)
+        return cls
+
+    def _drop_outside(self) -> int:
+        leaves = self.tree.info()["leaves"]
+        if len(leaves) == 0:
+            return 0
+        outside = self._classify_boxes(leaves) == 0
+        if outside.any():
+            self.tree.drop(outside)
+        return int(outside.sum())
+
+    def classify_points(self, points: np.ndarray) -> np.ndarray:
+        """Back-face ratio of the solid test at each point."""
+        _, ratio, _ = native.classify_placement(self.volumes, self.geometry, points=points,
+                                                min_cell_size=self.min_cell)
+        return ratio
+
+    def lattice_positions(self, lattice: np.ndarray) -> np.ndarray:
+        return self.origin + np.asarray(lattice, dtype=np.float64) * self.min_cell
+
+    def render_positions(self, nodes: np.ndarray) -> np.ndarray:
+        """Where a node's panorama is rendered: the node, moved into the volumes' bounding box by
+        RENDER_INSET. The lattice starts at the volumes' min corner, so in a room whose volume is its
+        interior the outer nodes lie exactly on the floor, walls and ceiling (a camera there sees
+        half of the surface edge-on and the solid test is a coin toss) or beyond them (outside the
+        building, seeing the exterior): rendered 1 cm inside, they hold the light at the room's
+        boundary, which is what the interpolation next to it needs."""
+        return np.clip(nodes, self.box_min + RENDER_INSET, self.box_max - RENDER_INSET)
+
+    def smallest_cell(self) -> float:
+        leaves = self.tree.info()["leaves"]
+        return self.min_cell * float(2 ** int(leaves[:, 3].min())) if len(leaves) else self.min_cell
+
+    # -- the state machine
+    def start(self, cache: PointCache) -> List[int]:
+        """Request the first layer's probes; returns the cache indices to render."""
+        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()),
+                                             self.classify_points, self.render_positions)
+        info = self.tree.info()
+        self.passes.append(PassRecord(1, len(info["leaves"]), int(info["probe_count"]), self.smallest_cell()))
+        return todo
+
+    def advance(self, cache: PointCache) -> List[int]:
+        """Every requested point has its value: take the next step. Returns the cache indices to
+        render next (possibly none: call again until ``finished`` or something is returned)."""
+        if self.finished:
+            return []
+        if self.stage == "probes":
+            tests = self.tree.refine_tests()
+            need = tests.probe < 0
+            if len(tests.positions) == 0 or not (tests.leaf_tests >= 0).any():
+                self.finished = True
+                return []
+            self.tests = tests
+            self.test_index = np.full(len(tests.positions), -1, dtype=np.int64)
+            idx, todo = cache.index(self.lattice_positions(tests.lattice[need]), self.classify_points, self.render_positions)
+            self.test_index[need] = idx
+            self.passes[-1].tests = int(need.sum())
+            self.stage = "tests"
+            return todo
+        # stage "tests": decide, split, request the new probes
+        tests = self.tests
+        pidx = self.probe_index
+        need = tests.probe < 0
+        test_coeffs = np.zeros((len(tests.positions),) + cache.coeffs.shape[1:])
+        test_noise = np.zeros(len(tests.positions), dtype=np.float32)
+        test_valid = np.ones(len(tests.positions), dtype=bool)
+        ti = self.test_index[need]
+        test_coeffs[need] = cache.coeffs[ti]
+        test_noise[need] = cache.noise[ti]
+        test_valid[need] = ~cache.solid(ti)
+        split, err, thr = self.tree.refine_decide(
+            tests, cache.coeffs[pidx], test_coeffs, probe_noise=cache.noise[pidx], test_noise=test_noise,
+            probe_validity=cache.validity(pidx), test_valid=test_valid, tolerance=self.tolerance,
+            noise_k=NOISE_K)
+        self.last_errors = (err, thr)
+        self.tests = self.test_index = None
+        n = int(split.sum())
+        self.passes[-1].split = n
+        if n == 0:
+            self.finished = True
+            return []
+        self.tree.split(split)
+        self.tree.finalize()
+        self._drop_outside()
+        self.tree.finalize()
+        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()),
+                                             self.classify_points, self.render_positions)
+        info = self.tree.info()
+        self.passes.append(PassRecord(len(self.passes) + 1, len(info["leaves"]), int(info["probe_count"]),
+                                      self.smallest_cell()))
+        self.stage = "probes"
+        return todo
+
+    def stage_count(self) -> int:
+        """An upper bound of the stages (probe bakes and test bakes) of this group's refinement."""
+        return 2 * self.root_level + 1
+
+    def stage_index(self) -> int:
+        return 2 * (len(self.passes) - 1) + (1 if self.stage == "tests" else 0)
+
+    def probe_values(self, cache: PointCache):
+        """(coeffs (P, C, 3), validity (P,)) of the finished tree's probes."""
+        return cache.coeffs[self.probe_index], cache.validity(self.probe_index)

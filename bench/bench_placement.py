@@ -1,0 +1,133 @@
+"""Adaptive placement vs the geometry octree on the bundled room, in real Blender + Cycles.
+
+    blender -b --factory-startup -P bench/bench_placement.py -- OUT.json [options]
+
+Builds the bundled room (scenes/make_default_scene.py), bakes it with the Adaptive placement (and,
+with --old, the geometry octree) at the given settings, then bakes reference probes at --points
+seeded random points of the room (not inside furniture, not at probes) at --ref-samples, and a
+"floor" probe at each point with the bake's own settings. Error = relative irradiance RMS over
+directions and RGB (adaptive.irradiance_error, the refinement's metric) of each placement's
+per-object value at the point (v3: the corner octree's interpolation with validity; v1: the grid
+cell's probe, as the engine's per-object lookup) against the reference. Writes OUT.json; the
+report is bench/results/placement.md (numbers copied by hand with the command line).
+"""
+import argparse
+import json
+import os
+import resource
+import sys
+import tempfile
+import time
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(REPO, "scenes"))
+sys.path.insert(0, os.path.join(REPO, "addon"))
+
+import bpy  # noqa: E402
+import numpy as np  # noqa: E402
+
+import make_default_scene  # noqa: E402
+import schnee_probes  # noqa: E402
+from schnee_probes import adaptive, bake_core, native  # noqa: E402
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out")
+    ap.add_argument("--res", type=int, default=128)
+    ap.add_argument("--samples", type=int, default=32)
+    ap.add_argument("--bounces", type=int, default=32)
+    ap.add_argument("--min-cell", type=float, default=0.5)
+    ap.add_argument("--max-cell", type=float, default=16.0)
+    ap.add_argument("--tolerance", type=float, nargs="*", default=[0.05],
+                    help="Error Tolerance values of the adaptive bakes (none: only --old)")
+    ap.add_argument("--points", type=int, default=64)
+    ap.add_argument("--ref-samples", type=int, default=128)
+    ap.add_argument("--old", action="store_true", help="also bake the geometry octree")
+    a = ap.parse_args(argv)
+
+    make_default_scene.build()
+    schnee_probes.register()
+    tmp = tempfile.mkdtemp(prefix="bench_placement_")
+    scene, layer = bpy.context.scene, bpy.context.view_layer
+
+    def settings(**kw):
+        base = dict(min_cell_size=a.min_cell, max_cell_size=a.max_cell, panorama_resolution=a.res,
+                    samples=a.samples, max_bounces=a.bounces, capture_sky=False, probe_limit=0,
+                    output_path=os.path.join(tmp, "probes.shprobe"))
+        base.update(kw)
+        return bake_core.BakeSettings(**base)
+
+    # Seeded points in the room's interior (Blender x, y in -5..5, z in 0..4 -> engine), outside the
+    # furniture boxes by 0.1 m.
+    rng = np.random.default_rng(2024)
+    pts = []
+    while len(pts) < a.points:
+        p = rng.uniform([-4.8, -4.8, 0.2], [4.8, 4.8, 3.8])
+        if any(np.all(p > np.subtract(lo, 0.1)) and np.all(p < np.add(hi, 0.1))
+               for _, lo, hi in make_default_scene.FURNITURE):
+            continue
+        pts.append(p)
+    blender_pts = np.array(pts)
+    engine_pts = np.stack([blender_pts[:, 0], blender_pts[:, 2], -blender_pts[:, 1]], axis=1)
+
+    out = {"settings": vars(a), "rows": [], "load_start": os.getloadavg()}
+    t = time.perf_counter()
+    ref = bake_core.bake_points(scene, layer, settings(samples=a.ref_samples), engine_pts, log=lambda s: None)
+    out["reference_seconds"] = time.perf_counter() - t
+    floor = bake_core.bake_points(scene, layer, settings(), engine_pts, log=lambda s: None)
+    out["floor"] = stats(adaptive.irradiance_error(floor, ref))
+
+    for tol in a.tolerance:
+        path = os.path.join(tmp, f"adaptive_{tol:g}.shprobe")
+        b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", error_tolerance=tol, output_path=path),
+                                log=print)
+        t, cpu = time.perf_counter(), cpu_seconds()
+        r = b.run()
+        sec, cpu = time.perf_counter() - t, cpu_seconds() - cpu
+        f = native.read_shprobe(path)
+        got = native.interpolation_from_file(path).interpolate(engine_pts, f.coeffs, f.validity)
+        out["rows"].append({"placement": "adaptive", "tolerance": tol, "seconds": sec, "cpu_seconds": cpu,
+                            "probes": r.probe_count, "render_seconds": r.timings["render"],
+                            "renders": r.renders, "passes": [vars(p) for p in r.passes],
+                            "file_bytes": os.path.getsize(path),
+                            "error": stats(adaptive.irradiance_error(got, ref))})
+        print("ROW", json.dumps(out["rows"][-1]), flush=True)
+    if a.old:
+        path = os.path.join(tmp, "octree.shprobe")
+        b = bake_core.ProbeBake(scene, layer, settings(placement="OCTREE", output_path=path), log=print)
+        t, cpu = time.perf_counter(), cpu_seconds()
+        r = b.run()
+        sec, cpu = time.perf_counter() - t, cpu_seconds() - cpu
+        f = native.read_shprobe(path)
+        idx = f.lookup(engine_pts)
+        got = f.coeffs[np.maximum(idx, 0)]
+        out["rows"].append({"placement": "geometry octree", "seconds": sec, "cpu_seconds": cpu,
+                            "probes": r.probe_count, "render_seconds": r.timings["render"],
+                            "renders": r.renders or r.probe_count, "file_bytes": os.path.getsize(path),
+                            "error": stats(adaptive.irradiance_error(got, ref))})
+        print("ROW", json.dumps(out["rows"][-1]), flush=True)
+    out["load_end"] = os.getloadavg()
+    with open(a.out, "w", encoding="utf-8") as fh:
+        json.dump(out, fh, indent=1)
+    print("WROTE", a.out)
+
+
+def cpu_seconds():
+    """CPU seconds of this process (all threads, user + system): load-independent cost."""
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_utime + u.ru_stime
+
+
+def stats(e):
+    """Error statistics; a point no probe covers (NaN: every corner invalid) counts as 100 %."""
+    e = np.asarray(e, dtype=float)
+    missing = int(np.isnan(e).sum())
+    e = np.where(np.isnan(e), 1.0, e)
+    return {"mean": float(e.mean()), "median": float(np.median(e)), "p90": float(np.percentile(e, 90)),
+            "max": float(e.max()), "n": int(len(e)), "uncovered": missing}
+
+
+if __name__ == "__main__":
+    main()

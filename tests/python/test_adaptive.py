@@ -1,0 +1,122 @@
+"""The add-on's Adaptive placement loop (addon/schnee_probes/adaptive.py) without Blender: the same
+state machine the bake drives, fed with closed-form light fields instead of renders (< 2 s)."""
+import math
+
+import numpy as np
+import pytest
+
+from conftest import requires_native
+from schnee_probes import adaptive, native
+
+pytestmark = requires_native
+
+
+def box_mesh(name, lo, hi):
+    """A closed box with outward faces, engine space."""
+    x0, y0, z0 = lo
+    x1, y1, z1 = hi
+    v = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
+                  [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], dtype=np.float64)
+    t = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                  [2, 3, 7], [2, 7, 6], [1, 2, 6], [1, 6, 5], [0, 4, 7], [0, 7, 3]], dtype=np.uint32)
+    return (name, v, t)
+
+
+def sh_of(constant, sun):
+    """L1-in-L2 radiance SH (9, 3): a constant sky plus an optional 'sun' term along +Y."""
+    c = np.zeros((9, 3))
+    c[0] = constant
+    c[2] = sun  # Y_1,0 (engine +Y)
+    return c
+
+
+def drive(group, field, noise=0.0):
+    """Run the refinement with ``field(points) -> (N, 9, 3)`` standing in for the renders."""
+    cache = adaptive.PointCache(2)
+
+    def fill(todo):
+        if todo:
+            cache.coeffs[todo] = field(cache.positions[todo])
+            cache.noise[todo] = noise
+            cache.rendered[todo] = True
+    fill(group.start(cache))
+    for _ in range(50):
+        if group.finished:
+            break
+        fill(group.advance(cache))
+    assert group.finished
+    return cache
+
+
+VOLUME = box_mesh("hall", (0.0, 0.0, 0.0), (8.0, 2.0, 2.0))
+
+
+def test_lattice_frame_rounds_max_cell_down_and_covers_the_box():
+    origin, level, dims = adaptive.lattice_frame(VOLUME[1], 0.5, 3.0)
+    assert list(origin) == [0, 0, 0] and level == 2  # 3 m -> 0.5 * 2^2 = 2 m
+    assert list(dims) == [4, 1, 1]
+    assert adaptive.lattice_frame(VOLUME[1], 0.5, 16.0)[1:] == (5, pytest.approx([1, 1, 1]))
+
+
+def test_irradiance_error_equals_the_native_metric():
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(size=(2, 9, 3))
+    # Closed form: RMS over directions of the irradiance difference by quadrature on 20000 normals.
+    d = rng.normal(size=(20000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    ea, eb = native.irradiance(a, d), native.irradiance(b, d)
+    quad = math.sqrt(np.mean((ea - eb) ** 2) / np.mean(eb ** 2))
+    assert adaptive.irradiance_error(a, b) == pytest.approx(quad, rel=0.03)
+    assert adaptive.irradiance_error(np.zeros((9, 3)), np.zeros((9, 3))) == 0.0
+    assert adaptive.irradiance_error(a, np.zeros((9, 3))) == 1.0
+
+
+def test_combine_halves_mean_and_noise():
+    ref = sh_of(1.0, 0.0)
+    a, b = ref * 1.02, ref * 0.98
+    mean, noise = adaptive.combine_halves(a, b, 8, 8)
+    assert np.allclose(mean, ref)
+    assert noise == pytest.approx(0.02)  # ‖a − b‖ / 2 relative: σ of the mean of two halves
+    mean, noise = adaptive.combine_halves(a, b, 1, 3)
+    assert np.allclose(mean, (a + 3 * b) / 4)
+    assert noise == pytest.approx(0.04 / 0.99 * math.sqrt(3) / 4)  # relative to the mean, 0.99
+    assert adaptive.split_samples(32) == (16, 16) and adaptive.split_samples(1) == (1, 1)
+    assert adaptive.split_samples(5) == (2, 3)
+
+
+def test_shadow_plane_refines_only_the_cells_it_crosses():
+    # A sun switched on for x > 3.3: only leaves crossed by x = 3.3 may split, down to Min Cell Size.
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+
+    def field(p):
+        return np.array([sh_of(1.0, 3.0 if x > 3.3 else 0.0) for x in p[:, 0]])
+    drive(group, field)
+    info = group.tree.info()
+    leaves = info["leaves"].astype(float)
+    size = 0.5 * 2 ** leaves[:, 3]
+    lo = leaves[:, 0] * 0.5
+    crossed = (lo < 3.3) & (lo + size > 3.3)
+    assert np.all(size[crossed] == 0.5)
+    # Leaves below Max Cell Size only inside the 2 m cell [2, 4] that holds the plane.
+    assert np.all((lo[size < 2] >= 2.0) & (lo[size < 2] + size[size < 2] <= 4.0))
+    assert [p.smallest_cell for p in group.passes] == [2.0, 1.0, 0.5]
+
+
+def test_linear_field_and_bounded_noise_split_nothing():
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+    drive(group, lambda p: np.array([sh_of(1.0 + 0.2 * x, 0.5) for x in p[:, 0]]))
+    assert len(group.passes) == 1 and group.passes[0].split == 0
+    # ±8 % noise (above the 5 % tolerance) with its estimate passed in: no split either.
+    rng = np.random.default_rng(5)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+    drive(group, lambda p: np.array([sh_of(1.0, 0.0) * (1 + rng.uniform(-0.08, 0.08)) for _ in p]), noise=0.05)
+    assert group.passes[0].split == 0
+
+
+def test_nodes_on_the_volume_boundary_render_just_inside_it():
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+    nodes = np.array([[0.0, 0.0, 0.0], [8.0, 2.0, 2.0], [4.0, 1.0, 1.0], [9.0, -1.0, 0.5]])
+    got = group.render_positions(nodes)
+    inset = adaptive.RENDER_INSET
+    assert np.allclose(got, [[inset, inset, inset], [8 - inset, 2 - inset, 2 - inset], [4, 1, 1],
+                             [8 - inset, inset, 0.5]])
