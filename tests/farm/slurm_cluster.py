@@ -3,6 +3,7 @@ started and stopped by the test itself (docs/farm.md "Tested here"). Everything 
 temporary folder: a fresh munge key and socket, slurm.conf with free ports, state and spool
 folders, logs. The daemons run as root (slurmd launches the jobs); job scripts inherit the test's
 environment (sbatch --export=ALL, Slurm's default)."""
+import getpass
 import os
 import shutil
 import signal
@@ -28,6 +29,7 @@ class SlurmCluster:
 
     def _write_conf(self):
         host = socket.gethostname().split(".")[0]
+        user = getpass.getuser()  # root in CI (as the chroot tests need); the daemons run as this user
         d = self.dir
         for sub in ("state", "spool", "log", "munge"):
             (d / sub).mkdir(mode=0o700, exist_ok=True)
@@ -38,8 +40,8 @@ SlurmdPort={_free_port()}
 AuthType=auth/munge
 AuthInfo=socket={d}/munge/munge.socket
 CredType=cred/munge
-SlurmUser=root
-SlurmdUser=root
+SlurmUser={user}
+SlurmdUser={user}
 StateSaveLocation={d}/state
 SlurmdSpoolDir={d}/spool
 SlurmctldPidFile={d}/slurmctld.pid
@@ -98,7 +100,7 @@ PartitionName=schnee Nodes=ALL Default=YES MaxTime=INFINITE State=UP
 
     def stop(self):
         d = self.dir
-        subprocess.run(["scancel", "--user=root"], env=self.env, capture_output=True, timeout=30)
+        subprocess.run(["scancel", f"--user={getpass.getuser()}"], env=self.env, capture_output=True, timeout=30)
         time.sleep(1)
         for name in ("slurmd.pid", "slurmctld.pid", "munge/munged.pid"):
             try:
