@@ -32,7 +32,7 @@ from typing import List, Optional, Sequence
 import bpy
 import numpy as np
 
-from . import compat, light_modes, native, render_settings, scene_export
+from . import compat, direct_light, light_modes, native, render_settings, scene_export
 
 DEFAULT_OUTPUT = "//sh_coeffs/probes.shprobe"
 # The world (sky) alone, captured by a volume bake next to the probe files; the glTF exporter
@@ -177,6 +177,7 @@ class ProbeBake:
         self._closed = False
         self._sky_exr = None                # rendered sky (temporary folder) until finish()
         self._realtime_lights = []          # lamps hidden from the probe renders (light_modes.py)
+        self._direct = None                 # direct_light.DirectLightPlan (issue 11 hook)
 
     # ------------------------------------------------------------------ prepare
     @property
@@ -338,6 +339,8 @@ class ProbeBake:
         # was recorded by the SceneState above and is restored on success, error and cancel.
         for ob in self._realtime_lights:
             ob.hide_render = True
+        # --- issue 11 hook: lamps added analytically are hidden from camera rays (direct_light.py).
+        self._direct = direct_light.prepare(self)
 
         cam_data = bpy.data.cameras.new("SchneeProbeCamera")
         compat.set_equirectangular(cam_data)
@@ -425,6 +428,8 @@ class ProbeBake:
                 raise BakeError(f"finish() after {self.done} of {self.total} probes")
             if self.mode == "VOLUMES" and self.settings.capture_sky and self._sky_exr is None:
                 self.capture_sky()
+            if self._direct is not None:     # --- issue 11 hook: add the lamps' direct light
+                self._direct.add_to(self)
             files = self._write_outputs()
         finally:
             self._close()

@@ -1,0 +1,187 @@
+"""Direct light of lamps added to the probes analytically (issue 11, docs/direct-light.md).
+
+Camera rays cannot see a Sun lamp at all, nor a point or spot lamp of radius 0, and see small lamps
+only with noise. So, when "Lamps Seen by Probes" (``lights_visible``) is on, every baked lamp whose
+emission is a constant and that the native core models exactly (Sun, Point, Spot, Area with spread
+180°) is
+
+* hidden from camera rays in the probe panoramas (``visible_camera = False``; it still lights the
+  scene, so its bounced light stays in the path-traced panorama), and
+* added to every probe as the exact SH projection of its direct radiance, shadowed by the render
+  geometry through Embree (``native.direct_project``).
+
+Lamps with a node-driven emission that is not a constant, and area lamps with a narrower spread,
+stay visible to camera rays (path traced as before); a Sun lamp of that kind, which camera rays
+cannot see, is added analytically with the constant part of its emission and a message. Realtime
+lamps (light_modes.py) are in neither. With ``lights_visible`` off no lamp is seen directly by the
+probes (the meaning of that setting is unchanged): nothing here runs.
+
+Use from the bake (bake_core.ProbeBake): ``plan = prepare(bake)`` once the render is set up (after
+the lamps' visibility flags were recorded for restoring), ``plan.add_to(bake)`` before the files
+are written.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import List, Optional, Tuple
+
+import bpy
+import numpy as np
+
+from . import native, render_settings, scene_export
+
+# Shadow rays (= quadrature cells) per lamp and probe; docs/direct-light.md gives the error bounds.
+SAMPLES_PER_LAMP = 256
+# Cycles before 4.0 draws a point/spot lamp as a disc facing the viewer and multiplies the spot cone
+# by cos γ; 4.0 made it a sphere and dropped the cosine (native.Lamp.legacy_point).
+LEGACY_POINT = bpy.app.version < (4, 0, 0)
+
+
+def _engine(v) -> Tuple[float, float, float]:
+    """Blender direction/point (x, y, z) -> engine (x, z, -y)."""
+    return (float(v[0]), float(v[2]), -float(v[1]))
+
+
+def emission_factor(light) -> Tuple[Optional[Tuple[float, float, float]], str]:
+    """(rgb, "") when the lamp's node tree scales its emission by a constant (no nodes: 1), else
+    (None, why). Cycles multiplies the lamp's colour × power by the Emission node at its output."""
+    if not getattr(light, "use_nodes", False) or light.node_tree is None:
+        return (1.0, 1.0, 1.0), ""
+    outputs = [n for n in light.node_tree.nodes if n.type == 'OUTPUT_LIGHT']
+    active = [n for n in outputs if getattr(n, "is_active_output", True)] or outputs
+    if not active:
+        return (0.0, 0.0, 0.0), ""
+    surface = active[0].inputs.get("Surface")
+    if surface is None or not surface.is_linked:
+        return (0.0, 0.0, 0.0), ""
+    node = surface.links[0].from_node
+    if node.type != 'EMISSION':
+        return None, f"its node tree feeds a {node.type.lower()} node, not an Emission node, to the output"
+    color, strength = node.inputs["Color"], node.inputs["Strength"]
+    if color.is_linked or strength.is_linked:
+        return None, "its Emission colour or strength is driven by nodes"
+    c = color.default_value
+    s = float(strength.default_value)
+    return (float(c[0]) * s, float(c[1]) * s, float(c[2]) * s), ""
+
+
+def _constant_part(light) -> Tuple[float, float, float]:
+    """The unlinked Emission values of a node-driven lamp (1 where none can be read)."""
+    try:
+        out = [n for n in light.node_tree.nodes if n.type == 'OUTPUT_LIGHT'][0]
+        node = out.inputs["Surface"].links[0].from_node
+        c, s = node.inputs["Color"].default_value, float(node.inputs["Strength"].default_value)
+        return float(c[0]) * s, float(c[1]) * s, float(c[2]) * s
+    except (IndexError, KeyError, AttributeError):
+        return 1.0, 1.0, 1.0
+
+
+def lamp_record(light, matrix_world, factor) -> native.Lamp:
+    """The native.Lamp of Blender light datablock ``light`` placed by ``matrix_world``."""
+    m = np.array(matrix_world, dtype=np.float64).reshape(4, 4)
+    col0, col1, col2 = m[:3, 0], m[:3, 1], m[:3, 2]
+    emit = -col2 / max(np.linalg.norm(col2), 1e-300)           # local -Z
+    rgb = tuple(float(light.color[k]) * float(light.energy) * factor[k] for k in range(3))
+    pos = _engine(m[:3, 3])
+    kind = light.type
+    if kind == 'SUN':
+        return native.Lamp("SUN", rgb, pos, _engine(emit), radius=float(light.angle))
+    if kind in ('POINT', 'SPOT'):
+        lamp = native.Lamp(kind, rgb, pos, _engine(emit), radius=float(light.shadow_soft_size),
+                           legacy_point=LEGACY_POINT)
+        if kind == 'SPOT':
+            lamp.spot_size = float(light.spot_size)
+            lamp.spot_blend = float(light.spot_blend)
+        return lamp
+    # AREA: Cycles scales the lamp's size by its object scale; power is spread over the scaled area.
+    su = float(light.size) * float(np.linalg.norm(col0))
+    if light.shape in ('SQUARE', 'DISK'):
+        sv = float(light.size) * float(np.linalg.norm(col1))
+    else:
+        sv = float(light.size_y) * float(np.linalg.norm(col1))
+    u = col0 / max(np.linalg.norm(col0), 1e-300)
+    shape = "AREA_RECT" if light.shape in ('SQUARE', 'RECTANGLE') else "AREA_ELLIPSE"
+    return native.Lamp(shape, rgb, pos, _engine(emit), _engine(u), size_u=su, size_v=sv)
+
+
+@dataclass
+class DirectLightPlan:
+    """Which lamps are added analytically (and hidden from camera rays) and the shadow geometry."""
+    lamps: List[native.Lamp] = field(default_factory=list)
+    analytic: List[str] = field(default_factory=list)      # object names, hidden from camera rays
+    path_traced: List[str] = field(default_factory=list)   # object names left to camera rays
+    geometry: list = field(default_factory=list)
+    messages: List[str] = field(default_factory=list)
+    samples: int = SAMPLES_PER_LAMP
+
+    def project(self, positions: np.ndarray, max_band: int) -> np.ndarray:
+        """(P, sh_count, 3): the lamps' direct radiance projection at engine-space positions."""
+        if not self.lamps or len(positions) == 0:
+            return np.zeros((len(positions), native.sh_count(max_band), 3))
+        return native.direct_project(self.lamps, np.asarray(positions, dtype=np.float64), max_band,
+                                     self.samples, self.geometry)
+
+    def add_to(self, bake):
+        """Adds the direct light to ``bake.coeffs`` (all probes at once) and records the time."""
+        t0 = time.perf_counter()
+        bake.coeffs += self.project(bake.positions, bake.settings.max_band)
+        bake.timings["direct"] = time.perf_counter() - t0
+
+
+def classify(light) -> Tuple[bool, Optional[Tuple[float, float, float]], str]:
+    """(analytic, emission factor, message) for one light datablock (see the module docstring)."""
+    factor, why = emission_factor(light)
+    if light.type == 'AREA' and float(getattr(light, "spread", math.pi)) < math.pi - 1e-6:
+        return False, None, "is an area lamp with a spread below 180°, which is path traced"
+    if factor is None:
+        if light.type == 'SUN':
+            return True, _constant_part(light), (f"is a Sun lamp whose {why[4:] if why.startswith('its ') else why}"
+                                                 ": the probes use its constant part only")
+        return False, None, f"is path traced because {why}"
+    return True, factor, ""
+
+
+def prepare(bake) -> Optional[DirectLightPlan]:
+    """Decides every baked lamp's way, hides the analytic ones from camera rays and gathers the
+    shadow geometry. Call after the lamps' ``visible_camera`` was recorded (bake_core's SceneState).
+    Returns None when "Lamps Seen by Probes" is off."""
+    s = bake.settings
+    if not s.lights_visible:
+        return None
+    scene, view_layer = bake.scene, bake.view_layer
+    realtime = {ob.name for ob in bake._realtime_lights}
+    coll = bpy.data.collections.get(s.volume_collection)
+    volume_names = frozenset(ob.name for ob in coll.all_objects) if coll is not None else frozenset()
+    plan = DirectLightPlan()
+    evaluation = render_settings.RenderEvaluation(scene, view_layer,
+                                                  keep=volume_names | ({coll.name} if coll else set()))
+    with evaluation as depsgraph:
+        plan.geometry = scene_export.gather_geometry(depsgraph, volume_names)
+        decided = {}
+        for inst in depsgraph.object_instances:
+            ob = inst.object
+            if ob.type != 'LIGHT':
+                continue
+            original = ob.original
+            owner = inst.parent.original if inst.is_instance and inst.parent is not None else original
+            if original.name in realtime or owner.hide_render or original.hide_render:
+                continue
+            light = original.data
+            if original.name not in decided:
+                decided[original.name] = classify(light)
+                analytic, _, msg = decided[original.name]
+                (plan.analytic if analytic else plan.path_traced).append(original.name)
+                if msg:
+                    plan.messages.append(f"Light '{original.name}' {msg}")
+            analytic, factor, _ = decided[original.name]
+            if analytic:
+                plan.lamps.append(lamp_record(light, inst.matrix_world, factor))
+    for name in plan.analytic:
+        ob = bpy.data.objects.get(name)
+        if ob is not None and hasattr(ob, "visible_camera"):
+            bake._state.remember_object(ob)   # restored by finish/cancel with the other flags
+            ob.visible_camera = False
+    bake.messages.extend(plan.messages)
+    return plan
