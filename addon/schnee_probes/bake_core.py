@@ -377,6 +377,8 @@ class ProbeBake:
             self.coeffs[i] = native.project_file(exr, s.max_band, negative="clamp")
         except native.SchneeError as exc:
             raise BakeError(f"Projecting the panorama of probe {i} failed: {exc}") from exc
+        if self._direct is not None:         # --- issue 11 hook: the world seen directly
+            self._direct.add_sky(self, i, exr)
         t3 = time.perf_counter()
         self.timings["render"] += t1 - t0
         self.timings["write_exr"] += t2 - t1

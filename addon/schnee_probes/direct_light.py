@@ -115,6 +115,9 @@ class DirectLightPlan:
     geometry: list = field(default_factory=list)
     messages: List[str] = field(default_factory=list)
     samples: int = SAMPLES_PER_LAMP
+    sky: bool = False                 # panoramas with a transparent film + exact world projection
+    sky_source: str = ""              # how the world was read (for the log and the docs' tests)
+    _table: Optional[np.ndarray] = None
 
     def project(self, positions: np.ndarray, max_band: int) -> np.ndarray:
         """(P, sh_count, 3): the lamps' direct radiance projection at engine-space positions."""
@@ -128,6 +131,124 @@ class DirectLightPlan:
         t0 = time.perf_counter()
         bake.coeffs += self.project(bake.positions, bake.settings.max_band)
         bake.timings["direct"] = time.perf_counter() - t0
+
+
+    def add_sky(self, bake, index: int, exr_path: str):
+        """Adds Σ_cells vis(cell) · ∫_cell L_world Y dω to probe ``index``: vis = 1 − alpha of the
+        panorama just rendered with a transparent film (the world hidden from camera rays)."""
+        if not self.sky:
+            return
+        t0 = time.perf_counter()
+        s = bake.settings
+        w, h = s.panorama_resolution, s.panorama_resolution // 2
+        if self._table is None:
+            self._table = sky_table(bake, w, h)
+        vis = 1.0 - read_alpha(exr_path, w, h)
+        np.clip(vis, 0.0, 1.0, out=vis)
+        bake.coeffs[index] += np.einsum("hw,hwic->ic", vis, self._table)
+        bake.timings["sky_direct"] = bake.timings.get("sky_direct", 0.0) + time.perf_counter() - t0
+
+
+def read_alpha(path: str, width: int, height: int) -> np.ndarray:
+    """(height, width) float64 alpha of an RGBA EXR written by the bake, row 0 at the top."""
+    img = bpy.data.images.load(path, check_existing=False)
+    try:
+        w, h = img.size
+        ch = img.channels
+        if (w, h) != (width, height) or ch != 4:
+            raise RuntimeError(f"panorama {path} is {w}x{h}x{ch}, expected {width}x{height} RGBA")
+        buf = np.empty(w * h * 4, dtype=np.float32)
+        img.pixels.foreach_get(buf)
+    finally:
+        bpy.data.images.remove(img)
+    return buf.reshape(h, w, 4)[::-1, :, 3].astype(np.float64)
+
+
+def world_image(world):
+    """(pixels (H, W, C) float32 top-down, strength, name) when the world is exactly an Environment
+    Texture (equirect, default mapping, linear float image) into a Background of constant strength,
+    else None: then the world is captured with Cycles instead."""
+    if world is None or not world.use_nodes or world.node_tree is None:
+        return None
+    outs = [n for n in world.node_tree.nodes if n.type == 'OUTPUT_WORLD']
+    active = [n for n in outs if getattr(n, "is_active_output", True)] or outs
+    if not active or not active[0].inputs["Surface"].is_linked:
+        return None
+    bg = active[0].inputs["Surface"].links[0].from_node
+    if bg.type != 'BACKGROUND' or bg.inputs["Strength"].is_linked or not bg.inputs["Color"].is_linked:
+        return None
+    env = bg.inputs["Color"].links[0].from_node
+    if env.type != 'TEX_ENVIRONMENT' or env.projection != 'EQUIRECTANGULAR' or env.inputs["Vector"].is_linked:
+        return None
+    if bg.inputs["Color"].links[0].from_socket.name != "Color":
+        return None
+    img = env.image
+    if img is None or img.source != 'FILE' or not img.is_float:
+        return None
+    if img.colorspace_settings.name not in ("Linear", "Linear Rec.709", "Non-Color", "Raw"):
+        return None
+    w, h = img.size
+    ch = img.channels
+    if w < 1 or h < 1 or ch < 3:
+        return None
+    buf = np.empty(w * h * ch, dtype=np.float32)
+    img.pixels.foreach_get(buf)
+    pixels = np.ascontiguousarray(buf.reshape(h, w, ch)[::-1])
+    return pixels, float(bg.inputs["Strength"].default_value), img.name
+
+
+SKY_CAPTURE_WIDTH = 1024   # width of the Cycles capture of a world that is not a plain HDRI
+SKY_CAPTURE_SAMPLES = 128  # its samples per pixel (at least; measured error in docs/direct-light.md)
+
+
+def capture_world(bake, width: int) -> np.ndarray:
+    """The world alone rendered by Cycles from the probe camera at the origin (every object hidden,
+    opaque film), width x width/2, (H, W, 4) float32 top-down. Everything changed is put back."""
+    scene, s = bake.scene, bake.settings
+    cam = bake._camera
+    hidden = [(ob, ob.hide_render) for ob in scene.objects if ob is not cam]
+    r = scene.render
+    saved = (r.resolution_x, r.resolution_y, r.film_transparent, tuple(cam.location), scene.cycles.samples)
+    path = bake._tmpdir + "/schnee_world_capture.exr"
+    try:
+        for ob, _ in hidden:
+            ob.hide_render = True
+        r.resolution_x, r.resolution_y = width, width // 2
+        r.film_transparent = False
+        scene.cycles.samples = max(s.samples, SKY_CAPTURE_SAMPLES)
+        cam.location = (0.0, 0.0, 0.0)
+        bpy.ops.render.render(write_still=False, layer=bake.view_layer.name, scene=scene.name)
+        bpy.data.images["Render Result"].save_render(path, scene=scene)
+    finally:
+        for ob, was in hidden:
+            if ob.hide_render != was:
+                ob.hide_render = was
+        r.resolution_x, r.resolution_y, r.film_transparent = saved[0], saved[1], saved[2]
+        cam.location = saved[3]
+        scene.cycles.samples = saved[4]
+    img = bpy.data.images.load(path, check_existing=False)
+    try:
+        buf = np.empty(width * (width // 2) * 4, dtype=np.float32)
+        img.pixels.foreach_get(buf)
+    finally:
+        bpy.data.images.remove(img)
+    return np.ascontiguousarray(buf.reshape(width // 2, width, 4)[::-1])
+
+
+def sky_table(bake, pano_w: int, pano_h: int) -> np.ndarray:
+    """(pano_h, pano_w, sh_count, 3): the world pre-integrated per panorama cell (native.sky_table)."""
+    plan = bake._direct
+    src = world_image(bake.scene.world)
+    if src is not None:
+        pixels, strength, name = src
+        world = np.clip(pixels[:, :, :3] * np.float32(strength), 0.0, None)  # the HDRIs hold -1e-5 texels
+        plan.sky_source = f"image '{name}' {pixels.shape[1]}x{pixels.shape[0]}"
+    else:
+        width = max(SKY_CAPTURE_WIDTH, 8 * pano_w)
+        world = np.clip(capture_world(bake, width)[:, :, :3], 0.0, None)
+        plan.sky_source = f"Cycles capture {width}x{width // 2}"
+    bake.log(f"Schnee: world seen directly from {plan.sky_source}")
+    return native.sky_table(np.ascontiguousarray(world), pano_w, pano_h, bake.settings.max_band)
 
 
 def classify(light) -> Tuple[bool, Optional[Tuple[float, float, float]], str]:
@@ -148,13 +269,17 @@ def prepare(bake) -> Optional[DirectLightPlan]:
     shadow geometry. Call after the lamps' ``visible_camera`` was recorded (bake_core's SceneState).
     Returns None when "Lamps Seen by Probes" is off."""
     s = bake.settings
-    if not s.lights_visible:
-        return None
     scene, view_layer = bake.scene, bake.view_layer
+    # The world seen directly: the panoramas get a transparent film (world hidden from camera rays,
+    # alpha = coverage) and add_sky() adds the exact world projection weighted by 1 - alpha.
+    scene.render.film_transparent = True
+    scene.render.image_settings.color_mode = 'RGBA'
+    if not s.lights_visible:
+        return DirectLightPlan(sky=True)
     realtime = {ob.name for ob in bake._realtime_lights}
     coll = bpy.data.collections.get(s.volume_collection)
     volume_names = frozenset(ob.name for ob in coll.all_objects) if coll is not None else frozenset()
-    plan = DirectLightPlan()
+    plan = DirectLightPlan(sky=True)
     evaluation = render_settings.RenderEvaluation(scene, view_layer,
                                                   keep=volume_names | ({coll.name} if coll else set()))
     with evaluation as depsgraph:
