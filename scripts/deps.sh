@@ -6,13 +6,14 @@ cd "$(dirname "$0")/.."
 
 APT_PACKAGES=(
   build-essential cmake ninja-build pkg-config clang clang-format libclang-rt-14-dev
-  libembree-dev libopenimageio-dev openimageio-tools
+  libembree-dev libopenimageio-dev openimageio-tools libqhull-dev
   python3 python3-dev python3-numpy python3-scipy python3-pytest python3-matplotlib
   python3-pip python3-setuptools python3-wheel
   blender
   libvulkan-dev glslc mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
   libcjson-dev libglfw3-dev xvfb xauth
   nodejs npm
+  debootstrap patchelf
 )
 
 missing=()

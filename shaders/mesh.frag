@@ -41,20 +41,24 @@ void main() {
     // from the grids per pixel, or from the fallback probe 0 (mode off), by the material's
     // probeMode unless --probe-mode overrides it.
     uint mode = frame.probe_mode == SV_PROBE_MODE_MATERIAL ? m.probe_mode : frame.probe_mode;
+    // How E is evaluated (docs/ambient-cube.md §5): the probe's SH, or its ambient cube, by the
+    // material's probeRepresentation unless --probe-representation overrides it.
+    uint rep = frame.probe_representation == SV_PROBE_REP_MATERIAL ? m.probe_representation : frame.probe_representation;
+    bool cube = rep == SV_PROBE_REP_AMBIENT_CUBE;
     vec3 e_probe;
     bool probe_lit; // E came from a baked probe rather than the fallback probe 0 (for baked lights)
     if (mode == SV_PROBE_MODE_PIXEL) {
-        probe_lit = grid_irradiance(v_world, n, e_probe);
-        if (!probe_lit) e_probe = probe_scale(0u) * probe_irradiance(0u, n);
+        probe_lit = grid_irradiance(v_world, n, cube, e_probe);
+        if (!probe_lit) e_probe = probe_scaled_irradiance(0u, n, cube);
     } else {
         uint index = mode == SV_PROBE_MODE_OFF ? 0u : draw.probe_index;
         probe_lit = index != 0u;
-        e_probe = probe_scale(index) * probe_irradiance(index, n);
+        e_probe = probe_scaled_irradiance(index, n, cube);
     }
     vec3 color = albedo * (m.sh_scale * max(e_probe, vec3(0.0)) / SH_PI + m.ambient_term);
 
     if ((frame.flags & (SV_FRAME_SKY | SV_FRAME_NO_SPECULAR)) == SV_FRAME_SKY)
-        color += sky_specular(v_world, n, albedo, m.metallic, m.roughness, e_probe);
+        color += sky_specular(v_world, n, albedo, m.metallic, m.roughness, e_probe, cube);
 
     if ((frame.flags & SV_FRAME_NO_DIRECT) == 0u)
         color += direct_light(v_world, n, albedo, m.metallic, m.roughness, probe_lit);

@@ -4,9 +4,9 @@
 #define SV_SCENE_BINDINGS
 #include "gpu_types.glsl"
 
-layout(location = 0) in vec3 in_position;
-layout(location = 1) in vec3 in_normal;
-layout(location = 2) in vec2 in_uv;
+layout(location = SV_LOCATION_POSITION) in vec3 in_position;
+layout(location = SV_LOCATION_NORMAL) in vec3 in_normal;
+layout(location = SV_LOCATION_UV) in vec2 in_uv;
 
 layout(location = 0) out vec3 v_world;
 layout(location = 1) out vec3 v_normal;
@@ -14,7 +14,7 @@ layout(location = 2) out vec2 v_uv;
 
 void main() {
     vec4 world = draw.model * vec4(in_position, 1.0);
-    mat3 nm = mat3(draw.normal_col0.xyz, draw.normal_col1.xyz, draw.normal_col2.xyz);
+    mat3 nm = mat3(draw.normal_matrix[0].xyz, draw.normal_matrix[1].xyz, draw.normal_matrix[2].xyz);
     v_world = world.xyz;
     v_normal = nm * in_normal;
     v_uv = in_uv;

@@ -5,11 +5,8 @@
 #define SV_SCENE_BINDINGS
 #include "gpu_types.glsl"
 
-struct sv_gpu_cell { vec4 center_radius; uvec4 probe; };
-layout(std430, set = 0, binding = 5) readonly buffer CellBlock { sv_gpu_cell cells[]; };
-
-layout(location = 0) in vec3 in_position;
-layout(location = 1) in vec3 in_normal;
+layout(location = SV_LOCATION_POSITION) in vec3 in_position;
+layout(location = SV_LOCATION_NORMAL) in vec3 in_normal;
 
 layout(location = 0) out vec3 v_normal;
 layout(location = 1) flat out uint v_probe;

@@ -5,9 +5,6 @@
 #define SV_SCENE_BINDINGS
 #include "gpu_types.glsl"
 
-struct sv_gpu_cell { vec4 center_radius; uvec4 probe; };
-layout(std430, set = 0, binding = 5) readonly buffer CellBlock { sv_gpu_cell cells[]; };
-
 const ivec2 EDGES[12] = ivec2[](ivec2(0, 1), ivec2(2, 3), ivec2(4, 5), ivec2(6, 7), ivec2(0, 2), ivec2(1, 3),
                                 ivec2(4, 6), ivec2(5, 7), ivec2(0, 4), ivec2(1, 5), ivec2(2, 6), ivec2(3, 7));
 

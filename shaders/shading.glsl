@@ -1,6 +1,7 @@
 // Surface shading shared by the scene and the probe-cell view (needs SV_SCENE_BINDINGS).
 #ifndef SV_SHADING_GLSL
 #define SV_SHADING_GLSL
+#include "ambient_cube.glsl"
 #include "sh.glsl"
 
 // Probe buffer access for either storage (SV_HALF_PROBES, a specialization constant).
@@ -44,6 +45,33 @@ vec3 probe_irradiance(uint index, vec3 n) {
     return sh_irradiance(band, c, n);
 }
 
+// Ambient-cube buffer access (docs/ambient-cube.md §5), either storage: the cube of probe `index`,
+// fitted at load from the same probe's SH, with that probe's scale and validity.
+float cube_scale(uint index) {
+    return SV_HALF_PROBES ? unpackHalf2x16(cubes_half[index].params[0]).y : cubes[index].params.y;
+}
+float cube_validity(uint index) {
+    return SV_HALF_PROBES ? unpackHalf2x16(cubes_half[index].params[1]).x : cubes[index].params.w;
+}
+// E_cube(n) of probe `index`, not clamped: ambient_cube_irradiance() of ambient_cube.glsl.
+vec3 cube_irradiance(uint index, vec3 n) {
+    vec3 c[6];
+    for (uint f = 0u; f < 6u; ++f) {
+        if (SV_HALF_PROBES) {
+            uvec2 h = cubes_half[index].faces[f];
+            c[f] = vec3(unpackHalf2x16(h.x), unpackHalf2x16(h.y).x);
+        } else {
+            c[f] = cubes[index].faces[f].xyz;
+        }
+    }
+    return ambient_cube_irradiance(c, n);
+}
+
+// Irradiance of probe `index` including its own scale, in the representation `cube` selects.
+vec3 probe_scaled_irradiance(uint index, vec3 n, bool cube) {
+    return cube ? cube_scale(index) * cube_irradiance(index, n) : probe_scale(index) * probe_irradiance(index, n);
+}
+
 // Per-pixel probe lighting (DESIGN.md §7, docs/engine.md "Per-pixel probes"): the first grid
 // whose box holds p (moved by normal_bias grid spacings along n) is sampled trilinearly between
 // the centres of the 8 neighbouring cells (indices clamped at the grid's faces). A neighbour gets
@@ -53,8 +81,10 @@ vec3 probe_irradiance(uint index, vec3 n) {
 // holding p + 0.01 spacing * n (the "home" cell, on the lit side of the surface) cannot see it: its
 // visibility mask (Embree segments between cell centres, computed at load) has the bit clear. When every weight is 0 the cell holding
 // p is used alone (the per-object rule); when that is empty too, the next grid is tried.
-// Returns E(n) including each probe's own scale; false when no grid holds p.
-bool grid_irradiance(vec3 p_surface, vec3 n, out vec3 e_out) {
+// Returns E(n) including each probe's own scale; false when no grid holds p. `cube`: the probes'
+// ambient cubes instead of their SH, with the same weights, validity and visibility rules
+// (docs/ambient-cube.md §5; the fit is linear, so this is the cube of the interpolated SH).
+bool grid_irradiance(vec3 p_surface, vec3 n, bool cube, out vec3 e_out) {
     e_out = vec3(0.0);
     for (uint g = 0u; g < frame.grid_count; ++g) {
         sv_gpu_grid gr = grids[g];
@@ -90,19 +120,21 @@ bool grid_irradiance(vec3 p_surface, vec3 n, out vec3 e_out) {
                 continue;
             vec3 w3 = mix(1.0 - f, f, vec3(o));
             float w = w3.x * w3.y * w3.z;
-            vec3 centre_local = (vec3(ci) + 0.5) * h;
-            vec3 centre = gr.origin_spacing.xyz + centre_local.x * gr.axes[0].xyz + centre_local.y * gr.axes[1].xyz +
-                          centre_local.z * gr.axes[2].xyz;
+            vec3 centre = cell_centre(gr, ci);
             float t = dot(centre - p_surface, n) / h;
             uint pi = gr.base.x + uint(idx);
-            w *= smoothstep(-0.1, 0.1, t) * probe_validity(pi);
+            w *= smoothstep(-0.1, 0.1, t) * (cube ? cube_validity(pi) : probe_validity(pi));
             if (w <= 0.0) continue;
-            if (!have_basis) {
-                band = probe_band(pi);
-                sh_eval_basis(band, n, Y);
-                have_basis = true;
+            if (cube) {
+                e += w * cube_scale(pi) * cube_irradiance(pi, n);
+            } else {
+                if (!have_basis) {
+                    band = probe_band(pi);
+                    sh_eval_basis(band, n, Y);
+                    have_basis = true;
+                }
+                e += w * probe_scale(pi) * probe_irradiance_basis(pi, band, Y);
             }
-            e += w * probe_scale(pi) * probe_irradiance_basis(pi, band, Y);
             wsum += w;
         }
         if (wsum > 1e-6) {
@@ -113,7 +145,7 @@ bool grid_irradiance(vec3 p_surface, vec3 n, out vec3 e_out) {
         int idx = cell_probe[off + uint(cell.x + cell.y * dims.x + cell.z * dims.x * dims.y)];
         if (idx >= 0) {
             uint pi = gr.base.x + uint(idx);
-            e_out = probe_scale(pi) * probe_irradiance(pi, n);
+            e_out = probe_scaled_irradiance(pi, n, cube);
             return true;
         }
     }
@@ -131,8 +163,10 @@ float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
 
 // Split-sum image-based specular from the sky (prefiltered mips + BRDF LUT), scaled by
 // clamp(lum(E_probe(n)) / lum(E_sky(n)), 0, 1) so surfaces the probes see darker than the open sky
-// (interiors) do not reflect it at full strength. e_probe: the irradiance the diffuse term used.
-vec3 sky_specular(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, vec3 e_probe) {
+// (interiors) do not reflect it at full strength. e_probe: the irradiance the diffuse term used;
+// cube: it came from the ambient cubes, so the sky's E is the fallback probe's cube too (ratio 1
+// outside the grids in either representation).
+vec3 sky_specular(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, vec3 e_probe, bool cube) {
     vec3 v = normalize(frame.camera_pos.xyz - p);
     float nv = clamp(dot(n, v), 1e-4, 1.0);
     vec3 r = reflect(-v, n);
@@ -143,7 +177,7 @@ vec3 sky_specular(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, 
     vec3 f0 = mix(vec3(0.04), albedo, metallic);
     vec3 spec = pre * (f0 * ab.x + ab.y);
     if ((frame.flags & SV_FRAME_NO_RENORM) == 0u) {
-        float sky = luminance(max(probe_irradiance(0u, n), vec3(0.0)));
+        float sky = luminance(max(cube ? cube_irradiance(0u, n) : probe_irradiance(0u, n), vec3(0.0)));
         float ratio = sky > 1e-6 ? clamp(luminance(max(e_probe, vec3(0.0))) / sky, 0.0, 1.0) : 1.0;
         spec *= ratio;
     }

@@ -4,13 +4,8 @@
 #extension GL_GOOGLE_include_directive : require
 #include "gpu_types.glsl"
 
-layout(set = 0, binding = 0) uniform sampler2D hdr;
-layout(push_constant, std430) uniform TonemapBlock {
-    float exposure;
-    uint op;
-    uint encode_srgb;
-    uint pad;
-} pc;
+layout(set = 0, binding = SV_BINDING_HDR) uniform sampler2D hdr;
+layout(push_constant, std430) uniform TonemapBlock { sv_gpu_tonemap pc; };
 layout(location = 0) out vec4 out_color;
 
 // Khronos PBR Neutral tone mapper (KhronosGroup/ToneMapping, reference GLSL).

@@ -14,16 +14,25 @@ synchronous operator path and headless ``bake.py``::
         raise
 
 Nothing is written to the output folder before :meth:`ProbeBake.finish`; a failed or cancelled bake
-leaves existing ``.shprobe`` files untouched. Every scene setting the bake changes is captured first
-(:class:`render_settings.SceneState`) and restored by ``finish`` and ``cancel``.
+leaves existing ``.shprobe`` files untouched. Every scene setting the bake changes goes through one
+:class:`render_settings.StateGuard` and is restored by ``finish`` and ``cancel``.
+
+Before any work :meth:`ProbeBake.prepare` refuses outputs that are not ours
+(:func:`check_replaceable`: the open .blend, a file that is not a .shprobe by content, anything
+not a regular file) and NaN/Inf emission (:func:`check_finite_emission`); after placement it logs
+the probe count with an estimate (estimate.py) and refuses more than ``settings.probe_limit``
+probes unless ``allow_large``. :meth:`ProbeBake.request_cancel` (Esc, or a signal through
+:class:`CancelOnSignals`) stops the bake at the next check point: placement's progress, each
+probe, before the sky and before writing.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import re
 import shutil
+import signal
+import stat
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -33,8 +42,12 @@ import bpy
 import numpy as np
 
 from . import compat, direct_light, light_modes, native, render_settings, scene_export
+from .safe_open import file_kind
+# The settings are declared in settings.py; re-exported here for scripts that use bake_core.*.
+from .settings import DEFAULT_OUTPUT, PIXEL_FILTERS, BakeError, BakeSettings  # noqa: F401
+from .estimate import (SECONDS_PER_PIXEL_SAMPLE, estimate_seconds, format_duration,  # noqa: F401
+                       grid_cell_bound)
 
-DEFAULT_OUTPUT = "//sh_coeffs/probes.shprobe"
 # The world (sky) alone, captured by a volume bake next to the probe files; the glTF exporter
 # copies it and lists it as VULKAN_SCHNEE_engine_properties.sky (docs/export.md).
 SKY_FILE_NAME = "sky.exr"
@@ -43,72 +56,14 @@ DEBUG_TEXT_NAME = "debug_probe.txt"
 # a subfolder, so the glTF exporter (which scans sh_coeffs/*.shprobe) never exports it.
 DEBUG_SUBDIR = "debug"
 DEBUG_SHPROBE_NAME = "debug_probe.shprobe"
+DEBUG_TEXT_FIRST_LINE = "# Schnee probes: Bake SH at Cursor"
+# How an existing file is recognised as one of ours before the bake replaces it (by content).
+SHPROBE_MAGIC = b"SPHR"             # 0x52485053 little-endian at offset 0 (DESIGN.md §4)
+EXR_MAGIC = b"\x76\x2f\x31\x01"     # OpenEXR
+# Temporary folders: schnee_bake_<pid>_<random> in the system temporary folder; a folder whose
+# process is gone was left by a killed bake and is removed by the next one.
+TMP_PREFIX = "schnee_bake_"
 
-PIXEL_FILTERS = ('BOX', 'GAUSSIAN', 'BLACKMAN_HARRIS')
-
-
-class BakeError(RuntimeError):
-    """A bake that cannot start or continue; the message is meant for the user as is."""
-
-
-@dataclass
-class BakeSettings:
-    """Every setting of a bake. Field names equal the ``Scene.schnee_probes`` property names and
-    the ``bake.py`` options; the defaults here are the documented defaults (docs/user-guide.md)."""
-    volume_collection: str = "ProbeVolumes"
-    min_cell_size: float = 0.5
-    max_cell_size: float = 16.0
-    panorama_resolution: int = 128
-    max_band: int = 2
-    samples: int = 32          # measured: bench/results/sweep.md (error vs time per setting)
-    max_bounces: int = 32
-    clamp_direct: float = 0.0
-    clamp_indirect: float = 10.0
-    pixel_filter: str = 'BOX'
-    filter_width: float = 1.0
-    lights_visible: bool = True
-    per_volume_files: bool = False
-    persistent_data: bool = True
-    seed: int = 0
-    default_sh_scale: float = 1.0
-    default_ambient: float = 0.1
-    output_path: str = DEFAULT_OUTPUT
-    capture_sky: bool = True          # volume bakes also render the world alone to sky.exr
-    sky_resolution: int = 512         # sky.exr width; height = width / 2
-
-    @classmethod
-    def from_props(cls, props, **overrides) -> "BakeSettings":
-        """Settings from a ``Scene.schnee_probes`` PropertyGroup, with keyword overrides."""
-        values = {f.name: getattr(props, f.name) for f in dataclasses.fields(cls) if hasattr(props, f.name)}
-        values.update(overrides)
-        return cls(**values)
-
-    def validate(self):
-        """Raise :class:`BakeError` naming the first invalid setting."""
-        def bad(msg):
-            raise BakeError("Invalid setting: " + msg)
-        if not self.min_cell_size > 0 or not math.isfinite(self.min_cell_size):
-            bad(f"Min Cell Size must be > 0 m (got {self.min_cell_size})")
-        if not self.max_cell_size >= self.min_cell_size:
-            bad(f"Max Cell Size ({self.max_cell_size} m) must be >= Min Cell Size ({self.min_cell_size} m)")
-        if not 0 <= self.max_band <= 4:
-            bad(f"Max SH Band must be 0..4 (got {self.max_band})")
-        if self.panorama_resolution < 4 or self.panorama_resolution % 2:
-            bad(f"Panorama Resolution must be an even width >= 4 (got {self.panorama_resolution})")
-        if self.samples < 1:
-            bad(f"Samples must be >= 1 (got {self.samples})")
-        if self.max_bounces < 0:
-            bad(f"Bounces must be >= 0 (got {self.max_bounces})")
-        if self.pixel_filter not in PIXEL_FILTERS:
-            bad(f"Pixel Filter must be one of {', '.join(PIXEL_FILTERS)} (got {self.pixel_filter!r})")
-        if not self.filter_width > 0:
-            bad(f"Filter Width must be > 0 px (got {self.filter_width})")
-        if self.clamp_direct < 0 or self.clamp_indirect < 0:
-            bad("clamps must be >= 0 (0 = no clamping)")
-        if not self.output_path:
-            bad("the output path is empty")
-        if self.sky_resolution < 4 or self.sky_resolution % 2:
-            bad(f"Sky Resolution must be an even width >= 4 (got {self.sky_resolution})")
 
 
 @dataclass
@@ -153,7 +108,7 @@ class ProbeBake:
     ``cursor`` = Blender-space position). ``log`` receives human-readable lines."""
 
     def __init__(self, scene, view_layer, settings: BakeSettings, mode: str = "VOLUMES",
-                 cursor: Optional[Sequence[float]] = None, log=print):
+                 cursor: Optional[Sequence[float]] = None, log=print, allow_large=False):
         if mode not in ("VOLUMES", "CURSOR"):
             raise ValueError(f"unknown bake mode {mode!r}")
         if mode == "CURSOR" and cursor is None:
@@ -178,6 +133,23 @@ class ProbeBake:
         self._sky_exr = None                # rendered sky (temporary folder) until finish()
         self._realtime_lights = []          # lamps hidden from the probe renders (light_modes.py)
         self._direct = None                 # direct_light.DirectLightPlan (issue 11 hook)
+        self.allow_large = allow_large      # bake above settings.probe_limit without asking
+        self.estimated_seconds = None       # the cost model's estimate, set after placement
+        self._cancel_requested = False
+        self._first_probe_seconds = None
+
+    def request_cancel(self):
+        """Ask the bake to stop (signal handlers, Esc): the next check point raises
+        :class:`BakeCancelled`; the caller's cancel()/run() restores the scene and writes nothing."""
+        self._cancel_requested = True
+
+    @property
+    def cancel_requested(self) -> bool:
+        return self._cancel_requested
+
+    def _check_cancel(self):
+        if self._cancel_requested:
+            raise BakeCancelled("Bake cancelled")
 
     # ------------------------------------------------------------------ prepare
     @property
@@ -190,6 +162,7 @@ class ProbeBake:
         s = self.settings
         s.validate()
         self._realtime_lights = self._check_light_modes()
+        check_finite_emission(self.scene)
         min_w, min_h = native.min_panorama_size(s.max_band)
         if s.panorama_resolution < min_w or s.panorama_resolution // 2 < min_h:
             raise BakeError(f"Panorama Resolution {s.panorama_resolution} is too small for Max SH Band "
@@ -201,6 +174,13 @@ class ProbeBake:
         if self.total == 0:
             raise BakeError("No probe could be placed: every candidate position is inside solid "
                             "geometry. Check the probe volumes or use a smaller Min Cell Size.")
+        self._check_cancel()
+        self.estimated_seconds = estimate_seconds(self.total, s, sky=self.mode == "VOLUMES")
+        self.log(f"Schnee: {self.total} probe(s) to bake, estimated {format_duration(self.estimated_seconds)} "
+                 f"(at most; {SECONDS_PER_PIXEL_SAMPLE * 1e6:.1f} µs per pixel-sample, refined after the "
+                 "first probes)")
+        if s.probe_limit and self.total > s.probe_limit and not self.allow_large:
+            raise BakeTooLarge(self.total, self.estimated_seconds, s.probe_limit)
         self.coeffs = np.zeros((self.total, native.sh_count(s.max_band), 3))
         self._setup_render()
 
@@ -247,6 +227,23 @@ class ProbeBake:
         for name, _, tris in volumes:
             if len(tris) == 0:
                 raise BakeError(f"Probe volume '{name}' has no faces: a volume must be a closed mesh")
+        if s.per_volume_files:
+            folder = os.path.dirname(main_path)
+            groups, seen = [], {}
+            for vol in volumes:
+                stem = _safe_file_stem(vol[0])
+                if stem in seen:
+                    raise BakeError(f"Volumes '{seen[stem]}' and '{vol[0]}' would both be written to "
+                                    f"'{stem}.shprobe': rename one of them")
+                seen[stem] = vol[0]
+                groups.append((vol[0], os.path.join(folder, stem + ".shprobe"), [vol]))
+        else:
+            groups = [(os.path.splitext(os.path.basename(main_path))[0], main_path, volumes)]
+        # Refuse before any work is done to replace something that is not ours.
+        for _, path, _ in groups:
+            check_replaceable(path, "shprobe")
+        if s.capture_sky:
+            check_replaceable(os.path.join(os.path.dirname(main_path), SKY_FILE_NAME), "exr")
         exclude = frozenset(ob.name for ob in objects)
         # Solid geometry as Cycles renders it, not as the viewport shows it (render_settings.py).
         coll = bpy.data.collections.get(s.volume_collection)
@@ -262,18 +259,14 @@ class ProbeBake:
         self.log(f"Schnee: {len(volumes)} volume(s), {len(geometry)} geometry mesh(es), "
                  f"{sum(len(g[2]) for g in geometry)} triangles")
 
-        if s.per_volume_files:
-            folder = os.path.dirname(main_path)
-            groups, seen = [], {}
-            for vol in volumes:
-                stem = _safe_file_stem(vol[0])
-                if stem in seen:
-                    raise BakeError(f"Volumes '{seen[stem]}' and '{vol[0]}' would both be written to "
-                                    f"'{stem}.shprobe': rename one of them")
-                seen[stem] = vol[0]
-                groups.append((vol[0], os.path.join(folder, stem + ".shprobe"), [vol]))
-        else:
-            groups = [(os.path.splitext(os.path.basename(main_path))[0], main_path, volumes)]
+        bound = grid_cell_bound(volumes, s.min_cell_size, s.per_volume_files)
+        self.log(f"Schnee: placing probes (at most {bound} = the grid cells of Min Cell Size "
+                 f"{s.min_cell_size:g} m; Esc / Ctrl+C cancels)")
+
+        def progress(fraction, stage):
+            if placement_progress is not None and placement_progress(fraction, stage) is False:
+                return False
+            return not self._cancel_requested
 
         t = time.perf_counter()
         unique = {}
@@ -281,8 +274,10 @@ class ProbeBake:
         for name, path, vols in groups:
             try:
                 pl = native.place_probes(vols, geometry, s.min_cell_size, s.max_cell_size,
-                                         progress=placement_progress)
+                                         progress=progress)
             except native.SchneeError as exc:
+                if getattr(exc, "code", None) == "cancelled":
+                    raise BakeCancelled("Bake cancelled") from exc
                 raise BakeError(f"Probe placement failed: {exc}") from exc
             index = np.empty(len(pl.positions), dtype=np.int64)
             for i, p in enumerate(pl.positions):
@@ -314,6 +309,8 @@ class ProbeBake:
             self.messages.append(f"'{os.path.basename(main_path)}' holds a full bake; the debug probe "
                                  f"goes to '{path}'")
         self.debug_text_path = os.path.join(folder, DEBUG_TEXT_NAME)
+        check_replaceable(path, "shprobe")
+        check_replaceable(self.debug_text_path, "text")
         pos = scene_export.blender_to_engine(np.array([self.cursor]))[0]
         h = s.min_cell_size / 2
         self.positions = pos.reshape(1, 3)
@@ -327,18 +324,30 @@ class ProbeBake:
         coll = bpy.data.collections.get(s.volume_collection)
         volume_objects = list(coll.all_objects) if coll is not None else []
         lights = compat.light_objects(scene)
-        self._state = render_settings.SceneState(scene, self.view_layer, volume_objects + lights)
+        # Every change below goes through one StateGuard, undone by _close() (finish and cancel).
+        state = self._state = render_settings.StateGuard()
+        state.snapshot(scene.render, "render")
+        cycles = compat.cycles_settings(scene)  # saved/restored only where Cycles' settings exist
+        if cycles is not None:
+            state.snapshot(cycles, "cycles")
+        state.snapshot(self.view_layer, "view_layer")
+        frame = (scene.frame_current, scene.frame_subframe)
+
+        def restore_frame():
+            if (scene.frame_current, scene.frame_subframe) != frame:
+                scene.frame_set(frame[0], subframe=frame[1])
+        state.on_restore(restore_frame, "scene.frame")
         render_settings.apply_bake_settings(scene, self.view_layer, s)
         for ob in volume_objects:
-            ob.hide_render = True
+            state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
         for ob in lights:
             if compat.has_visible_camera(ob):
-                ob.visible_camera = s.lights_visible
+                state.set(ob, "visible_camera", s.lights_visible, f"object[{ob.name}].visible_camera")
         # Realtime lamps are the engine's direct light (VULKAN_SCHNEE_light): the probes must not
-        # hold them too, so they are left out of every panorama render. hide_render of every lamp
-        # was recorded by the SceneState above and is restored on success, error and cancel.
+        # hold them too, so they are left out of every panorama render (restored on success, error
+        # and cancel like everything else here).
         for ob in self._realtime_lights:
-            ob.hide_render = True
+            state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
         # --- issue 11 hook: lamps added analytically are hidden from camera rays (direct_light.py).
         self._direct = direct_light.prepare(self)
 
@@ -351,16 +360,24 @@ class ProbeBake:
         # yields engine-space coefficients.
         cam.rotation_mode = 'XYZ'
         cam.rotation_euler = (math.pi / 2, 0.0, -math.pi / 2)
+        state.on_restore(lambda: _remove_camera(cam), "the probe camera")
         scene.collection.objects.link(cam)
         self._camera = cam
-        scene.camera = cam
-        self._tmpdir = tempfile.mkdtemp(prefix="schnee_bake_")
+        state.set(scene, "camera", cam, "scene.camera")
+        removed = clean_stale_temp_dirs()
+        if removed:
+            self.log(f"Schnee: removed {len(removed)} temporary folder(s) left by killed bakes: "
+                     + ", ".join(removed))
+        self._tmpdir = tempfile.mkdtemp(prefix=f"{TMP_PREFIX}{os.getpid()}_")
+        tmpdir = self._tmpdir
+        state.on_restore(lambda: shutil.rmtree(tmpdir, ignore_errors=True), "the temporary folder")
 
     # ------------------------------------------------------------------ steps
     def step(self) -> bool:
         """Render and project the next probe. Returns True while probes remain."""
         if self.done >= self.total:
             return False
+        self._check_cancel()
         s = self.settings
         i = self.done
         self._camera.location = tuple(scene_export.engine_to_blender(self.positions[i]))
@@ -376,20 +393,44 @@ class ProbeBake:
         try:
             self.coeffs[i] = native.project_file(exr, s.max_band, negative="clamp")
         except native.SchneeError as exc:
-            raise BakeError(f"Projecting the panorama of probe {i} failed: {exc}") from exc
+            where = tuple(float(c) for c in scene_export.engine_to_blender(self.positions[i]))
+            hint = ""
+            if getattr(exc, "code", None) == "non-finite value":
+                hint = (": the render holds NaN or Inf, which the probes cannot represent (an "
+                        "infinite or NaN value in the world, a texture or a shader); find it by "
+                        "rendering from that position")
+            raise BakeError(f"Projecting the panorama of probe {i + 1} at Blender "
+                            f"({where[0]:.3f}, {where[1]:.3f}, {where[2]:.3f}) failed: {exc}{hint}") from exc
         if self._direct is not None:         # --- issue 11 hook: the world seen directly
             self._direct.add_sky(self, i, exr)
         t3 = time.perf_counter()
+        if not np.isfinite(self.coeffs[i]).all():
+            raise BakeError(f"Probe {i + 1}: the projected coefficients are not finite (NaN/Inf in "
+                            "the render, e.g. an infinite emission)")
         self.timings["render"] += t1 - t0
         self.timings["write_exr"] += t2 - t1
         self.timings["project"] += t3 - t2
+        if self.done == 0:
+            self._first_probe_seconds = t3 - t0
         self.done += 1
         return self.done < self.total
 
+    def remaining_seconds(self) -> float:
+        """Time left: the cost model before the first probe, then the measured mean per probe
+        (without the first probe's scene upload once a second one is done)."""
+        left = self.total - self.done
+        if self.done == 0:
+            return estimate_seconds(left, self.settings, sky=self.mode == "VOLUMES")
+        spent = self.timings["render"] + self.timings["write_exr"] + self.timings["project"]
+        if self.done >= 2 and self._first_probe_seconds is not None:
+            per = (spent - self._first_probe_seconds) / (self.done - 1)
+        else:
+            per = spent / self.done
+        return per * left
+
     def progress_line(self) -> str:
         elapsed = time.perf_counter() - (self._t0 or time.perf_counter())
-        per = self.timings["render"] + self.timings["write_exr"] + self.timings["project"]
-        eta = per / max(self.done, 1) * (self.total - self.done)
+        eta = self.remaining_seconds()
         return f"Schnee bake: probe {self.done}/{self.total}, {elapsed:.1f} s elapsed, ~{eta:.0f} s left"
 
     def capture_sky(self):
@@ -399,14 +440,15 @@ class ProbeBake:
         visibility is restored right after the render."""
         s, scene = self.settings, self.scene
         t0 = time.perf_counter()
-        hidden = [(ob, ob.hide_render) for ob in scene.objects if ob is not self._camera]
         render = scene.render
-        res = (render.resolution_x, render.resolution_y, render.resolution_percentage)
-        try:
-            for ob, _ in hidden:
-                ob.hide_render = True
-            render.resolution_x, render.resolution_y = s.sky_resolution, s.sky_resolution // 2
-            render.resolution_percentage = 100
+        with render_settings.StateGuard() as sky_state:
+            for ob in scene.objects:
+                if ob is not self._camera:
+                    sky_state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
+            sky_state.set(render, "resolution_x", s.sky_resolution, "render.resolution_x")
+            sky_state.set(render, "resolution_y", s.sky_resolution // 2, "render.resolution_y")
+            sky_state.set(render, "resolution_percentage", 100, "render.resolution_percentage")
+            sky_state.set(render, "film_transparent", False, "render.film_transparent")  # issue 11
             self._camera.location = (0.0, 0.0, 0.0)
             bpy.ops.render.render(write_still=False, layer=self.view_layer.name, scene=scene.name)
             image = bpy.data.images.get("Render Result")
@@ -414,11 +456,8 @@ class ProbeBake:
                 raise BakeError("Cycles produced no render result for the sky")
             path = os.path.join(self._tmpdir, SKY_FILE_NAME)
             image.save_render(path, scene=scene)
-        finally:
-            for ob, was in hidden:
-                if ob.hide_render != was:
-                    ob.hide_render = was
-            render.resolution_x, render.resolution_y, render.resolution_percentage = res
+        if sky_state.failed:
+            self.log("Schnee: could not restore " + ", ".join(sky_state.failed))
         self._sky_exr = path
         self.timings["sky"] = time.perf_counter() - t0
 
@@ -428,10 +467,12 @@ class ProbeBake:
         try:
             if self.done < self.total:
                 raise BakeError(f"finish() after {self.done} of {self.total} probes")
+            self._check_cancel()
             if self.mode == "VOLUMES" and self.settings.capture_sky and self._sky_exr is None:
                 self.capture_sky()
             if self._direct is not None:     # --- issue 11 hook: add the lamps' direct light
                 self._direct.add_to(self)
+            self._check_cancel()
             files = self._write_outputs()
         finally:
             self._close()
@@ -448,18 +489,9 @@ class ProbeBake:
         if self._closed:
             return
         self._closed = True
-        failed = []
-        if self._state is not None:
-            failed = self._state.restore()
-        if self._camera is not None:
-            cam_data = self._camera.data
-            bpy.data.objects.remove(self._camera, do_unlink=True)
-            if cam_data.users == 0:
-                bpy.data.cameras.remove(cam_data)
-            self._camera = None
-        if self._tmpdir:
-            shutil.rmtree(self._tmpdir, ignore_errors=True)
-            self._tmpdir = None
+        failed = self._state.restore() if self._state is not None else []
+        self._camera = None
+        self._tmpdir = None
         if failed:
             self.log("Schnee: could not restore " + ", ".join(failed))
 
@@ -480,6 +512,13 @@ class ProbeBake:
         def tmp_name(final):
             return f"{final}.{tag}.partial"
 
+        # Checked before the bake started; again now, as the folder may have changed meanwhile.
+        for t in self.targets:
+            check_replaceable(t.path, "shprobe")
+        if self._sky_exr is not None:
+            check_replaceable(os.path.join(os.path.dirname(_abspath(s.output_path)), SKY_FILE_NAME), "exr")
+        if self.mode == "CURSOR":
+            check_replaceable(self.debug_text_path, "text")
         current = None
         try:
             for t in self.targets:
@@ -549,7 +588,245 @@ class ProbeBake:
 
 
 class BakeCancelled(BakeError):
-    """The user cancelled the bake."""
+    """The user cancelled the bake (Esc, Ctrl+C, SIGTERM)."""
+
+
+class BakeTooLarge(BakeError):
+    """More probes than ``settings.probe_limit``: the bake needs a confirmation (``allow_large``)."""
+
+    def __init__(self, probes, seconds, limit):
+        self.probes, self.seconds, self.limit = probes, seconds, limit
+        super().__init__(
+            f"{probes} probes (estimated {format_duration(seconds)}) is more than the limit of "
+            f"{limit} (Confirm Above): confirm the bake (bake.py: --allow-large), raise the limit "
+            "(--probe-limit), or use a larger Min/Max Cell Size or smaller volumes")
+
+
+# ------------------------------------------------------------------ estimate
+# The cost model and the probe-count bound are in estimate.py (plain Python, tested without Blender).
+def volume_bound(scene, settings):
+    """(upper bound of the probe count, upper time estimate) for the panel and the dialog, from the
+    volume objects' bounding boxes (no placement); (None, None) when the volumes are not usable."""
+    coll = bpy.data.collections.get(settings.volume_collection)
+    try:
+        settings.validate()
+    except BakeError:
+        return None, None
+    if coll is None:
+        return None, None
+    vols = []
+    for ob in coll.all_objects:
+        if ob.type != 'MESH':
+            return None, None
+        corners = [ob.matrix_world @ _vector(c) for c in ob.bound_box]
+        vols.append((ob.name, np.array([tuple(c) for c in corners]), None))
+    if not vols:
+        return None, None
+    bound = grid_cell_bound(vols, settings.min_cell_size, settings.per_volume_files)
+    return bound, estimate_seconds(bound, settings, sky=True)
+
+
+def _vector(c):
+    from mathutils import Vector
+    return Vector(tuple(c))
+
+
+# ------------------------------------------------------------------ what we may replace
+def check_replaceable(path, kind):
+    """Raise :class:`BakeError` unless ``path`` is absent or a file the bake wrote: ``kind``
+    "shprobe" (magic SPHR), "exr" (the sky) or "text" (debug_probe.txt). Never the open .blend,
+    never something that is not a regular file. Opens nothing that could block (no FIFO)."""
+    blend = bpy.data.filepath
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise BakeError(f"Cannot write {path}: {exc.strerror}") from exc
+    if blend:
+        try:
+            if os.path.samefile(path, blend):
+                raise BakeError(f"Refusing to write {path}: it is the open .blend file; choose an "
+                                "output ending in .shprobe")
+        except OSError:
+            pass
+    if not stat.S_ISREG(st.st_mode):
+        raise BakeError(f"Refusing to replace {path}: it exists and is a {file_kind(st.st_mode)}; "
+                        "the bake only replaces files it wrote")
+    want = {"shprobe": SHPROBE_MAGIC, "exr": EXR_MAGIC, "text": DEBUG_TEXT_FIRST_LINE.encode()}[kind]
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):  # swapped since the stat above
+                raise BakeError(f"Refusing to replace {path}: it is not a regular file")
+            head = os.read(fd, len(want))
+        finally:
+            os.close(fd)
+    except OSError as exc:
+        raise BakeError(f"Cannot check {path} before replacing it: {exc.strerror}") from exc
+    if head != want:
+        what = {"shprobe": "a .shprobe file (no Schnee probe header)", "exr": "an OpenEXR image",
+                "text": "a debug_probe.txt written by Bake SH at Cursor"}[kind]
+        raise BakeError(f"Refusing to replace {path}: it exists and is not {what}; move it away or "
+                        "choose another output")
+
+
+# ------------------------------------------------------------------ temporary folders
+def clean_stale_temp_dirs(folder=None):
+    """Remove ``schnee_bake_<pid>_*`` folders of this user whose process no longer runs (left by a
+    killed bake); returns their names. Folders of running processes, of other users, and
+    anything else are left alone."""
+    folder = folder or tempfile.gettempdir()
+    removed = []
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return removed
+    for name in names:
+        m = re.fullmatch(re.escape(TMP_PREFIX) + r"(\d+)_[A-Za-z0-9_]+", name)
+        if not m:
+            continue
+        pid = int(m.group(1))
+        path = os.path.join(folder, name)
+        try:
+            st = os.lstat(path)
+        except OSError:
+            continue
+        if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid() or pid == os.getpid():
+            continue
+        if _pid_alive(pid):
+            continue
+        shutil.rmtree(path, ignore_errors=True)
+        if not os.path.exists(path):
+            removed.append(name)
+    return removed
+
+
+def _pid_alive(pid) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True   # another user's process: alive
+    return True
+
+
+# ------------------------------------------------------------------ signals
+class CancelOnSignals:
+    """``with CancelOnSignals(bake, (signal.SIGINT, signal.SIGTERM)) as caught:`` the first of
+    these signals asks ``bake`` to cancel (like Esc) instead of killing the process; ``caught``
+    lists the signals received. Python runs the handler between two Python steps, so a render in
+    progress finishes first (one probe's time at most). The previous handlers are put back on
+    exit; a handler Python cannot restore (installed by C, e.g. Blender's own) is left alone
+    unless ``force`` is set (bake.py, which exits afterwards)."""
+
+    def __init__(self, bake, signals=(signal.SIGINT, signal.SIGTERM), force=False, log=print):
+        self.bake = bake
+        self.signals = signals
+        self.force = force
+        self.log = log
+        self.caught = []
+        self._previous = {}
+
+    def _handler(self, signum, frame):
+        self.caught.append(signum)
+        if self.bake is not None:
+            self.bake.request_cancel()
+        if len(self.caught) == 1:
+            self.log(f"\nSchnee: {signal.Signals(signum).name} received: cancelling the bake "
+                     "(render settings and files are restored)")
+
+    def __enter__(self):
+        for sig in self.signals:
+            previous = signal.getsignal(sig)
+            if previous is None and not self.force:
+                continue
+            self._previous[sig] = previous
+            signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, previous in self._previous.items():
+            signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
+        self._previous.clear()
+        return False
+
+
+# ------------------------------------------------------------------ values the probes cannot hold
+# Blender stores an Inf typed into a float field as the largest float32: that is Inf too.
+_FLT_MAX = 3.4028234663852886e38
+
+
+def _non_finite(value):
+    """The first value of ``value`` (a number or a vector) that is NaN, Inf or Blender's clamped
+    Inf, as text; None if all are finite."""
+    try:
+        values = tuple(value)
+    except TypeError:
+        values = (value,)
+    for v in values:
+        if isinstance(v, float):
+            if math.isnan(v):
+                return "NaN"
+            if abs(v) >= _FLT_MAX:
+                return "Inf" if math.isinf(v) else "Inf (stored as the largest float, 3.4e38)"
+    return None
+
+
+def _tree_problems(tree, where, seen):
+    out = []
+    if tree is None or tree.name_full in seen:
+        return out
+    seen.add(tree.name_full)
+    for node in tree.nodes:
+        for sock in node.inputs:
+            if sock.is_linked or not hasattr(sock, "default_value"):
+                continue
+            bad = _non_finite(sock.default_value)
+            if bad:
+                out.append(f"{where}: node '{node.name}' input '{sock.name}' is {bad}")
+        if node.type == 'GROUP' and node.node_tree is not None:
+            out += _tree_problems(node.node_tree, f"{where} (group '{node.node_tree.name}')", seen)
+    return out
+
+
+def check_finite_emission(scene):
+    """Refuse NaN/Inf in what lights the scene: unlinked node inputs of the materials of
+    render-visible objects (an Emission Strength of inf, a NaN colour), lamps' energy and colour,
+    the world's nodes. Cycles silently drops such values, so the probes would miss that light."""
+    problems, seen_trees = [], set()
+    for ob in scene.objects:
+        if ob.hide_render:
+            continue
+        if ob.type == 'LIGHT':
+            for ident in ("energy", "color"):
+                bad = _non_finite(getattr(ob.data, ident))
+                if bad:
+                    problems.append(f"light '{ob.name}': {ident} is {bad}")
+            if ob.data.use_nodes:
+                problems += _tree_problems(ob.data.node_tree, f"light '{ob.name}'", set())
+            continue
+        for slot in getattr(ob, "material_slots", ()):
+            mat = slot.material
+            if mat is not None and mat.use_nodes:
+                problems += [p + f" (on object '{ob.name}')" for p in
+                             _tree_problems(mat.node_tree, f"material '{mat.name}'", seen_trees)]
+    world = scene.world
+    if world is not None and world.use_nodes:
+        problems += _tree_problems(world.node_tree, f"world '{world.name}'", set())
+    if problems:
+        more = f" (and {len(problems) - 3} more)" if len(problems) > 3 else ""
+        raise BakeError("Values the probes cannot represent (Cycles drops NaN/Inf, so this light "
+                        "would be missing without a warning): " + "; ".join(problems[:3]) + more
+                        + ". Set finite values")
+
+
+def _remove_camera(cam):
+    cam_data = cam.data
+    bpy.data.objects.remove(cam, do_unlink=True)
+    if cam_data is not None and cam_data.users == 0:
+        bpy.data.cameras.remove(cam_data)
 
 
 def _remove_quietly(path):

@@ -1,7 +1,7 @@
 """Blender-version differences, in one place.
 
-The add-on targets Debian's Blender 3.4 and is written so that Blender 4.x is a small step: every
-API that moved between those versions is reached through a helper here, never directly.
+One add-on for Blender 3.4 through 5.x (tested: 3.4, 4.3, 5.2; docs/install.md): every API that
+differs between those versions is reached through a helper here, never directly.
 """
 import bpy
 
@@ -29,6 +29,22 @@ def panorama_settings_holder(camera_data):
     return camera_data if hasattr(camera_data, "panorama_type") else camera_data.cycles
 
 
+def group_interface_sockets(tree, in_out):
+    """(name -> socket) of a node group's interface ('INPUT' or 'OUTPUT'); Blender 4.0 moved them
+    from ``tree.inputs``/``tree.outputs`` to ``tree.interface``."""
+    if hasattr(tree, "interface"):  # 4.0+
+        return {item.name: item for item in tree.interface.items_tree
+                if item.item_type == 'SOCKET' and item.in_out == in_out}
+    return {s.name: s for s in (tree.inputs if in_out == 'INPUT' else tree.outputs)}
+
+
+def new_group_socket(tree, in_out, socket_type, name):
+    """Add an interface socket to node group ``tree`` (4.0+ ``tree.interface.new_socket``)."""
+    if hasattr(tree, "interface"):  # 4.0+
+        return tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+    return (tree.inputs if in_out == 'INPUT' else tree.outputs).new(socket_type, name)
+
+
 def light_objects(scene):
     """Light objects of ``scene`` (type 'LIGHT')."""
     return [ob for ob in scene.objects if ob.type == 'LIGHT']
@@ -37,3 +53,91 @@ def light_objects(scene):
 def has_visible_camera(ob):
     """Blender 3.0+ has per-object ``visible_camera``; 2.9x used ``cycles_visibility.camera``."""
     return hasattr(ob, "visible_camera")
+
+
+def cycles_settings(scene):
+    """``scene.cycles`` where this Blender has Cycles settings on the scene, else None (Cycles
+    disabled or absent): callers save/restore them only where they exist."""
+    return getattr(scene, "cycles", None)
+
+
+def draw_native_problem(layout):
+    """When the compiled bake core did not load: an error box saying what is missing and what the
+    user can do (native.native_problem), wrapped to the sidebar width. Draws nothing otherwise."""
+    from . import native
+    problem = native.native_problem()
+    if not problem:
+        return False
+    import textwrap
+    box = layout.box()
+    col = box.column(align=True)
+    for i, line in enumerate(textwrap.wrap(problem, 42)):
+        col.label(text=line, icon='ERROR' if i == 0 else 'BLANK1')
+    return True
+
+
+# ---- glTF exporter (io_scene_gltf2) differences ---------------------------------------------------
+# Option panel: 3.4-4.1 call the add-on module's register_panel() when the dialog opens; 4.2-4.3 read
+# the module-level draw_export(context, layout) into io_scene_gltf2.exporter_extension_layout_draw
+# when the dialog opens; 4.4+ only draw what is registered in that dict (gltf_export.register()).
+
+def gltf_layout_draw_registry():
+    """io_scene_gltf2.exporter_extension_layout_draw (4.2+), None before (or without the exporter)."""
+    try:
+        import io_scene_gltf2
+    except ImportError:
+        return None
+    return getattr(io_scene_gltf2, "exporter_extension_layout_draw", None)
+
+
+def gltf_original_material(material):
+    """The Blender material a glTF material hook is about. Some exporter versions hand the hook an
+    inlined (flattened) copy of the material, whose node tree no longer has our group node; map it
+    back to the original datablock (``.original``, else by name)."""
+    if material is None:
+        return None
+    original = getattr(material, "original", None)
+    if isinstance(original, bpy.types.Material):
+        material = original
+    if isinstance(material, bpy.types.Material) and material.name in bpy.data.materials:
+        found = bpy.data.materials[material.name]
+        if found == material or getattr(material, "library", None) is None:
+            return found
+    if not isinstance(material, bpy.types.Material):
+        for attr in ("material", "id_data"):
+            cand = getattr(material, attr, None)
+            if isinstance(cand, bpy.types.Material):
+                return cand
+    return material
+
+
+def gltf_gather_texture_info():
+    """The exporter's gather_texture_info(socket, sockets, export_settings): module path of 3.4-4.1
+    (blender.exp.gltf2_blender_gather_texture_info) or 4.2+ (blender.exp.material.texture_info)."""
+    import importlib
+    for name in ("io_scene_gltf2.blender.exp.material.texture_info",
+                 "io_scene_gltf2.blender.exp.gltf2_blender_gather_texture_info"):
+        try:
+            return importlib.import_module(name).gather_texture_info
+        except (ImportError, AttributeError):
+            continue
+    return None
+
+
+def id_property(idblock, name, default=None):
+    """A custom (ID) property of ``idblock``: ``idblock.get(name)``, which 5.0 keeps for custom
+    properties (its removal of dict access concerns RNA-defined properties)."""
+    getter = getattr(idblock, "get", None)
+    return getter(name, default) if getter is not None else default
+
+
+def set_existing(struct, **values):
+    """Set the properties of ``struct`` that this Blender has; skip the ones it removed (e.g.
+    ``ImageFormatSettings.use_zbuffer``, gone in 4.x). Returns the names skipped."""
+    skipped = []
+    for name, value in values.items():
+        if hasattr(struct, name):
+            setattr(struct, name, value)
+        else:
+            skipped.append(name)
+    return skipped

@@ -16,13 +16,15 @@ cannot see, is added analytically with the constant part of its emission and a m
 lamps (light_modes.py) are in neither. With ``lights_visible`` off no lamp is seen directly by the
 probes (the meaning of that setting is unchanged): nothing here runs.
 
-Use from the bake (bake_core.ProbeBake): ``plan = prepare(bake)`` once the render is set up (after
-the lamps' visibility flags were recorded for restoring), ``plan.add_to(bake)`` before the files
-are written.
+Use from the bake (bake_core.ProbeBake): ``plan = prepare(bake)`` once the render is set up (its
+changes — transparent film, lamps hidden from camera rays — go through the bake's StateGuard),
+``plan.add_sky(bake, i, exr)`` after each panorama, ``plan.add_to(bake)`` before the files are
+written.
 """
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from typing import List, Optional, Tuple
@@ -203,29 +205,27 @@ SKY_CAPTURE_SAMPLES = 128  # its samples per pixel (at least; measured error in 
 
 def capture_world(bake, width: int) -> np.ndarray:
     """The world alone rendered by Cycles from the probe camera at the origin (every object hidden,
-    opaque film), width x width/2, (H, W, 4) float32 top-down. Everything changed is put back."""
+    opaque film), width x width/2, (H, W, 4) float32 top-down. Every change goes through a
+    render_settings.StateGuard and is put back right after the render (also on error)."""
     scene, s = bake.scene, bake.settings
     cam = bake._camera
-    hidden = [(ob, ob.hide_render) for ob in scene.objects if ob is not cam]
     r = scene.render
-    saved = (r.resolution_x, r.resolution_y, r.film_transparent, tuple(cam.location), scene.cycles.samples)
-    path = bake._tmpdir + "/schnee_world_capture.exr"
-    try:
-        for ob, _ in hidden:
-            ob.hide_render = True
-        r.resolution_x, r.resolution_y = width, width // 2
-        r.film_transparent = False
-        scene.cycles.samples = max(s.samples, SKY_CAPTURE_SAMPLES)
+    path = os.path.join(bake._tmpdir, "schnee_world_capture.exr")
+    with render_settings.StateGuard() as state:
+        for ob in scene.objects:
+            if ob is not cam:
+                state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
+        state.set(r, "resolution_x", width, "render.resolution_x")
+        state.set(r, "resolution_y", width // 2, "render.resolution_y")
+        state.set(r, "film_transparent", False, "render.film_transparent")
+        state.set(scene.cycles, "samples", max(s.samples, SKY_CAPTURE_SAMPLES), "cycles.samples")
+        location = tuple(cam.location)
+        state.on_restore(lambda: setattr(cam, "location", location), "the probe camera's location")
         cam.location = (0.0, 0.0, 0.0)
         bpy.ops.render.render(write_still=False, layer=bake.view_layer.name, scene=scene.name)
         bpy.data.images["Render Result"].save_render(path, scene=scene)
-    finally:
-        for ob, was in hidden:
-            if ob.hide_render != was:
-                ob.hide_render = was
-        r.resolution_x, r.resolution_y, r.film_transparent = saved[0], saved[1], saved[2]
-        cam.location = saved[3]
-        scene.cycles.samples = saved[4]
+    if state.failed:
+        bake.log("Schnee: could not restore " + ", ".join(state.failed))
     img = bpy.data.images.load(path, check_existing=False)
     try:
         buf = np.empty(width * (width // 2) * 4, dtype=np.float32)
@@ -266,14 +266,14 @@ def classify(light) -> Tuple[bool, Optional[Tuple[float, float, float]], str]:
 
 def prepare(bake) -> Optional[DirectLightPlan]:
     """Decides every baked lamp's way, hides the analytic ones from camera rays and gathers the
-    shadow geometry. Call after the lamps' ``visible_camera`` was recorded (bake_core's SceneState).
-    Returns None when "Lamps Seen by Probes" is off."""
+    shadow geometry. Every Blender setting it changes goes through the bake's
+    render_settings.StateGuard (``bake._state``), restored by finish and cancel."""
     s = bake.settings
-    scene, view_layer = bake.scene, bake.view_layer
+    scene, view_layer, state = bake.scene, bake.view_layer, bake._state
     # The world seen directly: the panoramas get a transparent film (world hidden from camera rays,
     # alpha = coverage) and add_sky() adds the exact world projection weighted by 1 - alpha.
-    scene.render.film_transparent = True
-    scene.render.image_settings.color_mode = 'RGBA'
+    state.set(scene.render, "film_transparent", True, "render.film_transparent")
+    state.set(scene.render.image_settings, "color_mode", 'RGBA', "render.image_settings.color_mode")
     if not s.lights_visible:
         return DirectLightPlan(sky=True)
     realtime = {ob.name for ob in bake._realtime_lights}
@@ -306,7 +306,6 @@ def prepare(bake) -> Optional[DirectLightPlan]:
     for name in plan.analytic:
         ob = bpy.data.objects.get(name)
         if ob is not None and hasattr(ob, "visible_camera"):
-            bake._state.remember_object(ob)   # restored by finish/cancel with the other flags
-            ob.visible_camera = False
+            state.set(ob, "visible_camera", False, f"object[{ob.name}].visible_camera")
     bake.messages.extend(plan.messages)
     return plan

@@ -29,7 +29,7 @@ import urllib.parse
 
 import bpy
 
-from . import light_modes, nodes
+from . import compat, light_modes, nodes
 
 EXT_ENGINE = "VULKAN_SCHNEE_engine_properties"
 EXT_MATERIALS = "VULKAN_SCHNEE_materials"
@@ -47,6 +47,11 @@ SKY_FILE = "sky.exr"  # bake_core.SKY_FILE_NAME
 SKY_MAX_BAND = 2
 PROBE_MODE_PROPERTY = "schnee_probe_mode"
 PROBE_MODES = ("off", "object", "pixel")
+# How a material evaluates its probe (docs/ambient-cube.md §4-§5): its custom property
+# "schnee_probe_representation"; the engine's name table is compared with this list by
+# tests/engine/ext/test_probe_representations.c.
+PROBE_REPRESENTATION_PROPERTY = "schnee_probe_representation"
+PROBE_REPRESENTATIONS = ("sh", "ambientCube")
 
 
 # --------------------------------------------------------------------------------------------
@@ -312,8 +317,9 @@ def collect_sky(export_settings):
 
 def material_settings(blender_material, export_settings=None):
     """``VULKAN_SCHNEE_materials`` of a material, or None when it has nothing to say:
-    ``shScale``/``ambientTerm`` from its "VS Movable Diffuse" node, ``probeMode`` from its custom
-    property (any material: a large static wall samples the grid per pixel without being movable)."""
+    ``shScale``/``ambientTerm`` from its "VS Movable Diffuse" node, ``probeMode`` and
+    ``probeRepresentation`` from its custom properties (any material: a large static wall samples
+    the grid per pixel without being movable)."""
     out = {}
     node = nodes.find_movable_diffuse_node(blender_material)
     if node is not None:
@@ -327,6 +333,14 @@ def material_settings(blender_material, export_settings=None):
     elif mode is not None and export_settings is not None:
         _warn(export_settings, f"material '{blender_material.name}': custom property "
               f"{PROBE_MODE_PROPERTY} = {mode!r} is not one of {', '.join(PROBE_MODES)}; ignored")
+    # Probe representation (docs/ambient-cube.md §4 "glTF"): "sh" | "ambientCube"; absent = sh.
+    rep = blender_material.get(PROBE_REPRESENTATION_PROPERTY) if hasattr(blender_material, "get") else None
+    if isinstance(rep, str) and rep in PROBE_REPRESENTATIONS:
+        out["probeRepresentation"] = rep
+    elif rep is not None and export_settings is not None:
+        _warn(export_settings, f"material '{blender_material.name}': custom property "
+              f"{PROBE_REPRESENTATION_PROPERTY} = {rep!r} is not one of {', '.join(PROBE_REPRESENTATIONS)}; "
+              f"ignored")
     return out or None
 
 
@@ -396,6 +410,7 @@ class glTF2ExportUserExtension:
         ref.extension = light
 
     def gather_material_hook(self, gltf2_material, blender_material, export_settings):
+        blender_material = compat.gltf_original_material(blender_material)
         node = nodes.find_movable_diffuse_node(blender_material)
         if node is not None and nodes.feeds_active_output(node):
             _export_base_color(gltf2_material, node, blender_material, export_settings)
@@ -438,9 +453,11 @@ def _export_base_color(gltf2_material, node, blender_material, export_settings):
 
 def _base_color_texture(socket, export_settings):
     """The exporter's own texture gathering applied to the group's Base Color socket, or None."""
+    gather = compat.gltf_gather_texture_info()
+    if gather is None:
+        return None
     try:
-        from io_scene_gltf2.blender.exp import gltf2_blender_gather_texture_info
-        result = gltf2_blender_gather_texture_info.gather_texture_info(socket, (socket,), export_settings)
+        result = gather(socket, (socket,), export_settings)
     except Exception:  # noqa: BLE001 - exporter internals differ between versions
         return None
     texture = result[0] if isinstance(result, tuple) else result
@@ -454,11 +471,7 @@ _classes = (SchneeGltfExportSettings, SCHNEE_OT_export_warning)
 
 def _layout_draw_registry():
     """4.2+ exporter's dict of user-extension draw functions; None on 3.4 (it uses register_panel)."""
-    try:
-        import io_scene_gltf2
-    except ImportError:
-        return None
-    return getattr(io_scene_gltf2, "exporter_extension_layout_draw", None)
+    return compat.gltf_layout_draw_registry()
 
 
 def register():

@@ -14,17 +14,56 @@ re-checks every buffer's format and length. See docs/python-api.md.
 """
 from __future__ import annotations
 
+import os
+import re
+import sys
 from dataclasses import dataclass
 from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
+# The module exports only PyInit__schnee_native (hidden visibility + version script) and links only
+# libc/libm: it opens Embree itself at import (dlopen RTLD_LOCAL + dlsym, native/src/pb_embree_dyn.h),
+# preferring an Embree 3 already in the process (Blender 3.x), else the one the add-on package
+# carries in lib/ (with TBB), so its Embree calls cannot bind to the Embree 4 of Blender 4.x/5.x.
 try:
     from . import _schnee_native as _native
     _NATIVE_IMPORT_ERROR: Optional[BaseException] = None
 except ImportError as exc:  # not built yet: the pure-Python parts (dataclasses, errors) still work
     _native = None
     _NATIVE_IMPORT_ERROR = exc
+
+
+def native_problem() -> Optional[str]:
+    """None when the compiled module loaded, else what is wrong and what to do, in words for someone
+    who installed the add-on package (shown by the panel and bake.py)."""
+    if _native is not None:
+        return None
+    return _explain(_NATIVE_IMPORT_ERROR)
+
+
+def _explain(exc: Optional[BaseException]) -> str:
+    import platform
+    text = str(exc) if exc is not None else "unknown reason"
+    here = os.path.dirname(os.path.abspath(__file__))
+    found = [f for f in os.listdir(here) if f.startswith("_schnee_native")] if os.path.isdir(here) else []
+    if platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64"):
+        what = (f"this package's bake core is built for Linux x86-64, and this is "
+                f"{platform.system()} {platform.machine()}")
+    elif not found:
+        what = "the package has no compiled bake core (_schnee_native.abi3.so)"
+    elif "cannot open shared object file" in text:
+        lib = text.split(":")[0].strip()
+        what = (f"a library the bake core needs is missing: {lib} (the package ships Embree and TBB in "
+                f"{os.path.join('schnee_probes', 'lib')}; the package seems incomplete)")
+    elif "GLIBC" in text or "GLIBCXX" in text:
+        what = f"this system's C/C++ runtime is older than the package was built for ({text})"
+    else:
+        what = f"the bake core did not load ({text})"
+    return (f"Schnee Probes: {what}. Reinstall the add-on from the complete package "
+            f"(schnee_probes-<version>.zip, or the extension package for Blender 4.2+) built for "
+            f"Linux x86-64 with glibc 2.34 or newer, or build it from source (scripts/build.sh). "
+            f"Loaded from: {here}")
 
 
 class SchneeError(RuntimeError):
@@ -42,8 +81,7 @@ if _native is not None:
 
 def _lib():
     if _native is None:
-        raise ImportError("the native module _schnee_native is not built (run scripts/build.sh): "
-                          f"{_NATIVE_IMPORT_ERROR}")
+        raise ImportError(_explain(_NATIVE_IMPORT_ERROR))
     return _native
 
 
@@ -170,10 +208,127 @@ def project_equirect(pixels: np.ndarray, max_band: int = 2, rotation: Optional[n
 
 def project_file(path: str, max_band: int = 2, rotation: Optional[np.ndarray] = None,
                  negative: str = "error") -> np.ndarray:
-    """Same as :func:`project_equirect` for an image file read through OpenImageIO (EXR, HDR, ...)."""
+    """Same as :func:`project_equirect` for an image file. Single-part scanline EXR (uncompressed,
+    RLE, ZIP: what Cycles' ``save_render`` writes) is read by the add-on's own reader (``exr.py``);
+    any other format or codec is read through Blender's image API (inside Blender only). Errors are
+    SchneeError: "I/O error" (missing/unreadable file), "malformed file". Outside Blender, other
+    images are read through OpenImageIO's ``oiiotool`` when it is installed (benchmarks, tools)."""
     band = _check_band(max_band)
-    raw = _lib().project_file(path, band, _rotation(rotation), _choice(negative, _NEGATIVE, "negative"))
+    rot = _rotation(rotation)
+    policy = _choice(negative, _NEGATIVE, "negative")
+    pixels = read_image(path)
+    h, w, c = pixels.shape
+    try:
+        raw = _lib().project_equirect(pixels, w, h, c, band, rot, policy)
+    except SchneeError as exc:
+        raise SchneeError(f"{os.fspath(path)}: {exc}", exc.code) from None
     return np.frombuffer(raw, dtype=np.float64).reshape(sh_count(band), 3)
+
+
+# Limits of image files read for projection: the native readers' (native/include/schnee/pb_image.h).
+IMAGE_MAX_FILE_BYTES = 1 << 32
+IMAGE_MAX_SIDE = 65536
+IMAGE_MAX_CHANNELS = 64
+IMAGE_MAX_VALUES = 1 << 29
+# First bytes of the image formats read through Blender or oiiotool: Radiance HDR, PFM, PNG, JPEG, TIFF.
+_IMAGE_SIGNATURES = (b"#?", b"PF", b"Pf", b"\x89PNG", b"\xff\xd8\xff", b"II*\0", b"MM\0*")
+
+
+def read_image(path: str) -> np.ndarray:
+    """Float32 pixels (H, W, C), row 0 at the top, of an EXR the add-on reads itself or (inside
+    Blender) any image Blender reads. The file is opened as the native readers open theirs: without
+    blocking, regular files only, at most IMAGE_MAX_FILE_BYTES, the header checked before the
+    pixels. SchneeError on failure; messages never quote the file's content."""
+    from . import exr, safe_open
+    path = os.fspath(path)
+    try:
+        f, size = safe_open.open_regular(path, "an image", IMAGE_MAX_FILE_BYTES)
+    except safe_open.RefusedFile as exc:
+        raise SchneeError(str(exc), exc.code) from None
+    with f:
+        head = f.read(4)
+        if exr.has_magic(head):
+            f.seek(0)
+            try:
+                return exr.read_file(f, size)
+            except OSError as exc:
+                raise SchneeError(f"{path}: cannot read: {exc.strerror or exc}", "I/O error") from None
+            except exr.Malformed as exc:
+                raise SchneeError(f"{path}: cannot read as exr: {exc}", "malformed file") from None
+            except exr.Unsupported:
+                pass  # e.g. DWAB-compressed HDRIs: Blender (or oiiotool) reads those
+        elif path.lower().endswith(".exr"):
+            raise SchneeError(f"{path}: cannot read as exr: not an OpenEXR file (bad magic number)", "malformed file")
+        elif not head.startswith(_IMAGE_SIGNATURES):
+            # Never hand an unknown file to a library that tries every reader on it (OpenImageIO
+            # took minutes on a 2 GiB sparse file): only files that announce an image format.
+            raise SchneeError(f"{path}: not an image (no EXR, HDR, PFM, PNG, JPEG or TIFF signature)",
+                              "malformed file")
+    return _read_with_blender(path)
+
+
+def _check_image_size(path: str, w: int, h: int, c: int):
+    if w > IMAGE_MAX_SIDE or h > IMAGE_MAX_SIDE or c > IMAGE_MAX_CHANNELS or w * h * c > IMAGE_MAX_VALUES:
+        raise SchneeError(f"image '{path}' is too large: {w}x{h} with {c} channel(s); the limits are "
+                          f"{IMAGE_MAX_SIDE} pixels per side, {IMAGE_MAX_CHANNELS} channels and {IMAGE_MAX_VALUES} "
+                          "values (width x height x channels)", "input too large")
+
+
+def _read_with_oiiotool(path: str) -> np.ndarray:
+    """Outside Blender (benchmarks, tools on a development machine): OpenImageIO's command-line tool,
+    when installed, rewrites the image as an uncompressed float EXR, which exr.py reads exactly."""
+    import shutil
+    import subprocess
+    import tempfile
+    from . import exr
+    tool = shutil.which("oiiotool")
+    if tool is None:
+        raise SchneeError(f"{path}: outside Blender only uncompressed/RLE/ZIP scanline EXR files are read "
+                          "(or any image when OpenImageIO's oiiotool is installed)", "I/O error")
+    if not os.path.isfile(path):
+        raise SchneeError(f"cannot read {path}: no such file", "I/O error")
+    # The header first (oiiotool --info reads no pixels), so a file that claims gigabytes is refused
+    # before anything is decoded.
+    info = subprocess.run([tool, "--info", path], capture_output=True, text=True)
+    m = re.search(r"(\d+)\s+x\s+(\d+)(?:\s+x\s+\d+)?,\s+(\d+) channel", info.stdout)
+    if info.returncode != 0 or m is None:
+        raise SchneeError(f"cannot read {path}: OpenImageIO does not recognise it as an image", "I/O error")
+    _check_image_size(path, int(m.group(1)), int(m.group(2)), int(m.group(3)))
+    with tempfile.TemporaryDirectory(prefix="schnee-img-") as tmp:
+        out = os.path.join(tmp, "image.exr")
+        proc = subprocess.run([tool, path, "-d", "float", "--compression", "none", "-o", out],
+                              capture_output=True, text=True)
+        if proc.returncode != 0 or not os.path.isfile(out):
+            raise SchneeError(f"cannot read {path}: {proc.stderr.strip() or 'oiiotool failed'}", "I/O error")
+        try:
+            return exr.read(out)
+        except (exr.Malformed, exr.Unsupported) as exc:
+            raise SchneeError(f"cannot read {path}: {exc}", "I/O error") from None
+
+
+def _read_with_blender(path: str) -> np.ndarray:
+    try:
+        import bpy
+    except ImportError:
+        return _read_with_oiiotool(path)
+    if not os.path.isfile(path):
+        raise SchneeError(f"cannot read {path}: no such file", "I/O error")
+    try:
+        image = bpy.data.images.load(path, check_existing=False)
+    except RuntimeError as exc:
+        raise SchneeError(f"cannot read {path}: {exc}", "I/O error") from None
+    try:
+        w, h = image.size
+        c = image.channels
+        _check_image_size(path, w, h, c)
+        if w <= 0 or h <= 0 or c < 3:
+            raise SchneeError(f"cannot read {path}: Blender loaded {w} x {h} x {c}", "I/O error")
+        buf = np.empty(w * h * c, np.float32)
+        image.pixels.foreach_get(buf)
+    finally:
+        bpy.data.images.remove(image)
+    # Blender's Image.pixels is bottom-up; the projection wants row 0 at the top.
+    return np.ascontiguousarray(buf.reshape(h, w, c)[::-1])
 
 
 def irradiance(coeffs: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -277,6 +432,17 @@ class ShProbeFile:
     # Version 2 additions (version 1 reads back these defaults):
     validity: Optional[np.ndarray] = None   # (P,) float32 in [0, 1]; None = all 1
     grid_axes: Tuple[Tuple[float, float, float], ...] = _IDENTITY_AXES  # rows: grid X, Y, Z axes
+    # Version 3 additions (docs/shprobe-format.md; versions 1/2 read back SH, float32, grid). For an
+    # octree or tetrahedra ``grid`` is None; ``coeffs`` holds 6 faces per probe for an ambient cube.
+    representation: str = "sh"        # "sh" or "ambientCube"
+    storage: str = "float32"          # "float32" or "float16" (in the file; arrays are float32)
+    structure: str = "grid"           # "grid", "octree" or "tetrahedra"
+    leaves: Optional[np.ndarray] = None           # (N, 4) uint32 x, y, z, level (octree)
+    leaf_corners: Optional[np.ndarray] = None     # (N, 8) int32 node indices (octree)
+    hanging_sources: Optional[np.ndarray] = None  # (H, 4) uint32 (octree)
+    hanging_weights: Optional[np.ndarray] = None  # (H, 4) float32 (octree)
+    tets: Optional[np.ndarray] = None             # (N, 4) uint32 (tetrahedra)
+    tet_neighbours: Optional[np.ndarray] = None   # (N, 4) int32, −1 = none (tetrahedra)
 
     @property
     def probe_count(self) -> int:
@@ -288,21 +454,35 @@ class ShProbeFile:
         return shprobe_lookup(self, points)
 
 
+def _opt_rows(buf, dtype, cols: int) -> Optional[np.ndarray]:
+    return None if buf is None else np.frombuffer(buf, dtype=dtype).reshape(-1, cols)
+
+
 def _shprobe_from_dict(d: dict) -> ShProbeFile:
     n, band = d["probe_count"], d["max_band"]
     positions = d["positions"]
+    cube = d.get("representation", 0) == 1
     return ShProbeFile(
         version=d["version"], max_band=band,
-        coeffs=np.frombuffer(d["coeffs"], dtype=np.float32).reshape(n, sh_count(band), 3),
+        coeffs=np.frombuffer(d["coeffs"], dtype=np.float32).reshape(n, 6 if cube else sh_count(band), 3),
         probe_scale=np.frombuffer(d["probe_scale"], dtype=np.float32),
         probe_ambient=np.frombuffer(d["probe_ambient"], dtype=np.float32),
         positions=None if positions is None else np.frombuffer(positions, dtype=np.float32).reshape(n, 3),
-        grid=np.frombuffer(d["grid"], dtype=np.int32),
+        grid=None if d["grid"] is None else np.frombuffer(d["grid"], dtype=np.int32),
         grid_dims=tuple(d["grid_dims"]), grid_origin=tuple(d["grid_origin"]),
         grid_spacing=d["grid_spacing"], default_sh_scale=d["default_sh_scale"],
         default_ambient=d["default_ambient"],
         validity=np.frombuffer(d["validity"], dtype=np.float32),
-        grid_axes=tuple(tuple(r) for r in d["grid_axes"]))
+        grid_axes=tuple(tuple(r) for r in d["grid_axes"]),
+        representation="ambientCube" if cube else "sh",
+        storage="float16" if d.get("storage", 0) == 1 else "float32",
+        structure=("grid", "octree", "tetrahedra")[d.get("structure", 0)],
+        leaves=_opt_rows(d.get("leaves"), np.uint32, 4),
+        leaf_corners=_opt_rows(d.get("leaf_corners"), np.int32, 8),
+        hanging_sources=_opt_rows(d.get("hanging_sources"), np.uint32, 4),
+        hanging_weights=_opt_rows(d.get("hanging_weights"), np.float32, 4),
+        tets=_opt_rows(d.get("tets"), np.uint32, 4),
+        tet_neighbours=_opt_rows(d.get("tet_neighbours"), np.int32, 4))
 
 
 def _per_probe(x, name: str, n: int) -> Optional[np.ndarray]:
@@ -386,6 +566,249 @@ def shprobe_lookup(probes: ShProbeFile, points: np.ndarray) -> np.ndarray:
                                 float(probes.grid_spacing), probes.probe_count, p, grid_axes=axes)
     out = np.frombuffer(raw, dtype=np.int32)
     return out.reshape(()) if single else out
+
+
+# ---- interpolation on probe positions, error-driven refinement, .shprobe v3 (issue 12) ------------
+#
+# docs/placement.md ("Interpolation", "Error-driven refinement") and docs/shprobe-format.md
+# ("Version 3"). A bake drives the refinement pass by pass (bench/bench_interp.py does it on
+# synthetic fields):
+#
+#     tree = CornerOctree.uniform(origin, min_cell, root_level, root_dims)  # Max Cell Size leaves
+#     tree.drop(outside); tree.finalize()                                    # leaves outside volumes
+#     values = bake(tree.positions())                                        # (P, C, 3) radiance SH
+#     while True:
+#         tests = tree.refine_tests()                    # centre + face centres (lattice points)
+#         test_values = bake(tests.positions)            # rows with tests.probe >= 0 are not read
+#         split, err, thr = tree.refine_decide(tests, values, test_values, probe_noise=..., ...)
+#         if not split.any(): break
+#         tree.split(split); tree.finalize()             # test points become probes
+#         values = old values by lattice point (tree.probe_lattice()); bake the new edge midpoints
+#     write_shprobe_v3(path, tree, values, ...)
+
+_REPRESENTATIONS = {"sh": 0, "ambientCube": 1}
+_STORAGES = {"float32": 0, "float16": 1}
+
+
+@dataclass
+class RefineTests:
+    """Test points of a corner octree's leaves (see :meth:`CornerOctree.refine_tests`)."""
+    lattice: np.ndarray     # (T, 3) uint32 lattice coordinates (units of the min cell)
+    positions: np.ndarray   # (T, 3) float64 engine space
+    probe: np.ndarray       # (T,) int32: probe already at the point (no bake needed) or −1
+    leaf_tests: np.ndarray  # (L, 7) int32: centre, −x, +x, −y, +y, −z, +z test indices; −1 = none
+
+
+class _Interpolation:
+    _handle = None
+
+    def query(self, points: np.ndarray, validity: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
+        """Weights of the probes at engine-space points (N, 3): (probes (N, K) int32, weights (N, K)
+        float64); unused slots are −1 / 0, weights >= 0 sum to 1 (a row of −1 = outside).
+        ``validity`` (P,): probes with validity <= 0 are dropped and the rest renormalised."""
+        p, _ = _vectors(points, "points")
+        val = None if validity is None else _array(validity, "validity", np.float32, _FLOAT_KINDS)
+        pr, wt, k = _lib().interp_query(self._handle, p, val)
+        return (np.frombuffer(pr, dtype=np.int32).reshape(-1, k),
+                np.frombuffer(wt, dtype=np.float64).reshape(-1, k))
+
+    def interpolate(self, points: np.ndarray, values: np.ndarray,
+                    validity: Optional[np.ndarray] = None) -> np.ndarray:
+        """Per-probe values (P, ...) interpolated at the points -> (N, ...); NaN outside."""
+        probes, weights = self.query(points, validity)
+        v = np.asarray(values, dtype=np.float64)
+        out = np.einsum("nk,nk...->n...", weights, v[np.maximum(probes, 0)])
+        out[probes[:, 0] < 0] = np.nan
+        return out
+
+
+class CornerOctree(_Interpolation):
+    """Probes at the corners of octree leaves, trilinear inside each leaf, hanging corners taken from
+    the larger neighbour's face/edge (C0 everywhere). Lattice units = the min cell size."""
+
+    def __init__(self, handle):
+        self._handle = handle
+
+    @classmethod
+    def uniform(cls, origin: Sequence[float], min_cell: float, root_level: int,
+                root_dims: Sequence[int]) -> "CornerOctree":
+        """root_dims leaves of 2**root_level min cells per axis, min corner at ``origin``."""
+        return cls(_lib().cotree_create(tuple(float(v) for v in origin), float(min_cell), int(root_level),
+                                        tuple(int(v) for v in root_dims)))
+
+    @classmethod
+    def from_leaves(cls, origin: Sequence[float], min_cell: float, dims: Sequence[int],
+                    leaves: np.ndarray) -> "CornerOctree":
+        """A tree from (N, 4) leaves (x, y, z lattice min corner, level); finalize it."""
+        lv = _array(leaves, "leaves", np.uint32, _INT_KINDS).reshape(-1)
+        return cls(_lib().cotree_from_leaves(tuple(float(v) for v in origin), float(min_cell),
+                                             tuple(int(v) for v in dims), lv))
+
+    def _flags(self, flags, name: str) -> np.ndarray:
+        f = np.ascontiguousarray(np.asarray(flags).astype(bool), dtype=np.uint8)
+        if f.shape != (self.leaf_count,):
+            raise _shape_error(name, f"({self.leaf_count},)", f)
+        return f
+
+    def split(self, flags) -> int:
+        """Split the flagged leaves (level > 0) into 8; returns how many. Finalize afterwards."""
+        return _lib().cotree_split(self._handle, self._flags(flags, "flags"))
+
+    def drop(self, flags) -> None:
+        """Remove the flagged leaves (e.g. outside the volumes). Finalize afterwards."""
+        _lib().cotree_drop(self._handle, self._flags(flags, "flags"))
+
+    def finalize(self) -> None:
+        """Number the probes (corner nodes that do not hang) and build the hanging rules."""
+        _lib().cotree_finalize(self._handle)
+
+    def info(self) -> dict:
+        """origin, min_cell, dims, leaves (L, 4); after finalize also probe_count, probe_lattice (P, 3),
+        positions (P, 3), leaf_corners (L, 8), hanging_count, hanging_sources/weights (H, 4)."""
+        d = _lib().cotree_info(self._handle)
+        out = dict(d)
+        out["leaves"] = np.frombuffer(d["leaves"], dtype=np.uint32).reshape(-1, 4)
+        if d["finalized"]:
+            out["probe_lattice"] = np.frombuffer(d["probe_lattice"], dtype=np.uint32).reshape(-1, 3)
+            out["positions"] = np.frombuffer(d["positions"], dtype=np.float64).reshape(-1, 3)
+            out["leaf_corners"] = np.frombuffer(d["leaf_corners"], dtype=np.int32).reshape(-1, 8)
+            out["hanging_sources"] = np.frombuffer(d["hanging_sources"], dtype=np.uint32).reshape(-1, 4)
+            out["hanging_weights"] = np.frombuffer(d["hanging_weights"], dtype=np.float32).reshape(-1, 4)
+        return out
+
+    @property
+    def leaf_count(self) -> int:
+        return int(len(_lib().cotree_info(self._handle)["leaves"]) // 16)
+
+    @property
+    def probe_count(self) -> int:
+        return int(_lib().cotree_info(self._handle)["probe_count"])
+
+    def positions(self) -> np.ndarray:
+        """(P, 3) float64 probe positions (after finalize)."""
+        return self.info()["positions"]
+
+    def probe_lattice(self) -> np.ndarray:
+        """(P, 3) uint32 lattice points of the probes (after finalize): keys to carry values over."""
+        return self.info()["probe_lattice"]
+
+    def refine_tests(self, active=None) -> RefineTests:
+        """Test points (centre, face centres) of every leaf above Min Cell Size, or of the ``active``
+        ones (L,) bool."""
+        a = None if active is None else self._flags(active, "active")
+        d = _lib().refine_tests(self._handle, a)
+        return RefineTests(lattice=np.frombuffer(d["lattice"], dtype=np.uint32).reshape(-1, 3),
+                           positions=np.frombuffer(d["positions"], dtype=np.float64).reshape(-1, 3),
+                           probe=np.frombuffer(d["probe"], dtype=np.int32),
+                           leaf_tests=np.frombuffer(d["leaf_tests"], dtype=np.int32).reshape(-1, 7))
+
+    def refine_decide(self, tests: RefineTests, probe_coeffs: np.ndarray, test_coeffs: np.ndarray, *,
+                      probe_noise=None, test_noise=None, probe_validity=None, test_valid=None,
+                      tolerance: float = 0.0,
+                      noise_k: float = 0.0) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Which leaves split: (split (L,) bool, error (L,), threshold (L,)). ``probe_coeffs``
+        (P, C, 3) and ``test_coeffs`` (T, C, 3) radiance SH (rows of tests that are probes are not
+        read); noise: relative RMS irradiance noise per probe / test; tolerance 0 = 0.05, noise_k 0 = 2."""
+        pc = _array(probe_coeffs, "probe_coeffs", np.float64, _FLOAT_KINDS)
+        tc = _array(test_coeffs, "test_coeffs", np.float64, _FLOAT_KINDS)
+        if pc.ndim != 3 or pc.shape[2] != 3:
+            raise _shape_error("probe_coeffs", "(P, sh_count, 3)", pc)
+        band = _band_of(pc.shape[1], "probe_coeffs")
+        n_tests = tests.positions.shape[0]
+        if tc.shape != (n_tests, pc.shape[1], 3):
+            raise _shape_error("test_coeffs", f"({n_tests}, {pc.shape[1]}, 3)", tc)
+
+        def opt(x, name):
+            return None if x is None else _array(x, name, np.float32, _FLOAT_KINDS)
+
+        tv = None if test_valid is None else np.ascontiguousarray(np.asarray(test_valid).astype(bool),
+                                                                   dtype=np.uint8)
+        split, err, thr = _lib().refine_decide(
+            self._handle, np.ascontiguousarray(tests.leaf_tests, dtype=np.int32),
+            np.ascontiguousarray(tests.positions, dtype=np.float64),
+            np.ascontiguousarray(tests.probe, dtype=np.int32), band, pc, tc,
+            probe_noise=opt(probe_noise, "probe_noise"), test_noise=opt(test_noise, "test_noise"),
+            probe_validity=opt(probe_validity, "probe_validity"), test_valid=tv,
+            tolerance=float(tolerance), noise_k=float(noise_k))
+        return (np.frombuffer(split, dtype=np.uint8).astype(bool), np.frombuffer(err, dtype=np.float64),
+                np.frombuffer(thr, dtype=np.float64))
+
+
+class Tetrahedra(_Interpolation):
+    """Delaunay tetrahedralisation of probe positions (qhull), barycentric inside each tetrahedron."""
+
+    def __init__(self, handle):
+        self._handle = handle
+
+    @classmethod
+    def create(cls, positions: np.ndarray) -> "Tetrahedra":
+        p, _ = _vectors(positions, "positions")
+        return cls(_lib().tetra_create(p))
+
+    def info(self) -> dict:
+        """tets (N, 4) uint32 probe indices, neighbours (N, 4) int32 (opposite vertex i, −1 = hull)."""
+        d = _lib().tetra_info(self._handle)
+        return {"tets": np.frombuffer(d["tets"], dtype=np.uint32).reshape(-1, 4),
+                "neighbours": np.frombuffer(d["neighbours"], dtype=np.int32).reshape(-1, 4)}
+
+
+def write_shprobe_v3(path: str, structure: _Interpolation, coeffs: np.ndarray, *, representation: str = "sh",
+                     storage: str = "float32", probe_scale=None, probe_ambient=None, validity=None,
+                     default_sh_scale: float = 1.0, default_ambient: float = 0.1) -> int:
+    """Write a version 3 ``.shprobe`` of a finalized :class:`CornerOctree` or a :class:`Tetrahedra`
+    (positions from the structure). ``coeffs`` (P, sh_count, 3) for SH, (P, 6, 3) for an ambient
+    cube (its header's max band is then 2, informational). Returns the probe count."""
+    rep = _choice(representation, _REPRESENTATIONS, "representation")
+    sto = _choice(storage, _STORAGES, "storage")
+    c = _array(coeffs, "coeffs", np.float32, _FLOAT_KINDS)
+    if c.ndim != 3 or c.shape[2] != 3:
+        raise _shape_error("coeffs", "(P, colours, 3)", c)
+    if rep == 1 and c.shape[1] != 6:
+        raise _shape_error("coeffs", "(P, 6, 3) for an ambient cube", c)
+    band = 2 if rep == 1 else _band_of(c.shape[1], "coeffs")
+    n = c.shape[0]
+    return _lib().shprobe_write_v3(path, structure._handle, c.reshape(-1), rep, band, sto,
+                                   probe_scale=_per_probe(probe_scale, "probe_scale", n),
+                                   probe_ambient=_per_probe(probe_ambient, "probe_ambient", n),
+                                   validity=_per_probe(validity, "validity", n),
+                                   default_sh_scale=float(default_sh_scale),
+                                   default_ambient=float(default_ambient))
+
+
+def interpolation_from_file(path: str) -> _Interpolation:
+    """The interpolation structure of a version 3 file, with the file's own probe numbering."""
+    h = _lib().interp_from_file(path)
+    return CornerOctree(h) if "cotree" in repr(h) else Tetrahedra(h)
+
+
+def resample_shprobe_dense(path: str, spacing: float = 0.0) -> ShProbeFile:
+    """A version 3 SH file's field resampled onto a dense grid (each covered cell = one probe with the
+    value interpolated at its centre); write it with :func:`write_shprobe` (version 1 for L <= 2).
+    ``spacing`` 0 = the octree's min cell (required for tetrahedra)."""
+    return _shprobe_from_dict(_lib().shprobe_resample_dense(path, float(spacing)))
+
+
+def classify_placement(volumes: Sequence[Mesh], geometry: Sequence[Mesh], points: Optional[np.ndarray] = None,
+                       boxes: Optional[np.ndarray] = None, *, min_cell_size: float = 0.0,
+                       max_cell_size: float = 0.0, threads: int = 0, solid_ray_count: int = 0,
+                       solid_backface_ratio: float = 0.0) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Inside/solid/box classification with :func:`place_probes`' rules (Embree), for the corner
+    octree: (inside (N,) bool, backface_ratio (N,) float32, box_class (M,) uint8) for engine-space
+    ``points`` (N, 3) and ``boxes`` (M, 4) = centre x, y, z and half edge. box_class: 0 outside the
+    volumes, 1 inside, 2 crossed by a volume surface. A probe with backface_ratio > the solid ratio
+    (default 0.25) is inside solid geometry: give it validity 0 (it is then left out of the
+    interpolation) — see docs/placement.md."""
+    p = None if points is None else _vectors(points, "points")[0]
+    b = None
+    if boxes is not None:
+        b = _array(boxes, "boxes", np.float64, _FLOAT_KINDS)
+        if b.ndim != 2 or b.shape[1] != 4:
+            raise _shape_error("boxes", "(M, 4)", b)
+    inside, ratio, cls = _lib().placement_classify(
+        _meshes(volumes, "volumes"), _meshes(geometry, "geometry"), p, b, float(min_cell_size),
+        float(max_cell_size), int(threads), int(solid_ray_count), float(solid_backface_ratio))
+    return (np.frombuffer(inside, dtype=np.uint8).astype(bool), np.frombuffer(ratio, dtype=np.float32),
+            np.frombuffer(cls, dtype=np.uint8))
 
 
 # ---- direct light (issue 11, docs/direct-light.md) ---------------------------------------------

@@ -16,6 +16,8 @@ import re
 
 import bpy
 
+from . import compat
+
 GROUP_NAME = "VS Movable Diffuse"
 # Custom property on the node tree: recognises our group even after a user renames it.
 GROUP_TAG = "schnee_movable_diffuse"
@@ -33,18 +35,9 @@ DEFAULT_AMBIENT = 0.1
 _NAME_RE = re.compile(r"^" + re.escape(GROUP_NAME) + r"(\.\d{3,})?$")
 
 
-def _interface_sockets(tree, in_out):
-    """(name -> socket) of a node group's interface; Blender 4.0 moved them to ``tree.interface``."""
-    if hasattr(tree, "interface"):  # 4.0+
-        return {item.name: item for item in tree.interface.items_tree
-                if item.item_type == 'SOCKET' and item.in_out == in_out}
-    return {s.name: s for s in (tree.inputs if in_out == 'INPUT' else tree.outputs)}
-
-
-def _new_socket(tree, in_out, socket_type, name):
-    if hasattr(tree, "interface"):  # 4.0+
-        return tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
-    return (tree.inputs if in_out == 'INPUT' else tree.outputs).new(socket_type, name)
+# Node-group sockets moved to ``tree.interface`` in Blender 4.0: compat.py reaches both.
+_interface_sockets = compat.group_interface_sockets
+_new_socket = compat.new_group_socket
 
 
 def is_movable_diffuse_tree(tree):

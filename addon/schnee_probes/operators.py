@@ -1,15 +1,19 @@
 """Operators: Bake SH in Volumes (modal, one panorama per timer tick) and Bake SH at Cursor.
 
 Both drive a :class:`bake_core.ProbeBake`. In a UI session Bake SH in Volumes runs modally (progress
-bar, status bar text, Esc cancels); without a window (``blender -b``) modal operators cannot run, so
-the same operator bakes synchronously, printing a progress line.
+bar, status bar text, Esc or Ctrl+C in the terminal cancels); without a window (``blender -b``)
+modal operators cannot run, so the same operator bakes synchronously, printing a progress line.
+A bake of more probes than the settings' Confirm Above asks first (:class:`SCHNEE_OT_confirm_large_bake`).
 """
 import os
+import signal
 import time
 
 import bpy
 
-from .bake_core import BakeError, BakeSettings, ProbeBake
+from .bake_core import (BakeCancelled, BakeError, BakeSettings, BakeTooLarge, CancelOnSignals, ProbeBake,
+                        format_duration)
+from .properties import draw_estimate, draw_settings
 
 
 def _record(props, result=None, message=""):
@@ -25,31 +29,6 @@ def _summary(result):
     return f"Baked {result.probe_count} probes in {result.seconds:.1f} s -> {names}"
 
 
-def _draw_settings(layout, props, volumes=True):
-    col = layout.column()
-    if volumes:
-        col.prop_search(props, "volume_collection", bpy.data, "collections")
-    col.prop(props, "min_cell_size")
-    if volumes:
-        col.prop(props, "max_cell_size")
-    col.prop(props, "panorama_resolution")
-    col.prop(props, "max_band")
-    col.separator()
-    col.prop(props, "samples")
-    col.prop(props, "max_bounces")
-    row = col.row(align=True)
-    row.prop(props, "clamp_direct")
-    row.prop(props, "clamp_indirect")
-    row = col.row(align=True)
-    row.prop(props, "pixel_filter", text="")
-    row.prop(props, "filter_width", text="Width")
-    col.prop(props, "lights_visible")
-    col.prop(props, "persistent_data")
-    if volumes:
-        col.prop(props, "per_volume_files")
-    col.prop(props, "output_path")
-
-
 class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
     """Place probes in the probe volumes, render one Cycles panorama per probe and write the SH
     coefficients to a .shprobe file"""
@@ -59,7 +38,12 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
 
     _timer = None
     _bake = None
+    _signals = None
     _running = False  # class-wide: one bake at a time
+
+    allow_large: bpy.props.BoolProperty(
+        name="Allow Large", default=False, options={'HIDDEN', 'SKIP_SAVE'},
+        description="Bake even above Confirm Above (set by the confirmation dialog)")
 
     @classmethod
     def poll(cls, context):
@@ -69,15 +53,26 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
         return context.window_manager.invoke_props_dialog(self, width=380)
 
     def draw(self, context):
-        _draw_settings(self.layout, context.scene.schnee_probes)
+        props = context.scene.schnee_probes
+        draw_settings(self.layout, props)
+        draw_estimate(self.layout, context.scene, props)
 
     def execute(self, context):
         props = context.scene.schnee_probes
-        bake = ProbeBake(context.scene, context.view_layer, BakeSettings.from_props(props))
+        bake = ProbeBake(context.scene, context.view_layer, BakeSettings.from_props(props),
+                         allow_large=self.allow_large)
         if context.window is None or bpy.app.background:
             return self._run_blocking(bake, props)
         try:
             bake.prepare()
+        except BakeTooLarge as exc:
+            # Nothing is changed yet (placement only): ask, and bake again if confirmed.
+            bake.cancel()
+            _record(props, message=str(exc))
+            self.report({'WARNING'}, str(exc))
+            bpy.ops.schnee.confirm_large_bake('INVOKE_DEFAULT', probes=exc.probes,
+                                              estimate=format_duration(exc.seconds), limit=exc.limit)
+            return {'CANCELLED'}
         except (BakeError, OSError) as exc:
             bake.cancel()
             _record(props, message=str(exc))
@@ -88,11 +83,17 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
             raise
         self._bake = bake
         SCHNEE_OT_bake_sh_volumes._running = True
+        # Ctrl+C in the terminal cancels like Esc (instead of Python's KeyboardInterrupt).
+        self._signals = CancelOnSignals(bake, (signal.SIGINT,))
+        self._signals.__enter__()
         wm = context.window_manager
         wm.progress_begin(0, bake.total)
         self._timer = wm.event_timer_add(0.01, window=context.window)
         wm.modal_handler_add(self)
-        print(f"Schnee: baking {bake.total} probes (Esc cancels)")
+        msg = f"Baking {bake.total} probes, estimated {format_duration(bake.estimated_seconds)} (Esc cancels)"
+        self.report({'INFO'}, msg)
+        if context.workspace is not None:
+            context.workspace.status_text_set(msg)
         return {'RUNNING_MODAL'}
 
     def _run_blocking(self, bake, props):
@@ -114,12 +115,14 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
 
     def modal(self, context, event):
         bake = self._bake
-        if event.type == 'ESC':
+        if event.type == 'ESC' or bake.cancel_requested:
             return self._end(context, cancelled=True)
         if event.type != 'TIMER':
             return {'PASS_THROUGH'}
         try:
             more = bake.step()
+        except BakeCancelled:
+            return self._end(context, cancelled=True)
         except BaseException as exc:  # restore the scene whatever went wrong, then report
             return self._end(context, error=exc)
         context.window_manager.progress_update(bake.done)
@@ -142,6 +145,9 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
         wm.progress_end()
         if context.workspace is not None:
             context.workspace.status_text_set(None)
+        if self._signals is not None:
+            self._signals.__exit__(None, None, None)
+            self._signals = None
         SCHNEE_OT_bake_sh_volumes._running = False
         print()
         props = context.scene.schnee_probes
@@ -165,6 +171,30 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
         for msg in result.messages:
             self.report({'INFO'}, msg)
         self.report({'INFO'}, _summary(result))
+        return {'FINISHED'}
+
+
+class SCHNEE_OT_confirm_large_bake(bpy.types.Operator):
+    """Confirm a bake of more probes than Confirm Above"""
+    bl_idname = "schnee.confirm_large_bake"
+    bl_label = "Bake Many Probes?"
+    bl_options = {'INTERNAL'}
+
+    probes: bpy.props.IntProperty(name="Probes", options={'SKIP_SAVE'})
+    estimate: bpy.props.StringProperty(name="Estimate", options={'SKIP_SAVE'})
+    limit: bpy.props.IntProperty(name="Limit", options={'SKIP_SAVE'})
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self, width=420)
+
+    def draw(self, context):
+        col = self.layout.column(align=True)
+        col.label(text=f"{self.probes} probes, estimated {self.estimate} (upper estimate)", icon='ERROR')
+        col.label(text=f"That is more than Confirm Above ({self.limit} probes).")
+        col.label(text="OK bakes them all; click outside to leave everything as it is.")
+
+    def execute(self, context):
+        bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT', allow_large=True)
         return {'FINISHED'}
 
 
@@ -198,6 +228,6 @@ class SCHNEE_OT_bake_sh_cursor(bpy.types.Operator):
         return {'FINISHED'}
 
 
-classes = (SCHNEE_OT_bake_sh_volumes, SCHNEE_OT_bake_sh_cursor)
+classes = (SCHNEE_OT_bake_sh_volumes, SCHNEE_OT_confirm_large_bake, SCHNEE_OT_bake_sh_cursor)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

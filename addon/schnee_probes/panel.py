@@ -4,8 +4,8 @@ import os
 
 import bpy
 
-from . import light_modes
-from .operators import _draw_settings
+from . import compat, light_modes
+from .properties import draw_estimate, draw_settings
 
 
 class VIEW3D_PT_schnee_probes(bpy.types.Panel):
@@ -18,6 +18,7 @@ class VIEW3D_PT_schnee_probes(bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         props = context.scene.schnee_probes
+        compat.draw_native_problem(layout)  # the bake core did not load: what is missing, what to do
         col = layout.column(align=True)
         col.scale_y = 1.3
         col.operator("schnee.bake_sh_volumes", icon='LIGHTPROBE_GRID')
@@ -26,7 +27,8 @@ class VIEW3D_PT_schnee_probes(bpy.types.Panel):
         row.operator("schnee.add_movable_diffuse", text="Movable Diffuse Material", icon='NODE_MATERIAL')
         layout.use_property_split = True
         layout.use_property_decorate = False
-        _draw_settings(layout, props)
+        draw_settings(layout, props)
+        draw_estimate(layout, context.scene, props)
 
 
 class VIEW3D_PT_schnee_probes_last(bpy.types.Panel):

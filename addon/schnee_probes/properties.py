@@ -1,96 +1,96 @@
-"""Bake settings, stored on the scene as ``Scene.schnee_probes``.
+"""Bake settings, stored on the scene as ``Scene.schnee_probes``, and their drawing in the panel and
+the bake dialog.
 
-Property names equal the fields of :class:`bake_core.BakeSettings` and the ``bake.py`` options.
-Defaults and their time/error trade are documented in docs/user-guide.md (figures measured with
-bench/sweep/run.py, report bench/results/sweep.md).
+The properties are generated from :data:`settings.SETTINGS` (name, type, default, limits, label,
+help), so they equal the fields of :class:`settings.BakeSettings` and the ``bake.py`` options.
+Defaults and their time/error trade are documented in docs/user-guide.md (generated from the same
+declaration; figures measured with bench/sweep/run.py, report bench/results/sweep.md).
 """
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from .bake_core import DEFAULT_OUTPUT
+from .settings import SETTINGS, BakeSettings
 
 
-class SchneeProbeSettings(bpy.types.PropertyGroup):
-    """Settings of Bake SH in Volumes / Bake SH at Cursor, and what the last bake produced."""
+def make_property(s):
+    """The ``bpy.props`` property of one :class:`settings.Setting`."""
+    kw = dict(name=s.label, description=s.help, default=s.default)
+    if s.kind in ("int", "float"):
+        if s.minimum is not None:
+            kw["min"] = s.minimum
+        if s.maximum is not None:
+            kw["max"] = s.maximum
+        if s.soft_max is not None:
+            kw["soft_max"] = s.soft_max
+        if s.unit:
+            kw["unit"] = s.unit
+        if s.kind == "int":
+            for k in ("min", "max", "soft_max"):
+                if k in kw:
+                    kw[k] = int(kw[k])
+            if s.even:
+                kw["step"] = 2
+            return IntProperty(**kw)
+        return FloatProperty(**kw)
+    if s.kind == "bool":
+        return BoolProperty(**kw)
+    if s.kind == "enum":
+        return EnumProperty(items=s.choices, **kw)
+    if s.kind == "path":
+        return StringProperty(subtype=s.unit or 'FILE_PATH', **kw)
+    return StringProperty(**kw)
 
-    # The five documented parameters (DESIGN.md §6).
-    volume_collection: StringProperty(
-        name="Probe Volume Collection", default="ProbeVolumes",
-        description="Collection of closed mesh objects; probes fill their union. "
-                    "Its objects are hidden from the probe renders and left out of the glTF export")
-    min_cell_size: FloatProperty(
-        name="Min Cell Size (m)", default=0.5, min=0.01, soft_max=4.0, unit='LENGTH',
-        description="Smallest octree cell, used near scene geometry; also the spacing of the "
-                    "occupancy grid written to the .shprobe")
-    max_cell_size: FloatProperty(
-        name="Max Cell Size (m)", default=16.0, min=0.01, soft_max=64.0, unit='LENGTH',
-        description="Largest octree cell, used in open space away from geometry")
-    panorama_resolution: IntProperty(
-        name="Panorama Resolution", default=128, min=8, max=4096, step=2,
-        description="Width of each per-probe equirectangular render; height = width / 2")
-    max_band: IntProperty(
-        name="Max SH Band (L)", default=2, min=0, max=4,
-        description="Highest SH band; L=2 gives 9 coefficients (the .shprobe v1 format holds L<=2)")
 
-    # Settings that trade time against error.
-    samples: IntProperty(
-        name="Samples", default=32, min=1, soft_max=4096,
-        description="Cycles samples per panorama pixel: render time grows linearly, noise falls "
-                    "as 1/sqrt(samples) (measured: 32 is within noise of 64-128 indoors; raise it "
-                    "for skies with a small, very bright sun)")
-    max_bounces: IntProperty(
-        name="Bounces", default=32, min=0, max=64,
-        description="Light bounces (total, diffuse and glossy): fewer is faster but darker indoors "
-                    "(light missing ≈ albedo^bounces; bright room: 8 lose 13 %, 16 lose 2.8 %, "
-                    "24 lose 0.6 %, 32 are within noise); extra bounces cost little, outdoors 4 are enough")
-    clamp_direct: FloatProperty(
-        name="Clamp Direct", default=0.0, min=0.0,
-        description="Clamp of direct-light samples (0 = off); clamping trades fireflies for bias")
-    clamp_indirect: FloatProperty(
-        name="Clamp Indirect", default=10.0, min=0.0,
-        description="Clamp of indirect-light samples (0 = off; 10 is Cycles' default)")
-    pixel_filter: EnumProperty(
-        name="Pixel Filter", default='BOX',
-        items=(('BOX', "Box", "Each sample counts only for its own pixel: the panorama pixel is the "
-                "exact solid-angle average the projection assumes"),
-               ('GAUSSIAN', "Gaussian", "Gaussian pixel filter"),
-               ('BLACKMAN_HARRIS', "Blackman-Harris", "Cycles' default filter; blurs across "
-                "rows of different solid angle")),
-        description="Cycles pixel filter for the panoramas")
-    filter_width: FloatProperty(
-        name="Filter Width (px)", default=1.0, min=0.01, max=10.0,
-        description="Pixel filter width; 1 px box = no blur between pixels")
-    lights_visible: BoolProperty(
-        name="Lamps Seen by Probes", default=True,
-        description="Lamp objects are seen directly by the probe cameras, so a lamp's own emission "
-                    "counts in the probes' light (as an emissive surface would); off hides lamps "
-                    "from the probe cameras (they still light the scene)")
-    per_volume_files: BoolProperty(
-        name="One File per Volume", default=False,
-        description="Write sh_coeffs/<volume name>.shprobe for each volume (placed separately) "
-                    "instead of one probes.shprobe for their union")
-    persistent_data: BoolProperty(
-        name="Persistent Data", default=True,
-        description="Keep the scene in Cycles between probe renders, so a probe costs path "
-                    "tracing and not scene sync")
-    seed: IntProperty(name="Seed", default=0, min=0, description="Cycles noise seed")
-    default_sh_scale: FloatProperty(
-        name="Default SH Scale", default=1.0, min=0.0,
-        description="SH scale written to the .shprobe header (engine default per probe)")
-    default_ambient: FloatProperty(
-        name="Default Ambient", default=0.1, min=0.0,
-        description="Ambient term written to the .shprobe header")
-    output_path: StringProperty(
-        name="Output", default=DEFAULT_OUTPUT, subtype='FILE_PATH',
-        description="The .shprobe written by Bake SH in Volumes ('//' = folder of the saved .blend); "
-                    "per-volume files and the cursor bake's debug_probe.txt go in the same folder")
+def draw_settings(layout, props, volumes=True):
+    """The settings as the panel and the Bake SH in Volumes dialog show them (``settings.Setting.ui``
+    says which and in what rows); ``volumes=False`` leaves out the volume-only ones."""
+    col = layout.column()
+    rows = {}
+    for s in SETTINGS:
+        if s.ui is None or (s.ui == "volumes" and not volumes):
+            continue
+        if s.ui_row:
+            if s.ui_row not in rows:
+                rows[s.ui_row] = col.row(align=True)
+            target = rows[s.ui_row]
+        else:
+            target = col
+        kw = {} if s.ui_text is None else {"text": s.ui_text}
+        if s.name == "volume_collection":
+            target.prop_search(props, s.name, bpy.data, "collections", **kw)
+        else:
+            target.prop(props, s.name, **kw)
 
-    # What the last bake produced (shown in the panel; saved with the .blend).
-    last_probe_count: IntProperty(name="Probes", default=0)
-    last_seconds: FloatProperty(name="Time (s)", default=0.0)
-    last_files: StringProperty(name="Files", default="")
-    last_message: StringProperty(name="Last Bake", default="")
 
+def draw_estimate(layout, scene, props):
+    """Before a bake: at most how many probes and how long (volume bounding boxes, no placement;
+    the exact count and estimate come once placement has run)."""
+    from . import bake_core
+    bound, seconds = bake_core.volume_bound(scene, BakeSettings.from_props(props))
+    col = layout.column(align=True)
+    if bound is None:
+        col.label(text="Probes: no usable probe volumes or settings", icon='INFO')
+        return
+    col.label(text=f"Up to {bound} probes, at most ~{bake_core.format_duration(seconds)}", icon='TIME')
+    if props.probe_limit and bound > props.probe_limit:
+        col.label(text=f"May exceed Confirm Above ({props.probe_limit}): the bake will ask", icon='ERROR')
+
+
+# Bake settings from the declaration, then what the last bake produced (shown in the panel; saved
+# with the .blend).
+_annotations = {s.name: make_property(s) for s in SETTINGS}
+_annotations.update(
+    last_probe_count=IntProperty(name="Probes", default=0),
+    last_seconds=FloatProperty(name="Time (s)", default=0.0),
+    last_files=StringProperty(name="Files", default=""),
+    last_message=StringProperty(name="Last Bake", default=""),
+)
+
+SchneeProbeSettings = type("SchneeProbeSettings", (bpy.types.PropertyGroup,), {
+    "__annotations__": _annotations,
+    "__doc__": "Settings of Bake SH in Volumes / Bake SH at Cursor, and what the last bake produced.",
+    "__module__": __name__,
+})
 
 classes = (SchneeProbeSettings,)
 

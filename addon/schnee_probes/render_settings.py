@@ -1,9 +1,10 @@
 """Save, override and restore the scene state a bake touches.
 
 A bake changes render, Cycles, image and view-layer settings, the scene camera and some objects'
-visibility flags. :class:`SceneState` records every writable property of those structs (recursively
-through nested pointers such as ``render.image_settings``) before anything changes, and puts back
-the values that differ afterwards, on success, error and cancel alike.
+visibility flags. Every such change goes through one :class:`StateGuard`, which records the old
+state before anything changes and puts it back afterwards, on success, error and cancel alike:
+the bake itself (``bake_core.ProbeBake``), the sky capture and placement's render evaluation
+(:class:`RenderEvaluation`) all use it.
 """
 import bpy
 
@@ -62,54 +63,104 @@ def _restore(struct, snap):
     return failed
 
 
-class SceneState:
-    """Everything a bake may change on ``scene``, captured at construction."""
+def _plain(value):
+    """A value detached from Blender's data: arrays and vectors (live views) become tuples."""
+    if isinstance(value, str) or not hasattr(value, "__len__") or isinstance(value, bpy.types.ID):
+        return value
+    return tuple(value)
 
-    def __init__(self, scene, view_layer, objects=()):
-        self.scene = scene
-        self.view_layer = view_layer
-        self.render = _snapshot(scene.render)
-        self.cycles = _snapshot(scene.cycles)
-        self.view_layer_state = _snapshot(view_layer)
-        self.camera = scene.camera
-        self.frame = (scene.frame_current, scene.frame_subframe)
-        self.objects = {}
-        for ob in objects:
-            self._remember_object(ob)
 
-    def _remember_object(self, ob):
-        flags = {"hide_render": ob.hide_render}
-        if compat.has_visible_camera(ob):
-            flags["visible_camera"] = ob.visible_camera
-        self.objects[ob.name] = (ob, flags)
+class StateGuard:
+    """The one way the add-on changes Blender state it must put back: every change goes through
+    this object, which records the old value first; :meth:`restore` (or leaving the ``with``
+    block) undoes everything in reverse order, on success, error and cancel alike.
 
-    def remember_object(self, ob):
-        """Record ``ob``'s visibility flags before the bake changes them (idempotent)."""
-        if ob.name not in self.objects:
-            self._remember_object(ob)
+    - :meth:`snapshot` records every writable property of a struct (recursively through nested
+      pointers such as ``render.image_settings``) for changes made to it directly afterwards
+      (``apply_bake_settings``); the values that differ are written back, twice if needed since an
+      enum may be refused until another property is back (e.g. ``color_depth`` vs ``file_format``).
+    - :meth:`set` / :meth:`hide` change one property and record its old value. With
+      ``tolerate=True`` a write Blender refuses (e.g. linked library data) is listed in
+      :attr:`skipped` instead of raising.
+    - :meth:`on_restore` registers any other undo step (remove a temporary camera or folder).
+
+    :meth:`restore` is idempotent and returns (and keeps in :attr:`failed`) the labels of the
+    steps that could not be undone (e.g. the object was deleted meanwhile).
+    """
+
+    def __init__(self):
+        self._undo = []     # (kind, payload, label)
+        self.skipped = []   # labels of tolerated writes Blender refused
+        self.failed = []
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.restore()
+        return False
+
+    def snapshot(self, struct, label):
+        """Record all of ``struct`` (writable, non-ID properties) before changing it directly."""
+        self._undo.append(("snapshot", (struct, _snapshot(struct)), label))
+
+    def set(self, struct, ident, value, label=None, tolerate=False):
+        """``struct.ident = value``, recording the old value. Returns False if a tolerated write
+        was refused."""
+        label = label or f"{getattr(struct, 'name', type(struct).__name__)}.{ident}"
+        old = _plain(getattr(struct, ident))
+        if old == _plain(value):
+            return True
+        try:
+            setattr(struct, ident, value)
+        except (AttributeError, TypeError, ValueError, RuntimeError):
+            if not tolerate:
+                raise
+            self.skipped.append(label)
+            return False
+        self._undo.append(("set", (struct, ident, old), label))
+        return True
+
+    def hide(self, ob, view_layer, value, tolerate=False):
+        """``ob.hide_set(value)`` in ``view_layer`` (the eye), recording the old state."""
+        label = f"object[{ob.name}].hide"
+        old = ob.hide_get(view_layer=view_layer)
+        if old == value:
+            return True
+        try:
+            ob.hide_set(value, view_layer=view_layer)
+        except RuntimeError:
+            if not tolerate:
+                raise
+            self.skipped.append(label)
+            return False
+        self._undo.append(("call", lambda: ob.hide_set(old, view_layer=view_layer), label))
+        return True
+
+    def on_restore(self, fn, label):
+        """Call ``fn()`` when restoring (in reverse order with the other steps)."""
+        self._undo.append(("call", fn, label))
 
     def restore(self):
-        """Put everything back. Returns a list of properties that could not be restored."""
-        scene = self.scene
-        failed = []
-        # Twice: an enum may be refused until another property is back (e.g. color_depth vs format).
-        for _ in range(2):
-            failed = ["render." + f for f in _restore(scene.render, self.render)]
-            failed += ["cycles." + f for f in _restore(scene.cycles, self.cycles)]
-            failed += ["view_layer." + f for f in _restore(self.view_layer, self.view_layer_state)]
-            if not failed:
-                break
-        if scene.camera != self.camera:
-            scene.camera = self.camera
-        if (scene.frame_current, scene.frame_subframe) != self.frame:
-            scene.frame_set(self.frame[0], subframe=self.frame[1])
-        for ob, flags in self.objects.values():
+        """Undo every recorded change, newest first; returns the labels that failed."""
+        failed, retry = [], []
+        undo, self._undo = self._undo, []
+        for kind, payload, label in reversed(undo):
             try:
-                for ident, value in flags.items():
-                    if getattr(ob, ident) != value:
-                        setattr(ob, ident, value)
-            except ReferenceError:
-                pass  # the object was deleted meanwhile; nothing to restore
+                if kind == "set":
+                    struct, ident, old = payload
+                    setattr(struct, ident, old)
+                elif kind == "call":
+                    payload()
+                else:
+                    struct, snap = payload
+                    if _restore(struct, snap):
+                        retry.append((struct, snap, label))
+            except (ReferenceError, AttributeError, TypeError, ValueError, RuntimeError, OSError):
+                failed.append(label)
+        for struct, snap, label in retry:
+            failed += [label + "." + f for f in _restore(struct, snap)]
+        self.failed += failed
         return failed
 
 
@@ -117,7 +168,8 @@ def apply_bake_settings(scene, view_layer, settings):
     """Override the render settings for panorama renders of a probe bake (see DESIGN.md §6).
 
     ``settings`` is a :class:`bake_core.BakeSettings`. Everything written here is captured by a
-    :class:`SceneState` made before the call.
+    :class:`StateGuard` (:meth:`StateGuard.snapshot` of ``render``, ``cycles`` and
+    ``view_layer``) made before the call.
     """
     r = scene.render
     r.engine = 'CYCLES'
@@ -140,7 +192,7 @@ def apply_bake_settings(scene, view_layer, settings):
     im.color_mode = 'RGB'
     im.color_depth = '32'
     im.exr_codec = 'NONE'  # lossless either way; uncompressed is fastest to write and read
-    im.use_zbuffer = False
+    compat.set_existing(im, use_zbuffer=False)  # removed in Blender 4.x
     im.use_preview = False
 
     c = scene.cycles
@@ -159,47 +211,6 @@ def apply_bake_settings(scene, view_layer, settings):
     c.seed = settings.seed
     c.use_animated_seed = False
     view_layer.samples = 0  # 0 = use the scene's sample count
-
-
-class _Overrides:
-    """Attribute writes recorded with their old values, undone in reverse order by :meth:`restore`
-    (the same contract as :class:`SceneState`: record first, change, put back what differs)."""
-
-    def __init__(self):
-        self._undo = []  # (setter, old value, label)
-        self.skipped = []  # labels of writes Blender refused (e.g. linked library data)
-
-    def set(self, struct, ident, value, label):
-        old = getattr(struct, ident)
-        if old != value:
-            try:
-                setattr(struct, ident, value)
-            except (AttributeError, TypeError, ValueError, RuntimeError):
-                self.skipped.append(label)
-                return
-            self._undo.append((lambda v, s=struct, i=ident: setattr(s, i, v), old, label))
-
-    def hide(self, ob, view_layer, value):
-        old = ob.hide_get(view_layer=view_layer)
-        if old != value:
-            try:
-                ob.hide_set(value, view_layer=view_layer)
-            except RuntimeError:
-                self.skipped.append(f"object[{ob.name}].hide")
-                return
-            self._undo.append((lambda v, o=ob: o.hide_set(v, view_layer=view_layer), old,
-                               f"object[{ob.name}].hide"))
-
-    def restore(self):
-        """Undo every write; returns the labels of those that failed."""
-        failed = []
-        for setter, old, label in reversed(self._undo):
-            try:
-                setter(old)
-            except (ReferenceError, AttributeError, TypeError, ValueError, RuntimeError):
-                failed.append(label)
-        self._undo.clear()
-        return failed
 
 
 # Modifiers whose viewport level differs from the render level.
@@ -225,31 +236,32 @@ class RenderEvaluation:
         self.view_layer = view_layer
         self.keep = frozenset(keep)
         self.failed = []
-        self._overrides = _Overrides()
+        self._state = StateGuard()
 
     @property
     def skipped(self):
         """Labels of the overrides Blender refused (linked library data); those stay as they are."""
-        return list(self._overrides.skipped)
+        return list(self._state.skipped)
 
     def __enter__(self):
-        o, keep = self._overrides, self.keep
+        o, keep = self._state, self.keep
         try:
             for coll in self.scene.collection.children_recursive:
                 if coll.name not in keep:
-                    o.set(coll, "hide_viewport", coll.hide_render, f"collection[{coll.name}].hide_viewport")
+                    o.set(coll, "hide_viewport", coll.hide_render, f"collection[{coll.name}].hide_viewport",
+                          tolerate=True)
             in_layer = set(self.view_layer.objects.keys())
             for ob in self.scene.objects:
                 if ob.name in keep:
                     continue
-                o.set(ob, "hide_viewport", ob.hide_render, f"object[{ob.name}].hide_viewport")
+                o.set(ob, "hide_viewport", ob.hide_render, f"object[{ob.name}].hide_viewport", tolerate=True)
                 if ob.name in in_layer and not ob.hide_render:
-                    o.hide(ob, self.view_layer, False)
+                    o.hide(ob, self.view_layer, False, tolerate=True)
                 for mod in ob.modifiers:
                     label = f"object[{ob.name}].modifiers[{mod.name}]"
-                    o.set(mod, "show_viewport", mod.show_render, label + ".show_viewport")
+                    o.set(mod, "show_viewport", mod.show_render, label + ".show_viewport", tolerate=True)
                     if mod.type in _LEVEL_MODIFIERS:
-                        o.set(mod, "levels", mod.render_levels, label + ".levels")
+                        o.set(mod, "levels", mod.render_levels, label + ".levels", tolerate=True)
         except BaseException:
             self.failed = o.restore()
             raise
@@ -258,6 +270,6 @@ class RenderEvaluation:
         return depsgraph
 
     def __exit__(self, *exc):
-        self.failed = self._overrides.restore()
+        self.failed = self._state.restore()
         bpy.context.evaluated_depsgraph_get().update()
         return False

@@ -1,7 +1,9 @@
 /* libFuzzer entry over the from-memory glTF loader (JSON and GLB; detected by the GLB magic).
  * Built and run by tests/fuzz/run_gltf_fuzz.sh. No base directory: external URIs are refused, so
  * the fuzzer never touches the file system. Decoded data is capped at 64 MiB so that a small input
- * claiming a huge accessor count hits the loader's budget error, not the fuzzer's RSS limit. */
+ * claiming a huge accessor count hits the loader's budget error, not the fuzzer's RSS limit. A file
+ * that loads also goes through the engine's VULKAN_SCHNEE_* parser (engine/ext/sv_ext.c). */
+#include "sv_ext.h"
 #include "sv_gltf.h"
 
 #include <stddef.h>
@@ -11,7 +13,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    sv_gltf_desc desc = {.max_decoded_bytes = 64u << 20};
+    sv_gltf_desc desc = {
+        .max_decoded_bytes = 64u << 20, .app_extensions = sv_ext_names, .app_extension_count = SV_EXT_NAME_COUNT};
     sv_gltf *g = NULL;
     sv_gltf_error err = {0};
     if (sv_gltf_load_memory(data, size, &desc, &g, &err) != SV_GLTF_SUCCESS) return 0;
@@ -39,6 +42,13 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     for (uint32_t i = 0; i < g->node_count; i++) isink += g->nodes[i].child_count + (uint32_t)g->nodes[i].name[0];
     for (uint32_t i = 0; i < g->warning_count; i++) isink += (uint32_t)g->warnings[i][0];
     (void)sv_gltf_find_camera(g, "Camera");
+    sv_ext ext;
+    if (sv_ext_parse(g, &ext, &err) == SV_GLTF_SUCCESS) {
+        if (ext.material_count != g->material_count || ext.light_count != g->light_count) __builtin_trap();
+        for (uint32_t i = 0; i < ext.probe_grid_count; i++) isink += (uint32_t)ext.probe_grids[i].uri[0];
+        isink += ext.sky.present ? (uint32_t)ext.sky.uri[0] : 0u;
+        sv_ext_free(&ext);
+    }
     (void)sink;
     (void)isink;
     sv_gltf_free(g);

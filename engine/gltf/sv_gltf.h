@@ -20,6 +20,12 @@
  * reads out of bounds. The loader has no global state and reads no file outside those the glTF
  * names (buffers; image files are only resolved to paths, not read). Supported and refused
  * features are listed in docs/gltf-loader.md.
+ *
+ * Extensions: the loader parses the glTF core and the KHR extensions it lists as supported; every
+ * other extension object of a material, a light, the default scene or the root is handed to the
+ * application as raw JSON text (sv_gltf_extension, as cgltf does), for the application to parse
+ * (the engine's VULKAN_SCHNEE_* parser is engine/ext/sv_ext.h). URIs inside such JSON resolve with
+ * sv_gltf_resolve_uri, by the same rules as buffers and images.
  */
 #ifndef SCHNEE_SV_GLTF_H
 #define SCHNEE_SV_GLTF_H
@@ -35,13 +41,16 @@ extern "C" {
 typedef enum sv_gltf_result {
     SV_GLTF_SUCCESS = 0,
     SV_GLTF_ERROR_INVALID_ARGUMENT, /* NULL path/output, bad desc */
-    SV_GLTF_ERROR_IO,               /* the file or an external buffer cannot be opened or read */
+    SV_GLTF_ERROR_IO,               /* the file or an external buffer cannot be opened or read, or is
+                                       not a regular file (FIFO, device, directory, symlink loop) */
     SV_GLTF_ERROR_JSON,             /* not parseable JSON (or GLB JSON chunk not JSON) */
     SV_GLTF_ERROR_FORMAT,           /* malformed glTF/GLB: bad index, range, type, count, ... */
     SV_GLTF_ERROR_UNSUPPORTED,      /* valid glTF this loader refuses (unknown required extension,
                                        glTF major version != 2, external URI without base dir) */
     SV_GLTF_ERROR_TOO_LARGE,        /* over desc.max_decoded_bytes */
     SV_GLTF_ERROR_OUT_OF_MEMORY,
+    SV_GLTF_ERROR_OUTSIDE, /* a referenced file lies outside the glTF's folder tree (an absolute path,
+                              '..' above it, or a symlink leading out); desc.allow_outside_paths */
     SV_GLTF_RESULT_COUNT_
 } sv_gltf_result;
 
@@ -53,20 +62,33 @@ typedef struct sv_gltf_error {
 
 /* Load options. Zero-initialised = defaults. */
 typedef struct sv_gltf_desc {
-    const char *base_dir;          /* sv_gltf_load_memory only: folder that relative URIs (buffers,
-                                   images, probe grids) resolve against. NULL = external buffers
-                                   are refused (SV_GLTF_ERROR_UNSUPPORTED), image and probe-grid
-                                   paths stay NULL with a warning; data: URIs and GLB chunks still
+    const char *base_dir;              /* sv_gltf_load_memory only: folder that relative URIs (buffers,
+                                   images, sv_gltf_resolve_uri) resolve against. NULL = external
+                                   buffers are refused (SV_GLTF_ERROR_UNSUPPORTED), image paths
+                                   stay NULL with a warning; data: URIs and GLB chunks still
                                    work. sv_gltf_load_file uses the file's own folder. */
-    uint64_t max_decoded_bytes;    /* cap on all buffers read + all decoded arrays together;
+    uint64_t max_decoded_bytes;        /* cap on all buffers read + all decoded arrays together;
                                    0 = 4 GiB. Exceeding it is SV_GLTF_ERROR_TOO_LARGE. */
-    bool keep_shared_normals;      /* default false: a primitive without NORMAL gets flat normals
+    bool keep_shared_normals;          /* default false: a primitive without NORMAL gets flat normals
                                    (vertices un-welded per triangle, as the glTF spec requires);
                                    true: normals stay NULL and the renderer decides. */
-    bool non_triangles_are_errors; /* default false: POINTS/LINES* primitives are skipped with a
+    bool non_triangles_are_errors;     /* default false: POINTS/LINES* primitives are skipped with a
                                       warning; true: they are SV_GLTF_ERROR_UNSUPPORTED. Triangle
                                       strips and fans are always converted to lists. */
+    bool allow_outside_paths;          /* default false: every URI must stay inside base_dir's tree
+                                          (no absolute path, no '..' above it, no symlink leading
+                                          out: SV_GLTF_ERROR_OUTSIDE); true for trusted scenes */
+    const char *const *app_extensions; /* extensions the application parses itself from the raw
+                                          JSON: accepted in extensionsRequired. NULL = none. */
+    uint32_t app_extension_count;
 } sv_gltf_desc;
+
+/* An extension object the loader does not parse: its name and the object as compact JSON text
+ * (e.g. name "VULKAN_SCHNEE_materials", json "{\"shScale\":2}"). Owned by the handle. */
+typedef struct sv_gltf_extension {
+    char *name;
+    char *json;
+} sv_gltf_extension;
 
 typedef enum sv_gltf_alpha_mode {
     SV_GLTF_ALPHA_OPAQUE = 0,
@@ -80,13 +102,6 @@ typedef struct sv_gltf_texture_ref {
     uint32_t texcoord; /* which TEXCOORD_n set (0 or 1 are decoded; others are warned about) */
     float scale;       /* normalTexture.scale / occlusionTexture.strength; 1 otherwise */
 } sv_gltf_texture_ref;
-
-/* VULKAN_SCHNEE_materials.probeMode: "off" | "object" | "pixel" (docs/engine.md). */
-typedef enum sv_gltf_probe_mode {
-    SV_GLTF_PROBE_MODE_OFF = 0,    /* no baked probe: the fallback probe (the sky's SH when present) */
-    SV_GLTF_PROBE_MODE_OBJECT = 1, /* one probe per object (default) */
-    SV_GLTF_PROBE_MODE_PIXEL = 2,  /* probes interpolated per pixel */
-} sv_gltf_probe_mode;
 
 typedef struct sv_gltf_material {
     char *name;
@@ -103,11 +118,8 @@ typedef struct sv_gltf_material {
     sv_gltf_alpha_mode alpha_mode; /* default OPAQUE */
     float alpha_cutoff;            /* default 0.5 (used only by MASK) */
     bool double_sided;             /* default false */
-    /* extensions.VULKAN_SCHNEE_materials (DESIGN.md §5). */
-    bool has_schnee;               /* the extension object is present */
-    float sh_scale;                /* default 1.0 */
-    float ambient_term;            /* default 0.1 */
-    sv_gltf_probe_mode probe_mode; /* VULKAN_SCHNEE_materials.probeMode, default OBJECT */
+    sv_gltf_extension *extensions; /* other than KHR_materials_emissive_strength */
+    uint32_t extension_count;
 } sv_gltf_material;
 
 typedef struct sv_gltf_sampler {
@@ -197,23 +209,16 @@ typedef enum sv_gltf_light_type {
     SV_GLTF_LIGHT_SPOT,
 } sv_gltf_light_type;
 
-/* extensions.VULKAN_SCHNEE_light.mode of a light (docs/export.md, docs/engine.md): whether the
- * bake already holds the light. A light without the extension is realtime (a glTF from another
- * tool has no baked probes holding its light). */
-typedef enum sv_gltf_light_mode {
-    SV_GLTF_LIGHT_MODE_REALTIME = 0, /* "realtime": left out of the bake; always direct light */
-    SV_GLTF_LIGHT_MODE_BAKED,        /* "baked": in the probes; direct light only where no probe lights a surface */
-} sv_gltf_light_mode;
-
 typedef struct sv_gltf_light {
     char *name;
     sv_gltf_light_type type;
-    sv_gltf_light_mode mode; /* VULKAN_SCHNEE_light.mode; realtime when absent */
-    float color[3];          /* linear RGB, default (1,1,1) */
-    float intensity;         /* directional: lux; point/spot: candela; default 1 */
-    float range;             /* metres, 0 = infinite (the default) */
-    float inner_cone_angle;  /* spot: radians, default 0 */
-    float outer_cone_angle;  /* spot: radians, default pi/4 */
+    float color[3];                /* linear RGB, default (1,1,1) */
+    float intensity;               /* directional: lux; point/spot: candela; default 1 */
+    float range;                   /* metres, 0 = infinite (the default) */
+    float inner_cone_angle;        /* spot: radians, default 0 */
+    float outer_cone_angle;        /* spot: radians, default pi/4 */
+    sv_gltf_extension *extensions; /* the light's extensions */
+    uint32_t extension_count;
 } sv_gltf_light;
 
 /* Instances: one per node of the default scene that uses a mesh / camera / light. */
@@ -238,32 +243,6 @@ typedef struct sv_gltf_light_instance {
     float position[3];  /* world-space origin of the node */
     float direction[3]; /* world-space unit direction the light points (node's local -Z) */
 } sv_gltf_light_instance;
-
-/* scenes[scene].extensions.VULKAN_SCHNEE_engine_properties.shProbeGrids[i] (DESIGN.md §5).
- * An entry with a missing or mistyped field is skipped with a warning (see docs/gltf-loader.md). */
-typedef struct sv_gltf_probe_grid {
-    char *name; /* "" when absent */
-    char *uri;  /* as written in the file */
-    char *path; /* uri resolved against the glTF's folder (percent-decoded); NULL when
-                               loaded from memory without desc.base_dir (a warning says so) */
-    uint32_t probe_count;
-    uint32_t max_band;
-    float grid_origin[3];
-    uint32_t grid_dims[3];
-    float grid_spacing;
-    float grid_axes[3][3]; /* rows = X, Y, Z axis; identity when absent */
-} sv_gltf_probe_grid;
-
-/* scenes[scene].extensions.VULKAN_SCHNEE_engine_properties.sky (docs/export.md): the world
- * captured by the bake as an equirect HDR image plus its radiance SH (engine space). A malformed
- * entry is skipped with a warning, like a bad grid entry. */
-typedef struct sv_gltf_sky {
-    bool present;
-    char *uri;         /* as written */
-    char *path;        /* resolved like a grid's uri (NULL without a base directory) */
-    uint32_t max_band; /* 0..4, the band of sh */
-    float sh[25][3];   /* radiance projection L_i, RGB; entries past the band are 0 */
-} sv_gltf_sky;
 
 typedef struct sv_gltf {
     int32_t scene; /* default scene ("scene", else 0), -1 when the file has no scenes */
@@ -296,9 +275,10 @@ typedef struct sv_gltf {
     float scene_aabb_min[3]; /* union of mesh_instances' AABBs (min > max when none) */
     float scene_aabb_max[3];
 
-    sv_gltf_probe_grid *probe_grids;
-    uint32_t probe_grid_count;
-    sv_gltf_sky sky;
+    sv_gltf_extension *scene_extensions; /* the default scene's extensions */
+    uint32_t scene_extension_count;
+    sv_gltf_extension *extensions; /* the root's, other than KHR_lights_punctual */
+    uint32_t extension_count;
 
     char **warnings;
     uint32_t warning_count; /* non-fatal, e.g. skipped primitives */
@@ -316,6 +296,31 @@ sv_gltf_result sv_gltf_load_file(const char *path, const sv_gltf_desc *desc, sv_
  * the caller may free them afterwards. External URIs need desc->base_dir. */
 sv_gltf_result sv_gltf_load_memory(const void *data, size_t size, const sv_gltf_desc *desc, sv_gltf **out,
                                    sv_gltf_error *err);
+
+/* Resolves a relative URI found in the file (e.g. in an application extension) to a file path by
+ * the loader's rules for buffers: percent-decoded (a '%' without two hex digits stays literal and
+ * sets *literal_percent, which may be NULL, for the caller to warn), no scheme, against
+ * g->base_dir and inside its tree unless the load allowed outside paths. On success *path is
+ * malloc'ed (caller frees), or NULL when the handle has no base directory (loaded from memory
+ * without desc.base_dir: the caller decides; nothing is an error then). `what` prefixes the
+ * error message. */
+sv_gltf_result sv_gltf_resolve_uri(const sv_gltf *gltf, const char *uri, const char *what, char **path,
+                                   bool *literal_percent, sv_gltf_error *err);
+
+/* A .gltf (JSON) file larger than this is refused (SV_GLTF_ERROR_TOO_LARGE); a GLB is bounded by
+ * its header's length and desc.max_decoded_bytes. */
+#define SV_GLTF_MAX_JSON_BYTES (512ull << 20)
+
+/* Opens a file for reading the way the loader opens every referenced file: without blocking
+ * (O_NONBLOCK, so a FIFO cannot hang the open), then checked on the descriptor (fstat): only a
+ * regular file of at most max_bytes (0 = no limit) is accepted; a FIFO, device, directory or
+ * symlink loop is SV_GLTF_ERROR_IO, a larger file SV_GLTF_ERROR_TOO_LARGE, each with a message
+ * naming `what` and the path (never the file's content). Returns the descriptor (caller closes)
+ * and *size, or -1. */
+int sv_gltf_open_regular(const char *path, const char *what, uint64_t max_bytes, uint64_t *size, sv_gltf_error *err);
+
+/* Raw JSON of extension `name` in a list, or NULL. */
+const char *sv_gltf_find_extension(const sv_gltf_extension *ext, uint32_t count, const char *name);
 
 /* Frees the handle and everything it owns. NULL is allowed. */
 void sv_gltf_free(sv_gltf *gltf);

@@ -1,7 +1,9 @@
 /* sv-gltf-dump: loads a .gltf/.glb with the engine's loader and prints a JSON summary of what the
- * renderer would get (counts, bounds, instances, materials, cameras, lights, probe grids, warnings).
+ * renderer would get (counts, bounds, instances, materials, cameras, lights, probe grids, warnings),
+ * with the VULKAN_SCHNEE_* extensions parsed by the engine's own module (engine/ext).
  * Exit status 0 on success, 1 with "error: <message>" on stderr when the loader refuses the file.
  * Used by tests (e.g. the Blender-exported .glb test) and for inspecting files by hand. */
+#include "sv_ext.h"
 #include "sv_gltf.h"
 
 #include <stdio.h>
@@ -35,11 +37,17 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: sv-gltf-dump FILE.gltf|FILE.glb\n");
         return 2;
     }
-    sv_gltf_desc desc = {0};
+    sv_gltf_desc desc = {.app_extensions = sv_ext_names, .app_extension_count = SV_EXT_NAME_COUNT};
     sv_gltf *g = NULL;
     sv_gltf_error err = {0};
+    sv_ext ext;
     if (sv_gltf_load_file(argv[1], &desc, &g, &err) != SV_GLTF_SUCCESS) {
         fprintf(stderr, "error: %s: %s (%s)\n", argv[1], err.message, sv_gltf_result_string(err.code));
+        return 1;
+    }
+    if (sv_ext_parse(g, &ext, &err) != SV_GLTF_SUCCESS) {
+        fprintf(stderr, "error: %s: %s (%s)\n", argv[1], err.message, sv_gltf_result_string(err.code));
+        sv_gltf_free(g);
         return 1;
     }
     printf("{\n  \"scene\": %d,\n  \"counts\": {\"meshes\": %u, \"materials\": %u, \"textures\": %u, \"images\": %u, "
@@ -95,8 +103,8 @@ int main(int argc, char **argv)
         print_vec(m->emissive_factor, 3);
         printf(", \"alpha_mode\": %d, \"double_sided\": %s, \"has_schnee\": %s, \"sh_scale\": %.9g, "
                "\"ambient_term\": %.9g}",
-               (int)m->alpha_mode, m->double_sided ? "true" : "false", m->has_schnee ? "true" : "false", m->sh_scale,
-               m->ambient_term);
+               (int)m->alpha_mode, m->double_sided ? "true" : "false", ext.materials[i].present ? "true" : "false",
+               ext.materials[i].sh_scale, ext.materials[i].ambient_term);
     }
     printf("\n  ],\n  \"cameras\": [");
     for (uint32_t i = 0; i < g->camera_instance_count; i++) {
@@ -124,21 +132,22 @@ int main(int argc, char **argv)
         printf("}");
     }
     printf("\n  ],\n  \"probe_grids\": [");
-    for (uint32_t i = 0; i < g->probe_grid_count; i++) {
-        const sv_gltf_probe_grid *pg = &g->probe_grids[i];
+    for (uint32_t i = 0; i < ext.probe_grid_count; i++) {
+        const sv_ext_probe_grid *pg = &ext.probe_grids[i];
         printf("%s\n    {\"name\": ", i ? "," : "");
         print_str(pg->name);
         printf(", \"path\": ");
-        print_str(pg->path);
+        print_str(pg->path ? pg->path : "");
         printf(", \"probe_count\": %u, \"max_band\": %u, \"grid_dims\": [%u, %u, %u]}", pg->probe_count, pg->max_band,
                pg->grid_dims[0], pg->grid_dims[1], pg->grid_dims[2]);
     }
     printf("\n  ],\n  \"warnings\": [");
-    for (uint32_t i = 0; i < g->warning_count; i++) {
+    for (uint32_t i = 0; i < g->warning_count + ext.warning_count; i++) {
         printf("%s\n    ", i ? "," : "");
-        print_str(g->warnings[i]);
+        print_str(i < g->warning_count ? g->warnings[i] : ext.warnings[i - g->warning_count]);
     }
     printf("\n  ]\n}\n");
+    sv_ext_free(&ext);
     sv_gltf_free(g);
     return 0;
 }

@@ -14,8 +14,9 @@ static int hex_value(int ch)
     return -1;
 }
 
-char *svg_percent_decode(const char *uri)
+char *svg_percent_decode(const char *uri, bool *literal_percent)
 {
+    *literal_percent = false;
     size_t n = strlen(uri);
     char *out = malloc(n + 1);
     if (!out) return NULL;
@@ -27,7 +28,12 @@ char *svg_percent_decode(const char *uri)
         }
         int hi = i + 1 < n ? hex_value((unsigned char)uri[i + 1]) : -1;
         int lo = i + 2 < n ? hex_value((unsigned char)uri[i + 2]) : -1;
-        if (hi < 0 || lo < 0 || (hi == 0 && lo == 0)) {
+        if (hi < 0 || lo < 0) { /* not an escape: the '%' itself (Blender writes names unencoded) */
+            *literal_percent = true;
+            out[o++] = '%';
+            continue;
+        }
+        if (hi == 0 && lo == 0) {
             free(out);
             return NULL;
         }
@@ -144,42 +150,6 @@ char *svg_path_dirname(const char *path)
     memcpy(out, path, n);
     out[n] = '\0';
     return out;
-}
-
-void svg_mat4_identity(float m[16])
-{
-    memset(m, 0, 16 * sizeof(float));
-    m[0] = m[5] = m[10] = m[15] = 1.0f;
-}
-
-void svg_mat4_mul(float out[16], const float a[16], const float b[16])
-{
-    float r[16];
-    for (int c = 0; c < 4; c++)
-        for (int row = 0; row < 4; row++) {
-            double s = 0.0;
-            for (int k = 0; k < 4; k++) s += (double)a[k * 4 + row] * (double)b[c * 4 + k];
-            r[c * 4 + row] = (float)s;
-        }
-    memcpy(out, r, sizeof r);
-}
-
-void svg_mat4_from_trs(float m[16], const float t[3], const float q[4], const float s[3])
-{
-    double x = q[0], y = q[1], z = q[2], w = q[3];
-    double rot[9] = {
-        1 - 2 * (y * y + z * z), 2 * (x * y + w * z),     2 * (x * z - w * y),     /* column 0 */
-        2 * (x * y - w * z),     1 - 2 * (x * x + z * z), 2 * (y * z + w * x),     /* column 1 */
-        2 * (x * z + w * y),     2 * (y * z - w * x),     1 - 2 * (x * x + y * y), /* column 2 */
-    };
-    for (int c = 0; c < 3; c++) {
-        for (int r = 0; r < 3; r++) m[c * 4 + r] = (float)(rot[c * 3 + r] * s[c]);
-        m[c * 4 + 3] = 0.0f;
-    }
-    m[12] = t[0];
-    m[13] = t[1];
-    m[14] = t[2];
-    m[15] = 1.0f;
 }
 
 void svg_aabb_transform(const float m[16], const float lmin[3], const float lmax[3], float wmin[3], float wmax[3])

@@ -10,10 +10,13 @@
 
 #include "schnee/pb_image.h"
 #include "sv_app.h"
-#include "sv_math.h"
+#include "sv_clock.h"
 
 static void usage(FILE *f)
 {
+    char modes[128] = ""; /* "off|object|pixel|material" from the one table (shaders/sv_gpu.h) */
+    for (uint32_t m = 0; m < SV_PROBE_MODE_COUNT; ++m)
+        snprintf(modes + strlen(modes), sizeof(modes) - strlen(modes), "%s%s", m ? "|" : "", sv_probe_mode_name(m));
     fprintf(
         f,
         "usage: schnee-view SCENE.gltf|.glb [options]\n"
@@ -28,9 +31,12 @@ static void usage(FILE *f)
         "                           + emission only; a baked light adds direct light only where no probe lights)\n"
         "  --probe-view             probe view: a small sphere per probe shaded with its SH + grid cell outlines\n"
         "                           (--probe-cells is the same)\n"
-        "  --probe-mode off|object|pixel|material  probe lighting for every material (default material =\n"
+        "  --probe-mode %s  probe lighting for every material (default material =\n"
         "                           each material's VULKAN_SCHNEE_materials.probeMode, itself default object)\n"
-        "  --probe-storage float|half  GPU storage of the SH coefficients (default float)\n"
+        "  --probe-representation sh|ambientCube|material  how every material evaluates its probe (default\n"
+        "                           material = each material's VULKAN_SCHNEE_materials.probeRepresentation,\n"
+        "                           itself default sh); ambientCube = the cube fitted to each probe's SH\n"
+        "  --probe-storage float|half  GPU storage of the SH coefficients and ambient cubes (default float)\n"
         "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
         "  --no-sky                 ignore the scene's sky (no background, no specular, constant fallback)\n"
         "  --no-specular            no sky reflections (image-based specular)\n"
@@ -42,19 +48,14 @@ static void usage(FILE *f)
         "  --move NODE X Y Z        set a node's translation before rendering (objects are re-assigned)\n"
         "  --print-assignments      print each object's probe index and exit status as usual\n"
         "  --validation             enable VK_LAYER_KHRONOS_validation; any message fails the run (exit 3)\n"
+        "  --allow-outside-paths    let the glTF reference files outside its folder tree (absolute paths, '..',\n"
+        "                           symlinks leading out); only for scenes you trust\n"
         "  --frames N               headless: frames to render and time; window: quit after N frames\n"
         "  --screenshot PATH        window: write the last frame presented to PATH\n"
         "window keys: WASD/QE move, right mouse drag looks, Shift faster, P probe colours, C probe view,\n"
-        "             M probe mode (material/object/pixel/off),\n"
+        "             M probe mode (cycles material, object, pixel, off),\n"
         "             N next object, J/L/I/K/U/O move it (its probe is re-queried), Esc quits\n",
-        SV_FALLBACK_RADIANCE);
-}
-
-double sv_now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+        modes, SV_FALLBACK_RADIANCE);
 }
 
 static bool parse_float(const char *s, float *out)
@@ -89,6 +90,7 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
     o->tonemap = SV_TONEMAP_PBR_NEUTRAL;
     o->fallback_radiance = SV_FALLBACK_RADIANCE;
     o->probe_mode = SV_PROBE_MODE_MATERIAL;
+    o->probe_representation = SV_PROBE_REP_MATERIAL;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *next = i + 1 < argc ? argv[i + 1] : NULL;
@@ -158,16 +160,15 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
         } else if (strcmp(a, "--probe-mode") == 0) {
             NEED(1);
             ++i;
-            if (strcmp(next, "off") == 0)
-                o->probe_mode = SV_PROBE_MODE_OFF;
-            else if (strcmp(next, "object") == 0)
-                o->probe_mode = SV_PROBE_MODE_OBJECT;
-            else if (strcmp(next, "pixel") == 0)
-                o->probe_mode = SV_PROBE_MODE_PIXEL;
-            else if (strcmp(next, "material") == 0)
-                o->probe_mode = SV_PROBE_MODE_MATERIAL;
-            else
-                BAD_VALUE(next);
+            int mode = sv_probe_mode_from_name(next, 1);
+            if (mode < 0) BAD_VALUE(next);
+            o->probe_mode = (uint32_t)mode;
+        } else if (strcmp(a, "--probe-representation") == 0) {
+            NEED(1);
+            ++i;
+            int rep = sv_probe_representation_from_name(next, 1);
+            if (rep < 0) BAD_VALUE(next);
+            o->probe_representation = (uint32_t)rep;
         } else if (strcmp(a, "--probe-storage") == 0) {
             NEED(1);
             ++i;
@@ -217,6 +218,8 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
             i += 4;
         } else if (strcmp(a, "--print-assignments") == 0) {
             o->print_assignments = true;
+        } else if (strcmp(a, "--allow-outside-paths") == 0) {
+            o->allow_outside_paths = true;
         } else if (strcmp(a, "--validation") == 0) {
             o->validation = true;
         } else if (strcmp(a, "--frames") == 0) {
@@ -251,111 +254,6 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
         return 2;
     }
     return 0;
-}
-
-bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *v)
-{
-    memset(v, 0, sizeof(*v));
-    v->exposure = opt->exposure;
-    v->tonemap = opt->tonemap;
-    v->debug_mode = opt->debug_mode;
-    v->flags = opt->no_direct ? SV_FRAME_NO_DIRECT : 0;
-    v->show_cells = opt->show_cells;
-    v->probe_mode = opt->probe_mode;
-    v->normal_bias = opt->normal_bias;
-    if (opt->no_specular) v->flags |= SV_FRAME_NO_SPECULAR;
-    if (opt->no_renorm) v->flags |= SV_FRAME_NO_RENORM;
-    const sv_gltf *g = scene->gltf;
-    if (opt->look) {
-        float up[3] = {0, 1, 0};
-        memcpy(v->camera_pos, opt->look_from, sizeof(v->camera_pos));
-        sv_mat4_look_at(v->camera_pos, opt->look_at, up, v->view);
-        v->yfov = 0.8f;
-        v->znear = 0.05f;
-        v->zfar = 0.0f; /* infinite */
-        return true;
-    }
-    int32_t cam = -1;
-    if (opt->camera) {
-        cam = sv_gltf_find_camera(g, opt->camera);
-        if (cam < 0) {
-            fprintf(stderr, "schnee-view: error: no camera named '%s' in %s (%u camera(s))\n", opt->camera,
-                    opt->scene_path, g->camera_instance_count);
-            for (uint32_t i = 0; i < g->camera_instance_count; ++i)
-                fprintf(stderr, "  node '%s'\n", g->nodes[g->camera_instances[i].node].name);
-            return false;
-        }
-    } else if (g->camera_instance_count) {
-        cam = 0;
-    }
-    if (cam >= 0) {
-        const sv_gltf_camera_instance *ci = &g->camera_instances[cam];
-        const sv_gltf_camera *c = &g->cameras[ci->camera];
-        if (!sv_mat4_invert(ci->world, v->view)) {
-            fprintf(stderr, "schnee-view: error: camera '%s' has a singular transform\n", g->nodes[ci->node].name);
-            return false;
-        }
-        memcpy(v->camera_pos, ci->world + 12, 3 * sizeof(float));
-        v->yfov = c->type == SV_GLTF_CAMERA_PERSPECTIVE ? c->yfov : 0.0f;
-        v->xmag = c->xmag;
-        v->ymag = c->ymag;
-        v->znear = c->znear > 0 ? c->znear : 0.01f;
-        v->zfar = c->zfar;
-        return true;
-    }
-    /* Frame the bounds: look at the centre from +Z and somewhat above, far enough that the
-     * bounding sphere fits the vertical field of view. */
-    float center[3] = {0, 0, 0}, radius = 1.0f;
-    if (scene->aabb_min[0] <= scene->aabb_max[0]) {
-        float d2 = 0;
-        for (int k = 0; k < 3; ++k) {
-            center[k] = 0.5f * (scene->aabb_min[k] + scene->aabb_max[k]);
-            float e = 0.5f * (scene->aabb_max[k] - scene->aabb_min[k]);
-            d2 += e * e;
-        }
-        radius = fmaxf(sqrtf(d2), 1e-3f);
-    }
-    v->yfov = 0.8f;
-    float dist = radius / sinf(0.5f * v->yfov);
-    float dir[3] = {0.0f, 0.35f, 1.0f};
-    float dl = sqrtf(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-    for (int k = 0; k < 3; ++k) v->camera_pos[k] = center[k] + dir[k] / dl * dist;
-    float up[3] = {0, 1, 0};
-    sv_mat4_look_at(v->camera_pos, center, up, v->view);
-    v->znear = dist * 0.01f;
-    v->zfar = dist * 10.0f;
-    return true;
-}
-
-void sv_app_print_assignments(const sv_scene *scene)
-{
-    for (uint32_t i = 0; i < scene->object_count; ++i) {
-        const sv_object *o = &scene->objects[i];
-        printf("object %u '%s' probe %u center (%g, %g, %g)\n", i, o->name, o->probe,
-               0.5 * (o->aabb_min[0] + o->aabb_max[0]), 0.5 * (o->aabb_min[1] + o->aabb_max[1]),
-               0.5 * (o->aabb_min[2] + o->aabb_max[2]));
-    }
-    fflush(stdout);
-}
-
-bool sv_app_validation_clean(const sv_context *ctx)
-{
-    if (!ctx->validation) return true;
-    if (ctx->validation_errors || ctx->validation_warnings) {
-        fprintf(stderr, "schnee-view: error: validation reported %u error(s) and %u warning(s)\n",
-                ctx->validation_errors, ctx->validation_warnings);
-        return false;
-    }
-    return true;
-}
-
-sv_renderer_desc sv_app_renderer_desc(const sv_options *opt, const sv_sky *sky)
-{
-    sv_renderer_desc d = {0};
-    d.fallback_radiance = opt->fallback_radiance;
-    d.half_probes = opt->half_probes;
-    d.sky = sky && sky->present && !opt->no_sky ? sky : NULL;
-    return d;
 }
 
 /* --write-brdf-lut: the table the renderer uploads, as an image (R = A, G = B, B = 0). */
@@ -424,9 +322,9 @@ int main(int argc, char **argv)
     sv_scene scene;
     sv_probes probes;
     double t0 = sv_now_ms();
-    if (!sv_scene_load(opt.scene_path, &scene)) return 1;
+    if (!sv_scene_load(opt.scene_path, opt.allow_outside_paths, &scene)) return 1;
     double t1 = sv_now_ms();
-    if (!sv_probes_load(scene.gltf, &probes)) {
+    if (!sv_probes_load(&scene.ext, &probes)) {
         sv_scene_destroy(&scene);
         return 1;
     }
@@ -439,13 +337,13 @@ int main(int argc, char **argv)
     sv_sky sky = {0};
     if (!opt.no_sky) {
         double ts = sv_now_ms();
-        if (!sv_sky_load(scene.gltf, &sky)) {
+        if (!sv_sky_load(&scene.ext, &sky)) {
             rc = 1;
             goto done;
         }
         if (sky.present)
-            fprintf(stderr, "schnee-view: sky %s: %ux%u, %u prefiltered mip(s), band %u; %.1f ms\n",
-                    scene.gltf->sky.path, sky.width[0], sky.height[0], sky.mip_count, sky.max_band, sv_now_ms() - ts);
+            fprintf(stderr, "schnee-view: sky %s: %ux%u, %u prefiltered mip(s), band %u; %.1f ms\n", scene.ext.sky.path,
+                    sky.width[0], sky.height[0], sky.mip_count, sky.max_band, sv_now_ms() - ts);
     }
     if (sky_mips_prefix) {
         if (sky.present)

@@ -6,6 +6,7 @@
 
 #include "schnee/pb_image.h"
 #include "sv_app.h"
+#include "sv_clock.h"
 
 static bool ends_with_exr(const char *path)
 {
@@ -35,6 +36,12 @@ static void record_readback(VkCommandBuffer cmd, VkImage image, VkImageLayout la
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 0, NULL, 1, &b, 0, NULL);
 }
 
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
 static bool submit_and_wait(sv_context *ctx, VkCommandBuffer cmd, VkFence fence)
 {
     VkSubmitInfo submit = {.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO, .commandBufferCount = 1, .pCommandBuffers = &cmd};
@@ -48,49 +55,30 @@ fail:
 
 int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky)
 {
-    sv_context ctx = {0};
-    sv_renderer r = {0};
+    sv_app_gpu gpu;
+    sv_context *ctx = &gpu.ctx;
     sv_image out = {0};
     sv_buffer readback = {0};
-    VkFence fence = VK_NULL_HANDLE;
-    VkCommandBuffer cmd = VK_NULL_HANDLE;
     float *pixels = NULL;
     int rc = 1;
     const uint32_t w = opt->width, h = opt->height;
     const bool exr = ends_with_exr(opt->output);
 
-    double t0 = sv_now_ms();
-    if (!sv_create_instance(&ctx, opt->validation, NULL, 0) || !sv_pick_device(&ctx) || !sv_create_device(&ctx) ||
-        !sv_create_command_pool(&ctx))
+    if (!sv_app_gpu_init(&gpu, opt, NULL, 0, NULL, NULL, false) ||
+        !sv_app_gpu_renderer(&gpu, opt, scene, probes, sky, VK_FORMAT_R8G8B8A8_SRGB, w, h))
         goto done;
-    double t1 = sv_now_ms();
-    sv_renderer_desc desc = sv_app_renderer_desc(opt, sky);
-    if (!sv_renderer_create(&r, &ctx, scene, probes, VK_FORMAT_R8G8B8A8_SRGB, &desc) || !sv_renderer_resize(&r, w, h))
-        goto done;
-    if (!sv_image_create(&ctx, w, h, VK_FORMAT_R8G8B8A8_SRGB,
+    if (!sv_image_create(ctx, w, h, VK_FORMAT_R8G8B8A8_SRGB,
                          VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
                          VK_IMAGE_ASPECT_COLOR_BIT, &out) ||
-        !sv_buffer_create(&ctx, (VkDeviceSize)w * h * (exr ? 16 : 4), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true,
-                          &readback))
+        !sv_buffer_create(ctx, (VkDeviceSize)w * h * (exr ? 16 : 4), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true, &readback))
         goto done;
-    double t2 = sv_now_ms();
-    fprintf(stderr, "schnee-view: device %s; Vulkan setup %.1f ms, scene upload %.1f ms\n", ctx.properties.deviceName,
-            t1 - t0, t2 - t1);
+    fprintf(stderr, "schnee-view: device %s; Vulkan setup %.1f ms, scene upload %.1f ms\n", ctx->properties.deviceName,
+            gpu.setup_ms, gpu.upload_ms);
 
-    VkFenceCreateInfo fi = {.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    VK_CHECK(vkCreateFence(ctx.device, &fi, NULL, &fence));
-    VkCommandBufferAllocateInfo ai = {
-        .sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO,
-        .commandPool = ctx.command_pool,
-        .level = VK_COMMAND_BUFFER_LEVEL_PRIMARY,
-        .commandBufferCount = 1,
-    };
-    VK_CHECK(vkAllocateCommandBuffers(ctx.device, &ai, &cmd));
-
-    sv_view view;
-    if (!sv_app_initial_view(opt, scene, &view)) goto done;
+    VkCommandBuffer cmd = gpu.cmd;
     uint32_t frames = opt->frames ? opt->frames : 1;
     double frame_total = 0.0, frame_min = 1e30;
+    double *frame_ms = calloc(frames, sizeof *frame_ms); /* for the median (benchmarks); NULL: none */
     for (uint32_t f = 0; f < frames; ++f) {
         bool last = f + 1 == frames;
         double fs = sv_now_ms();
@@ -98,23 +86,32 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
                                           .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
         VK_CHECK(vkResetCommandBuffer(cmd, 0));
         VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
-        sv_renderer_record(&r, cmd, scene, &view, out.image, out.view, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+        sv_renderer_record(&gpu.renderer, cmd, scene, &gpu.view, out.image, out.view,
+                           VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
         if (last) {
             if (exr)
-                record_readback(cmd, r.hdr.image, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, w, h, readback.buffer);
+                record_readback(cmd, gpu.renderer.hdr.image, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, w, h,
+                                readback.buffer);
             else
                 record_readback(cmd, out.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, w, h, readback.buffer);
         }
         VK_CHECK(vkEndCommandBuffer(cmd));
-        if (!submit_and_wait(&ctx, cmd, fence)) goto done;
+        if (!submit_and_wait(ctx, cmd, gpu.fence)) goto done;
         double ms = sv_now_ms() - fs;
         frame_total += ms;
         if (ms < frame_min) frame_min = ms;
+        if (frame_ms) frame_ms[f] = ms;
     }
-    fprintf(
-        stderr,
-        "schnee-view: %u frame(s) at %ux%u: mean %.2f ms, min %.2f ms (submit to fence, incl. readback on the last)\n",
-        frames, w, h, frame_total / frames, frame_min);
+    double median = 0.0;
+    if (frame_ms) {
+        qsort(frame_ms, frames, sizeof *frame_ms, cmp_double);
+        median = frames % 2 ? frame_ms[frames / 2] : 0.5 * (frame_ms[frames / 2 - 1] + frame_ms[frames / 2]);
+        free(frame_ms);
+    }
+    fprintf(stderr,
+            "schnee-view: %u frame(s) at %ux%u: mean %.2f ms, median %.2f ms, min %.2f ms (submit to fence, incl. "
+            "readback on the last)\n",
+            frames, w, h, frame_total / frames, median, frame_min);
 
     /* Drop alpha: PNG/EXR outputs are RGB. 8-bit readback holds sRGB-encoded bytes already. */
     pixels = malloc((size_t)w * h * 3 * sizeof(float));
@@ -133,14 +130,10 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
 done:
 fail:
     free(pixels);
-    if (ctx.device) {
-        vkDeviceWaitIdle(ctx.device);
-        if (fence) vkDestroyFence(ctx.device, fence, NULL);
-        sv_buffer_destroy(&ctx, &readback);
-        sv_image_destroy(&ctx, &out);
-        sv_renderer_destroy(&r);
+    if (ctx->device) {
+        vkDeviceWaitIdle(ctx->device);
+        sv_buffer_destroy(ctx, &readback);
+        sv_image_destroy(ctx, &out);
     }
-    sv_context_destroy(&ctx);
-    if (!sv_app_validation_clean(&ctx) && rc == 0) rc = 3;
-    return rc;
+    return sv_app_gpu_destroy(&gpu, rc);
 }

@@ -5,26 +5,18 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
+#include <unistd.h>
 
-#include <embree3/rtcore.h>
-
+#include "schnee/pb_ambient_cube.h"
+#include "schnee/pb_embree_compat.h"
 #include "schnee/pb_sh.h"
+#include "sv_clock.h"
 #include "sv_math.h"
 
 static bool differs(float a, float b) { return fabsf(a - b) > 1e-5f * fmaxf(1.0f, fmaxf(fabsf(a), fabsf(b))); }
 
-/* The file's grid axes (rows X, Y, Z); all-zero (never set) means identity. */
-static const float *file_axes(const pb_shprobe *f)
-{
-    static const float identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    for (int i = 0; i < 9; ++i)
-        if (f->grid_axes[i] != 0.0f) return f->grid_axes;
-    return identity;
-}
-
 /* Warns about every field where the glTF entry disagrees with the file it names. */
-static void check_entry(const sv_gltf_probe_grid *e, const pb_shprobe *f, uint32_t index)
+static void check_entry(const sv_ext_probe_grid *e, const pb_shprobe *f, uint32_t index)
 {
     const char *n = e->name[0] ? e->name : e->uri;
     if (e->probe_count != f->probe_count)
@@ -59,7 +51,7 @@ static void check_entry(const sv_gltf_probe_grid *e, const pb_shprobe *f, uint32
         fprintf(stderr,
                 "schnee-view: warning: shProbeGrids[%u] '%s': gridSpacing %g but the file has %g (using the file)\n",
                 index, n, e->grid_spacing, f->grid_spacing);
-    const float *axes = file_axes(f);
+    const float *axes = f->grid_axes;
     for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c)
             if (differs(e->grid_axes[r][c], axes[r * 3 + c])) {
@@ -71,23 +63,90 @@ static void check_entry(const sv_gltf_probe_grid *e, const pb_shprobe *f, uint32
             }
 }
 
-bool sv_probes_load(const sv_gltf *gltf, sv_probes *out)
+/* Before the bake's reader sees a grid's file: opened without blocking, a regular file of at most
+ * SV_MAX_PROBE_FILE_BYTES that starts with the .shprobe magic (else it is not ours, and its
+ * content is never quoted), whose header (pb_shprobe_read_header) implies exactly its size. */
+static bool check_probe_file(const sv_ext_probe_grid *e, uint32_t index)
+{
+    char what[96];
+    snprintf(what, sizeof what, "shProbeGrids[%u] '%.40s'", index, e->name);
+    if (!e->path) {
+        fprintf(stderr, "schnee-view: error: %s: '%s' has no resolvable path\n", what, e->uri);
+        return false;
+    }
+    sv_gltf_error gerr = {0};
+    uint64_t size = 0;
+    int fd = sv_gltf_open_regular(e->path, what, SV_MAX_PROBE_FILE_BYTES, &size, &gerr);
+    if (fd < 0) {
+        fprintf(stderr, "schnee-view: error: %s\n", gerr.message);
+        return false;
+    }
+    unsigned char magic[4] = {0};
+    ssize_t n = read(fd, magic, sizeof magic);
+    close(fd);
+    static const unsigned char sphr[4] = {0x53, 0x50, 0x48, 0x52}; /* PB_SHPROBE_MAGIC on disk */
+    if (n != 4 || memcmp(magic, sphr, 4) != 0) {
+        fprintf(stderr, "schnee-view: error: %s: '%s' (%llu bytes) is not a .shprobe file (no \"SPHR\" magic)\n", what,
+                e->path, (unsigned long long)size);
+        return false;
+    }
+    pb_shprobe h;
+    pb_error err = {0};
+    if (pb_shprobe_read_header(e->path, &h, &err) != PB_SUCCESS) {
+        fprintf(stderr, "schnee-view: error: %s: cannot read %s: %s\n", what, e->path,
+                err.message[0] ? err.message : pb_result_string(err.code));
+        return false;
+    }
+    return true;
+}
+
+bool sv_probes_load(const sv_ext *ext, sv_probes *out)
 {
     memset(out, 0, sizeof(*out));
     out->total = 1;
-    if (gltf->probe_grid_count == 0) return true;
-    out->grids = calloc(gltf->probe_grid_count, sizeof(sv_probe_grid));
+    if (ext->probe_grid_count == 0) return true;
+    out->grids = calloc(ext->probe_grid_count, sizeof(sv_probe_grid));
     if (!out->grids) {
         fprintf(stderr, "schnee-view: error: out of memory for probe grids\n");
         return false;
     }
-    for (uint32_t i = 0; i < gltf->probe_grid_count; ++i) {
-        const sv_gltf_probe_grid *e = &gltf->probe_grids[i];
+    for (uint32_t i = 0; i < ext->probe_grid_count; ++i) {
+        const sv_ext_probe_grid *e = &ext->probe_grids[i];
         pb_error err = {0};
         pb_shprobe *f = NULL;
+        if (!check_probe_file(e, i)) {
+            sv_probes_destroy(out);
+            return false;
+        }
         if (pb_shprobe_read(e->path, &f, &err) != PB_SUCCESS) {
             fprintf(stderr, "schnee-view: error: shProbeGrids[%u] '%s': cannot read %s: %s\n", i, e->name, e->path,
                     err.message[0] ? err.message : pb_result_string(err.code));
+            sv_probes_destroy(out);
+            return false;
+        }
+        /* Version 3 adds sparse structures and ambient cubes (docs/shprobe-format.md); this engine
+         * shades dense SH grids only, so anything else is refused here rather than misread. */
+        if (f->structure != PB_SHPROBE_GRID || !f->grid || f->representation != PB_SHPROBE_SH) {
+            fprintf(stderr,
+                    "schnee-view: error: shProbeGrids[%u] '%s': %s is a version %u file with a %s of %s; this "
+                    "engine reads dense grids of SH only (bake or resample to a version 1/2 grid)\n",
+                    i, e->name, e->path, f->version,
+                    f->structure == PB_SHPROBE_OCTREE  ? "corner octree"
+                    : f->structure == PB_SHPROBE_TETRA ? "tetrahedral mesh"
+                                                       : "grid",
+                    f->representation == PB_SHPROBE_SH ? "SH" : "ambient cubes");
+            pb_shprobe_destroy(f);
+            sv_probes_destroy(out);
+            return false;
+        }
+        /* The reader returns identity axes for v1 and refuses all-zero or non-orthonormal ones on disk,
+         * so all-zero never means "identity" here; a unit X axis row is checked as a guard. */
+        double ax2 = (double)f->grid_axes[0] * f->grid_axes[0] + (double)f->grid_axes[1] * f->grid_axes[1] +
+                     (double)f->grid_axes[2] * f->grid_axes[2];
+        if (!(fabs(ax2 - 1.0) < 1e-3)) {
+            fprintf(stderr, "schnee-view: error: shProbeGrids[%u] '%s': %s has no unit grid axes\n", i, e->name,
+                    e->path);
+            pb_shprobe_destroy(f);
             sv_probes_destroy(out);
             return false;
         }
@@ -167,7 +226,7 @@ sv_gpu_probe *sv_probes_pack(const sv_probes *probes, float fallback_radiance, c
             sv_gpu_probe *dst = &out[probes->grids[g].base + p];
             dst->params[0] = (float)f->max_band;
             dst->params[1] = f->probe_scale ? f->probe_scale[p] : 1.0f;
-            dst->params[2] = f->probe_ambient ? f->probe_ambient[p] : f->default_ambient;
+            dst->params[2] = 0.0f; /* the file's per-probe ambient is not used (docs/shprobe-format.md) */
             dst->params[3] = f->validity ? f->validity[p] : 1.0f;
             for (uint32_t i = 0; i < nc && i < SV_SH_MAX_COEFFS; ++i)
                 for (int c = 0; c < 3; ++c) dst->sh[i][c] = f->coeffs[((size_t)p * nc + i) * 3 + (size_t)c];
@@ -198,6 +257,42 @@ uint16_t sv_half_from_float(float f)
     return (uint16_t)h;
 }
 
+/* "shProbeGrids[g] 'name' probe k" for buffer index p, or the fallback probe 0. */
+static void probe_where(const sv_probes *probes, uint32_t p, char *where, size_t cap)
+{
+    snprintf(where, cap, "the fallback probe 0 (the sky's SH)");
+    for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        const sv_probe_grid *gr = &probes->grids[g];
+        if (p >= gr->base && p - gr->base < gr->file->probe_count)
+            snprintf(where, cap, "shProbeGrids[%u] '%.60s' probe %u", g, gr->name, p - gr->base);
+    }
+}
+
+bool sv_probes_fit_half(const sv_probes *probes, const sv_gpu_probe *packed, char *msg, size_t cap)
+{
+    for (uint32_t p = 0; p < probes->total; ++p) {
+        const sv_gpu_probe *s = &packed[p];
+        float worst = fabsf(s->params[1]);
+        int at = -1; /* -1 = the scale */
+        for (int i = 0; i < SV_SH_MAX_COEFFS; ++i)
+            for (int c = 0; c < 3; ++c)
+                if (!(fabsf(s->sh[i][c]) <= worst)) { /* also catches NaN */
+                    worst = fabsf(s->sh[i][c]);
+                    at = i;
+                }
+        if (worst <= SV_HALF_MAX) continue;
+        char where[160];
+        probe_where(probes, p, where, sizeof where);
+        if (at < 0)
+            snprintf(msg, cap, "%s: scale %g exceeds the half-float range (%g)", where, worst, SV_HALF_MAX);
+        else
+            snprintf(msg, cap, "%s: coefficient %d = %g exceeds the half-float range (%g)", where, at, worst,
+                     SV_HALF_MAX);
+        return false;
+    }
+    return true;
+}
+
 static uint32_t pack2(float a, float b)
 {
     return (uint32_t)sv_half_from_float(a) | ((uint32_t)sv_half_from_float(b) << 16);
@@ -210,7 +305,7 @@ sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t coun
     for (uint32_t p = 0; p < count; ++p) {
         const sv_gpu_probe *s = &packed[p];
         out[p].params[0] = pack2(s->params[0], s->params[1]);
-        out[p].params[1] = pack2(s->params[3], s->params[2]);
+        out[p].params[1] = pack2(s->params[3], 0.0f);
         for (uint32_t i = 0; i < SV_SH_MAX_COEFFS; ++i) {
             out[p].sh[i][0] = pack2(s->sh[i][0], s->sh[i][1]);
             out[p].sh[i][1] = pack2(s->sh[i][2], 0.0f);
@@ -219,17 +314,69 @@ sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t coun
     return out;
 }
 
-static double sv_probes_now_ms(void)
+sv_gpu_cube *sv_probes_pack_cubes(const sv_gpu_probe *packed, uint32_t count)
 {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+    sv_gpu_cube *out = calloc(count ? count : 1, sizeof(*out));
+    if (!out) return NULL;
+    for (uint32_t p = 0; p < count; ++p) {
+        const sv_gpu_probe *s = &packed[p];
+        uint32_t band = (uint32_t)(s->params[0] + 0.5f);
+        if (band > 4) band = 4;
+        double coeffs[SV_SH_MAX_COEFFS * 3], cube[18];
+        uint32_t n = (band + 1) * (band + 1);
+        for (uint32_t i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c) coeffs[3 * i + c] = s->sh[i][c];
+        pb_error err = {0};
+        /* The packed coefficients are finite (the reader and the sky parser check), so the fit
+         * cannot fail; should it, the probe stays a black cube rather than garbage. */
+        if (pb_ambient_cube_from_sh(band, coeffs, PB_AMBIENT_CUBE_LEAST_SQUARES, cube, &err) != PB_SUCCESS)
+            memset(cube, 0, sizeof cube);
+        out[p].params[0] = s->params[0];
+        out[p].params[1] = s->params[1];
+        out[p].params[3] = s->params[3];
+        for (int f = 0; f < 6; ++f)
+            for (int c = 0; c < 3; ++c) out[p].faces[f][c] = (float)cube[3 * f + c];
+    }
+    return out;
 }
 
-/* World-space centre of cell (x, y, z) of file f. */
-static void cell_centre(const pb_shprobe *f, const float *ax, int x, int y, int z, float out[3])
+sv_gpu_cube_half *sv_probes_pack_cubes_half(const sv_gpu_cube *cubes, uint32_t count)
 {
-    float h = f->grid_spacing, l[3] = {(x + 0.5f) * h, (y + 0.5f) * h, (z + 0.5f) * h};
+    sv_gpu_cube_half *out = calloc(count ? count : 1, sizeof(*out));
+    if (!out) return NULL;
+    for (uint32_t p = 0; p < count; ++p) {
+        const sv_gpu_cube *s = &cubes[p];
+        out[p].params[0] = pack2(s->params[0], s->params[1]);
+        out[p].params[1] = pack2(s->params[3], 0.0f);
+        for (int f = 0; f < 6; ++f) {
+            out[p].faces[f][0] = pack2(s->faces[f][0], s->faces[f][1]);
+            out[p].faces[f][1] = pack2(s->faces[f][2], 0.0f);
+        }
+    }
+    return out;
+}
+
+bool sv_probes_cubes_fit_half(const sv_probes *probes, const sv_gpu_cube *cubes, char *msg, size_t cap)
+{
+    for (uint32_t p = 0; p < probes->total; ++p) {
+        for (int f = 0; f < 6; ++f)
+            for (int c = 0; c < 3; ++c) {
+                float v = fabsf(cubes[p].faces[f][c]);
+                if (v <= SV_HALF_MAX) continue; /* NaN fails too */
+                char where[160];
+                probe_where(probes, p, where, sizeof where);
+                snprintf(msg, cap, "%s: ambient-cube face %d channel %d = %g exceeds the half-float range (%g)", where,
+                         f, c, v, SV_HALF_MAX);
+                return false;
+            }
+    }
+    return true;
+}
+
+void sv_cell_centre(const pb_shprobe *f, int x, int y, int z, float out[3])
+{
+    const float *ax = f->grid_axes;
+    float h = f->grid_spacing, l[3] = {((float)x + 0.5f) * h, ((float)y + 0.5f) * h, ((float)z + 0.5f) * h};
     for (int k = 0; k < 3; ++k)
         out[k] = f->grid_origin[k] + l[0] * ax[0 * 3 + k] + l[1] * ax[1 * 3 + k] + l[2] * ax[2 * 3 + k];
 }
@@ -280,8 +427,14 @@ static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene
     if (!masks) return NULL;
     for (size_t i = 0; i < n; ++i) masks[i] = (1u << 27) - 1u;
     if (!scene || !scene->object_count) return masks;
-    double t0 = sv_probes_now_ms();
-    RTCDevice dev = rtcNewDevice(NULL);
+    double t0 = sv_now_ms();
+    /* A bounded Embree thread pool (docs/engine.md): at most SV_EMBREE_MAX_THREADS, never more than
+     * the online CPUs, no thread pinning. */
+    long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+    unsigned threads = cpus > 0 && cpus < SV_EMBREE_MAX_THREADS ? (unsigned)cpus : SV_EMBREE_MAX_THREADS;
+    char config[64];
+    snprintf(config, sizeof config, "threads=%u,set_affinity=0", threads);
+    RTCDevice dev = rtcNewDevice(config);
     if (!dev) {
         fprintf(stderr, "schnee-view: warning: Embree device failed; per-pixel probes without visibility masks\n");
         return masks;
@@ -291,7 +444,6 @@ static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene
     size_t off = 0;
     for (uint32_t g = 0; g < probes->grid_count && tris; ++g) {
         const pb_shprobe *f = probes->grids[g].file;
-        const float *ax = file_axes(f);
         int X = (int)f->grid_dims[0], Y = (int)f->grid_dims[1], Z = (int)f->grid_dims[2];
         float eps = 1e-4f;
         for (int z = 0; z < Z; ++z)
@@ -300,7 +452,7 @@ static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene
                     size_t ci = (size_t)x + (size_t)X * ((size_t)y + (size_t)Y * z);
                     if (f->grid[ci] < 0) continue;
                     float a[3];
-                    cell_centre(f, ax, x, y, z, a);
+                    sv_cell_centre(f, x, y, z, a);
                     /* Each pair once: the 13 offsets after the centre in bit order, both cells' bits. */
                     for (int k = 14; k < 27; ++k) {
                         int dx = k % 3 - 1, dy = (k / 3) % 3 - 1, dz = k / 9 - 1;
@@ -309,16 +461,14 @@ static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene
                         size_t cj = (size_t)nx + (size_t)X * ((size_t)ny + (size_t)Y * nz);
                         if (f->grid[cj] < 0) continue;
                         float b[3];
-                        cell_centre(f, ax, nx, ny, nz, b);
+                        sv_cell_centre(f, nx, ny, nz, b);
                         struct RTCRay ray = {0};
                         ray.org_x = a[0], ray.org_y = a[1], ray.org_z = a[2];
                         ray.dir_x = b[0] - a[0], ray.dir_y = b[1] - a[1], ray.dir_z = b[2] - a[2];
                         ray.tnear = eps;
                         ray.tfar = 1.0f - eps;
                         ray.mask = 0xFFFFFFFFu;
-                        struct RTCIntersectContext ctx;
-                        rtcInitIntersectContext(&ctx);
-                        rtcOccluded1(rs, &ctx, &ray);
+                        pb_rtc_occluded1(rs, &ray);
                         ++rays;
                         if (ray.tfar < 0.0f) { /* occluded: -inf */
                             masks[off + ci] &= ~(1u << k);
@@ -331,7 +481,7 @@ static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene
     rtcReleaseScene(rs);
     rtcReleaseDevice(dev);
     fprintf(stderr, "schnee-view: probe visibility masks: %zu segment(s) against %zu triangle(s) in %.1f ms\n", rays,
-            tris, sv_probes_now_ms() - t0);
+            tris, sv_now_ms() - t0);
     return masks;
 }
 
@@ -363,7 +513,7 @@ bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_
     size_t off = 0;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         const pb_shprobe *f = probes->grids[g].file;
-        const float *ax = file_axes(f);
+        const float *ax = f->grid_axes;
         sv_gpu_grid *d = &grids[g];
         for (int k = 0; k < 3; ++k) d->origin_spacing[k] = f->grid_origin[k];
         d->origin_spacing[3] = f->grid_spacing;
@@ -406,7 +556,6 @@ sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, ui
     uint32_t nc = 0;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         const pb_shprobe *f = probes->grids[g].file;
-        const float *ax = file_axes(f);
         uint32_t X = f->grid_dims[0], Y = f->grid_dims[1], Z = f->grid_dims[2];
         for (uint32_t z = 0; z < Z; ++z)
             for (uint32_t y = 0; y < Y; ++y)
@@ -414,10 +563,7 @@ sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, ui
                     int32_t idx = f->grid[x + (size_t)y * X + (size_t)z * X * Y];
                     if (idx < 0) continue;
                     sv_gpu_cell *c = &cells[nc++];
-                    float u[3] = {((float)x + 0.5f) * f->grid_spacing, ((float)y + 0.5f) * f->grid_spacing,
-                                  ((float)z + 0.5f) * f->grid_spacing};
-                    for (int k = 0; k < 3; ++k)
-                        c->center_radius[k] = f->grid_origin[k] + u[0] * ax[k] + u[1] * ax[3 + k] + u[2] * ax[6 + k];
+                    sv_cell_centre(f, (int)x, (int)y, (int)z, c->center_radius);
                     c->center_radius[3] = 0.5f * f->grid_spacing;
                     uint32_t pi = probes->grids[g].base + (uint32_t)idx;
                     c->probe[0] = pi;

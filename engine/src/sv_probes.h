@@ -10,13 +10,21 @@
 #include <stdint.h>
 
 #include "schnee/pb_shprobe.h"
-#include "sv_gpu_types.h"
+#include "sv_gpu.h"
 #include "sv_scene.h"
 
 /* Fallback probe (index 0): a uniform environment of this radiance in every channel, so an object
  * outside every grid gets E(n) = pi * radiance, i.e. diffuse = albedo * (shScale * radiance +
  * ambientTerm). The value is a neutral mid-dark grey; --fallback-radiance overrides it. */
 #define SV_FALLBACK_RADIANCE 0.2f
+
+/* Threads of the Embree device that computes the per-pixel visibility masks at load
+ * (rtcNewDevice "threads=N"): min(online CPUs, this). */
+#define SV_EMBREE_MAX_THREADS 4u
+
+/* A .shprobe file larger than this is refused before it is read (1 GiB: about 2.5 M probes at
+ * L = 4 with a 256^3 grid). */
+#define SV_MAX_PROBE_FILE_BYTES (1ull << 30)
 
 typedef struct sv_probe_grid {
     pb_shprobe *file;
@@ -33,8 +41,12 @@ typedef struct sv_probes {
 /* Reads every grid of the scene. A file that cannot be read or is malformed is an error (message
  * names the grid and the file); an entry that disagrees with its file header is a warning (the
  * file is trusted). */
-bool sv_probes_load(const sv_gltf *gltf, sv_probes *out);
+bool sv_probes_load(const sv_ext *ext, sv_probes *out);
 void sv_probes_destroy(sv_probes *probes);
+
+/* World-space centre of cell (x, y, z) of a grid: origin + sum_i (c_i + 0.5) * spacing * axis_i
+ * (the GLSL twin is cell_centre() in shaders/gpu_types.glsl). */
+void sv_cell_centre(const pb_shprobe *file, int x, int y, int z, float out[3]);
 
 /* Buffer index for a world-space point (DESIGN.md §7). */
 uint32_t sv_probes_lookup(const sv_probes *probes, const float point[3]);
@@ -48,8 +60,23 @@ sv_gpu_probe *sv_probes_pack(const sv_probes *probes, float fallback_radiance, c
                              uint32_t sky_band);
 /* The same entries in half storage (packHalf2x16 layout of sv_gpu_probe_half). Caller frees. */
 sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t count);
+/* True when every coefficient and scale of the packed probes fits half floats (|v| <= 65504, the
+ * largest finite binary16); else false with a message naming the first grid and probe that does
+ * not (or the fallback probe, the sky's SH) and the value. */
+#define SV_HALF_MAX 65504.0f
+bool sv_probes_fit_half(const sv_probes *probes, const sv_gpu_probe *packed, char *msg, size_t cap);
 /* IEEE 754 binary16 of a float (round to nearest even), as GLSL's packHalf2x16 stores it. */
 uint16_t sv_half_from_float(float f);
+
+/* Ambient cubes of the packed probes (docs/ambient-cube.md §5): each probe's SH fitted by
+ * pb_ambient_cube_from_sh (PB_AMBIENT_CUBE_LEAST_SQUARES), params copied (band, scale, validity).
+ * Same indexing as `packed` (0 = the fallback, from the sky's SH or the constant). Caller frees. */
+sv_gpu_cube *sv_probes_pack_cubes(const sv_gpu_probe *packed, uint32_t count);
+/* The same cubes in half storage (packHalf2x16 layout of sv_gpu_cube_half). Caller frees. */
+sv_gpu_cube_half *sv_probes_pack_cubes_half(const sv_gpu_cube *cubes, uint32_t count);
+/* As sv_probes_fit_half for the cube colours (a cube colour can exceed the SH coefficients it came
+ * from: C = 0.886 L0 + ...). */
+bool sv_probes_cubes_fit_half(const sv_probes *probes, const sv_gpu_cube *cubes, char *msg, size_t cap);
 
 /* Per-pixel sampling data: one sv_gpu_grid per grid and the concatenated occupancy grids (n
  * int32 cell -> probe indices) followed by one neighbour-visibility mask per cell (n uint32, grid
@@ -58,13 +85,6 @@ uint16_t sv_half_from_float(float f);
  * docs/engine.md "Per-pixel probes". Caller frees both. */
 bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_grid **grids, int32_t **cells,
                          uint32_t *cell_count);
-
-/* Probe view instances: centre + radius, probe[0] = probe-buffer index, probe[1] = grid index. */
-typedef struct sv_gpu_cell {
-    float center_radius[4];
-    uint32_t probe[4];
-} sv_gpu_cell;
-_Static_assert(sizeof(sv_gpu_cell) == 32, "sv_gpu_cell must match probe_cells.vert");
 
 /* One sphere per probe (at its v2 position, else the mean centre of the cells that map to it;
  * radius 0.1 x the grid spacing), then one entry per occupied cell (its centre, for the

@@ -143,7 +143,7 @@ static int32_t texture_slot(const sv_gltf *g, const sv_gltf_texture_ref *ref)
     return ref->texture;
 }
 
-static bool upload_materials(sv_renderer *r, const sv_gltf *g)
+static bool upload_materials(sv_renderer *r, const sv_gltf *g, const sv_ext *ext)
 {
     uint32_t n = g->material_count + 1; /* + the glTF default material */
     sv_gpu_material *m = calloc(n, sizeof(*m));
@@ -151,26 +151,26 @@ static bool upload_materials(sv_renderer *r, const sv_gltf *g)
     for (uint32_t i = 0; i < n; ++i) {
         if (i == g->material_count) { /* glTF spec defaults + DESIGN.md §5 defaults */
             for (int c = 0; c < 4; ++c) m[i].base_color[c] = 1.0f;
-            m[i].sh_scale = 1.0f;
-            m[i].ambient_term = 0.1f;
+            m[i].sh_scale = SV_EXT_DEFAULT_SH_SCALE;
+            m[i].ambient_term = SV_EXT_DEFAULT_AMBIENT_TERM;
             m[i].metallic = 1.0f;
             m[i].roughness = 1.0f;
             m[i].base_color_texture = m[i].emissive_texture = -1;
             m[i].probe_mode = SV_PROBE_MODE_OBJECT;
+            m[i].probe_representation = SV_PROBE_REP_SH;
             continue;
         }
         const sv_gltf_material *s = &g->materials[i];
         memcpy(m[i].base_color, s->base_color_factor, sizeof(m[i].base_color));
         for (int c = 0; c < 3; ++c) m[i].emissive[c] = s->emissive_factor[c] * s->emissive_strength;
-        m[i].sh_scale = s->sh_scale;
-        m[i].ambient_term = s->ambient_term;
+        m[i].sh_scale = ext->materials[i].sh_scale;
+        m[i].ambient_term = ext->materials[i].ambient_term;
         m[i].metallic = s->metallic_factor;
         m[i].roughness = s->roughness_factor;
         m[i].base_color_texture = texture_slot(g, &s->base_color_texture);
         m[i].emissive_texture = texture_slot(g, &s->emissive_texture);
-        m[i].probe_mode = s->probe_mode == SV_GLTF_PROBE_MODE_OFF     ? SV_PROBE_MODE_OFF
-                          : s->probe_mode == SV_GLTF_PROBE_MODE_PIXEL ? SV_PROBE_MODE_PIXEL
-                                                                      : SV_PROBE_MODE_OBJECT;
+        m[i].probe_mode = ext->materials[i].probe_mode;
+        m[i].probe_representation = ext->materials[i].probe_representation;
     }
     bool ok = sv_buffer_create_with_data(r->ctx, m, n * sizeof(*m), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->materials);
     free(m);
@@ -222,6 +222,11 @@ static bool read_gltf_image(const sv_gltf_image *img, pb_image *out)
 {
     pb_error err = {0};
     if (img->path) {
+        char msg[640];
+        if (!sv_image_file_check(img->path, "image", SV_TEXTURE_MAX_PIXELS, msg, sizeof msg)) {
+            fprintf(stderr, "schnee-view: warning: %s (using white)\n", msg);
+            return false;
+        }
         if (pb_image_read(img->path, out, &err) == PB_SUCCESS) return true;
         fprintf(stderr, "schnee-view: warning: image '%s': %s (using white)\n", img->path, err.message);
         return false;
@@ -272,7 +277,7 @@ static bool upload_textures(sv_renderer *r, const sv_gltf *g)
     return true;
 }
 
-static bool upload_lights(sv_renderer *r, const sv_gltf *g)
+static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext)
 {
     uint32_t n = g->light_instance_count;
     sv_gpu_light *l = calloc(n ? n : 1, sizeof(*l));
@@ -291,7 +296,7 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g)
         float scale = 1.0f / fmaxf(0.001f, cosf(s->inner_cone_angle) - cosf(s->outer_cone_angle));
         l[i].spot[0] = scale;
         l[i].spot[1] = -cosf(s->outer_cone_angle) * scale;
-        l[i].spot[2] = s->mode == SV_GLTF_LIGHT_MODE_BAKED ? 1.0f : 0.0f;
+        l[i].spot[2] = ext->light_modes[li->light] == SV_LIGHT_MODE_BAKED ? 1.0f : 0.0f;
     }
     r->light_count = n;
     bool ok =
@@ -304,23 +309,51 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
 {
     const sv_sky *sky = desc->sky && desc->sky->present ? desc->sky : NULL;
     sv_gpu_probe *p = sv_probes_pack(probes, desc->fallback_radiance, sky ? sky->sh : NULL, sky ? sky->max_band : 0);
-    sv_gpu_probe_half *ph = p && desc->half_probes ? sv_probes_pack_half(p, probes->total) : NULL;
+    /* Half storage only when every value fits: an overflow would become Inf and shade the objects
+     * lit by that probe dark (NaN) or white, silently. Then float storage, with a warning. */
+    bool half = desc->half_probes;
+    char msg[320];
+    if (p && half && !sv_probes_fit_half(probes, p, msg, sizeof msg)) {
+        fprintf(stderr, "schnee-view: warning: --probe-storage half: %s; using float storage\n", msg);
+        half = false;
+    }
+    /* Ambient cubes (docs/ambient-cube.md §5) only when asked for: by the command line or by a
+     * material. They follow the SH storage; a cube colour beyond the half range sends both to float. */
+    bool want_cubes = desc->cube_probes;
+    for (uint32_t i = 0; i < scene->ext.material_count; ++i)
+        want_cubes = want_cubes || scene->ext.materials[i].probe_representation == SV_PROBE_REP_AMBIENT_CUBE;
+    sv_gpu_cube *cubes = p && want_cubes ? sv_probes_pack_cubes(p, probes->total) : NULL;
+    if (cubes && half && !sv_probes_cubes_fit_half(probes, cubes, msg, sizeof msg)) {
+        fprintf(stderr, "schnee-view: warning: --probe-storage half: %s; using float storage\n", msg);
+        half = false;
+    }
+    sv_gpu_cube_half *cubes_half = cubes && half ? sv_probes_pack_cubes_half(cubes, probes->total) : NULL;
+    sv_gpu_probe_half *ph = p && half ? sv_probes_pack_half(p, probes->total) : NULL;
     uint32_t nspheres = 0, ncells = 0, grid_cells = 0;
     sv_gpu_cell *cells = sv_probes_cells(probes, &nspheres, &ncells);
     sv_gpu_grid *grids = NULL;
     int32_t *cell_index = NULL;
-    bool ok = p && cells && (!desc->half_probes || ph);
+    bool ok = p && cells && (!half || ph) && (!want_cubes || (cubes && (!half || cubes_half)));
     if (!ok) fail_msg("out of memory packing probes");
     ok = ok && sv_probes_gpu_grids(probes, scene, &grids, &cell_index, &grid_cells);
     /* Only the storage in use holds the probes; the other binding gets one zero entry. */
     static const sv_gpu_probe zero_probe;
     static const sv_gpu_probe_half zero_half;
-    ok = ok && sv_buffer_create_with_data(r->ctx, desc->half_probes ? &zero_probe : (const void *)p,
-                                          desc->half_probes ? sizeof(*p) : probes->total * sizeof(*p),
+    ok = ok && sv_buffer_create_with_data(r->ctx, half ? &zero_probe : (const void *)p,
+                                          half ? sizeof(*p) : probes->total * sizeof(*p),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->probes);
-    ok = ok && sv_buffer_create_with_data(r->ctx, desc->half_probes ? (const void *)ph : &zero_half,
-                                          desc->half_probes ? probes->total * sizeof(*ph) : sizeof(*ph),
+    ok = ok && sv_buffer_create_with_data(r->ctx, half ? (const void *)ph : &zero_half,
+                                          half ? probes->total * sizeof(*ph) : sizeof(*ph),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->probes_half);
+    static const sv_gpu_cube zero_cube;
+    static const sv_gpu_cube_half zero_cube_half;
+    bool float_cubes = cubes && !half;
+    ok = ok && sv_buffer_create_with_data(r->ctx, float_cubes ? (const void *)cubes : &zero_cube,
+                                          float_cubes ? probes->total * sizeof(*cubes) : sizeof(*cubes),
+                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cubes);
+    ok = ok && sv_buffer_create_with_data(r->ctx, cubes_half ? (const void *)cubes_half : &zero_cube_half,
+                                          cubes_half ? probes->total * sizeof(*cubes_half) : sizeof(*cubes_half),
+                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cubes_half);
     ok = ok && sv_buffer_create_with_data(r->ctx, cells, (nspheres + ncells ? nspheres + ncells : 1) * sizeof(*cells),
                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->cells);
     ok = ok && sv_buffer_create_with_data(r->ctx, grids, (probes->grid_count ? probes->grid_count : 1) * sizeof(*grids),
@@ -331,7 +364,10 @@ static bool upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes
     r->grid_count = probes->grid_count;
     r->sphere_count = nspheres;
     r->outline_count = ncells;
-    r->half_probes = desc->half_probes;
+    r->half_probes = half;
+    r->has_cubes = cubes != NULL;
+    free(cubes);
+    free(cubes_half);
     free(p);
     free(ph);
     free(cells);
@@ -429,34 +465,37 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
     VK_CHECK(vkCreateSampler(dev, &si, NULL, &r->sky_sampler));
 
     const VkShaderStageFlags vf = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
-    VkDescriptorSetLayoutBinding scene_b[] = {
-        {0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, vf, NULL},
-        {1, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {2, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {3, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {5, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT, NULL},
-        {6, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, vf, NULL},
-        {7, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {8, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {9, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {10, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+    /* Set 0; the first 10 are buffers (in the order of bufs[] below), the last 2 images. */
+    VkDescriptorSetLayoutBinding scene_b[SV_SCENE_BINDING_COUNT] = {
+        {SV_BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, vf, NULL},
+        {SV_BINDING_MATERIALS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_PROBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_LIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_CELLS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT, NULL},
+        {SV_BINDING_GRIDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, vf, NULL},
+        {SV_BINDING_CELL_INDEX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_PROBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_CUBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_CUBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_SKY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_BRDF_LUT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     };
     VkDescriptorSetLayoutCreateInfo li = {
         .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
-        .bindingCount = 10,
+        .bindingCount = SV_SCENE_BINDING_COUNT,
         .pBindings = scene_b,
     };
     VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->scene_set_layout));
     /* Set 1, per material: separate sets rather than a sampler array, since lavapipe (and Vulkan
      * 1.0 in general) need not support dynamically indexed sampler arrays. */
     VkDescriptorSetLayoutBinding mat_b[2] = {
-        {0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-        {1, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_BASE_COLOR_TEX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_EMISSIVE_TEX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     };
     li.bindingCount = 2;
     li.pBindings = mat_b;
     VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->material_set_layout));
-    VkDescriptorSetLayoutBinding tone_b = {0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+    VkDescriptorSetLayoutBinding tone_b = {SV_BINDING_HDR, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
                                            VK_SHADER_STAGE_FRAGMENT_BIT, NULL};
     li.bindingCount = 1;
     li.pBindings = &tone_b;
@@ -464,7 +503,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
 
     VkDescriptorPoolSize sizes[] = {
         {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 7},
+        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 9},
         {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2 * r->material_count + 3},
     };
     VkDescriptorPoolCreateInfo pi = {
@@ -496,7 +535,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
             tex[0] = texture_slot(g, &g->materials[m].base_color_texture);
             tex[1] = texture_slot(g, &g->materials[m].emissive_texture);
         }
-        VkDescriptorImageInfo ii[2];
+        VkDescriptorImageInfo ii[2]; /* SV_BINDING_BASE_COLOR_TEX, SV_BINDING_EMISSIVE_TEX (consecutive) */
         for (int k = 0; k < 2; ++k) {
             ii[k].sampler = r->sampler;
             ii[k].imageView = tex[k] >= 0 && r->textures[tex[k]].view ? r->textures[tex[k]].view : r->white.view;
@@ -505,7 +544,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
         VkWriteDescriptorSet mw = {
             .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
             .dstSet = r->material_sets[m],
-            .dstBinding = 0,
+            .dstBinding = SV_BINDING_BASE_COLOR_TEX,
             .descriptorCount = 2,
             .descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
             .pImageInfo = ii,
@@ -513,28 +552,30 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
         vkUpdateDescriptorSets(dev, 1, &mw, 0, NULL);
     }
 
-    VkDescriptorBufferInfo bufs[8] = {
+    enum { SCENE_BUFFERS = 10 };
+    VkDescriptorBufferInfo bufs[SCENE_BUFFERS] = {
         {r->frame.buffer, 0, VK_WHOLE_SIZE},      {r->materials.buffer, 0, VK_WHOLE_SIZE},
         {r->probes.buffer, 0, VK_WHOLE_SIZE},     {r->lights.buffer, 0, VK_WHOLE_SIZE},
         {r->cells.buffer, 0, VK_WHOLE_SIZE},      {r->grids.buffer, 0, VK_WHOLE_SIZE},
         {r->cell_index.buffer, 0, VK_WHOLE_SIZE}, {r->probes_half.buffer, 0, VK_WHOLE_SIZE},
+        {r->cubes.buffer, 0, VK_WHOLE_SIZE},      {r->cubes_half.buffer, 0, VK_WHOLE_SIZE},
     };
     VkDescriptorImageInfo imgs[2] = {
         {r->sky_sampler, r->sky.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
         {r->lut_sampler, r->brdf_lut.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
     };
-    VkWriteDescriptorSet w[10];
-    for (uint32_t i = 0; i < 10; ++i)
+    VkWriteDescriptorSet w[SV_SCENE_BINDING_COUNT];
+    for (uint32_t i = 0; i < SV_SCENE_BINDING_COUNT; ++i)
         w[i] = (VkWriteDescriptorSet){
             .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
             .dstSet = r->scene_set,
             .dstBinding = scene_b[i].binding,
             .descriptorCount = 1,
             .descriptorType = scene_b[i].descriptorType,
-            .pBufferInfo = i < 8 ? &bufs[i] : NULL,
-            .pImageInfo = i >= 8 ? &imgs[i - 8] : NULL,
+            .pBufferInfo = i < SCENE_BUFFERS ? &bufs[i] : NULL,
+            .pImageInfo = i >= SCENE_BUFFERS ? &imgs[i - SCENE_BUFFERS] : NULL,
         };
-    vkUpdateDescriptorSets(dev, 10, w, 0, NULL);
+    vkUpdateDescriptorSets(dev, SV_SCENE_BINDING_COUNT, w, 0, NULL);
     return true;
 fail:
     return false;
@@ -574,9 +615,9 @@ static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d)
     };
     VkVertexInputBindingDescription binding = {0, SV_VERTEX_FLOATS * sizeof(float), VK_VERTEX_INPUT_RATE_VERTEX};
     VkVertexInputAttributeDescription attrs[3] = {
-        {0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
-        {1, 0, VK_FORMAT_R32G32B32_SFLOAT, 3 * sizeof(float)},
-        {2, 0, VK_FORMAT_R32G32_SFLOAT, 6 * sizeof(float)},
+        {SV_LOCATION_POSITION, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
+        {SV_LOCATION_NORMAL, 0, VK_FORMAT_R32G32B32_SFLOAT, 3 * sizeof(float)},
+        {SV_LOCATION_UV, 0, VK_FORMAT_R32G32_SFLOAT, 6 * sizeof(float)},
     };
     VkPipelineVertexInputStateCreateInfo vi = {.sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
     if (d->attribute_count) {
@@ -668,9 +709,8 @@ static bool create_pipelines(sv_renderer *r)
     li.pPushConstantRanges = &tone_push;
     VK_CHECK(vkCreatePipelineLayout(dev, &li, NULL, &r->tonemap_layout));
 
-    /* constant_id 0 = SV_HALF_PROBES (gpu_types.glsl). */
     VkBool32 half = r->half_probes ? VK_TRUE : VK_FALSE;
-    VkSpecializationMapEntry entry = {0, 0, sizeof(VkBool32)};
+    VkSpecializationMapEntry entry = {SV_CONSTANT_HALF_PROBES, 0, sizeof(VkBool32)};
     VkSpecializationInfo spec = {1, &entry, sizeof(half), &half};
     pipeline_desc d = {mesh_vert_spv,
                        sizeof(mesh_vert_spv),
@@ -742,8 +782,8 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
     r->output_format = output_format;
     r->encode_srgb = output_format != VK_FORMAT_B8G8R8A8_SRGB && output_format != VK_FORMAT_R8G8B8A8_SRGB;
     const sv_gltf *g = scene->gltf;
-    if (!upload_geometry(r, g) || !upload_materials(r, g) || !upload_textures(r, g) || !upload_lights(r, g) ||
-        !upload_probes(r, scene, probes, desc) || !upload_sky(r, desc->sky))
+    if (!upload_geometry(r, g) || !upload_materials(r, g, &scene->ext) || !upload_textures(r, g) ||
+        !upload_lights(r, g, &scene->ext) || !upload_probes(r, scene, probes, desc) || !upload_sky(r, desc->sky))
         return false;
     if (!sv_buffer_create(ctx, sizeof(sv_gpu_frame), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true, &r->frame)) return false;
     r->material_count = g->material_count + 1;
@@ -769,7 +809,7 @@ bool sv_renderer_resize(sv_renderer *r, uint32_t width, uint32_t height)
     VkWriteDescriptorSet w = {
         .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
         .dstSet = r->tonemap_set,
-        .dstBinding = 0,
+        .dstBinding = SV_BINDING_HDR,
         .descriptorCount = 1,
         .descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
         .pImageInfo = &img,
@@ -806,7 +846,7 @@ void sv_view_projection(const sv_view *v, float aspect, float m[16])
 }
 
 /* Inverse-transpose of the upper 3x3 as three vec4 columns. */
-static void normal_matrix(const float m[16], float out[12])
+static void normal_matrix(const float m[16], float out[3][4])
 {
     float a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], i = m[10];
     float A = e * i - f * h, B = -(d * i - f * g), C = d * h - e * g;
@@ -817,8 +857,8 @@ static void normal_matrix(const float m[16], float out[12])
     /* inverse-transpose = cofactor matrix / det; column k of it. */
     float cols[3][3] = {{A, B, C}, {D, E, F}, {G, H, I}};
     for (int k = 0; k < 3; ++k) {
-        for (int r = 0; r < 3; ++r) out[k * 4 + r] = cols[k][r] * s;
-        out[k * 4 + 3] = 0.0f;
+        for (int r = 0; r < 3; ++r) out[k][r] = cols[k][r] * s;
+        out[k][3] = 0.0f;
     }
 }
 
@@ -838,6 +878,11 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     frame.probe_count = r->probe_count;
     frame.grid_count = r->grid_count;
     frame.probe_mode = view->probe_mode;
+    /* Without a cube buffer (no material and no --probe-representation asked for cubes) an
+     * ambient-cube override would read zeros: it falls back to SH. */
+    frame.probe_representation = view->probe_representation == SV_PROBE_REP_AMBIENT_CUBE && !r->has_cubes
+                                     ? SV_PROBE_REP_SH
+                                     : view->probe_representation;
     frame.normal_bias = view->normal_bias;
     memcpy(r->frame.mapped, &frame, sizeof(frame));
 
@@ -880,9 +925,10 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     vkCmdBeginRendering(cmd, &ri);
     vkCmdSetViewport(cmd, 0, 1, &viewport);
     vkCmdSetScissor(cmd, 0, 1, &scissor);
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 0, 1, &r->scene_set, 0, NULL);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, SV_SET_SCENE, 1, &r->scene_set, 0,
+                            NULL);
     /* Set 1 must be bound for every pipeline of this layout: the default material's set. */
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 1, 1,
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, SV_SET_MATERIAL, 1,
                             &r->material_sets[r->material_count - 1], 0, NULL);
     uint32_t bound_material = r->material_count - 1;
     if (r->has_sky && view->debug_mode == SV_DEBUG_NONE) {
@@ -915,7 +961,7 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
             draw.material_index = r->prim_material[pi];
             if (draw.material_index != bound_material) {
                 bound_material = draw.material_index;
-                vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, 1, 1,
+                vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, SV_SET_MATERIAL, 1,
                                         &r->material_sets[bound_material], 0, NULL);
             }
             vkCmdPushConstants(cmd, r->scene_layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
@@ -1003,8 +1049,8 @@ void sv_renderer_destroy(sv_renderer *r)
     sv_image_destroy(ctx, &r->white);
     sv_image_destroy(ctx, &r->hdr);
     sv_image_destroy(ctx, &r->depth);
-    sv_buffer *bufs[] = {&r->vertices,    &r->indices, &r->frame, &r->materials, &r->probes,
-                         &r->probes_half, &r->lights,  &r->cells, &r->grids,     &r->cell_index};
+    sv_buffer *bufs[] = {&r->vertices, &r->indices,    &r->frame,  &r->materials, &r->probes, &r->probes_half,
+                         &r->cubes,    &r->cubes_half, &r->lights, &r->cells,     &r->grids,  &r->cell_index};
     for (size_t i = 0; i < sizeof(bufs) / sizeof(bufs[0]); ++i) sv_buffer_destroy(ctx, bufs[i]);
     free(r->prim_first_index);
     free(r->prim_index_count);

@@ -7,7 +7,7 @@
 #ifndef SV_RENDERER_H
 #define SV_RENDERER_H
 
-#include "sv_gpu_types.h"
+#include "sv_gpu.h"
 #include "sv_probes.h"
 #include "sv_scene.h"
 #include "sv_sky.h"
@@ -22,25 +22,36 @@ typedef struct sv_view {
     uint32_t debug_mode; /* SV_DEBUG_* */
     uint32_t flags;      /* SV_FRAME_* */
     float exposure;
-    uint32_t tonemap;    /* SV_TONEMAP_* */
-    bool show_cells;     /* probe view: a sphere per probe + the grid cell outlines */
-    uint32_t probe_mode; /* SV_PROBE_MODE_*, _MATERIAL = each material's own */
-    float normal_bias;   /* per-pixel sample offset along n, in grid spacings (default 0) */
+    uint32_t tonemap;              /* SV_TONEMAP_* */
+    bool show_cells;               /* probe view: a sphere per probe + the grid cell outlines */
+    uint32_t probe_mode;           /* SV_PROBE_MODE_*, _MATERIAL = each material's own */
+    uint32_t probe_representation; /* SV_PROBE_REP_*, _MATERIAL = each material's own (a zeroed view: SH) */
+    float normal_bias;             /* per-pixel sample offset along n, in grid spacings (default 0) */
 } sv_view;
 
-/* What the renderer uploads besides the scene (zero = defaults). */
+/* What the renderer uploads besides the scene. Zero-initialised means: no half storage, no sky
+ * and a BLACK fallback probe (fallback_radiance 0 is a valid value, e.g. --fallback-radiance 0);
+ * start from SV_RENDERER_DESC_DEFAULT for the documented defaults. */
 typedef struct sv_renderer_desc {
-    float fallback_radiance; /* uniform radiance of probe 0 when there is no sky */
+    float fallback_radiance; /* uniform radiance of probe 0 when there is no sky (default
+                                SV_FALLBACK_RADIANCE; 0 = black) */
     bool half_probes;        /* half-float probe storage (sv_gpu_probe_half) instead of float */
     const sv_sky *sky;       /* NULL or !present: no background, no specular, constant fallback */
+    bool cube_probes;        /* fill the ambient-cube buffer even when no material asks for cubes
+                                (--probe-representation ambientCube); docs/ambient-cube.md §5 */
 } sv_renderer_desc;
+#define SV_RENDERER_DESC_DEFAULT                                                                                       \
+    {                                                                                                                  \
+        .fallback_radiance = SV_FALLBACK_RADIANCE, .half_probes = false, .sky = NULL, .cube_probes = false             \
+    }
 
 typedef struct sv_renderer {
     sv_context *ctx;
     VkFormat hdr_format, depth_format, output_format;
     bool encode_srgb; /* output format is UNORM: the shader applies the sRGB curve */
 
-    sv_buffer vertices, indices, frame, materials, probes, probes_half, lights, cells, grids, cell_index;
+    sv_buffer vertices, indices, frame, materials, probes, probes_half, cubes, cubes_half, lights, cells, grids,
+        cell_index;
     uint32_t *prim_first_index; /* per primitive, flattened over meshes */
     uint32_t *prim_index_count;
     int32_t *prim_vertex_offset;
@@ -50,6 +61,7 @@ typedef struct sv_renderer {
     int32_t sphere_vertex_offset;
     uint32_t light_count, sphere_count, outline_count, probe_count, grid_count;
     bool half_probes;
+    bool has_cubes; /* the cube buffer (float or half by half_probes) holds the probes' ambient cubes */
     bool has_sky;
     sv_image sky, brdf_lut; /* prefiltered equirect mips (1x1 black without a sky), split-sum LUT */
     VkSampler sky_sampler, lut_sampler;

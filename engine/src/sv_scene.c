@@ -40,10 +40,12 @@ static void update_scene_bounds(sv_scene *s)
         }
 }
 
-bool sv_scene_load(const char *path, sv_scene *out)
+bool sv_scene_load(const char *path, bool allow_outside_paths, sv_scene *out)
 {
     memset(out, 0, sizeof(*out));
-    sv_gltf_desc desc = {0};
+    sv_gltf_desc desc = {.app_extensions = sv_ext_names,
+                         .app_extension_count = SV_EXT_NAME_COUNT,
+                         .allow_outside_paths = allow_outside_paths};
     sv_gltf_error err = {0};
     if (sv_gltf_load_file(path, &desc, &out->gltf, &err) != SV_GLTF_SUCCESS) {
         fprintf(stderr, "schnee-view: error: cannot load %s: %s (%s)\n", path, err.message,
@@ -53,6 +55,15 @@ bool sv_scene_load(const char *path, sv_scene *out)
     sv_gltf *g = out->gltf;
     for (uint32_t i = 0; i < g->warning_count; ++i)
         fprintf(stderr, "schnee-view: warning: %s: %s\n", path, g->warnings[i]);
+    if (sv_ext_parse(g, &out->ext, &err) != SV_GLTF_SUCCESS) {
+        fprintf(stderr, "schnee-view: error: cannot load %s: %s (%s)\n", path, err.message,
+                sv_gltf_result_string(err.code));
+        sv_gltf_free(out->gltf);
+        out->gltf = NULL;
+        return false;
+    }
+    for (uint32_t i = 0; i < out->ext.warning_count; ++i)
+        fprintf(stderr, "schnee-view: warning: %s: %s\n", path, out->ext.warnings[i]);
     size_t nodes = g->node_count ? g->node_count : 1;
     out->node_local = calloc(nodes * 16, sizeof(float));
     out->node_world = calloc(nodes * 16, sizeof(float));
@@ -83,6 +94,7 @@ bool sv_scene_load(const char *path, sv_scene *out)
 
 void sv_scene_destroy(sv_scene *scene)
 {
+    sv_ext_free(&scene->ext);
     sv_gltf_free(scene->gltf);
     free(scene->node_local);
     free(scene->node_world);

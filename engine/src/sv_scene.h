@@ -8,6 +8,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "sv_ext.h"
 #include "sv_gltf.h"
 
 /* One drawn object: a mesh instance of the default scene. */
@@ -24,6 +25,7 @@ typedef struct sv_object {
 
 typedef struct sv_scene {
     sv_gltf *gltf;
+    sv_ext ext;        /* the VULKAN_SCHNEE_* extensions of gltf (materials, light modes, probe grids, sky) */
     float *node_local; /* node_count * 16, current local transforms */
     float *node_world; /* node_count * 16, current world transforms */
     sv_object *objects;
@@ -32,9 +34,10 @@ typedef struct sv_scene {
     float aabb_max[3];
 } sv_scene;
 
-/* Loads the glTF at path (prints the loader's warnings). On error prints a message naming the
- * problem and returns false with nothing allocated. */
-bool sv_scene_load(const char *path, sv_scene *out);
+/* Loads the glTF at path and parses its Schnee extensions (prints the warnings of both). Files the
+ * glTF references must lie inside its folder tree unless allow_outside_paths (trusted scenes). On
+ * error prints a message naming the problem and returns false with nothing allocated. */
+bool sv_scene_load(const char *path, bool allow_outside_paths, sv_scene *out);
 void sv_scene_destroy(sv_scene *scene);
 
 /* Index of the node named `name` (first match), or -1. */

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "schnee/pb_image.h"
 
@@ -202,22 +203,117 @@ static void prefilter_level(const pyramid *src, float rough, uint32_t w, uint32_
         }
 }
 
-bool sv_sky_load(const sv_gltf *g, sv_sky *out)
+/* Width and height from an OpenEXR header (the first part's dataWindow, box2i) in buf[0, n). */
+static bool exr_dims(const unsigned char *buf, size_t n, uint64_t *w, uint64_t *h)
+{
+    size_t p = 8; /* magic, version + flags */
+    while (p < n && buf[p]) {
+        const unsigned char *name = buf + p;
+        const unsigned char *e = memchr(name, 0, n - p);
+        if (!e) return false;
+        size_t q = (size_t)(e - buf) + 1;
+        const unsigned char *type = q < n ? memchr(buf + q, 0, n - q) : NULL;
+        if (!type) return false;
+        q = (size_t)(type - buf) + 1;
+        if (n - q < 4) return false;
+        uint32_t size =
+            (uint32_t)buf[q] | (uint32_t)buf[q + 1] << 8 | (uint32_t)buf[q + 2] << 16 | (uint32_t)buf[q + 3] << 24;
+        q += 4;
+        if (size > n - q) return false;
+        if (strcmp((const char *)name, "dataWindow") == 0 && size == 16) {
+            int32_t v[4];
+            for (int k = 0; k < 4; ++k)
+                v[k] = (int32_t)((uint32_t)buf[q + 4 * k] | (uint32_t)buf[q + 4 * k + 1] << 8 |
+                                 (uint32_t)buf[q + 4 * k + 2] << 16 | (uint32_t)buf[q + 4 * k + 3] << 24);
+            if (v[2] < v[0] || v[3] < v[1]) return false;
+            *w = (uint64_t)((int64_t)v[2] - v[0] + 1);
+            *h = (uint64_t)((int64_t)v[3] - v[1] + 1);
+            return true;
+        }
+        p = q + size;
+    }
+    return false;
+}
+
+bool sv_image_file_check(const char *path, const char *what, uint64_t max_pixels, char *msg, size_t cap)
+{
+    sv_gltf_error err = {0};
+    uint64_t size = 0;
+    int fd = sv_gltf_open_regular(path, what, SV_MAX_IMAGE_FILE_BYTES, &size, &err);
+    if (fd < 0) {
+        snprintf(msg, cap, "%s", err.message);
+        return false;
+    }
+    static unsigned char h[1 << 16]; /* the header: signature, and the EXR attributes / PNG IHDR */
+    ssize_t got = read(fd, h, sizeof h);
+    close(fd);
+    size_t n = got > 0 ? (size_t)got : 0;
+    static const struct {
+        const char *sig;
+        size_t len;
+    } sigs[] = {
+        {"\x76\x2f\x31\x01", 4},  /* OpenEXR */
+        {"\x89PNG\r\n\x1a\n", 8}, /* PNG */
+        {"\xff\xd8\xff", 3},      /* JPEG */
+        {"#?", 2},                /* Radiance HDR */
+        {"II*\0", 4},             /* TIFF little-endian */
+        {"MM\0*", 4},             /* TIFF big-endian */
+        {"BM", 2},                /* BMP */
+        {"GIF8", 4},              /* GIF */
+        {"RIFF", 4},              /* WebP */
+    };
+    int kind = -1;
+    for (size_t k = 0; k < sizeof sigs / sizeof sigs[0] && kind < 0; ++k)
+        if (n >= sigs[k].len && memcmp(h, sigs[k].sig, sigs[k].len) == 0) kind = (int)k;
+    /* PNM / PFM: 'P' then 1-7, F or f, then whitespace. */
+    bool ok = kind >= 0 || (n >= 3 && h[0] == 'P' && h[1] && strchr("1234567Ff", h[1]) &&
+                            (h[2] == '\n' || h[2] == ' ' || h[2] == '\r' || h[2] == '\t'));
+    if (!ok) {
+        snprintf(msg, cap,
+                 "%s: '%s' (%llu bytes) does not start like an image file (EXR, PNG, JPEG, HDR, TIFF, PNM, BMP, GIF, "
+                 "WebP); not read",
+                 what, path, (unsigned long long)size);
+        return false;
+    }
+    uint64_t w = 0, hh = 0;
+    if (kind == 0 && !exr_dims(h, n, &w, &hh)) {
+        snprintf(msg, cap, "%s: '%s': malformed OpenEXR header (no valid dataWindow in the first %zu bytes)", what,
+                 path, n);
+        return false;
+    }
+    if (kind == 1 && n >= 24 && memcmp(h + 12, "IHDR", 4) == 0) {
+        w = (uint64_t)h[16] << 24 | (uint64_t)h[17] << 16 | (uint64_t)h[18] << 8 | h[19];
+        hh = (uint64_t)h[20] << 24 | (uint64_t)h[21] << 16 | (uint64_t)h[22] << 8 | h[23];
+    }
+    if (max_pixels && (w > max_pixels || hh > max_pixels || w * hh > max_pixels)) {
+        snprintf(msg, cap, "%s: '%s' is %llu x %llu pixels, over the limit of %llu pixels; not read", what, path,
+                 (unsigned long long)w, (unsigned long long)hh, (unsigned long long)max_pixels);
+        return false;
+    }
+    return true;
+}
+
+bool sv_sky_load(const sv_ext *ext, sv_sky *out)
 {
     memset(out, 0, sizeof(*out));
-    if (!g->sky.present) return true;
-    if (!g->sky.path) {
-        fprintf(stderr, "schnee-view: error: sky '%s' has no resolvable path\n", g->sky.uri);
+    if (!ext->sky.present) return true;
+    if (!ext->sky.path) {
+        fprintf(stderr, "schnee-view: error: sky '%s' has no resolvable path\n", ext->sky.uri);
+        return false;
+    }
+    char msg[640];
+    if (!sv_image_file_check(ext->sky.path, "sky", SV_SKY_MAX_PIXELS, msg, sizeof msg)) {
+        fprintf(stderr, "schnee-view: error: %s\n", msg);
         return false;
     }
     pb_image img = {0};
     pb_error err = {0};
-    if (pb_image_read(g->sky.path, &img, &err) != PB_SUCCESS) {
-        fprintf(stderr, "schnee-view: error: sky: cannot read %s: %s\n", g->sky.path, err.message);
+    if (pb_image_read(ext->sky.path, &img, &err) != PB_SUCCESS) {
+        fprintf(stderr, "schnee-view: error: sky: cannot read %s: %s\n", ext->sky.path, err.message);
         return false;
     }
     if (img.width < 4 || img.height < 2) {
-        fprintf(stderr, "schnee-view: error: sky %s: %ux%u is too small (at least 4x2)\n", g->sky.path, img.width,
+        fprintf(stderr, "schnee-view: error: sky %s: %ux%u is too small (at least 4x2)\n", ext->sky.path, img.width,
                 img.height);
         pb_image_free(&img);
         return false;
@@ -228,17 +324,25 @@ bool sv_sky_load(const sv_gltf *g, sv_sky *out)
         pb_image_free(&img);
         return false;
     }
+    size_t clamped = 0;
     for (size_t i = 0; i < (size_t)w * h; ++i) {
         for (uint32_t c = 0; c < 3; ++c) {
             float v = img.pixels[i * img.channels + (img.channels >= 3 ? c : 0)];
             base[i * 4 + c] = isfinite(v) && v > 0.0f ? v : 0.0f; /* the bake clamps negatives too */
+            if (base[i * 4 + c] > SV_SKY_MAX_RADIANCE) {          /* the prefilter's sums must stay finite */
+                base[i * 4 + c] = SV_SKY_MAX_RADIANCE;
+                clamped++;
+            }
         }
         base[i * 4 + 3] = 1.0f;
     }
+    if (clamped)
+        fprintf(stderr, "schnee-view: warning: sky %s: %zu value(s) above %g clamped to it\n", ext->sky.path, clamped,
+                (double)SV_SKY_MAX_RADIANCE);
     pb_image_free(&img);
     out->present = true;
-    out->max_band = g->sky.max_band;
-    memcpy(out->sh, g->sky.sh, sizeof(out->sh));
+    out->max_band = ext->sky.max_band;
+    memcpy(out->sh, ext->sky.sh, sizeof(out->sh));
     out->rgba[0] = base;
     out->width[0] = w, out->height[0] = h;
     uint32_t mips = 1;

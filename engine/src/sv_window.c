@@ -10,6 +10,7 @@
 
 #include "schnee/pb_image.h"
 #include "sv_app.h"
+#include "sv_clock.h"
 #include "sv_math.h"
 
 #define SV_MAX_SWAPCHAIN_IMAGES 8
@@ -156,16 +157,22 @@ static bool write_screenshot(const char *path, const uint8_t *bgra_or_rgba, bool
     return ok;
 }
 
+static bool make_surface(sv_context *ctx, void *win)
+{
+    VK_CHECK(glfwCreateWindowSurface(ctx->instance, (GLFWwindow *)win, NULL, &ctx->surface));
+    return true;
+fail:
+    return false;
+}
+
 int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky)
 {
     int rc = 1;
-    sv_context ctx = {0};
-    sv_renderer r = {0};
+    sv_app_gpu gpu = {0};
+    sv_context *ctx = &gpu.ctx;
     sv_swapchain sc = {0};
     sv_buffer shot = {0};
     GLFWwindow *win = NULL;
-    VkCommandBuffer cmd = VK_NULL_HANDLE;
-    VkFence fence = VK_NULL_HANDLE;
     VkSemaphore acquired = VK_NULL_HANDLE;
     VkColorSpaceKHR space = VK_COLOR_SPACE_SRGB_NONLINEAR_KHR;
 
@@ -185,34 +192,21 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
     }
     uint32_t ext_count = 0;
     const char **exts = glfwGetRequiredInstanceExtensions(&ext_count);
-    if (!exts || !sv_create_instance(&ctx, opt->validation, exts, ext_count)) goto done;
-    VK_CHECK(glfwCreateWindowSurface(ctx.instance, win, NULL, &ctx.surface));
-    if (!sv_pick_device(&ctx) || !sv_create_device(&ctx) || !sv_create_command_pool(&ctx)) goto done;
-    sc.format = pick_surface_format(&ctx, &space);
+    if (!exts || !sv_app_gpu_init(&gpu, opt, exts, ext_count, make_surface, win, true)) goto done;
+    sc.format = pick_surface_format(ctx, &space);
     if (sc.format == VK_FORMAT_UNDEFINED) {
         fprintf(stderr, "schnee-view: error: the window surface reports no formats\n");
         goto done;
     }
-    if (!create_swapchain(&ctx, win, space, &sc)) goto done;
-    sv_renderer_desc desc = sv_app_renderer_desc(opt, sky);
-    if (!sv_renderer_create(&r, &ctx, scene, probes, sc.format, &desc) ||
-        !sv_renderer_resize(&r, sc.extent.width, sc.extent.height))
+    if (!create_swapchain(ctx, win, space, &sc) ||
+        !sv_app_gpu_renderer(&gpu, opt, scene, probes, sky, sc.format, sc.extent.width, sc.extent.height))
         goto done;
-
-    VkFenceCreateInfo fi = {.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO, .flags = VK_FENCE_CREATE_SIGNALED_BIT};
-    VK_CHECK(vkCreateFence(ctx.device, &fi, NULL, &fence));
     VkSemaphoreCreateInfo si = {.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
-    VK_CHECK(vkCreateSemaphore(ctx.device, &si, NULL, &acquired));
-    VkCommandBufferAllocateInfo ai = {
-        .sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO,
-        .commandPool = ctx.command_pool,
-        .level = VK_COMMAND_BUFFER_LEVEL_PRIMARY,
-        .commandBufferCount = 1,
-    };
-    VK_CHECK(vkAllocateCommandBuffers(ctx.device, &ai, &cmd));
-
-    sv_view view;
-    if (!sv_app_initial_view(opt, scene, &view)) goto done;
+    VK_CHECK(vkCreateSemaphore(ctx->device, &si, NULL, &acquired));
+    sv_renderer *r = &gpu.renderer;
+    VkCommandBuffer cmd = gpu.cmd;
+    VkFence fence = gpu.fence;
+    sv_view view = gpu.view;
     fly_camera cam;
     memcpy(cam.pos, view.camera_pos, sizeof(cam.pos));
     /* view rows: row 2 = -forward */
@@ -239,12 +233,13 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
         /* Toggles on key press edges. */
         bool p = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS, c = glfwGetKey(win, GLFW_KEY_C) == GLFW_PRESS;
         bool n = glfwGetKey(win, GLFW_KEY_N) == GLFW_PRESS, m = glfwGetKey(win, GLFW_KEY_M) == GLFW_PRESS;
-        /* M cycles the probe mode: per material -> per object -> per pixel -> off -> per material. */
+        /* M cycles the probe mode: per material -> object -> pixel -> (any later mode) -> off -> per
+         * material, through the values of sv_gpu.h (MATERIAL is the last, OFF the first). */
         if (m && !prev_m)
-            view.probe_mode = view.probe_mode == SV_PROBE_MODE_MATERIAL ? SV_PROBE_MODE_OBJECT
-                              : view.probe_mode == SV_PROBE_MODE_OBJECT ? SV_PROBE_MODE_PIXEL
-                              : view.probe_mode == SV_PROBE_MODE_PIXEL  ? SV_PROBE_MODE_OFF
-                                                                        : SV_PROBE_MODE_MATERIAL;
+            view.probe_mode = view.probe_mode == SV_PROBE_MODE_MATERIAL        ? SV_PROBE_MODE_OFF + 1u
+                              : view.probe_mode == SV_PROBE_MODE_OFF           ? SV_PROBE_MODE_MATERIAL
+                              : view.probe_mode + 1u == SV_PROBE_MODE_MATERIAL ? SV_PROBE_MODE_OFF
+                                                                               : view.probe_mode + 1u;
         prev_m = m;
         if (p && !prev_p)
             view.debug_mode = view.debug_mode == SV_DEBUG_PROBE_COLOR ? SV_DEBUG_NONE : SV_DEBUG_PROBE_COLOR;
@@ -312,39 +307,40 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
         if (now - title_time > 250.0 && scene->object_count) {
             char title[256];
             const sv_object *o = &scene->objects[selected];
-            static const char *modes[] = {"probes off", "per object", "per pixel", "per material"};
-            snprintf(title, sizeof(title), "schnee-view - %.2f ms (%.0f fps) - %s%s, %s - object '%s' probe %u", ms_avg,
+            const char *mode = sv_probe_mode_name(view.probe_mode);
+            snprintf(title, sizeof(title),
+                     "schnee-view - %.2f ms (%.0f fps) - %s%s, probe mode %s - object '%s' probe %u", ms_avg,
                      1000.0 / ms_avg, view.debug_mode == SV_DEBUG_PROBE_COLOR ? "probe colours" : "shaded",
-                     view.show_cells ? " + probe view" : "", modes[view.probe_mode & 3u], o->name, o->probe);
+                     view.show_cells ? " + probe view" : "", mode ? mode : "?", o->name, o->probe);
             glfwSetWindowTitle(win, title);
             title_time = now;
         }
 
-        VK_CHECK(vkWaitForFences(ctx.device, 1, &fence, VK_TRUE, UINT64_MAX));
+        VK_CHECK(vkWaitForFences(ctx->device, 1, &fence, VK_TRUE, UINT64_MAX));
         uint32_t image = 0;
-        VkResult acq = vkAcquireNextImageKHR(ctx.device, sc.handle, UINT64_MAX, acquired, VK_NULL_HANDLE, &image);
+        VkResult acq = vkAcquireNextImageKHR(ctx->device, sc.handle, UINT64_MAX, acquired, VK_NULL_HANDLE, &image);
         if (acq == VK_ERROR_OUT_OF_DATE_KHR) {
-            vkDeviceWaitIdle(ctx.device);
-            destroy_swapchain(&ctx, &sc);
-            if (create_swapchain(&ctx, win, space, &sc) && sv_renderer_resize(&r, sc.extent.width, sc.extent.height))
+            vkDeviceWaitIdle(ctx->device);
+            destroy_swapchain(ctx, &sc);
+            if (create_swapchain(ctx, win, space, &sc) && sv_renderer_resize(r, sc.extent.width, sc.extent.height))
                 continue;
             glfwWaitEvents(); /* minimised: wait for a usable size */
             continue;
         }
         if (acq != VK_SUBOPTIMAL_KHR) VK_CHECK(acq);
-        VK_CHECK(vkResetFences(ctx.device, 1, &fence));
+        VK_CHECK(vkResetFences(ctx->device, 1, &fence));
 
         bool last_frame = opt->frames && frame + 1 >= opt->frames;
         bool take_shot = last_frame && opt->screenshot && sc.can_copy;
         if (take_shot && !shot.buffer &&
-            !sv_buffer_create(&ctx, (VkDeviceSize)sc.extent.width * sc.extent.height * 4,
+            !sv_buffer_create(ctx, (VkDeviceSize)sc.extent.width * sc.extent.height * 4,
                               VK_BUFFER_USAGE_TRANSFER_DST_BIT, true, &shot))
             goto done;
         VkCommandBufferBeginInfo begin = {.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
                                           .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
         VK_CHECK(vkResetCommandBuffer(cmd, 0));
         VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
-        sv_renderer_record(&r, cmd, scene, &view, sc.images[image], sc.views[image],
+        sv_renderer_record(r, cmd, scene, &view, sc.images[image], sc.views[image],
                            take_shot ? VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL : VK_IMAGE_LAYOUT_PRESENT_SRC_KHR);
         if (take_shot) {
             VkBufferImageCopy region = {.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
@@ -378,7 +374,7 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
             .signalSemaphoreCount = 1,
             .pSignalSemaphores = &sc.render_done[image],
         };
-        VK_CHECK(vkQueueSubmit(ctx.queue, 1, &submit, fence));
+        VK_CHECK(vkQueueSubmit(ctx->queue, 1, &submit, fence));
         VkPresentInfoKHR present = {
             .sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR,
             .waitSemaphoreCount = 1,
@@ -387,18 +383,18 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
             .pSwapchains = &sc.handle,
             .pImageIndices = &image,
         };
-        VkResult pres = vkQueuePresentKHR(ctx.queue, &present);
+        VkResult pres = vkQueuePresentKHR(ctx->queue, &present);
         if (pres == VK_ERROR_OUT_OF_DATE_KHR || pres == VK_SUBOPTIMAL_KHR) {
-            vkDeviceWaitIdle(ctx.device);
-            destroy_swapchain(&ctx, &sc);
-            if (!create_swapchain(&ctx, win, space, &sc) || !sv_renderer_resize(&r, sc.extent.width, sc.extent.height))
+            vkDeviceWaitIdle(ctx->device);
+            destroy_swapchain(ctx, &sc);
+            if (!create_swapchain(ctx, win, space, &sc) || !sv_renderer_resize(r, sc.extent.width, sc.extent.height))
                 glfwWaitEvents();
         } else {
             VK_CHECK(pres);
         }
         frame++;
         if (take_shot) {
-            VK_CHECK(vkWaitForFences(ctx.device, 1, &fence, VK_TRUE, UINT64_MAX));
+            VK_CHECK(vkWaitForFences(ctx->device, 1, &fence, VK_TRUE, UINT64_MAX));
             if (!write_screenshot(opt->screenshot, shot.mapped,
                                   sc.format == VK_FORMAT_B8G8R8A8_SRGB || sc.format == VK_FORMAT_B8G8R8A8_UNORM,
                                   sc.extent.width, sc.extent.height))
@@ -414,17 +410,14 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
     rc = 0;
 done:
 fail:
-    if (ctx.device) {
-        vkDeviceWaitIdle(ctx.device);
-        if (fence) vkDestroyFence(ctx.device, fence, NULL);
-        if (acquired) vkDestroySemaphore(ctx.device, acquired, NULL);
-        sv_buffer_destroy(&ctx, &shot);
-        sv_renderer_destroy(&r);
-        destroy_swapchain(&ctx, &sc);
+    if (ctx->device) {
+        vkDeviceWaitIdle(ctx->device);
+        if (acquired) vkDestroySemaphore(ctx->device, acquired, NULL);
+        sv_buffer_destroy(ctx, &shot);
+        destroy_swapchain(ctx, &sc);
     }
-    sv_context_destroy(&ctx);
+    rc = sv_app_gpu_destroy(&gpu, rc);
     if (win) glfwDestroyWindow(win);
     glfwTerminate();
-    if (!sv_app_validation_clean(&ctx) && rc == 0) rc = 3;
     return rc;
 }

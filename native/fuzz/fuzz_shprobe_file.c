@@ -48,7 +48,9 @@ static bool same_header(const pb_shprobe *a, const pb_shprobe *b)
            memcmp(a->grid_dims, b->grid_dims, sizeof a->grid_dims) == 0 &&
            memcmp(a->grid_origin, b->grid_origin, sizeof a->grid_origin) == 0 &&
            memcmp(&a->grid_spacing, &b->grid_spacing, sizeof a->grid_spacing) == 0 &&
-           memcmp(a->grid_axes, b->grid_axes, sizeof a->grid_axes) == 0;
+           memcmp(a->grid_axes, b->grid_axes, sizeof a->grid_axes) == 0 && a->representation == b->representation &&
+           a->storage == b->storage && a->structure == b->structure && a->element_count == b->element_count &&
+           a->hanging_count == b->hanging_count;
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
@@ -78,11 +80,22 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         abort();
     }
     if (r_file == PB_SUCCESS) {
-        size_t coeffs = (size_t)file->probe_count * pb_sh_count(file->max_band) * 3u;
-        size_t cells = (size_t)file->grid_dims[0] * file->grid_dims[1] * file->grid_dims[2];
-        if (!same_header(file, mem) || memcmp(file->coeffs, mem->coeffs, coeffs * sizeof(float)) != 0 ||
-            memcmp(file->grid, mem->grid, cells * sizeof(int32_t)) != 0)
+        size_t coeffs = (size_t)file->probe_count * pb_shprobe_colour_count(file) * 3u;
+        if (!same_header(file, mem) || memcmp(file->coeffs, mem->coeffs, coeffs * sizeof(float)) != 0) abort();
+        size_t n = file->element_count;
+        if (file->structure == PB_SHPROBE_GRID) {
+            size_t cells = (size_t)file->grid_dims[0] * file->grid_dims[1] * file->grid_dims[2];
+            if (memcmp(file->grid, mem->grid, cells * sizeof(int32_t)) != 0) abort();
+        } else if (file->structure == PB_SHPROBE_OCTREE) {
+            if (memcmp(file->leaves, mem->leaves, n * 16) != 0 ||
+                memcmp(file->leaf_corners, mem->leaf_corners, n * 32) ||
+                memcmp(file->hanging_sources, mem->hanging_sources, (size_t)file->hanging_count * 16) != 0 ||
+                memcmp(file->hanging_weights, mem->hanging_weights, (size_t)file->hanging_count * 16) != 0)
+                abort();
+        } else if (memcmp(file->tets, mem->tets, n * 16) != 0 ||
+                   memcmp(file->tet_neighbours, mem->tet_neighbours, n * 16) != 0) {
             abort();
+        }
     }
     pb_shprobe_destroy(mem);
     pb_shprobe_destroy(file);

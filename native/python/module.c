@@ -11,10 +11,16 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
+#include "schnee/pb_ambient_cube.h"
 #include "schnee/pb_direct.h"
+#include "schnee/pb_interp.h"
 #include "schnee/pb_octree.h"
+#include "schnee/pb_refine.h"
 #include "schnee/pb_sh.h"
 #include "schnee/pb_shprobe.h"
+#ifdef SCHNEE_EMBREE_DYN
+#include "pb_embree_dyn.h"
+#endif
 
 #include <math.h>
 #include <stdio.h>
@@ -67,6 +73,7 @@ static const char *type_name(char code)
     case 'f': return "float32";
     case 'i': return "int32";
     case 'I': return "uint32";
+    case 'B': return "uint8";
     }
     return "?";
 }
@@ -90,7 +97,7 @@ static int get_buffer(PyObject *obj, const char *name, char code, Py_ssize_t mul
     }
     const char *fmt = out->view.format ? out->view.format : "B";
     if (*fmt == '@' || *fmt == '=' || (*fmt == '<' && PY_LITTLE_ENDIAN) || (*fmt == '>' && PY_BIG_ENDIAN)) fmt++;
-    Py_ssize_t itemsize = code == 'd' ? 8 : 4;
+    Py_ssize_t itemsize = code == 'd' ? 8 : (code == 'B' ? 1 : 4);
     bool ok = fmt[0] != '\0' && fmt[1] == '\0' && out->view.itemsize == itemsize &&
               (fmt[0] == code || (code == 'i' && fmt[0] == 'l') || (code == 'I' && fmt[0] == 'L'));
     if (!ok) {
@@ -557,20 +564,41 @@ static int header_into_dict(PyObject *d, const pb_shprobe *p)
                : 0;
 }
 
+/* Version 3 fields (versions 1/2 read back SH, float32, grid, no structure arrays). */
+static int v3_into_dict(PyObject *d, const pb_shprobe *p)
+{
+    size_t N = p->element_count, H = p->hanging_count;
+    bool oct = p->structure == PB_SHPROBE_OCTREE, tet = p->structure == PB_SHPROBE_TETRA;
+    return (dict_put(d, "representation", PyLong_FromUnsignedLong(p->representation)) < 0 ||
+            dict_put(d, "storage", PyLong_FromUnsignedLong(p->storage)) < 0 ||
+            dict_put(d, "structure", PyLong_FromUnsignedLong(p->structure)) < 0 ||
+            dict_put(d, "element_count", PyLong_FromUnsignedLong(p->element_count)) < 0 ||
+            dict_put(d, "hanging_count", PyLong_FromUnsignedLong(p->hanging_count)) < 0 ||
+            dict_put(d, "leaves", oct ? bytes_out(p->leaves, N * 16) : Py_NewRef(Py_None)) < 0 ||
+            dict_put(d, "leaf_corners", oct ? bytes_out(p->leaf_corners, N * 32) : Py_NewRef(Py_None)) < 0 ||
+            dict_put(d, "hanging_sources", oct ? bytes_out(p->hanging_sources, H * 16) : Py_NewRef(Py_None)) < 0 ||
+            dict_put(d, "hanging_weights", oct ? bytes_out(p->hanging_weights, H * 16) : Py_NewRef(Py_None)) < 0 ||
+            dict_put(d, "tets", tet ? bytes_out(p->tets, N * 16) : Py_NewRef(Py_None)) < 0 ||
+            dict_put(d, "tet_neighbours", tet ? bytes_out(p->tet_neighbours, N * 16) : Py_NewRef(Py_None)) < 0)
+               ? -1
+               : 0;
+}
+
 static PyObject *shprobe_dict(const pb_shprobe *p)
 {
     PyObject *d = PyDict_New();
     if (!d) return NULL;
     size_t n = p->probe_count;
-    size_t cells = (size_t)p->grid_dims[0] * p->grid_dims[1] * p->grid_dims[2];
+    size_t cells = p->grid ? (size_t)p->grid_dims[0] * p->grid_dims[1] * p->grid_dims[2] : 0;
     PyObject *positions = p->positions ? bytes_out(p->positions, n * 3 * sizeof(float)) : Py_NewRef(Py_None);
     if (header_into_dict(d, p) < 0 ||
-        dict_put(d, "coeffs", bytes_out(p->coeffs, n * pb_sh_count(p->max_band) * 3 * sizeof(float))) < 0 ||
+        dict_put(d, "coeffs", bytes_out(p->coeffs, n * pb_shprobe_colour_count(p) * 3 * sizeof(float))) < 0 ||
         dict_put(d, "probe_scale", bytes_out(p->probe_scale, n * sizeof(float))) < 0 ||
         dict_put(d, "probe_ambient", bytes_out(p->probe_ambient, n * sizeof(float))) < 0 ||
         dict_put(d, "validity", bytes_out(p->validity, n * sizeof(float))) < 0 ||
         dict_put(d, "positions", positions) < 0 ||
-        dict_put(d, "grid", bytes_out(p->grid, cells * sizeof(int32_t))) < 0) {
+        dict_put(d, "grid", p->grid ? bytes_out(p->grid, cells * sizeof(int32_t)) : Py_NewRef(Py_None)) < 0 ||
+        v3_into_dict(d, p) < 0) {
         Py_DECREF(d);
         return NULL;
     }
@@ -756,6 +784,535 @@ static PyObject *py_shprobe_lookup(PyObject *module, PyObject *args, PyObject *k
     return out;
 }
 
+/* ---- interpolation and refinement (issue 12) ---------------------------------------------------- */
+
+static const char CAP_COTREE[] = "schnee_probes.cotree";
+static const char CAP_TETRA[] = "schnee_probes.tetra";
+
+static void cotree_capsule_free(PyObject *cap) { pb_cotree_destroy(PyCapsule_GetPointer(cap, CAP_COTREE)); }
+static void tetra_capsule_free(PyObject *cap) { pb_tetra_destroy(PyCapsule_GetPointer(cap, CAP_TETRA)); }
+
+static pb_cotree *get_cotree(PyObject *o)
+{
+    if (!PyCapsule_IsValid(o, CAP_COTREE)) {
+        PyErr_SetString(PyExc_TypeError, "expected a corner octree handle (from cotree_create)");
+        return NULL;
+    }
+    return PyCapsule_GetPointer(o, CAP_COTREE);
+}
+
+static PyObject *cotree_capsule(pb_cotree *t)
+{
+    PyObject *cap = PyCapsule_New(t, CAP_COTREE, cotree_capsule_free);
+    if (!cap) pb_cotree_destroy(t);
+    return cap;
+}
+
+static PyObject *tetra_capsule(pb_tetra *t)
+{
+    PyObject *cap = PyCapsule_New(t, CAP_TETRA, tetra_capsule_free);
+    if (!cap) pb_tetra_destroy(t);
+    return cap;
+}
+
+static int get_dims(const Py_ssize_t in[3], uint32_t out[3])
+{
+    for (int i = 0; i < 3; i++)
+        if (check_u32(in[i], "dims entry", &out[i]) < 0) return -1;
+    return 0;
+}
+
+static PyObject *py_cotree_create(PyObject *module, PyObject *args)
+{
+    double origin[3], cell;
+    Py_ssize_t level, dims_in[3];
+    uint32_t dims[3], lv;
+    if (!PyArg_ParseTuple(args, "(ddd)dn(nnn):cotree_create", &origin[0], &origin[1], &origin[2], &cell, &level,
+                          &dims_in[0], &dims_in[1], &dims_in[2]) ||
+        get_dims(dims_in, dims) < 0 || check_u32(level, "root_level", &lv) < 0)
+        return NULL;
+    pb_cotree *t = NULL;
+    pb_error err = {0};
+    pb_result r = pb_cotree_create(origin, cell, lv, dims, &t, &err);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    return cotree_capsule(t);
+}
+
+static PyObject *py_cotree_from_leaves(PyObject *module, PyObject *args)
+{
+    double origin[3], cell;
+    Py_ssize_t dims_in[3];
+    uint32_t dims[3];
+    PyObject *l_obj;
+    if (!PyArg_ParseTuple(args, "(ddd)d(nnn)O:cotree_from_leaves", &origin[0], &origin[1], &origin[2], &cell,
+                          &dims_in[0], &dims_in[1], &dims_in[2], &l_obj) ||
+        get_dims(dims_in, dims) < 0)
+        return NULL;
+    held_buffer leaves;
+    if (get_buffer(l_obj, "leaves", 'I', 4, -1, &leaves) < 0) return NULL;
+    pb_cotree *t = NULL;
+    pb_error err = {0};
+    pb_result r = leaves.count / 4 > UINT32_MAX ? PB_ERROR_TOO_LARGE : PB_SUCCESS;
+    if (r == PB_SUCCESS)
+        r = pb_cotree_create_leaves(origin, cell, dims, leaves.view.buf, (uint32_t)(leaves.count / 4), &t, &err);
+    release(&leaves);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    return cotree_capsule(t);
+}
+
+/* cotree_split / cotree_drop: flags = uint8[leaf_count]. */
+static PyObject *cotree_flags_op(PyObject *module, PyObject *args, bool split)
+{
+    PyObject *t_obj, *f_obj;
+    if (!PyArg_ParseTuple(args, "OO", &t_obj, &f_obj)) return NULL;
+    pb_cotree *t = get_cotree(t_obj);
+    if (!t) return NULL;
+    held_buffer flags;
+    if (get_buffer(f_obj, "flags", 'B', 0, pb_cotree_leaf_count(t), &flags) < 0) return NULL;
+    pb_error err = {0};
+    uint32_t n = 0;
+    pb_result r = split ? pb_cotree_split(t, flags.view.buf, &n, &err) : pb_cotree_drop(t, flags.view.buf, &err);
+    release(&flags);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    return PyLong_FromUnsignedLong(n);
+}
+
+static PyObject *py_cotree_split(PyObject *module, PyObject *args) { return cotree_flags_op(module, args, true); }
+static PyObject *py_cotree_drop(PyObject *module, PyObject *args) { return cotree_flags_op(module, args, false); }
+
+static PyObject *py_cotree_finalize(PyObject *module, PyObject *t_obj)
+{
+    pb_cotree *t = get_cotree(t_obj);
+    if (!t) return NULL;
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS r = pb_cotree_finalize(t, &err);
+    Py_END_ALLOW_THREADS if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    Py_RETURN_NONE;
+}
+
+static PyObject *py_cotree_info(PyObject *module, PyObject *t_obj)
+{
+    pb_cotree *t = get_cotree(t_obj);
+    if (!t) return NULL;
+    double origin[3], cell;
+    uint32_t dims[3];
+    pb_cotree_frame(t, origin, &cell, dims);
+    size_t L = pb_cotree_leaf_count(t), P = pb_cotree_probe_count(t), H = pb_cotree_hanging_count(t);
+    bool fin = pb_cotree_probe_lattice(t) != NULL;
+    PyObject *d = PyDict_New();
+    if (!d) return NULL;
+    PyObject *pos = NULL, *corners = NULL, *src = NULL, *w = NULL;
+    if (fin) {
+        pos = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(P * 3 * sizeof(double)));
+        corners = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(L * 8 * sizeof(int32_t)));
+        src = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(H * 4 * sizeof(uint32_t)));
+        w = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(H * 4 * sizeof(float)));
+        if (pos && corners && src && w) {
+            pb_cotree_probe_positions(t, (double *)(void *)PyByteArray_AsString(pos));
+            pb_cotree_leaf_corners(t, (int32_t *)(void *)PyByteArray_AsString(corners));
+            pb_cotree_hanging_rules(t, (uint32_t *)(void *)PyByteArray_AsString(src),
+                                    (float *)(void *)PyByteArray_AsString(w));
+        }
+    } else {
+        pos = Py_NewRef(Py_None), corners = Py_NewRef(Py_None), src = Py_NewRef(Py_None), w = Py_NewRef(Py_None);
+    }
+    if (dict_put(d, "origin", Py_BuildValue("(ddd)", origin[0], origin[1], origin[2])) < 0 ||
+        dict_put(d, "min_cell", PyFloat_FromDouble(cell)) < 0 ||
+        dict_put(d, "dims", Py_BuildValue("(III)", dims[0], dims[1], dims[2])) < 0 ||
+        dict_put(d, "finalized", PyBool_FromLong(fin)) < 0 ||
+        dict_put(d, "leaves", bytes_out(pb_cotree_leaves(t), L * 4 * sizeof(uint32_t))) < 0 ||
+        dict_put(d, "probe_count", PyLong_FromSize_t(P)) < 0 ||
+        dict_put(d, "hanging_count", PyLong_FromSize_t(H)) < 0 ||
+        dict_put(d, "probe_lattice",
+                 fin ? bytes_out(pb_cotree_probe_lattice(t), P * 3 * sizeof(uint32_t)) : Py_NewRef(Py_None)) < 0 ||
+        dict_put(d, "positions", pos) < 0 || dict_put(d, "leaf_corners", corners) < 0 ||
+        dict_put(d, "hanging_sources", src) < 0 || dict_put(d, "hanging_weights", w) < 0) {
+        Py_DECREF(d);
+        return NULL;
+    }
+    return d;
+}
+
+static PyObject *py_tetra_create(PyObject *module, PyObject *args)
+{
+    PyObject *p_obj;
+    if (!PyArg_ParseTuple(args, "O:tetra_create", &p_obj)) return NULL;
+    held_buffer pos;
+    if (get_buffer(p_obj, "positions", 'd', 3, -1, &pos) < 0) return NULL;
+    pb_tetra *t = NULL;
+    pb_error err = {0};
+    pb_result r = pos.count / 3 > UINT32_MAX ? PB_ERROR_TOO_LARGE : PB_SUCCESS;
+    if (r == PB_SUCCESS) {
+        Py_BEGIN_ALLOW_THREADS r = pb_tetra_create(pos.view.buf, (uint32_t)(pos.count / 3), &t, &err);
+        Py_END_ALLOW_THREADS
+    }
+    release(&pos);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    return tetra_capsule(t);
+}
+
+static PyObject *py_tetra_info(PyObject *module, PyObject *t_obj)
+{
+    if (!PyCapsule_IsValid(t_obj, CAP_TETRA)) {
+        PyErr_SetString(PyExc_TypeError, "expected a tetrahedra handle (from tetra_create)");
+        return NULL;
+    }
+    pb_tetra *t = PyCapsule_GetPointer(t_obj, CAP_TETRA);
+    size_t n = pb_tetra_count(t);
+    PyObject *d = PyDict_New();
+    if (!d) return NULL;
+    if (dict_put(d, "tets", bytes_out(pb_tetra_tets(t), n * 16)) < 0 ||
+        dict_put(d, "neighbours", bytes_out(pb_tetra_neighbours(t), n * 16)) < 0) {
+        Py_DECREF(d);
+        return NULL;
+    }
+    return d;
+}
+
+/* interp_query(handle, points float64[N*3], validity float32[P] or None) ->
+ * (probes int32[N*K], weights float64[N*K], K): K = most weights any point got; unused: −1 / 0. */
+static PyObject *py_interp_query(PyObject *module, PyObject *args)
+{
+    PyObject *h_obj, *p_obj, *v_obj = Py_None;
+    if (!PyArg_ParseTuple(args, "OO|O:interp_query", &h_obj, &p_obj, &v_obj)) return NULL;
+    pb_cotree *tree = PyCapsule_IsValid(h_obj, CAP_COTREE) ? PyCapsule_GetPointer(h_obj, CAP_COTREE) : NULL;
+    pb_tetra *tetra = PyCapsule_IsValid(h_obj, CAP_TETRA) ? PyCapsule_GetPointer(h_obj, CAP_TETRA) : NULL;
+    if (!tree && !tetra) {
+        PyErr_SetString(PyExc_TypeError, "expected a corner octree or tetrahedra handle");
+        return NULL;
+    }
+    if (tree && !pb_cotree_probe_lattice(tree)) {
+        PyErr_SetString(PyExc_ValueError, "the corner octree is not finalized (call cotree_finalize)");
+        return NULL;
+    }
+    held_buffer pts, val = {0};
+    if (get_buffer(p_obj, "points", 'd', 3, -1, &pts) < 0) return NULL;
+    Py_ssize_t probe_count = tree ? (Py_ssize_t)pb_cotree_probe_count(tree) : (Py_ssize_t)pb_tetra_point_count(tetra);
+    if (v_obj != Py_None && get_buffer(v_obj, "validity", 'f', 0, probe_count, &val) < 0) {
+        release(&pts);
+        return NULL;
+    }
+    Py_ssize_t n = pts.count / 3;
+    pb_interp_weights *w = malloc(((size_t)n + 1) * sizeof *w);
+    if (!w) {
+        release(&pts);
+        release(&val);
+        return PyErr_NoMemory();
+    }
+    pb_interp_options opt = {.validity = val.view.obj ? val.view.buf : NULL};
+    const double *pp = pts.view.buf;
+    uint32_t K = 1;
+    Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < n; i++)
+    {
+        if (tree)
+            pb_interp_query_cotree(tree, pp + 3 * i, &opt, w + i);
+        else
+            pb_interp_query_tetra(tetra, pp + 3 * i, &opt, w + i);
+        if (w[i].count > K) K = w[i].count;
+    }
+    Py_END_ALLOW_THREADS release(&pts);
+    release(&val);
+    PyObject *po = PyByteArray_FromStringAndSize(NULL, n * (Py_ssize_t)K * 4);
+    PyObject *wo = PyByteArray_FromStringAndSize(NULL, n * (Py_ssize_t)K * 8);
+    if (!po || !wo) {
+        free(w);
+        Py_XDECREF(po);
+        Py_XDECREF(wo);
+        return NULL;
+    }
+    int32_t *pr = (int32_t *)(void *)PyByteArray_AsString(po);
+    double *wt = (double *)(void *)PyByteArray_AsString(wo);
+    for (Py_ssize_t i = 0; i < n; i++)
+        for (uint32_t k = 0; k < K; k++) {
+            bool used = k < w[i].count;
+            pr[i * K + k] = used ? (int32_t)w[i].probe[k] : -1;
+            wt[i * K + k] = used ? w[i].weight[k] : 0.0;
+        }
+    free(w);
+    return Py_BuildValue("(NNI)", po, wo, K);
+}
+
+static PyObject *py_refine_tests(PyObject *module, PyObject *args)
+{
+    PyObject *t_obj, *a_obj = Py_None;
+    if (!PyArg_ParseTuple(args, "O|O:refine_tests", &t_obj, &a_obj)) return NULL;
+    pb_cotree *t = get_cotree(t_obj);
+    if (!t) return NULL;
+    held_buffer active = {0};
+    if (a_obj != Py_None && get_buffer(a_obj, "active", 'B', 0, pb_cotree_leaf_count(t), &active) < 0) return NULL;
+    pb_refine_tests *tests = NULL;
+    pb_error err = {0};
+    pb_result r = pb_refine_tests_create(t, active.view.obj ? active.view.buf : NULL, &tests, &err);
+    release(&active);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    size_t n = tests->point_count, L = tests->leaf_count;
+    PyObject *d = PyDict_New();
+    if (d && (dict_put(d, "lattice", bytes_out(tests->lattice, n * 12)) < 0 ||
+              dict_put(d, "positions", bytes_out(tests->positions, n * 24)) < 0 ||
+              dict_put(d, "probe", bytes_out(tests->probe, n * 4)) < 0 ||
+              dict_put(d, "leaf_tests", bytes_out(tests->leaf_tests, L * PB_REFINE_TESTS_PER_LEAF * 4)) < 0))
+        Py_CLEAR(d);
+    pb_refine_tests_destroy(tests);
+    return d;
+}
+
+static PyObject *py_refine_decide(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"tree",         "leaf_tests",  "test_positions", "test_probe", "max_band",
+                             "probe_coeffs", "test_coeffs", "probe_noise",    "test_noise", "probe_validity",
+                             "test_valid",   "tolerance",   "noise_k",        NULL};
+    PyObject *t_obj, *lt_obj, *tp_obj, *tpr_obj, *pc_obj, *tc_obj;
+    PyObject *pn_obj = Py_None, *tn_obj = Py_None, *pv_obj = Py_None, *tv_obj = Py_None;
+    long band;
+    double tol = 0.0, k = 0.0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOOOlOO|OOOOdd:refine_decide", kwlist, &t_obj, &lt_obj, &tp_obj,
+                                     &tpr_obj, &band, &pc_obj, &tc_obj, &pn_obj, &tn_obj, &pv_obj, &tv_obj, &tol, &k))
+        return NULL;
+    pb_cotree *t = get_cotree(t_obj);
+    if (!t || check_band(band) < 0) return NULL;
+    Py_ssize_t L = pb_cotree_leaf_count(t), P = pb_cotree_probe_count(t), C = (Py_ssize_t)pb_sh_count((uint32_t)band);
+    held_buffer lt = {0}, tp = {0}, tpr = {0}, pc = {0}, tc = {0}, pn = {0}, tn = {0}, pv = {0}, tv = {0};
+    PyObject *result = NULL;
+    if (get_buffer(lt_obj, "leaf_tests", 'i', 0, L * PB_REFINE_TESTS_PER_LEAF, &lt) < 0 ||
+        get_buffer(tp_obj, "test_positions", 'd', 3, -1, &tp) < 0)
+        goto done;
+    Py_ssize_t T = tp.count / 3;
+    if (get_buffer(tpr_obj, "test_probe", 'i', 0, T, &tpr) < 0 ||
+        get_buffer(pc_obj, "probe_coeffs", 'd', 0, P * C * 3, &pc) < 0 ||
+        get_buffer(tc_obj, "test_coeffs", 'd', 0, T * C * 3, &tc) < 0 ||
+        (pn_obj != Py_None && get_buffer(pn_obj, "probe_noise", 'f', 0, P, &pn) < 0) ||
+        (tn_obj != Py_None && get_buffer(tn_obj, "test_noise", 'f', 0, T, &tn) < 0) ||
+        (pv_obj != Py_None && get_buffer(pv_obj, "probe_validity", 'f', 0, P, &pv) < 0) ||
+        (tv_obj != Py_None && get_buffer(tv_obj, "test_valid", 'B', 0, T, &tv) < 0))
+        goto done;
+    {
+        const int32_t *ltv = lt.view.buf, *tprv = tpr.view.buf;
+        for (Py_ssize_t i = 0; i < L * PB_REFINE_TESTS_PER_LEAF; i++)
+            if (ltv[i] < -1 || ltv[i] >= T) {
+                PyErr_Format(PyExc_ValueError, "leaf_tests[%zd] = %d is not a test point index", i, (int)ltv[i]);
+                goto done;
+            }
+        for (Py_ssize_t i = 0; i < T; i++)
+            if (tprv[i] < -1 || tprv[i] >= P) {
+                PyErr_Format(PyExc_ValueError, "test_probe[%zd] = %d is not a probe index", i, (int)tprv[i]);
+                goto done;
+            }
+        pb_refine_tests tests = {.point_count = (uint32_t)T,
+                                 .positions = tp.view.buf,
+                                 .probe = tpr.view.buf,
+                                 .leaf_count = (uint32_t)L,
+                                 .leaf_tests = lt.view.buf};
+        pb_refine_desc d = {.max_band = (uint32_t)band,
+                            .probe_coeffs = pc.view.buf,
+                            .test_coeffs = tc.view.buf,
+                            .probe_noise = pn.view.obj ? pn.view.buf : NULL,
+                            .test_noise = tn.view.obj ? tn.view.buf : NULL,
+                            .probe_validity = pv.view.obj ? pv.view.buf : NULL,
+                            .test_valid = tv.view.obj ? tv.view.buf : NULL,
+                            .tolerance = tol,
+                            .noise_k = k};
+        PyObject *so = PyByteArray_FromStringAndSize(NULL, L);
+        PyObject *eo = PyByteArray_FromStringAndSize(NULL, L * 8);
+        PyObject *ho = PyByteArray_FromStringAndSize(NULL, L * 8);
+        if (!so || !eo || !ho) {
+            Py_XDECREF(so);
+            Py_XDECREF(eo);
+            Py_XDECREF(ho);
+            goto done;
+        }
+        pb_error err = {0};
+        pb_result r = pb_refine_decide(t, &tests, &d, (uint8_t *)PyByteArray_AsString(so),
+                                       (double *)(void *)PyByteArray_AsString(eo),
+                                       (double *)(void *)PyByteArray_AsString(ho), &err);
+        if (r != PB_SUCCESS) {
+            Py_DECREF(so);
+            Py_DECREF(eo);
+            Py_DECREF(ho);
+            raise_core(module, r, &err);
+            goto done;
+        }
+        result = Py_BuildValue("(NNN)", so, eo, ho);
+    }
+done:
+    release(&lt);
+    release(&tp);
+    release(&tpr);
+    release(&pc);
+    release(&tc);
+    release(&pn);
+    release(&tn);
+    release(&pv);
+    release(&tv);
+    return result;
+}
+
+static PyObject *py_shprobe_write_v3(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"path",     "handle",           "coeffs",          "representation",
+                             "max_band", "storage",          "probe_scale",     "probe_ambient",
+                             "validity", "default_sh_scale", "default_ambient", NULL};
+    PyObject *path = NULL, *h_obj, *c_obj, *scale_obj = Py_None, *amb_obj = Py_None, *val_obj = Py_None;
+    long repr, band, storage = 0;
+    float def_scale = 1.0f, def_ambient = 0.1f;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&OOll|lOOOff:shprobe_write_v3", kwlist, PyUnicode_FSConverter, &path,
+                                     &h_obj, &c_obj, &repr, &band, &storage, &scale_obj, &amb_obj, &val_obj, &def_scale,
+                                     &def_ambient))
+        return NULL;
+    PyObject *result = NULL;
+    pb_shprobe *f = NULL;
+    held_buffer coeffs = {0}, scale = {0}, amb = {0}, val = {0};
+    pb_error err = {0};
+    pb_result r = PB_SUCCESS;
+    if (check_band(band) < 0) goto done;
+    if (repr < 0 || repr > 1 || storage < 0 || storage > 1) {
+        PyErr_Format(PyExc_ValueError, "representation %ld / storage %ld: expected 0 or 1", repr, storage);
+        goto done;
+    }
+    if (PyCapsule_IsValid(h_obj, CAP_COTREE))
+        r = pb_shprobe_from_cotree(PyCapsule_GetPointer(h_obj, CAP_COTREE), (uint32_t)repr, (uint32_t)band, &f, &err);
+    else if (PyCapsule_IsValid(h_obj, CAP_TETRA))
+        r = pb_shprobe_from_tetra(PyCapsule_GetPointer(h_obj, CAP_TETRA), NULL, (uint32_t)repr, (uint32_t)band, &f,
+                                  &err);
+    else {
+        PyErr_SetString(PyExc_TypeError, "expected a corner octree or tetrahedra handle");
+        goto done;
+    }
+    if (r != PB_SUCCESS) {
+        raise_core(module, r, &err);
+        goto done;
+    }
+    Py_ssize_t n = f->probe_count, per = (Py_ssize_t)pb_shprobe_colour_count(f) * 3;
+    if (get_buffer(c_obj, "coeffs", 'f', 0, n * per, &coeffs) < 0 ||
+        get_optional(scale_obj, "probe_scale", n, &scale) < 0 || get_optional(amb_obj, "probe_ambient", n, &amb) < 0 ||
+        get_optional(val_obj, "validity", n, &val) < 0)
+        goto done;
+    memcpy(f->coeffs, coeffs.view.buf, (size_t)(n * per) * sizeof(float));
+    f->default_sh_scale = def_scale;
+    f->default_ambient = def_ambient;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        f->probe_scale[i] = scale.view.obj ? ((const float *)scale.view.buf)[i] : 1.0f;
+        f->probe_ambient[i] = amb.view.obj ? ((const float *)amb.view.buf)[i] : def_ambient;
+        f->validity[i] = val.view.obj ? ((const float *)val.view.buf)[i] : 1.0f;
+    }
+    f->storage = (uint32_t)storage;
+    {
+        const char *cpath = PyBytes_AsString(path);
+        Py_BEGIN_ALLOW_THREADS r = pb_shprobe_write(cpath, f, &err);
+        Py_END_ALLOW_THREADS if (r != PB_SUCCESS) raise_core(module, r, &err);
+        else result = PyLong_FromSize_t((size_t)n);
+    }
+done:
+    release(&coeffs);
+    release(&scale);
+    release(&amb);
+    release(&val);
+    pb_shprobe_destroy(f);
+    Py_DECREF(path);
+    return result;
+}
+
+static PyObject *py_interp_from_file(PyObject *module, PyObject *args)
+{
+    PyObject *path = NULL;
+    if (!PyArg_ParseTuple(args, "O&:interp_from_file", PyUnicode_FSConverter, &path)) return NULL;
+    pb_shprobe *f = NULL;
+    pb_error err = {0};
+    pb_cotree *tree = NULL;
+    pb_tetra *tetra = NULL;
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS r = pb_shprobe_read(PyBytes_AsString(path), &f, &err);
+    if (r == PB_SUCCESS) r = pb_interp_from_shprobe(f, &tree, &tetra, &err);
+    Py_END_ALLOW_THREADS Py_DECREF(path);
+    pb_shprobe_destroy(f);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    return tree ? cotree_capsule(tree) : tetra_capsule(tetra);
+}
+
+static PyObject *py_shprobe_resample_dense(PyObject *module, PyObject *args)
+{
+    PyObject *path = NULL;
+    double spacing = 0.0;
+    if (!PyArg_ParseTuple(args, "O&|d:shprobe_resample_dense", PyUnicode_FSConverter, &path, &spacing)) return NULL;
+    pb_shprobe *f = NULL, *g = NULL;
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS r = pb_shprobe_read(PyBytes_AsString(path), &f, &err);
+    if (r == PB_SUCCESS) r = pb_interp_resample_dense(f, spacing, &g, &err);
+    Py_END_ALLOW_THREADS Py_DECREF(path);
+    pb_shprobe_destroy(f);
+    if (r != PB_SUCCESS) return raise_core(module, r, &err);
+    PyObject *d = shprobe_dict(g);
+    pb_shprobe_destroy(g);
+    return d;
+}
+
+/* placement_classify(volumes, geometry, points float64[N*3] or None, boxes float64[M*4] or None,
+ * min_cell_size=0, max_cell_size=0, threads=0, solid_ray_count=0, solid_backface_ratio=0) ->
+ * (inside uint8[N], backface_ratio float32[N], box_class uint8[M]) */
+static PyObject *py_placement_classify(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"volumes", "geometry",        "points",
+                             "boxes",   "min_cell_size",   "max_cell_size",
+                             "threads", "solid_ray_count", "solid_backface_ratio",
+                             NULL};
+    PyObject *vol_obj, *geo_obj, *p_obj = Py_None, *b_obj = Py_None;
+    double min_cell = 0.0, max_cell = 0.0, backface = 0.0;
+    Py_ssize_t threads = 0, rays = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO|OOddnnd:placement_classify", kwlist, &vol_obj, &geo_obj, &p_obj,
+                                     &b_obj, &min_cell, &max_cell, &threads, &rays, &backface))
+        return NULL;
+    uint32_t threads32, rays32;
+    if (check_u32(threads, "threads", &threads32) < 0 || check_u32(rays, "solid_ray_count", &rays32) < 0) return NULL;
+    held_buffer pts = {0}, bx = {0};
+    if (p_obj != Py_None && get_buffer(p_obj, "points", 'd', 3, -1, &pts) < 0) return NULL;
+    if (b_obj != Py_None && get_buffer(b_obj, "boxes", 'd', 4, -1, &bx) < 0) {
+        release(&pts);
+        return NULL;
+    }
+    Py_ssize_t n = pts.count / 3, m = bx.count / 4;
+    PyObject *in_o = PyByteArray_FromStringAndSize(NULL, n), *ratio_o = PyByteArray_FromStringAndSize(NULL, n * 4);
+    PyObject *cls_o = PyByteArray_FromStringAndSize(NULL, m);
+    mesh_list vols = {0}, geo = {0};
+    PyObject *result = NULL;
+    if (!in_o || !ratio_o || !cls_o || n > UINT32_MAX || m > UINT32_MAX) {
+        if (in_o && ratio_o && cls_o) PyErr_SetString(PyExc_ValueError, "too many points or boxes");
+        goto done;
+    }
+    if (mesh_list_get(vol_obj, "volumes", &vols) < 0) goto done;
+    if (mesh_list_get(geo_obj, "geometry", &geo) < 0) goto done;
+    {
+        pb_placement_desc desc = {0};
+        desc.volumes = vols.desc;
+        desc.volume_count = (uint32_t)vols.count;
+        desc.geometry = geo.desc;
+        desc.geometry_count = (uint32_t)geo.count;
+        desc.min_cell_size = min_cell;
+        desc.max_cell_size = max_cell;
+        desc.solid_ray_count = rays32;
+        desc.solid_backface_ratio = backface;
+        desc.thread_count = threads32;
+        pb_classify_query q = {pts.view.obj ? pts.view.buf : NULL,    (uint32_t)n,
+                               (uint8_t *)PyByteArray_AsString(in_o), (float *)(void *)PyByteArray_AsString(ratio_o),
+                               bx.view.obj ? bx.view.buf : NULL,      (uint32_t)m,
+                               (uint8_t *)PyByteArray_AsString(cls_o)};
+        pb_error err = {0};
+        pb_result r;
+        Py_BEGIN_ALLOW_THREADS r = pb_placement_classify(&desc, &q, &err);
+        Py_END_ALLOW_THREADS if (r != PB_SUCCESS) raise_core(module, r, &err);
+        else result = Py_BuildValue("(OOO)", in_o, ratio_o, cls_o);
+    }
+done:
+    mesh_list_free(&vols);
+    mesh_list_free(&geo);
+    Py_XDECREF(in_o);
+    Py_XDECREF(ratio_o);
+    Py_XDECREF(cls_o);
+    release(&pts);
+    release(&bx);
+    return result;
+}
+
 /* ---- module ----------------------------------------------------------------------------------- */
 
 static PyObject *py_set_error_class(PyObject *module, PyObject *cls)
@@ -767,6 +1324,58 @@ static PyObject *py_set_error_class(PyObject *module, PyObject *cls)
     st->error_class = Py_NewRef(cls);
     Py_XDECREF(old);
     Py_RETURN_NONE;
+}
+
+/* ---- ambient cube ----------------------------------------------------------------------------- */
+
+static PyObject *py_ambient_cube_from_sh(PyObject *module, PyObject *args)
+{
+    PyObject *c_obj;
+    long band, fit;
+    if (!PyArg_ParseTuple(args, "Oll:ambient_cube_from_sh", &c_obj, &band, &fit) || check_band(band) < 0) return NULL;
+    const Py_ssize_t per = (Py_ssize_t)pb_sh_count((uint32_t)band) * 3;
+    held_buffer coeffs;
+    if (get_buffer(c_obj, "coeffs", 'd', per, -1, &coeffs) < 0) return NULL;
+    const Py_ssize_t n = coeffs.count / per;
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, n * 18 * 8);
+    pb_error err = {0};
+    pb_result r = PB_SUCCESS;
+    if (out) {
+        double *o = (double *)(void *)PyByteArray_AsString(out);
+        const double *c = coeffs.view.buf;
+        Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < n && r == PB_SUCCESS; i++) r =
+            pb_ambient_cube_from_sh((uint32_t)band, c + per * i, (pb_ambient_cube_fit)fit, o + 18 * i, &err);
+        Py_END_ALLOW_THREADS
+    }
+    release(&coeffs);
+    if (out && r != PB_SUCCESS) {
+        Py_DECREF(out);
+        return raise_core(module, r, &err);
+    }
+    return out;
+}
+
+static PyObject *py_ambient_cube_irradiance(PyObject *module, PyObject *args)
+{
+    PyObject *c_obj, *n_obj;
+    if (!PyArg_ParseTuple(args, "OO:ambient_cube_irradiance", &c_obj, &n_obj)) return NULL;
+    held_buffer cube, normals;
+    if (get_buffer(c_obj, "cube", 'd', 0, 18, &cube) < 0) return NULL;
+    if (get_buffer(n_obj, "normals", 'd', 3, -1, &normals) < 0) {
+        release(&cube);
+        return NULL;
+    }
+    Py_ssize_t n = normals.count / 3;
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, n * 3 * 8);
+    if (out) {
+        double *o = (double *)(void *)PyByteArray_AsString(out);
+        const double *c = cube.view.buf, *nrm = normals.view.buf;
+        Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < n; i++) pb_ambient_cube_irradiance(c, nrm + 3 * i, o + 3 * i);
+        Py_END_ALLOW_THREADS
+    }
+    release(&cube);
+    release(&normals);
+    return out;
 }
 
 static PyObject *py_result_string(PyObject *module, PyObject *args)
@@ -946,6 +1555,10 @@ static PyMethodDef methods[] = {
     {"shprobe_lookup", (PyCFunction)(void (*)(void))py_shprobe_lookup, METH_VARARGS | METH_KEYWORDS,
      "shprobe_lookup(grid, grid_dims, grid_origin, grid_spacing, probe_count, points: float32[N*3], "
      "grid_axes=None) -> bytearray int32[N]"},
+    {"ambient_cube_from_sh", py_ambient_cube_from_sh, METH_VARARGS,
+     "ambient_cube_from_sh(coeffs: float64[P*count*3], max_band, fit) -> bytearray float64[P*18]"},
+    {"ambient_cube_irradiance", py_ambient_cube_irradiance, METH_VARARGS,
+     "ambient_cube_irradiance(cube: float64[18], normals: float64[N*3]) -> bytearray float64[N*3]"},
     {"direct_project", (PyCFunction)(void (*)(void))py_direct_project, METH_VARARGS | METH_KEYWORDS,
      "direct_project(lights: float64[N*20], probes: float64[P*3], max_band=2, samples=0, geometry=None, "
      "ray_offset=0) -> bytearray float64[P*count*3] (docs/direct-light.md)"},
@@ -953,6 +1566,29 @@ static PyMethodDef methods[] = {
      "sky_table(world: float32[H*W*C], width, height, channels, pano_width, pano_height, max_band=2, "
      "rotation=None) -> bytearray float64[pano_h*pano_w*count*3]"},
     {"result_string", py_result_string, METH_VARARGS, "result_string(code) -> str"},
+    {"placement_classify", (PyCFunction)(void (*)(void))py_placement_classify, METH_VARARGS | METH_KEYWORDS,
+     "placement_classify(volumes, geometry, points=None, boxes=None, ...) -> (inside, backface_ratio, box_class)"},
+    {"cotree_create", py_cotree_create, METH_VARARGS,
+     "cotree_create(origin, min_cell, root_level, root_dims) -> corner octree handle (not finalized)"},
+    {"cotree_from_leaves", py_cotree_from_leaves, METH_VARARGS,
+     "cotree_from_leaves(origin, min_cell, dims, leaves: uint32[N*4]) -> handle"},
+    {"cotree_split", py_cotree_split, METH_VARARGS, "cotree_split(tree, flags: uint8[leaves]) -> leaves split"},
+    {"cotree_drop", py_cotree_drop, METH_VARARGS, "cotree_drop(tree, flags: uint8[leaves]) -> 0"},
+    {"cotree_finalize", py_cotree_finalize, METH_O, "cotree_finalize(tree): number probes, hanging rules"},
+    {"cotree_info", py_cotree_info, METH_O, "cotree_info(tree) -> dict (leaves, probes, positions, rules)"},
+    {"tetra_create", py_tetra_create, METH_VARARGS, "tetra_create(positions: float64[P*3]) -> tetrahedra handle"},
+    {"tetra_info", py_tetra_info, METH_O, "tetra_info(tetra) -> dict (tets, neighbours)"},
+    {"interp_query", py_interp_query, METH_VARARGS,
+     "interp_query(handle, points: float64[N*3], validity=None) -> (int32[N*K], float64[N*K], K)"},
+    {"refine_tests", py_refine_tests, METH_VARARGS, "refine_tests(tree, active=None) -> dict of test points"},
+    {"refine_decide", (PyCFunction)(void (*)(void))py_refine_decide, METH_VARARGS | METH_KEYWORDS,
+     "refine_decide(tree, leaf_tests, test_positions, test_probe, max_band, probe_coeffs, test_coeffs, ...) -> "
+     "(split uint8[L], error float64[L], threshold float64[L])"},
+    {"shprobe_write_v3", (PyCFunction)(void (*)(void))py_shprobe_write_v3, METH_VARARGS | METH_KEYWORDS,
+     "shprobe_write_v3(path, handle, coeffs, representation, max_band, storage=0, ...) -> probe count"},
+    {"interp_from_file", py_interp_from_file, METH_VARARGS, "interp_from_file(path) -> handle of the file's structure"},
+    {"shprobe_resample_dense", py_shprobe_resample_dense, METH_VARARGS,
+     "shprobe_resample_dense(path, spacing=0) -> dict (a dense grid file image, SH only)"},
     {"_set_error_class", py_set_error_class, METH_O,
      "_set_error_class(cls): raise core errors as cls(message) with .code set"},
     {NULL, NULL, 0, NULL},
@@ -988,6 +1624,13 @@ static struct PyModuleDef schnee_module = {
 
 PyMODINIT_FUNC PyInit__schnee_native(void)
 {
+#ifdef SCHNEE_EMBREE_DYN
+    char embree_msg[512] = "";
+    if (pb_embree_load(embree_msg, sizeof embree_msg) != 0) { /* Embree through dlsym: pb_embree_dyn.h */
+        PyErr_SetString(PyExc_ImportError, embree_msg);
+        return NULL;
+    }
+#endif
     PyObject *m = PyModule_Create(&schnee_module);
     if (!m) return NULL;
     PyObject *error = PyErr_NewExceptionWithDoc("_schnee_native.Error", "A core error; `.code` is the pb_result name.",

@@ -1,9 +1,9 @@
 /* Direct light of lamps and sky projected onto SH by stratified quadrature (docs/direct-light.md). */
 #include "schnee/pb_direct.h"
 
+#include "schnee/pb_embree_compat.h"
 #include "schnee/pb_sh.h"
 
-#include <embree3/rtcore.h>
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
@@ -136,9 +136,7 @@ static bool visible(const accum *a, const double dir[3], double dist)
     if (!(ray->tfar > ray->tnear)) return true;
     ray->mask = 0xFFFFFFFFu;
     ray->flags = 0;
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    rtcOccluded1(a->scene->scene, &ctx, ray);
+    pb_rtc_occluded1(a->scene->scene, ray);
     return !(ray->tfar < 0.0f); /* Embree sets tfar = -inf on a hit */
 }
 
@@ -261,7 +259,8 @@ static void project_point(accum *a, const pb_light *l, uint32_t samples)
      * ≤ 3.6) or asin(r/d) (sphere, Cycles ≥ 4.0). 1 − cos β computed without cancellation. */
     double one_minus_cos;
     if (l->legacy_point) {
-        const double h = hypot(dist, r);
+        /* not hypot(): glibc 2.35 versioned it anew, and the package promises glibc 2.34 */
+        const double h = sqrt(dist * dist + r * r);
         one_minus_cos = r * r / (h * (h + dist));
     } else {
         if (!(r < dist)) return; /* probe inside the sphere lamp: nothing (documented) */

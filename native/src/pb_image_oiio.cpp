@@ -63,6 +63,242 @@ std::string format_for(const std::string &path, const unsigned char *head, size_
     return ext.empty() ? std::string() : ext.substr(1);
 }
 
+// The documented size limits (pb_image.h), checked before any pixel is allocated or read.
+pb_result check_limits(const char *path, uint64_t w, uint64_t h, uint64_t c, pb_error *err)
+{
+    // Each factor is bounded before a product that could overflow is formed.
+    if (w > PB_IMAGE_MAX_DIM || h > PB_IMAGE_MAX_DIM || c > PB_IMAGE_MAX_CHANNELS || w * h * c > PB_IMAGE_MAX_VALUES ||
+        w * h * c > std::numeric_limits<size_t>::max() / sizeof(float))
+        return pb_error_set(err, PB_ERROR_TOO_LARGE,
+                            "image '%s' is too large: %llux%llu with %llu channel(s); the limits are %u pixels per "
+                            "side, %u channels and %llu values (width x height x channels)",
+                            path, (unsigned long long)w, (unsigned long long)h, (unsigned long long)c, PB_IMAGE_MAX_DIM,
+                            PB_IMAGE_MAX_CHANNELS, (unsigned long long)PB_IMAGE_MAX_VALUES);
+    return PB_SUCCESS;
+}
+
+// The size a PFM header ("PF" or "Pf", width, height, scale, whitespace-separated) claims, if the
+// first bytes hold one: checked against the limits before OpenImageIO sees the file, because
+// OpenImageIO 2.5 and later refuse PNM sides above 65535 themselves, with a different error.
+bool pfm_header_size(const unsigned char *head, size_t got, uint64_t *w, uint64_t *h, uint64_t *c)
+{
+    if (got < 3 || head[0] != 'P' || (head[1] != 'F' && head[1] != 'f')) return false;
+    *c = head[1] == 'F' ? 3 : 1;
+    uint64_t dims[2] = {0, 0};
+    size_t i = 2;
+    for (uint64_t &d : dims) {
+        const size_t start = i;
+        while (i < got && std::isspace(head[i])) i++;
+        if (i == start || i >= got || !std::isdigit(head[i])) return false;
+        for (; i < got && std::isdigit(head[i]); i++) {
+            if (d > (uint64_t)1 << 40) return false;
+            d = d * 10 + (uint64_t)(head[i] - '0');
+        }
+        if (i >= got || !std::isspace(head[i])) return false;
+    }
+    *w = dims[0];
+    *h = dims[1];
+    return true;
+}
+
+// Reads n bytes at offset off, or fewer only at end of file; EINTR is retried.
+bool pread_full(int fd, uint64_t off, unsigned char *buf, size_t n, size_t *got)
+{
+    *got = 0;
+    while (*got < n) {
+        const ssize_t r = pread(fd, buf + *got, n - *got, (off_t)(off + *got));
+        if (r < 0 && errno == EINTR) continue;
+        if (r < 0) return false;
+        if (r == 0) break;
+        *got += (size_t)r;
+    }
+    return true;
+}
+
+uint32_t le32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+// Whether an attribute's declared size is the size OpenEXR will read for its type: OpenEXR reads
+// a known fixed-size type's own size whatever the declared one says, a channel list up to its
+// terminating empty name, a string vector by its inner lengths, a preview by its width x height;
+// a declared size that disagrees would make OpenEXR read the rest of the header somewhere else than
+// this walk does (a fuzzer file did exactly that to reach a 1.6 GB "attribute"). nullptr when it
+// agrees, else the reason.
+const char *exr_attribute_mismatch(int fd, const char *type, uint64_t at, uint64_t size, size_t max_name)
+{
+    static const struct {
+        const char *type;
+        uint64_t size;
+    } fixed[] = {{"box2i", 16},
+                 {"box2f", 16},
+                 {"v2i", 8},
+                 {"v2f", 8},
+                 {"v2d", 16},
+                 {"v3i", 12},
+                 {"v3f", 12},
+                 {"v3d", 24},
+                 {"m33f", 36},
+                 {"m33d", 72},
+                 {"m44f", 64},
+                 {"m44d", 128},
+                 {"int", 4},
+                 {"float", 4},
+                 {"double", 8},
+                 {"compression", 1},
+                 {"lineOrder", 1},
+                 {"envmap", 1},
+                 {"tiledesc", 9},
+                 {"rational", 8},
+                 {"timecode", 8},
+                 {"keycode", 28},
+                 {"chromaticities", 32},
+                 {"deepImageState", 1}};
+    for (const auto &f : fixed)
+        if (std::strcmp(type, f.type) == 0) return size == f.size ? nullptr : "its size is not its type's size";
+    if (std::strcmp(type, "idmanifest") == 0) return "ID manifests are not read";
+    if (std::strcmp(type, "floatvector") == 0) return size % 4 == 0 ? nullptr : "its size is not a multiple of 4";
+    const bool chlist = std::strcmp(type, "chlist") == 0, strings = std::strcmp(type, "stringvector") == 0,
+               preview = std::strcmp(type, "preview") == 0;
+    if (!chlist && !strings && !preview) return nullptr; // read as exactly `size` bytes
+    if (size > (1u << 20) && !preview) return "its value is larger than 1 MiB";
+    std::string v((size_t)(preview ? std::min<uint64_t>(size, 8) : size), '\0');
+    size_t got = 0;
+    if (!pread_full(fd, at, (unsigned char *)&v[0], v.size(), &got) || got != v.size()) return "it is truncated";
+    const unsigned char *b = (const unsigned char *)v.data();
+    if (preview) {
+        if (size < 8) return "its preview has no size";
+        return size == 8 + 4 * (uint64_t)le32(b) * le32(b + 4) ? nullptr : "its preview's size disagrees";
+    }
+    size_t i = 0;
+    while (i < v.size()) {
+        if (chlist) {
+            const void *z = std::memchr(b + i, 0, std::min(v.size() - i, max_name));
+            if (!z) return "a channel name is not terminated";
+            const size_t n = (size_t)((const unsigned char *)z - (b + i));
+            if (n == 0) return i + 1 == v.size() ? nullptr : "its channel list ends before its size";
+            i += n + 1 + 16;
+        } else {
+            if (v.size() - i < 4) return "a string is truncated";
+            const uint64_t n = le32(b + i);
+            if (n > v.size() - i - 4) return "a string is longer than the attribute";
+            i += 4 + (size_t)n;
+        }
+    }
+    return chlist ? "its channel list is not terminated" : (i == v.size() ? nullptr : "its strings overrun it");
+}
+
+// The OpenEXR header structure (every part's attributes), walked before OpenEXR sees the file.
+// OpenEXR allocates each attribute's announced size before reading it (an 840-byte file announcing
+// a 270 MB attribute made the sky fuzzer run out of memory), and sizes its chunk offset tables from
+// the dataWindow and tiles; so: every attribute must fit in the file, every part's dataWindow and
+// tile size must be within the limits, and the offset tables those announce (8 bytes per chunk,
+// stored in the file) must fit in the file too. Layout: magic, version (flags 0x200 tiled, 0x400
+// long names, 0x800 non-image / deep, 0x1000 multi-part), then headers of attributes
+// (name\0 type\0 int32 size, value) each ended by an empty name; multi-part files end the list of
+// headers with an empty header.
+pb_result exr_check_header(int fd, const char *path, uint64_t size, pb_error *err)
+{
+    const uint64_t max_attributes = 1u << 16;
+    unsigned char v[8];
+    size_t got = 0;
+    if (!pread_full(fd, 0, v, sizeof v, &got)) return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
+    if (got < sizeof v) return pb_error_set(err, PB_ERROR_FORMAT, "%s: truncated OpenEXR header", path);
+    const uint32_t flags = (uint32_t)v[5] << 8 | (uint32_t)v[6] << 16 | (uint32_t)v[7] << 24;
+    if (v[4] != 2)
+        return pb_error_set(err, PB_ERROR_FORMAT, "%s: OpenEXR file version %u is not supported (only 2)", path,
+                            (unsigned)v[4]);
+    if (flags & 0x800)
+        return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' is a deep image; flat pixels are required", path);
+    const bool multipart = (flags & 0x1000) != 0;
+    const size_t max_name = (flags & 0x400) ? 256 : 32; // including the terminating zero
+    uint64_t off = 8, attributes = 0, chunks_total = 0;
+    for (int part = 0;; part++) {
+        int64_t dw[4] = {0, 0, -1, -1};
+        uint64_t tile_x = 0, tile_y = 0;
+        bool have_dw = false, empty = true;
+        for (;;) {
+            // name\0 type\0 size: at most 2 * max_name + 4 bytes.
+            unsigned char buf[2 * 256 + 4];
+            if (!pread_full(fd, off, buf, 2 * max_name + 4, &got))
+                return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
+            if (got == 0) return pb_error_set(err, PB_ERROR_FORMAT, "%s: truncated OpenEXR header", path);
+            if (buf[0] == 0) { // end of this header
+                off += 1;
+                break;
+            }
+            empty = false;
+            if (++attributes > max_attributes)
+                return pb_error_set(err, PB_ERROR_FORMAT, "%s: more than %llu OpenEXR header attributes", path,
+                                    (unsigned long long)max_attributes);
+            const unsigned char *name_end = (const unsigned char *)std::memchr(buf, 0, std::min(got, max_name));
+            if (!name_end) return pb_error_set(err, PB_ERROR_FORMAT, "%s: malformed OpenEXR attribute name", path);
+            const size_t type_at = (size_t)(name_end - buf) + 1;
+            const unsigned char *type_end =
+                type_at < got ? (const unsigned char *)std::memchr(buf + type_at, 0, std::min(got - type_at, max_name))
+                              : nullptr;
+            if (!type_end) return pb_error_set(err, PB_ERROR_FORMAT, "%s: malformed OpenEXR attribute type", path);
+            const size_t size_at = (size_t)(type_end - buf) + 1;
+            if (size_at + 4 > got) return pb_error_set(err, PB_ERROR_FORMAT, "%s: truncated OpenEXR header", path);
+            const int32_t asize = (int32_t)((uint32_t)buf[size_at] | (uint32_t)buf[size_at + 1] << 8 |
+                                            (uint32_t)buf[size_at + 2] << 16 | (uint32_t)buf[size_at + 3] << 24);
+            const uint64_t value_at = off + size_at + 4;
+            if (asize < 0 || value_at + (uint64_t)asize > size)
+                return pb_error_set(err, PB_ERROR_FORMAT,
+                                    "%s: OpenEXR attribute at offset %llu announces %lld bytes, past the end of the "
+                                    "%llu-byte file",
+                                    path, (unsigned long long)off, (long long)asize, (unsigned long long)size);
+            const char *name = (const char *)buf;
+            const char *type = (const char *)buf + type_at;
+            if (const char *why = exr_attribute_mismatch(fd, type, value_at, (uint64_t)asize, max_name))
+                return pb_error_set(err, PB_ERROR_FORMAT,
+                                    "%s: OpenEXR attribute at offset %llu (type %.32s, %lld bytes) is malformed: %s",
+                                    path, (unsigned long long)off, type, (long long)asize, why);
+            unsigned char value[16];
+            if ((std::strcmp(name, "dataWindow") == 0 && std::strcmp(type, "box2i") == 0 && asize == 16) ||
+                (std::strcmp(name, "tiles") == 0 && std::strcmp(type, "tiledesc") == 0 && asize == 9)) {
+                if (!pread_full(fd, value_at, value, (size_t)asize, &got) || got != (size_t)asize)
+                    return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
+                int32_t f[4] = {0, 0, 0, 0};
+                for (int i = 0; i < 4 && 4 * i + 4 <= asize; i++) f[i] = (int32_t)le32(value + 4 * i);
+                if (asize == 16) {
+                    for (int i = 0; i < 4; i++) dw[i] = f[i];
+                    have_dw = true;
+                } else {
+                    tile_x = (uint32_t)f[0];
+                    tile_y = (uint32_t)f[1];
+                }
+            }
+            off = value_at + (uint64_t)asize;
+        }
+        if (multipart && empty) break; // the empty header that ends a multi-part file's list
+        if (!have_dw) return pb_error_set(err, PB_ERROR_FORMAT, "%s: OpenEXR part %d has no dataWindow", path, part);
+        const int64_t w = dw[2] - dw[0] + 1, h = dw[3] - dw[1] + 1;
+        if (w <= 0 || h <= 0)
+            return pb_error_set(err, PB_ERROR_FORMAT, "%s: OpenEXR part %d has an empty dataWindow", path, part);
+        pb_result r = check_limits(path, (uint64_t)w, (uint64_t)h, 1, err);
+        if (r != PB_SUCCESS) return r;
+        // The level-0 chunk count (a lower bound of the offset table; scan-line chunks hold at most
+        // 256 lines, DWAB's maximum). Mip/rip levels only add chunks.
+        uint64_t chunks = ((uint64_t)h + 255) / 256;
+        if ((flags & 0x200) || tile_x || tile_y) {
+            if (tile_x == 0 || tile_y == 0 || tile_x > PB_IMAGE_MAX_DIM || tile_y > PB_IMAGE_MAX_DIM)
+                return pb_error_set(err, PB_ERROR_FORMAT, "%s: OpenEXR part %d has tiles of %llux%llu pixels", path,
+                                    part, (unsigned long long)tile_x, (unsigned long long)tile_y);
+            chunks = (((uint64_t)w + tile_x - 1) / tile_x) * (((uint64_t)h + tile_y - 1) / tile_y);
+        }
+        chunks_total += chunks;
+        if (chunks_total * 8 > size)
+            return pb_error_set(err, PB_ERROR_FORMAT,
+                                "%s: the OpenEXR header announces at least %llu chunks, whose offset table alone "
+                                "is larger than the %llu-byte file",
+                                path, (unsigned long long)chunks_total, (unsigned long long)size);
+        if (!multipart) break;
+    }
+    return PB_SUCCESS;
+}
+
 // Closes the descriptor (and the FILE wrapping it) on every path out of read_impl.
 struct file_guard {
     int fd = -1;
@@ -87,13 +323,22 @@ pb_result read_impl(const char *path, pb_image *out, pb_error *err)
     if (size > PB_IMAGE_MAX_FILE_BYTES)
         return pb_error_set(err, PB_ERROR_TOO_LARGE, "%s: %llu bytes is above the image file limit of %llu bytes", path,
                             (unsigned long long)size, (unsigned long long)PB_IMAGE_MAX_FILE_BYTES);
-    unsigned char head[4] = {0, 0, 0, 0};
+    unsigned char head[64] = {0};
     size_t got = 0;
     r = pb_read_full_(g.fd, path, head, sizeof head, &got, err);
     if (r != PB_SUCCESS) return r;
     if (lseek(g.fd, 0, SEEK_SET) != 0)
         return pb_error_set(err, PB_ERROR_IO, "%s: cannot seek: %s", path, std::strerror(errno));
     const std::string format = format_for(path, head, got);
+    uint64_t pfm_w, pfm_h, pfm_c;
+    if (format == "openexr") {
+        r = exr_check_header(g.fd, path, size, err);
+        if (r != PB_SUCCESS) return r;
+    }
+    if (format == "pnm" && pfm_header_size(head, got, &pfm_w, &pfm_h, &pfm_c)) {
+        r = check_limits(path, pfm_w, pfm_h, pfm_c, err);
+        if (r != PB_SUCCESS) return r;
+    }
     // 2. OpenImageIO reads through our checked descriptor where the reader supports it (all the
     // formats above do), so the file cannot be swapped for a FIFO or device after the check. The
     // proxy outlives the reader (declared before it), the FILE outlives both.
@@ -123,14 +368,8 @@ pb_result read_impl(const char *path, pb_image *out, pb_error *err)
         return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' has unsupported size %dx%dx%d with %d channel(s)", path,
                             spec.width, spec.height, spec.depth, spec.nchannels);
     const uint64_t w = (uint64_t)spec.width, h = (uint64_t)spec.height, c = (uint64_t)spec.nchannels;
-    // w, h, c < 2^31 each: w*h < 2^62 fits; w*h*c is only formed once w*h and c are bounded.
-    if (w > PB_IMAGE_MAX_DIM || h > PB_IMAGE_MAX_DIM || c > PB_IMAGE_MAX_CHANNELS || w * h * c > PB_IMAGE_MAX_VALUES ||
-        w * h * c > std::numeric_limits<size_t>::max() / sizeof(float))
-        return pb_error_set(err, PB_ERROR_TOO_LARGE,
-                            "image '%s' is too large: %dx%d with %d channel(s); the limits are %u pixels per side, "
-                            "%u channels and %llu values (width x height x channels)",
-                            path, spec.width, spec.height, spec.nchannels, PB_IMAGE_MAX_DIM, PB_IMAGE_MAX_CHANNELS,
-                            (unsigned long long)PB_IMAGE_MAX_VALUES);
+    r = check_limits(path, w, h, c, err);
+    if (r != PB_SUCCESS) return r;
     const size_t count = (size_t)(w * h * c);
     float *data = static_cast<float *>(std::malloc(count * sizeof(float)));
     if (!data)

@@ -26,11 +26,11 @@
  */
 #include "schnee/pb_octree.h"
 
+#include "schnee/pb_embree_compat.h"
 #include "schnee/pb_shprobe.h"
 
 #include "pb_file.h"
 
-#include <embree3/rtcore.h>
 #include <float.h>
 #include <math.h>
 #include <pthread.h>
@@ -367,14 +367,14 @@ static bool box_straddles_volumes(const oct_ctx *c, const double centre[3], doub
 }
 
 /* Inside test: for each of three fixed directions, a ray from the point collects every volume
- * triangle it crosses (an Embree context filter rejects each hit so traversal continues); the point
+ * triangle it crosses (an Embree filter passed with the call rejects each hit so traversal continues); the point
  * is inside the union for that direction when some volume is crossed an odd number of times. The
  * answer is the majority of the three directions, so a ray that grazes an edge or vertex (and may
  * count a crossing twice or not at all) is outvoted. */
 #define INSIDE_MAX_HITS 512
 
 typedef struct inside_ray_ctx {
-    struct RTCIntersectContext ctx; /* first member: Embree passes this pointer to the filter */
+    pb_rtc_context ctx; /* first member: Embree passes this pointer to the filter */
     uint32_t count;
     bool overflow;
     uint32_t geom[INSIDE_MAX_HITS];
@@ -418,8 +418,6 @@ static const double inside_dirs[3][3] = {
 /* Returns 1 inside, 0 outside, −1 unknown (too many crossings recorded). */
 static int inside_one_dir(const oct_ctx *c, const double p[3], const double d[3], inside_ray_ctx *r)
 {
-    rtcInitIntersectContext(&r->ctx);
-    r->ctx.filter = inside_filter;
     r->count = 0;
     r->overflow = false;
     struct RTCRayHit rh;
@@ -434,7 +432,7 @@ static int inside_one_dir(const oct_ctx *c, const double p[3], const double d[3]
     rh.ray.tfar = INFINITY;
     rh.ray.mask = 0xFFFFFFFFu;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(c->vol_scene, &r->ctx, &rh);
+    pb_rtc_intersect1_filtered(c->vol_scene, &r->ctx, inside_filter, &rh);
     if (r->overflow) return -1;
     /* Some volume crossed an odd number of times? */
     for (uint32_t k = 0; k < r->count; k++) {
@@ -945,21 +943,14 @@ typedef struct solid_job {
 
 /* Rays go out in packets of 16 from the same origin (Embree's packet traversal is ~1.5× faster
  * than single rays here). */
-static void solid_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
+/* Back-face hits and hits of the solid test's rays from `ctr` (relative coordinates). */
+static void solid_count(oct_ctx *c, const double ctr[3], uint32_t *hits_out, uint32_t *back_out)
 {
-    solid_job *j = (solid_job *)user;
-    struct RTCIntersectContext ictx;
     struct RTCRayHit16 rh;
     _Alignas(64) int valid[16]; /* Embree requires the 16-wide valid mask 64-byte aligned */
-    for (uint64_t i = begin; i < end; i++) {
-        oct_cell *leaf = &j->leaves[i];
-        j->ratio[i] = 0.0f;
-        if (!(leaf->flags & CELL_CENTRE_IN) || !c->geo_scene) continue;
-        double ctr[3], h;
-        cell_geometry(c, leaf->x, leaf->y, leaf->z, leaf->lg, ctr, &h);
+    {
         uint32_t hits = 0, back = 0;
         for (uint32_t k0 = 0; k0 < c->solid_rays; k0 += 16) {
-            rtcInitIntersectContext(&ictx);
             for (uint32_t l = 0; l < 16; l++) {
                 uint32_t k = k0 + l;
                 valid[l] = k < c->solid_rays ? -1 : 0;
@@ -977,7 +968,7 @@ static void solid_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
                 rh.ray.flags[l] = 0;
                 rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
             }
-            rtcIntersect16(valid, c->geo_scene, &ictx, &rh);
+            pb_rtc_intersect16(valid, c->geo_scene, &rh);
             for (uint32_t l = 0; l < 16; l++) {
                 if (!valid[l] || rh.hit.geomID[l] == RTC_INVALID_GEOMETRY_ID) continue;
                 uint32_t k = k0 + l;
@@ -998,6 +989,22 @@ static void solid_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
                 if (dot3(n, dir) > 0) back++;
             }
         }
+        *hits_out = hits;
+        *back_out = back;
+    }
+}
+
+static void solid_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
+{
+    solid_job *j = (solid_job *)user;
+    for (uint64_t i = begin; i < end; i++) {
+        oct_cell *leaf = &j->leaves[i];
+        j->ratio[i] = 0.0f;
+        if (!(leaf->flags & CELL_CENTRE_IN) || !c->geo_scene) continue;
+        double ctr[3], h;
+        cell_geometry(c, leaf->x, leaf->y, leaf->z, leaf->lg, ctr, &h);
+        uint32_t hits = 0, back = 0;
+        solid_count(c, ctr, &hits, &back);
         float ratio = hits ? (float)back / (float)hits : 0.0f;
         j->ratio[i] = ratio;
         if ((double)back > c->solid_ratio * (double)hits) leaf->flags |= CELL_PRUNED;
@@ -1155,6 +1162,50 @@ void pb_placement_destroy(pb_placement *placement)
     free(placement);
 }
 
+/* Embree device, the volumes' scene (robust, context filter for the inside test) and the
+ * geometry's scene (when there is any). */
+static pb_result build_scenes(oct_ctx *c)
+{
+    if (!report(c, 0.05, "building BVH", true)) return cancelled(c, "building BVH");
+    char config[64];
+    snprintf(config, sizeof config, "threads=%u,verbose=0", c->threads);
+    c->device = rtcNewDevice(config);
+    if (!c->device)
+        return pb_error_set(c->err, PB_ERROR_EMBREE, "could not create an Embree device (error %d)",
+                            (int)rtcGetDeviceError(NULL));
+    rtcSetDeviceErrorFunction(c->device, embree_error_fn, c);
+    pb_result r =
+        build_mesh_scene(c, c->desc->volumes, c->desc->volume_count,
+                         PB_RTC_SCENE_FLAG_FILTER_IN_CALL | RTC_SCENE_FLAG_ROBUST, &c->vol_scene, &c->vol_mesh_of_geom);
+    if (r) return r;
+    bool any_geometry = false;
+    for (uint32_t i = 0; i < c->desc->geometry_count; i++) any_geometry |= c->desc->geometry[i].triangle_count > 0;
+    if (any_geometry) {
+        r = build_mesh_scene(c, c->desc->geometry, c->desc->geometry_count, RTC_SCENE_FLAG_NONE, &c->geo_scene,
+                             &c->geo_mesh_of_geom);
+        if (r) return r;
+    }
+    if (!report(c, 0.10, "building BVH", true)) return cancelled(c, "building BVH");
+    return PB_SUCCESS;
+}
+
+/* Spherical Fibonacci directions of the solid test (offset by 0.1 rad so that none lies in an axis
+ * plane). */
+static pb_result make_ray_dirs(oct_ctx *c)
+{
+    c->ray_dirs = malloc(sizeof *c->ray_dirs * c->solid_rays);
+    if (!c->ray_dirs) return pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory");
+    const double golden = 3.14159265358979323846 * (3.0 - sqrt(5.0));
+    for (uint32_t k = 0; k < c->solid_rays; k++) {
+        double zc = 1.0 - (2.0 * k + 1.0) / c->solid_rays, rr = sqrt(fmax(0.0, 1.0 - zc * zc));
+        double phi = 0.1 + golden * k;
+        c->ray_dirs[k][0] = (float)(rr * cos(phi));
+        c->ray_dirs[k][1] = (float)(rr * sin(phi));
+        c->ray_dirs[k][2] = (float)zc;
+    }
+    return PB_SUCCESS;
+}
+
 static pb_result place(oct_ctx *c, pb_placement *out)
 {
     pb_result r;
@@ -1169,28 +1220,8 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     if (!report(c, 0.0, "checking meshes", true)) return cancelled(c, "checking meshes");
     r = setup(c);
     if (r) return r;
-
-    /* Embree device and scenes. */
-    if (!report(c, 0.05, "building BVH", true)) return cancelled(c, "building BVH");
-    char config[64];
-    snprintf(config, sizeof config, "threads=%u,verbose=0", c->threads);
-    c->device = rtcNewDevice(config);
-    if (!c->device)
-        return pb_error_set(c->err, PB_ERROR_EMBREE, "could not create an Embree device (error %d)",
-                            (int)rtcGetDeviceError(NULL));
-    rtcSetDeviceErrorFunction(c->device, embree_error_fn, c);
-    r = build_mesh_scene(c, c->desc->volumes, c->desc->volume_count,
-                         RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST, &c->vol_scene,
-                         &c->vol_mesh_of_geom);
+    r = build_scenes(c);
     if (r) return r;
-    bool any_geometry = false;
-    for (uint32_t i = 0; i < c->desc->geometry_count; i++) any_geometry |= c->desc->geometry[i].triangle_count > 0;
-    if (any_geometry) {
-        r = build_mesh_scene(c, c->desc->geometry, c->desc->geometry_count, RTC_SCENE_FLAG_NONE, &c->geo_scene,
-                             &c->geo_mesh_of_geom);
-        if (r) return r;
-    }
-    if (!report(c, 0.10, "building BVH", true)) return cancelled(c, "building BVH");
 
     /* Octree. */
     r = build_octree(c, &leaves);
@@ -1199,21 +1230,12 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     if (r) goto done;
 
     /* Solid test. */
-    c->ray_dirs = malloc(sizeof *c->ray_dirs * c->solid_rays);
+    r = make_ray_dirs(c);
     ratio = malloc(sizeof *ratio * (leaves.n + 1));
     leaf_probe = malloc(sizeof *leaf_probe * (leaves.n + 1));
-    if (!c->ray_dirs || !ratio || !leaf_probe) {
+    if (r || !ratio || !leaf_probe) {
         r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree leaves", leaves.n);
         goto done;
-    }
-    /* Spherical Fibonacci directions (offset by 0.1 rad so that none lies in an axis plane). */
-    const double golden = 3.14159265358979323846 * (3.0 - sqrt(5.0));
-    for (uint32_t k = 0; k < c->solid_rays; k++) {
-        double zc = 1.0 - (2.0 * k + 1.0) / c->solid_rays, rr = sqrt(fmax(0.0, 1.0 - zc * zc));
-        double phi = 0.1 + golden * k;
-        c->ray_dirs[k][0] = (float)(rr * cos(phi));
-        c->ray_dirs[k][1] = (float)(rr * sin(phi));
-        c->ray_dirs[k][2] = (float)zc;
     }
     solid_job sj = {leaves.v, ratio};
     if (!parallel_for(c, leaves.n, 64, solid_range, &sj, 0.45, 0.80, "solid test")) {
@@ -1413,4 +1435,95 @@ pb_result pb_placement_build(const pb_placement_desc *desc, pb_placement **out, 
     }
     *out = p;
     return PB_SUCCESS;
+}
+
+/* ---------------------------------------------------------------------------------------------- */
+/* Classification of arbitrary points and boxes (corner octree)                                    */
+
+typedef struct classify_points_job {
+    const pb_classify_query *q;
+} classify_points_job;
+
+static void classify_points_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
+{
+    const pb_classify_query *q = ((classify_points_job *)user)->q;
+    for (uint64_t i = begin; i < end; i++) {
+        double p[3];
+        for (int k = 0; k < 3; k++) p[k] = q->points[3 * i + (uint64_t)k] - c->centre[k];
+        if (q->point_inside) q->point_inside[i] = point_inside(c, p) ? 1 : 0;
+        if (q->backface_ratio) {
+            uint32_t hits = 0, back = 0;
+            if (c->geo_scene) solid_count(c, p, &hits, &back);
+            q->backface_ratio[i] = hits ? (float)back / (float)hits : 0.0f;
+        }
+    }
+}
+
+static void classify_boxes_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
+{
+    const pb_classify_query *q = ((classify_points_job *)user)->q;
+    for (uint64_t i = begin; i < end; i++) {
+        const double *b = q->boxes + 4 * i;
+        double ctr[3] = {b[0] - c->centre[0], b[1] - c->centre[1], b[2] - c->centre[2]};
+        if (box_straddles_volumes(c, ctr, b[3]))
+            q->box_class[i] = 2;
+        else
+            q->box_class[i] = point_inside(c, ctr) ? 1 : 0;
+    }
+}
+
+static pb_result classify(oct_ctx *c, const pb_classify_query *q)
+{
+    if (!report(c, 0.0, "checking meshes", true)) return cancelled(c, "checking meshes");
+    pb_result r = setup(c);
+    if (r) return r;
+    for (uint64_t i = 0; q->points && i < 3 * (uint64_t)q->point_count; i++)
+        if (!isfinite(q->points[i]))
+            return pb_error_set(c->err, PB_ERROR_NON_FINITE, "point %llu coordinate %llu is %g",
+                                (unsigned long long)(i / 3), (unsigned long long)(i % 3), q->points[i]);
+    for (uint64_t i = 0; q->boxes && i < 4 * (uint64_t)q->box_count; i++)
+        if (!isfinite(q->boxes[i]) || (i % 4 == 3 && !(q->boxes[i] > 0)))
+            return pb_error_set(c->err, isfinite(q->boxes[i]) ? PB_ERROR_INVALID_ARGUMENT : PB_ERROR_NON_FINITE,
+                                "box %llu value %llu is %g (centre finite, half edge > 0)", (unsigned long long)(i / 4),
+                                (unsigned long long)(i % 4), q->boxes[i]);
+    r = build_scenes(c);
+    if (r) return r;
+    r = make_ray_dirs(c);
+    if (r) return r;
+    classify_points_job j = {q};
+    if (q->points && (q->point_inside || q->backface_ratio) &&
+        !parallel_for(c, q->point_count, 64, classify_points_range, &j, 0.10, 0.80, "classifying"))
+        return cancelled(c, "classifying");
+    if (q->boxes && q->box_class &&
+        !parallel_for(c, q->box_count, 64, classify_boxes_range, &j, 0.80, 1.0, "classifying"))
+        return cancelled(c, "classifying");
+    r = embree_check(c, "classifying");
+    if (r) return r;
+    report(c, 1.0, "done", true);
+    return PB_SUCCESS;
+}
+
+pb_result pb_placement_classify(const pb_placement_desc *desc, const pb_classify_query *query, pb_error *err)
+{
+    if (!desc || !query)
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_placement_classify: desc and query must not be NULL");
+    if ((query->point_count && !query->points) || (query->box_count && !query->boxes))
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_placement_classify: NULL points or boxes");
+    oct_ctx *c = calloc(1, sizeof *c);
+    if (!c) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory");
+    c->desc = desc;
+    c->err = err;
+    c->embree_lock_ok = pthread_mutex_init(&c->embree_lock, NULL) == 0;
+    atomic_init(&c->cancel, false);
+    c->last_report = -1e300;
+    pb_result r = classify(c, query);
+    if (c->geo_scene) rtcReleaseScene(c->geo_scene);
+    if (c->vol_scene) rtcReleaseScene(c->vol_scene);
+    if (c->device) rtcReleaseDevice(c->device);
+    free(c->vol_mesh_of_geom);
+    free(c->geo_mesh_of_geom);
+    free(c->ray_dirs);
+    if (c->embree_lock_ok) pthread_mutex_destroy(&c->embree_lock);
+    free(c);
+    return r;
 }

@@ -208,12 +208,11 @@ def test_bake_py_band_2_stays_version_1(scenes, tmp_path):
 
 def test_bake_py_help_lists_every_setting():
     proc = run_blender(BAKE_PY, "--help", check=True)
-    # One option per BakeSettings field (bake_core.py) plus --cursor.
-    for option in ("--volume-collection", "--min-cell-size", "--max-cell-size", "--panorama-resolution",
-                   "--max-band", "--samples", "--max-bounces", "--clamp-direct", "--clamp-indirect",
-                   "--pixel-filter", "--filter-width", "--lights-visible", "--per-volume-files",
-                   "--persistent-data", "--seed", "--default-sh-scale", "--default-ambient",
-                   "--output", "--cursor"):
+    # One option per BakeSettings field (declared in settings.py) plus --cursor; capture_sky and
+    # sky_resolution were once missing.
+    from schnee_probes.settings import SETTINGS
+    assert {"--capture-sky", "--sky-resolution"} <= {s.cli for s in SETTINGS}
+    for option in [s.cli for s in SETTINGS] + ["--cursor"]:
         assert option in proc.stdout, option
 
 

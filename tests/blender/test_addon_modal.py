@@ -1,6 +1,7 @@
 """Bake SH in Volumes as a modal operator in a real UI session (Blender under Xvfb): it bakes to the
 end, and a simulated Esc cancels a second bake, leaving the first file untouched and the render
-settings restored. Runtime: ~20-30 s."""
+settings restored; SIGINT cancels a third the same way; a bake above Confirm Above waits for the
+confirmation. Runtime: ~30-40 s."""
 import json
 import os
 import shutil
@@ -30,3 +31,14 @@ def test_modal_bake_finishes_and_esc_cancels(tmp_path):
     assert r["cancel_message"].startswith("Bake cancelled")
     assert r["file_unchanged"]
     assert r["engine_after_cancel"] == "BLENDER_EEVEE"
+    # Ctrl+C in the terminal (SIGINT) cancels like Esc, and Blender keeps running (issue 14).
+    assert r["sigint_handler_during_bake"]
+    assert r["sigint_message"].startswith("Bake cancelled"), r["sigint_message"]
+    assert r["sigint_file_unchanged"] and r["engine_after_sigint"] == "BLENDER_EEVEE"
+    assert r["sigint_handler_after"]  # Python's Ctrl+C handler is back once the bake ends
+    # 32 probes above Confirm Above = 10: nothing baked until confirmed; confirmed, it bakes.
+    assert r["large_result"] == ["CANCELLED"] and not r["large_running"]
+    assert "32 probes" in r["large_message"] and "more than the limit of 10" in r["large_message"]
+    assert r["large_file_unchanged"]
+    assert r["confirmed_result"] == ["RUNNING_MODAL"]
+    assert r["confirmed_message"].startswith("Baked 32 probes"), r["confirmed_message"]

@@ -12,10 +12,10 @@ SCRIPTS = Path(__file__).resolve().parent / "scripts"
 
 
 def _zip():
-    zips = sorted(glob.glob(str(REPO / "dist" / "schnee_probes-*.zip")))
+    zips = sorted(z for z in glob.glob(str(REPO / "dist" / "schnee_probes-*.zip")) if "-extension" not in z)
     if not zips and (BUILD_DIR / "build.ninja").exists():
         subprocess.run(["cmake", "--build", str(BUILD_DIR), "--target", "schnee_addon_zip"], check=True)
-        zips = sorted(glob.glob(str(REPO / "dist" / "schnee_probes-*.zip")))
+        zips = sorted(z for z in glob.glob(str(REPO / "dist" / "schnee_probes-*.zip")) if "-extension" not in z)
     return zips[-1] if zips else None
 
 

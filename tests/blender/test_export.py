@@ -282,6 +282,47 @@ def test_blender_reimports_the_exports(exported, tmp_path):
         np.testing.assert_allclose(res["materials"]["MovA"], MATERIALS["MovA"][2], atol=1e-6)
 
 
+@pytest.mark.parametrize("fmt", sorted(OUTPUTS))
+def test_materials_carry_the_probe_representation(exported, fmt):
+    # docs/ambient-cube.md §4 "glTF": the custom property schnee_probe_representation becomes
+    # VULKAN_SCHNEE_materials.probeRepresentation next to probeMode; an unknown value is left out.
+    doc = load_gltf_json(exported["work"] / OUTPUTS[fmt])
+    by_name = {m["name"]: m for m in doc["materials"]}
+    assert by_name["MovCube"]["extensions"][MATERIAL_EXT] == {
+        "shScale": 1.25, "ambientTerm": 0.0, "probeMode": "pixel", "probeRepresentation": "ambientCube"}
+    assert by_name["PlainSH"]["extensions"][MATERIAL_EXT] == {"probeRepresentation": "sh"}
+    assert MATERIAL_EXT not in by_name["PlainBadRep"].get("extensions", {})
+    # Materials without the property say nothing (the engine's default is sh).
+    assert all("probeRepresentation" not in m.get("extensions", {}).get(MATERIAL_EXT, {})
+               for name, m in by_name.items() if name not in ("MovCube", "PlainSH"))
+    assert MATERIAL_EXT in doc["extensionsUsed"] and MATERIAL_EXT not in doc.get("extensionsRequired", [])
+
+
+def test_probe_representation_hook_is_idempotent(exported):
+    idem = exported["result"]["idem_cube"]
+    assert idem["same"] and idem["keys"] == [MATERIAL_EXT]
+    assert idem["first"]["probeRepresentation"] == "ambientCube"
+
+
+def test_unknown_probe_representation_is_warned_about(exported):
+    lines = [line for line in exported["log"].splitlines() if "WARNING" in line and "PlainBadRep" in line]
+    assert lines, "no warning for the material with schnee_probe_representation = 'cube'"
+    assert "schnee_probe_representation = 'cube' is not one of sh, ambientCube" in lines[0]
+
+
+def test_engine_loads_the_exported_representation(exported, tmp_path):
+    # The engine parses the exported field (a value it refuses would exit 1 naming the material;
+    # tests/engine/test_engine_ambient_cube.py checks the shading itself).
+    view = REPO / "build" / "schnee-view"
+    if not view.exists():
+        pytest.skip("build/schnee-view is not built")
+    out = tmp_path / "x.exr"
+    proc = subprocess.run([str(view), str(exported["work"] / OUTPUTS["gltf"]), "--headless", "--output", str(out),
+                           "--width", "32", "--height", "32"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert out.stat().st_size > 0
+
+
 def test_unknown_probe_mode_is_warned_about(exported):
     lines = [line for line in exported["log"].splitlines()
              if "WARNING" in line and "PlainBadMode" in line]

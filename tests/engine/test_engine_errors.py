@@ -119,3 +119,20 @@ def test_empty_scene_renders_black(tmp_path):
     out = tmp_path / "empty.exr"
     viewer.check(viewer.run(p, "--headless", "--output", out, "--width", 8, "--height", 8))
     assert np.all(viewer.read_image(out) == 0)
+
+
+def test_version3_octree_is_refused_not_misread(tmp_path):
+    # A valid version 3 file (corner octree, 8 probes) reads fine in the native reader, but this engine
+    # shades dense SH grids only: it must say so instead of dereferencing a grid that is not there.
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "addon"))
+    from schnee_probes import native
+    tree = native.CornerOctree.uniform((0, 0, 0), 1.0, 0, (1, 1, 1))
+    tree.finalize()
+    src = tmp_path / "v3.shprobe"
+    assert native.write_shprobe_v3(str(src), tree, np.ones((tree.probe_count, 9, 3))) == 8
+    assert native.read_shprobe(str(src)).version == 3
+    gltf = scene_with_probe_bytes(tmp_path, src.read_bytes())
+    proc = viewer.run(gltf, "--headless", "--output", tmp_path / "x.png", "--width", 8, "--height", 8)
+    expect_error(proc, "shProbeGrids[0]", "is a version 3 file with a corner octree of SH",
+                 "this engine reads dense grids of SH only")
+    assert not (tmp_path / "x.png").exists()

@@ -179,3 +179,33 @@ def test_mirrored_node_matches_plain(tmp_path):
     expected = ALBEDO * (SH_SCALE * np.maximum(irradiance(COEFFS, p), 0.0) / np.pi + AMBIENT)
     err = np.abs(mirrored[interior] - expected[interior])
     assert np.all(err <= 1e-4 + 3e-3 * np.abs(expected[interior])), f"max abs error {err.max():.4g}"
+
+
+@pytest.mark.parametrize("storage", ["float", "half"])
+def test_probe_scale_used_probe_ambient_and_header_defaults_ignored(tmp_path, storage):
+    # docs/shprobe-format.md "What readers use": the per-probe scale multiplies the material's
+    # shScale; the per-probe ambient and the header's default SH scale / default ambient are
+    # ignored (the material's ambientTerm is the ambient). A file with scale 2, ambient 5 and header
+    # defaults 7 / 3 must shade as albedo·(shScale·2·max(E,0)/π + ambientTerm), the closed form.
+    (tmp_path / "sh_coeffs").mkdir()
+    sg.write_shprobe_v1(tmp_path / "sh_coeffs" / "probes.shprobe", COEFFS[None], np.zeros((1, 1, 1), np.int32),
+                        (-2, -2, -2), 4.0, scale=[2.0], ambient=[5.0], default_scale=7.0, default_ambient=3.0)
+    b = sg.GltfBuilder()
+    m = b.material("sphere", base_color=(*ALBEDO, 1), sh_scale=SH_SCALE, ambient_term=AMBIENT)
+    b.node("Sphere", mesh=b.mesh("sphere", sg.uv_sphere(1.0, 192, 96), m))
+    b.node("Camera", camera=b.camera("cam", YFOV), translation=(0, 0, CAM_Z))
+    b.probe_grids([sg.grid_entry("probes", "sh_coeffs/probes.shprobe", 1, (-2, -2, -2), (1, 1, 1), 4.0)])
+    scene = b.write(tmp_path / "sphere.gltf")
+    out = tmp_path / "sphere.exr"
+    viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", W, "--height", H,
+                            "--probe-storage", storage))
+    img = viewer.read_image(out)
+    p, hit, facing = sphere_normals()
+    expected = ALBEDO * (SH_SCALE * 2.0 * np.maximum(irradiance(COEFFS, p), 0.0) / np.pi + AMBIENT)
+    interior = hit & (facing > 0.3)
+    err = np.abs(img[interior] - expected[interior])
+    # As test_sphere_pixels_equal_cpu_evaluation; half storage adds its rounding (11 bits: 4.9e-4).
+    rel = 3e-3 if storage == "float" else 4e-3
+    tol = 1e-4 + rel * np.abs(expected[interior])
+    assert np.all(err <= tol), f"max abs error {err.max():.4g}"
+    # Using the per-probe ambient (5) or a header default would shift every pixel by >= albedo·3.

@@ -17,8 +17,8 @@ mkdir -p "$out" "$corpus" "$out/seeds-gltf"
 
 clang -std=gnu11 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
   -Wall -Wextra -Wshadow -Wno-unused-parameter -Werror \
-  -Iengine/gltf -I/usr/include/cjson \
-  engine/gltf/fuzz_gltf.c engine/gltf/sv_gltf.c engine/gltf/sv_gltf_util.c \
+  -Iengine/gltf -Iengine/ext -Ishaders -I/usr/include/cjson \
+  engine/gltf/fuzz_gltf.c engine/gltf/sv_gltf.c engine/gltf/sv_gltf_[bfjmnu]*.c engine/ext/sv_ext.c \
   -lcjson -lm -o "$out/fuzz_gltf"
 
 /usr/bin/python3 tests/engine/gltf/make_seeds.py "$out/seeds-gltf" "$out/gltf.dict"

@@ -16,11 +16,13 @@ san=(-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -fno-om
 
 for target in fuzz_shprobe fuzz_shprobe_file; do
   "$CC" "${flags[@]}" "${san[@]}" "native/fuzz/$target.c" native/src/pb_shprobe.c \
-    native/src/pb_common.c -lm -o "$work/$target"
+    native/src/pb_interp.c native/src/pb_common.c -lqhull_r -lm -o "$work/$target"
 done
 
-# Seeds: a v1 (band 2) and a v2 (band 4, positions, rotated axes, validity) written by the writer.
+# Seeds: a v1 (band 2) and a v2 (band 4, positions, rotated axes, validity) written by the writer, and
+# version 3 files: an octree with hanging nodes (SH band 1, binary16) and tetrahedra (ambient cubes).
 cat > "$work/make_seeds.c" <<'SEED'
+#include "schnee/pb_interp.h"
 #include "schnee/pb_shprobe.h"
 #include <stdio.h>
 #include <string.h>
@@ -46,11 +48,39 @@ int main(int argc, char **argv)
         if (pb_shprobe_write(path, p, &err)) { fprintf(stderr, "%s\n", err.message); return 1; }
         pb_shprobe_destroy(p);
     }
+    /* v3 octree: two leaves, the left split (26 probes, 5 hanging nodes), SH band 1, binary16. */
+    const double o[3] = {0, 0, 0};
+    const uint32_t roots[3] = {2, 1, 1};
+    pb_cotree *t = NULL;
+    pb_error err;
+    memset(&err, 0, sizeof err);
+    uint8_t split[2] = {1, 0};
+    if (pb_cotree_create(o, 0.5, 1, roots, &t, &err) || pb_cotree_split(t, split, NULL, &err) ||
+        pb_cotree_finalize(t, &err))
+        return 1;
+    pb_shprobe *p = NULL;
+    if (pb_shprobe_from_cotree(t, PB_SHPROBE_SH, 1, &p, &err)) return 1;
+    p->storage = PB_SHPROBE_FLOAT16;
+    p->coeffs[0] = 1.5f;
+    char path[512];
+    snprintf(path, sizeof path, "%s/seed_v3_octree.shprobe", argv[1]);
+    if (pb_shprobe_write(path, p, &err)) { fprintf(stderr, "%s\n", err.message); return 1; }
+    pb_shprobe_destroy(p);
+    pb_cotree_destroy(t);
+    /* v3 tetrahedra: 5 points, ambient cubes float32. */
+    const double pos[15] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 1};
+    pb_tetra *tt = NULL;
+    if (pb_tetra_create(pos, 5, &tt, &err) || pb_shprobe_from_tetra(tt, pos, PB_SHPROBE_AMBIENT_CUBE, 2, &p, &err))
+        return 1;
+    snprintf(path, sizeof path, "%s/seed_v3_tetra.shprobe", argv[1]);
+    if (pb_shprobe_write(path, p, &err)) { fprintf(stderr, "%s\n", err.message); return 1; }
+    pb_shprobe_destroy(p);
+    pb_tetra_destroy(tt);
     return 0;
 }
 SEED
 "$CC" "${flags[@]}" -fsanitize=address,undefined "$work/make_seeds.c" native/src/pb_shprobe.c \
-  native/src/pb_common.c -lm -o "$work/make_seeds"
+  native/src/pb_interp.c native/src/pb_common.c -lqhull_r -lm -o "$work/make_seeds"
 "$work/make_seeds" "$work/corpus"
 
 # run_target NAME SECONDS: fuzzes on a copy of the seed corpus; exits non-zero on any finding.

@@ -272,6 +272,80 @@ static void test_image_limits(void)
     unlink(path);
 }
 
+/* OpenEXR headers are walked before OpenEXR sees them (OpenEXR allocates an attribute's announced
+ * size, and offset tables from the dataWindow and tiles, before reading): an attribute announcing
+ * 270 MB in a tiny file (what the sky fuzzer found), sizes that disagree with their type, a 16384 x 16384 window of 1 x 1 tiles whose
+ * offset table (2 GiB) cannot be in a 100-byte file, a window beyond the size limit, a deep file. */
+static size_t exr_attr(unsigned char *p, const char *name, const char *type, int32_t size, const void *value,
+                       size_t value_len)
+{
+    size_t n = 0;
+    memcpy(p + n, name, strlen(name) + 1);
+    n += strlen(name) + 1;
+    memcpy(p + n, type, strlen(type) + 1);
+    n += strlen(type) + 1;
+    for (int i = 0; i < 4; i++) p[n++] = (unsigned char)((uint32_t)size >> (8 * i));
+    memcpy(p + n, value, value_len);
+    return n + value_len;
+}
+
+static void test_exr_header_announcements(void)
+{
+    const int32_t big_window[4] = {0, 0, 16383, 16383}, wide_window[4] = {0, 0, 69999, 0};
+    const unsigned char tiles[9] = {1, 0, 0, 0, 1, 0, 0, 0, 0};
+    static const struct {
+        int kind;
+        int code;
+        const char *needle;
+    } cases[] = {
+        {0, PB_ERROR_FORMAT, "announces 270000000 bytes, past the end of the"},
+        {1, PB_ERROR_FORMAT, "announces at least 268435456 chunks"},
+        {2, PB_ERROR_TOO_LARGE, "70000x1"},
+        {3, PB_ERROR_FORMAT, "deep image"},
+        {4, PB_ERROR_FORMAT, "(type box2i, 11 bytes) is malformed: its size is not its type's size"},
+        {5, PB_ERROR_FORMAT, "(type preview, 8 bytes) is malformed: its preview's size disagrees"},
+        {6, PB_ERROR_FORMAT, "(type chlist, 20 bytes) is malformed: its channel list is not terminated"},
+    };
+    char path[128];
+    join(path, sizeof path, "header.exr");
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        unsigned char buf[256] = {0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0};
+        size_t n = 8;
+        if (cases[i].kind == 0) n += exr_attr(buf + n, "comments", "string", 270000000, "hello", 5);
+        if (cases[i].kind == 1) {
+            buf[5] = 0x02; /* tiled */
+            n += exr_attr(buf + n, "dataWindow", "box2i", 16, big_window, 16);
+            n += exr_attr(buf + n, "tiles", "tiledesc", 9, tiles, 9);
+        }
+        if (cases[i].kind == 2) n += exr_attr(buf + n, "dataWindow", "box2i", 16, wide_window, 16);
+        if (cases[i].kind == 3) buf[5] = 0x08; /* non-image (deep) */
+        /* OpenEXR reads a box2i's 16 bytes whatever size is declared, a preview's 4 * w * h bytes,
+         * a channel list up to its empty name: a disagreeing size desynchronises the walk. */
+        if (cases[i].kind == 4) n += exr_attr(buf + n, "displayWindow", "box2i", 11, wide_window, 11);
+        if (cases[i].kind == 5) n += exr_attr(buf + n, "preview", "preview", 8, "\0\0\1\0\0\0\1\0", 8);
+        if (cases[i].kind == 6)
+            n += exr_attr(buf + n, "channels", "chlist", 20, "R\0\1\0\0\0\0\0\0\0\1\0\0\0\1\0\0\0G\0", 20);
+        buf[n++] = 0;
+        FILE *f = fopen(path, "wb");
+        TU_REQUIRE(f);
+        TU_CHECK(fwrite(buf, 1, n + 16, f) == n + 16);
+        fclose(f);
+        pb_error err;
+        TU_CHECK_EQ_INT(run_reader(READ_IMAGE, path, &err), cases[i].code);
+        TU_CHECK_CONTAINS(err.message, cases[i].needle);
+    }
+    /* A real EXR (written by OpenImageIO, scan lines) still passes the walk and reads back. */
+    const float px[6] = {1.5f, 2.0f, -3.0f, 0.25f, 8.0f, 16.0f};
+    pb_error err = {0};
+    TU_CHECK_EQ_INT(pb_image_write(path, 2, 1, 3, px, &err), PB_SUCCESS);
+    pb_image img;
+    TU_CHECK_EQ_INT(pb_image_read(path, &img, &err), PB_SUCCESS);
+    TU_CHECK(img.width == 2 && img.height == 1 && img.channels == 3);
+    for (int k = 0; k < 6 && img.pixels; k++) TU_CHECK_NEAR(img.pixels[k], px[k], 0.0);
+    pb_image_free(&img);
+    unlink(path);
+}
+
 /* ---- the writer never replaces what is not a .shprobe ------------------------------------------ */
 
 static pb_shprobe *sample(void)
@@ -414,6 +488,7 @@ int main(void)
     TU_RUN(test_readers_refuse_special_files);
     TU_RUN(test_no_content_in_messages);
     TU_RUN(test_image_limits);
+    TU_RUN(test_exr_header_announcements);
     TU_RUN(test_writer_refuses_foreign_destinations);
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);

@@ -64,6 +64,28 @@ typedef struct pb_placement {
 pb_result pb_placement_build(const pb_placement_desc *desc, pb_placement **out, pb_error *err);
 void pb_placement_destroy(pb_placement *placement);
 
+/* Classification against the volumes and geometry of `desc` with the rules of pb_placement_build,
+ * for the corner octree (pb_interp.h, pb_refine.h), whose probes sit at leaf corners:
+ * - points (engine space): point_inside[i] = 1 when inside the union of the volumes (majority of
+ *   three parity rays); backface_ratio[i] = the solid test's back-face ratio (0 without geometry);
+ *   a point is inside solid geometry when the ratio > desc->solid_backface_ratio (default 0.25);
+ * - boxes (centre x, y, z, half edge; engine space): box_class[i] = 0 entirely outside the volumes,
+ *   1 entirely inside, 2 crossed by a volume surface (a leaf to keep, and to split if its part
+ *   inside needs probes of its own).
+ * Outputs may be NULL (that work is skipped). Same checks, errors, threads and progress stages as
+ * pb_placement_build ("checking meshes", "building BVH", "classifying", "done"). */
+typedef struct pb_classify_query {
+    const double *points; /* point_count × 3 */
+    uint32_t point_count;
+    uint8_t *point_inside;
+    float *backface_ratio;
+    const double *boxes; /* box_count × 4 */
+    uint32_t box_count;
+    uint8_t *box_class;
+} pb_classify_query;
+
+pb_result pb_placement_classify(const pb_placement_desc *desc, const pb_classify_query *query, pb_error *err);
+
 #ifdef __cplusplus
 }
 #endif

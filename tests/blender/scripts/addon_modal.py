@@ -1,7 +1,9 @@
 """The modal Bake SH in Volumes in a real UI session (run under Xvfb with --enable-event-simulate):
-a bake that finishes, then a bake cancelled with a simulated Esc. ``-- OUT_DIR``.
+a bake that finishes, then a bake cancelled with a simulated Esc, one cancelled by SIGINT (Ctrl+C
+in the terminal), and one above Confirm Above (refused until confirmed). ``-- OUT_DIR``.
 Emits RESULT with what happened; quits Blender itself."""
 import os
+import signal
 import sys
 
 import bpy
@@ -60,6 +62,34 @@ def tick():
             results["cancel_message"] = props.last_message
             results["file_unchanged"] = os.path.getmtime(shprobe) == results["mtime"]
             results["engine_after_cancel"] = bpy.context.scene.render.engine
+            with bpy.context.temp_override(**ctx):
+                bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT')
+            results["sigint_handler_during_bake"] = signal.getsignal(signal.SIGINT) is not None and \
+                signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+            phase[0] = "sigint"
+    elif phase[0] == "sigint":
+        os.kill(os.getpid(), signal.SIGINT)  # what Ctrl+C in the terminal sends
+        phase[0] = "wait3"
+    elif phase[0] == "wait3":
+        if not Op._running:
+            results["sigint_message"] = props.last_message
+            results["sigint_file_unchanged"] = os.path.getmtime(shprobe) == results["mtime"]
+            results["engine_after_sigint"] = bpy.context.scene.render.engine
+            results["sigint_handler_after"] = signal.getsignal(signal.SIGINT) is signal.default_int_handler
+            # Above Confirm Above: refused (a confirmation dialog opens), nothing changes.
+            props.probe_limit = 10
+            with bpy.context.temp_override(**ctx):
+                results["large_result"] = sorted(bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT'))
+            results["large_running"] = Op._running
+            results["large_message"] = props.last_message
+            results["large_file_unchanged"] = os.path.getmtime(shprobe) == results["mtime"]
+            # What the dialog's OK runs: the bake with allow_large.
+            with bpy.context.temp_override(**ctx):
+                results["confirmed_result"] = sorted(bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT', allow_large=True))
+            phase[0] = "wait4"
+    elif phase[0] == "wait4":
+        if not Op._running:
+            results["confirmed_message"] = props.last_message
             common.emit(**results)
             bpy.ops.wm.quit_blender()
             return None

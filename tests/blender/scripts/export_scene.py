@@ -77,11 +77,25 @@ mov_object["schnee_probe_mode"] = "object"
 plain_bad = plain.copy()
 plain_bad.name = "PlainBadMode"
 plain_bad["schnee_probe_mode"] = "everywhere"
+# probeRepresentation likewise (docs/ambient-cube.md §4): a movable material shaded per pixel with
+# the ambient cube, a plain one asking for SH explicitly, and an unknown value.
+mov_cube = nodes.make_movable_diffuse_material("MovCube", sh_scale=1.25, ambient=0.0)
+mov_cube["schnee_probe_mode"] = "pixel"
+mov_cube["schnee_probe_representation"] = "ambientCube"
+plain_sh = plain.copy()
+plain_sh.name = "PlainSH"
+plain_sh["schnee_probe_representation"] = "sh"
+plain_bad_rep = plain.copy()
+plain_bad_rep.name = "PlainBadRep"
+plain_bad_rep["schnee_probe_representation"] = "cube"
 
 root = scene.collection
 add_cube("Wall", (4, 4, 0), root, plain_pixel)
 add_cube("MovingObject", (-4, 4, 0), root, mov_object)
 add_cube("BadMode", (4, -4, 0), root, plain_bad)
+add_cube("CubeLit", (-4, -4, 0), root, mov_cube)
+add_cube("ShLit", (6, 4, 0), root, plain_sh)
+add_cube("BadRep", (6, -4, 0), root, plain_bad_rep)
 add_cube("MovingA", (2, 0, 0), root, mat_a)
 add_cube("MovingB", (-2, 0, 0), root, mat_b)
 add_cube("MovingC", (0, 3, 0), root, mat_c)
@@ -170,6 +184,16 @@ mat_first = (json.dumps(gmat.extensions[gltf_export.EXT_MATERIALS].extension, so
 ext.gather_material_hook(gmat, mat_a, settings)
 mat_second = (json.dumps(gmat.extensions[gltf_export.EXT_MATERIALS].extension, sort_keys=True),
               list(gmat.pbr_metallic_roughness.base_color_factor))
+gcube = gltf2_io.Material(alpha_cutoff=None, alpha_mode=None, double_sided=None,
+                          emissive_factor=None, emissive_texture=None, extensions=None, extras=None,
+                          name="MovCube", normal_texture=None, occlusion_texture=None,
+                          pbr_metallic_roughness=None)
+ext.gather_material_hook(gcube, mov_cube, settings)
+cube_first = json.dumps(gcube.extensions[gltf_export.EXT_MATERIALS].extension, sort_keys=True)
+ext.gather_material_hook(gcube, mov_cube, settings)
+cube_second = json.dumps(gcube.extensions[gltf_export.EXT_MATERIALS].extension, sort_keys=True)
+result["idem_cube"] = {"first": json.loads(cube_first), "same": cube_first == cube_second,
+                       "keys": sorted(gcube.extensions)}
 result["idem"] = {
     "scene_first": json.loads(first), "scene_same": first == second,
     "scene_extension_keys": sorted(gscene.extensions),

@@ -1,6 +1,8 @@
 /* glTF loader: every feature on generated inputs, values checked against hand-computed ones.
  * Runtime: well under a second. */
 #include "gltf_testgen.h"
+#include "sv_ext.h"
+#include "sv_gpu.h"
 #include "testutil.h"
 
 #include <float.h>
@@ -310,9 +312,17 @@ static void test_materials_textures_images(void)
     TU_CHECK_EQ_INT(m->alpha_mode, SV_GLTF_ALPHA_MASK);
     TU_CHECK_NEAR(m->alpha_cutoff, 0.3f, 0);
     TU_CHECK(m->double_sided);
-    TU_CHECK(m->has_schnee);
-    TU_CHECK_NEAR(m->sh_scale, 2.5, 0);
-    TU_CHECK_NEAR(m->ambient_term, 0.05f, 0);
+    /* VULKAN_SCHNEE_materials reaches the application as raw JSON (emissive strength is parsed). */
+    TU_REQUIRE(m->extension_count == 1);
+    TU_CHECK(strcmp(m->extensions[0].name, "VULKAN_SCHNEE_materials") == 0);
+    TU_CHECK(strcmp(m->extensions[0].json, "{\"shScale\":2.5,\"ambientTerm\":0.05}") == 0);
+    sv_ext ext;
+    sv_gltf_error xerr = {0};
+    TU_REQUIRE(sv_ext_parse(g, &ext, &xerr) == SV_GLTF_SUCCESS);
+    TU_REQUIRE(ext.material_count == 3);
+    TU_CHECK(ext.materials[0].present);
+    TU_CHECK_NEAR(ext.materials[0].sh_scale, 2.5, 0);
+    TU_CHECK_NEAR(ext.materials[0].ambient_term, 0.05f, 0);
     /* Defaults from the glTF 2.0 spec and DESIGN.md §5 (shScale 1, ambientTerm 0.1). */
     const sv_gltf_material *d = &g->materials[1];
     for (int k = 0; k < 4; k++) TU_CHECK_NEAR(d->base_color_factor[k], 1, 0);
@@ -324,12 +334,14 @@ static void test_materials_textures_images(void)
     TU_CHECK_NEAR(d->emissive_strength, 1, 0);
     TU_CHECK_EQ_INT(d->alpha_mode, SV_GLTF_ALPHA_OPAQUE);
     TU_CHECK_NEAR(d->alpha_cutoff, 0.5, 0);
-    TU_CHECK(!d->double_sided && !d->has_schnee);
-    TU_CHECK_NEAR(d->sh_scale, 1.0, 0);
-    TU_CHECK_NEAR(d->ambient_term, 0.1f, 0);
-    TU_CHECK(g->materials[2].has_schnee);
-    TU_CHECK_NEAR(g->materials[2].sh_scale, 1.0, 0);
-    TU_CHECK_NEAR(g->materials[2].ambient_term, 0.1f, 0);
+    TU_CHECK(!d->double_sided && !ext.materials[1].present && d->extension_count == 0);
+    TU_CHECK_NEAR(ext.materials[1].sh_scale, 1.0, 0);
+    TU_CHECK_NEAR(ext.materials[1].ambient_term, 0.1f, 0);
+    TU_CHECK_EQ_INT(ext.materials[1].probe_mode, SV_PROBE_MODE_OBJECT);
+    TU_CHECK(ext.materials[2].present);
+    TU_CHECK_NEAR(ext.materials[2].sh_scale, 1.0, 0);
+    TU_CHECK_NEAR(ext.materials[2].ambient_term, 0.1f, 0);
+    sv_ext_free(&ext);
     TU_CHECK_EQ_INT(g->materials[2].alpha_mode, SV_GLTF_ALPHA_BLEND);
 
     TU_CHECK_EQ_INT(g->textures[0].sampler, 0);
@@ -423,9 +435,15 @@ static void test_cameras_and_lights(void)
     TU_CHECK_NEAR(spot->outer_cone_angle, 0.5f, 0);
     TU_CHECK_NEAR(g->lights[0].outer_cone_angle, PI / 4, 1e-7); /* spec default */
     /* VULKAN_SCHNEE_light.mode as written; absent = realtime (docs/export.md). */
-    TU_CHECK_EQ_INT(sun->mode, SV_GLTF_LIGHT_MODE_BAKED);
-    TU_CHECK_EQ_INT(pt->mode, SV_GLTF_LIGHT_MODE_REALTIME);
-    TU_CHECK_EQ_INT(spot->mode, SV_GLTF_LIGHT_MODE_REALTIME);
+    sv_ext ext;
+    sv_gltf_error xerr = {0};
+    TU_REQUIRE(sv_ext_parse(g, &ext, &xerr) == SV_GLTF_SUCCESS);
+    TU_REQUIRE(ext.light_count == 3);
+    TU_CHECK_EQ_INT(ext.light_modes[0], SV_LIGHT_MODE_BAKED);
+    TU_CHECK_EQ_INT(ext.light_modes[1], SV_LIGHT_MODE_REALTIME);
+    TU_CHECK_EQ_INT(ext.light_modes[2], SV_LIGHT_MODE_REALTIME);
+    TU_CHECK(spot->extension_count == 0 && sun->extension_count == 1);
+    sv_ext_free(&ext);
     const sv_gltf_light_instance *li = &g->light_instances[0];
     TU_CHECK_EQ_INT(li->node, 3);
     TU_CHECK_NEAR(li->position[0], 4, 0);
@@ -455,8 +473,12 @@ static void test_probe_grids(void)
     sv_gltf_desc desc = {.base_dir = "/data/export"};
     sv_gltf *g = load_json(json, NULL, &desc);
     TU_REQUIRE(g);
-    TU_REQUIRE(g->probe_grid_count == 2);
-    const sv_gltf_probe_grid *a = &g->probe_grids[0], *b = &g->probe_grids[1];
+    TU_REQUIRE(g->scene_extension_count == 1 && g->warning_count == 0);
+    sv_ext ext;
+    sv_gltf_error xerr = {0};
+    TU_REQUIRE(sv_ext_parse(g, &ext, &xerr) == SV_GLTF_SUCCESS);
+    TU_REQUIRE(ext.probe_grid_count == 2);
+    const sv_ext_probe_grid *a = &ext.probe_grids[0], *b = &ext.probe_grids[1];
     TU_CHECK(strcmp(a->name, "probes") == 0);
     TU_CHECK(strcmp(a->uri, "sh_coeffs/probes.shprobe") == 0);
     TU_CHECK(strcmp(a->path, "/data/export/sh_coeffs/probes.shprobe") == 0);
@@ -473,18 +495,48 @@ static void test_probe_grids(void)
     TU_CHECK_NEAR(b->grid_axes[0][2], 1, 0);
     TU_CHECK_NEAR(b->grid_axes[2][0], -1, 0);
     TU_CHECK_EQ_INT(b->max_band, 0);
-    TU_REQUIRE(g->warning_count == 2);
-    TU_CHECK_CONTAINS(g->warnings[0], "shProbeGrids[1].gridDims: expected an array of 3 numbers");
-    TU_CHECK_CONTAINS(g->warnings[0], "skipped");
-    TU_CHECK_CONTAINS(g->warnings[1], "shProbeGrids[2].uri: missing");
+    TU_REQUIRE(ext.warning_count == 2);
+    TU_CHECK_CONTAINS(ext.warnings[0], "shProbeGrids[1].gridDims: expected an array of 3 numbers");
+    TU_CHECK_CONTAINS(ext.warnings[0], "skipped");
+    TU_CHECK_CONTAINS(ext.warnings[1], "shProbeGrids[2].uri: missing");
+    sv_ext_free(&ext);
     sv_gltf_free(g);
 
     g = load_json(json, NULL, NULL);
     TU_REQUIRE(g);
-    TU_REQUIRE(g->probe_grid_count == 2);
-    TU_CHECK(g->probe_grids[0].path == NULL && strcmp(g->probe_grids[0].uri, "sh_coeffs/probes.shprobe") == 0);
-    TU_CHECK_EQ_INT(g->warning_count, 4);
+    TU_REQUIRE(sv_ext_parse(g, &ext, &xerr) == SV_GLTF_SUCCESS);
+    TU_REQUIRE(ext.probe_grid_count == 2);
+    TU_CHECK(ext.probe_grids[0].path == NULL && strcmp(ext.probe_grids[0].uri, "sh_coeffs/probes.shprobe") == 0);
+    TU_CHECK_EQ_INT(ext.warning_count, 4);
+    sv_ext_free(&ext);
     sv_gltf_free(g);
+}
+
+/* The generic loader knows no VULKAN_SCHNEE_* extension: a file requiring one loads only when the
+ * application declares it parses it (desc.app_extensions), and its JSON reaches it unparsed. */
+static void test_app_extensions(void)
+{
+    const char *json = "{'asset':{'version':'2.0'},'extensionsRequired':['VULKAN_SCHNEE_materials'],"
+                       "'extensions':{'X_root':{'a':[1,2]}},'materials':[{'extensions':{'VULKAN_SCHNEE_materials':"
+                       "{'probeMode':'pixel'},'KHR_materials_emissive_strength':{'emissiveStrength':2}}}]}";
+    char *text = tg_json(json, NULL);
+    sv_gltf *g = NULL;
+    sv_gltf_error err = {0};
+    TU_CHECK_EQ_INT(sv_gltf_load_memory(text, strlen(text), NULL, &g, &err), SV_GLTF_ERROR_UNSUPPORTED);
+    TU_CHECK_CONTAINS(err.message, "extensionsRequired: 'VULKAN_SCHNEE_materials' is not supported");
+    sv_gltf_desc desc = {.app_extensions = sv_ext_names, .app_extension_count = SV_EXT_NAME_COUNT};
+    TU_REQUIRE(sv_gltf_load_memory(text, strlen(text), &desc, &g, &err) == SV_GLTF_SUCCESS);
+    TU_REQUIRE(g->material_count == 1 && g->materials[0].extension_count == 1);
+    TU_CHECK_NEAR(g->materials[0].emissive_strength, 2, 0);
+    TU_CHECK(strcmp(sv_gltf_find_extension(g->materials[0].extensions, 1, "VULKAN_SCHNEE_materials"),
+                    "{\"probeMode\":\"pixel\"}") == 0);
+    TU_CHECK(strcmp(sv_gltf_find_extension(g->extensions, g->extension_count, "X_root"), "{\"a\":[1,2]}") == 0);
+    sv_ext ext;
+    TU_REQUIRE(sv_ext_parse(g, &ext, &err) == SV_GLTF_SUCCESS);
+    TU_CHECK_EQ_INT(ext.materials[0].probe_mode, SV_PROBE_MODE_PIXEL);
+    sv_ext_free(&ext);
+    sv_gltf_free(g);
+    free(text);
 }
 
 /* Writes the same scene as .gltf + external .bin (name needing percent-decoding) and as .glb,
@@ -581,6 +633,7 @@ int main(void)
     TU_RUN(test_materials_textures_images);
     TU_RUN(test_cameras_and_lights);
     TU_RUN(test_probe_grids);
+    TU_RUN(test_app_extensions);
     TU_RUN(test_files_glb_and_external_bin);
     return TU_EXIT();
 }

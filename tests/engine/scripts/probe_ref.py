@@ -8,6 +8,9 @@
   renormalised; all weights 0 -> the cell holding p; first grid whose box holds p wins.
 - Not modelled: the engine's visibility masks (docs/engine.md step 3): compare only scenes where no
   triangle crosses a segment between neighbouring cell centres (then every bit is set).
+- Ambient cube: docs/ambient-cube.md §1 (E_cube) and §2 (the least-squares fit's closed form, written
+  here from the derivation: the even part keeps the Y_0, Y_6, Y_8 terms of E, the odd part the
+  linear term times 5/4).
 - Equirect mapping: DESIGN.md §3 (Blender d = (e.x, -e.z, e.y)).
 - Direct light of a point light: docs/engine.md "Shading" (Lambert + normalised Blinn-Phong,
   range window, 1/d^2).
@@ -38,14 +41,39 @@ def uniform_coeffs(radiance):
     return c
 
 
+K00, K1, K2B, K2C = 0.282094792, 0.488602512, 0.315391565, 0.546274215
+
+
+def cube_from_sh(coeffs):
+    """Least-squares ambient cube (6, 3), faces +X, -X, +Y, -Y, +Z, -Z, of L2 radiance coeffs (9, 3)
+    (docs/ambient-cube.md §2: e_i = A_l L_i; s_x = K00 e0 - K2B e6 + K2C e8, s_y = K00 e0 - K2B e6
+    - K2C e8, s_z = K00 e0 + 2 K2B e6; d_x, d_y, d_z = 5/4 K1 (e3, e1, e2); C_+- = s +- d)."""
+    e = A_L2[:, None] * np.asarray(coeffs, float)[:9]
+    s = [K00 * e[0] - K2B * e[6] + K2C * e[8], K00 * e[0] - K2B * e[6] - K2C * e[8], K00 * e[0] + 2 * K2B * e[6]]
+    d = [1.25 * K1 * e[3], 1.25 * K1 * e[1], 1.25 * K1 * e[2]]
+    return np.array([s[0] + d[0], s[0] - d[0], s[1] + d[1], s[1] - d[1], s[2] + d[2], s[2] - d[2]])
+
+
+def cube_irradiance(cube, n):
+    """E_cube(n) = sum_i n_i^2 C_{sign(n_i) i} (docs/ambient-cube.md §1) for cube (6, 3), n (..., 3)."""
+    n = np.asarray(n, float)
+    cube = np.asarray(cube, float)
+    out = 0.0
+    for a in range(3):
+        face = np.where(n[..., a] < 0, 2 * a + 1, 2 * a)
+        out = out + (n[..., a] ** 2)[..., None] * cube[face]
+    return out
+
+
 def smoothstep(e0, e1, x):
     t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
     return t * t * (3 - 2 * t)
 
 
-def grid_irradiance(p, n, grid, origin, spacing, coeffs, validity=None):
+def grid_irradiance(p, n, grid, origin, spacing, coeffs, validity=None, evaluate=irradiance):
     """Per-pixel E(n) at points p (N, 3) with normals n (N, 3) for one axis-aligned grid
-    (grid: int (Z, Y, X) of probe indices / -1, coeffs (count, 9, 3)). Returns (E (N, 3), held (N,))."""
+    (grid: int (Z, Y, X) of probe indices / -1, coeffs (count, 9, 3)). Returns (E (N, 3), held (N,)).
+    evaluate(coeffs[k], n): irradiance of one probe (cube_irradiance with cubes for the ambient cube)."""
     p = np.asarray(p, float)
     n = np.asarray(n, float)
     Z, Y, X = grid.shape
@@ -67,7 +95,7 @@ def grid_irradiance(p, n, grid, origin, spacing, coeffs, validity=None):
         t = np.einsum("ij,ij->i", centre - p, n) / spacing
         w = w * smoothstep(-0.1, 0.1, t) * np.where(idx >= 0, validity[np.maximum(idx, 0)], 0.0)
         w = np.where(idx >= 0, w, 0.0)
-        ek = np.stack([irradiance(coeffs[j], n[i]) if j >= 0 else np.zeros(3) for i, j in enumerate(idx)])
+        ek = np.stack([evaluate(coeffs[j], n[i]) if j >= 0 else np.zeros(3) for i, j in enumerate(idx)])
         e += w[:, None] * ek
         wsum += w
     out = np.where(wsum[:, None] > 1e-6, e / np.maximum(wsum, 1e-30)[:, None], 0.0)
@@ -75,7 +103,7 @@ def grid_irradiance(p, n, grid, origin, spacing, coeffs, validity=None):
     cell = np.clip(np.floor(u).astype(int), 0, dims - 1)
     own = grid[cell[:, 2], cell[:, 1], cell[:, 0]]
     for i in np.nonzero(held & (wsum <= 1e-6))[0]:
-        out[i] = irradiance(coeffs[own[i]], n[i]) if own[i] >= 0 else 0.0
+        out[i] = evaluate(coeffs[own[i]], n[i]) if own[i] >= 0 else 0.0
     held = held & ((wsum > 1e-6) | (own >= 0))
     return out, held
 

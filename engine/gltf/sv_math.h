@@ -1,4 +1,6 @@
-/* Small column-major 4x4 matrix helpers (element row r, column c at m[c*4 + r], as glTF). */
+/* The one set of 4x4 matrix helpers of the engine and its glTF loader: column-major (element row
+ * r, column c at m[c*4 + r], as glTF), inputs first and the output last; products are summed in
+ * double and the output may alias an input. */
 #ifndef SV_MATH_H
 #define SV_MATH_H
 
@@ -12,15 +14,17 @@ static inline void sv_mat4_identity(float m[16])
     m[0] = m[5] = m[10] = m[15] = 1.0f;
 }
 
-/* out = a * b (out may alias neither). */
+/* out = a * b. */
 static inline void sv_mat4_mul(const float a[16], const float b[16], float out[16])
 {
+    float r[16];
     for (int c = 0; c < 4; ++c)
-        for (int r = 0; r < 4; ++r) {
-            float s = 0.0f;
-            for (int k = 0; k < 4; ++k) s += a[k * 4 + r] * b[c * 4 + k];
-            out[c * 4 + r] = s;
+        for (int row = 0; row < 4; ++row) {
+            double s = 0.0;
+            for (int k = 0; k < 4; ++k) s += (double)a[k * 4 + row] * (double)b[c * 4 + k];
+            r[c * 4 + row] = (float)s;
         }
+    memcpy(out, r, sizeof r);
 }
 
 /* p' = M * (p, 1), w assumed 1 (affine). */
@@ -72,17 +76,17 @@ static inline bool sv_mat4_invert(const float m[16], float out[16])
     return true;
 }
 
-/* Local transform T * R * S from glTF TRS (quaternion x, y, z, w). */
+/* Local transform T * R * S from glTF TRS (unit quaternion x, y, z, w), in double. */
 static inline void sv_mat4_from_trs(const float t[3], const float q[4], const float s[3], float m[16])
 {
-    float x = q[0], y = q[1], z = q[2], w = q[3];
-    float r[9] = {
-        1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),
-        2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
-        2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y),
+    double x = q[0], y = q[1], z = q[2], w = q[3];
+    double r[9] = {
+        1 - 2 * (y * y + z * z), 2 * (x * y + w * z),     2 * (x * z - w * y),     /* column 0 */
+        2 * (x * y - w * z),     1 - 2 * (x * x + z * z), 2 * (y * z + w * x),     /* column 1 */
+        2 * (x * z + w * y),     2 * (y * z - w * x),     1 - 2 * (x * x + y * y), /* column 2 */
     };
     for (int c = 0; c < 3; ++c) {
-        for (int rr = 0; rr < 3; ++rr) m[c * 4 + rr] = r[c * 3 + rr] * s[c];
+        for (int rr = 0; rr < 3; ++rr) m[c * 4 + rr] = (float)(r[c * 3 + rr] * s[c]);
         m[c * 4 + 3] = 0.0f;
     }
     m[12] = t[0];

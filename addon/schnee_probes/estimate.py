@@ -1,0 +1,58 @@
+"""How many probes and how long, before a bake starts (plain Python: no ``bpy``).
+
+The panel and the dialog show :func:`grid_cell_bound` of the volumes' bounding boxes with
+:func:`estimate_seconds` of it; ``bake_core.ProbeBake.prepare`` logs the exact count after
+placement with its estimate, and refuses above ``probe_limit`` unless confirmed; the progress line
+refines the estimate with the measured times (``ProbeBake.remaining_seconds``).
+"""
+import numpy as np
+
+# Per-probe cost model of the time estimate: seconds per probe ≈ SECONDS_PER_PIXEL_SAMPLE × width ×
+# height × samples. Calibrated on the sweep behind bench/RESULTS.md (bench/results/sweep.json, the
+# project's 2-core machine): in the bright closed room at 16-32 bounces every row, 32×16 to 128×64 px
+# and 8 to 128 spp, took 3.46-3.84 µs per pixel-sample (defaults: 128×64 × 32 spp = 262144
+# pixel-samples in 0.92-0.98 s); the courtyard took 0.6 µs, sky-only scenes 0.15 µs. The constant
+# is just above the slowest room row, so before any probe is rendered the estimate is an upper one
+# (a closed room); after the first probes it is replaced by the measured mean per probe (without
+# the first, which also pays the scene upload). tests/python/test_estimate.py checks the model
+# against every row of the sweep.
+SECONDS_PER_PIXEL_SAMPLE = 3.9e-6
+FIRST_PROBE_SECONDS = 1.6           # scene upload before the first render (0.7-1.6 s measured)
+
+
+def estimate_seconds(probes, settings, sky=False) -> float:
+    """Upper estimate of the bake time of ``probes`` probes (cost model: SECONDS_PER_PIXEL_SAMPLE)."""
+    w = settings.panorama_resolution
+    per = SECONDS_PER_PIXEL_SAMPLE * w * (w // 2) * settings.samples
+    total = probes * per + (FIRST_PROBE_SECONDS if probes else 0.0)
+    if sky and settings.capture_sky:
+        # One world-only render: no geometry, priced at the sky-only rate (0.15 µs).
+        total += 0.15e-6 * settings.sky_resolution * (settings.sky_resolution // 2) * settings.samples
+    return total
+
+
+def format_duration(seconds) -> str:
+    seconds = float(seconds)
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 2 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
+
+
+def grid_cell_bound(volumes, min_cell_size, per_volume) -> int:
+    """An upper bound of the probe count: the cells of Min Cell Size covering the volumes'
+    bounding box (per volume with One File per Volume), as the native grid counts them
+    (docs/placement.md); probes are octree leaves of at least that size."""
+    def cells(vols):
+        pts = np.concatenate([np.asarray(v[1], dtype=np.float64).reshape(-1, 3) for v in vols])
+        if len(pts) == 0:
+            return 0
+        ext = pts.max(axis=0) - pts.min(axis=0)
+        dims = np.maximum(1, np.ceil(ext / min_cell_size - 1e-6))
+        return int(np.prod(dims))
+    if per_volume:
+        return sum(cells([v]) for v in volumes)
+    return cells(volumes)

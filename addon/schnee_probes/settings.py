@@ -1,0 +1,344 @@
+"""Every bake setting, declared once.
+
+:data:`SETTINGS` is the single declaration of each bake setting: its name, type, default, limits or
+choices, help text, UI label, where the panel draws it, and the text of the user guide's settings
+table. Everything else is derived from it:
+
+- :class:`BakeSettings` (the dataclass the bake runs with) and :meth:`BakeSettings.validate`,
+- the ``Scene.schnee_probes`` PropertyGroup (``properties.py``) and the panel/dialog drawing
+  (``properties.draw_settings``),
+- ``bake.py``'s command-line options (:func:`add_arguments`),
+- the settings table in docs/user-guide.md (``scripts/gen_settings_table.py``, checked by
+  ``tests/python/test_settings.py``).
+
+Adding a setting = one :class:`Setting` entry here (plus the code that uses it) and regenerating the
+guide's table. This module needs no ``bpy``: plain Python (tests, the doc generator) imports it.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, Optional, Tuple
+
+DEFAULT_OUTPUT = "//sh_coeffs/probes.shprobe"
+
+
+class BakeError(RuntimeError):
+    """A bake that cannot start or continue; the message is meant for the user as is."""
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One bake setting.
+
+    ``kind``: "bool", "int", "float", "enum", "str" (a collection name) or "path" (a file path).
+    ``minimum``/``maximum``: hard limits, the same in the property, ``validate`` and the guide
+    (``min_exclusive``: the value must be strictly greater). ``even``: ints must be even.
+    ``soft_max``: the UI slider's end only. ``choices``: (identifier, label, description) per item.
+    ``ui``: where the panel/dialog draws it: "all", "volumes" (only for Bake SH in Volumes) or
+    None (scripts, ``bake.py`` and the property only). Settings with the same ``ui_row`` share a row.
+    ``doc``: the guide's "What it trades" text (default: ``help``).
+    """
+    name: str
+    kind: str
+    default: Any
+    label: str
+    help: str
+    doc: str = ""
+    minimum: Optional[float] = None
+    maximum: Optional[float] = None
+    min_exclusive: bool = False
+    even: bool = False
+    soft_max: Optional[float] = None
+    choices: Tuple[Tuple[str, str, str], ...] = ()
+    unit: str = ""            # Blender property unit ('LENGTH') or ""
+    suffix: str = ""          # unit text for the guide and bake.py's help ("m", "px")
+    ui: Optional[str] = "all"
+    ui_row: str = ""
+    ui_text: Optional[str] = None
+    option: str = ""          # bake.py option; default "--" + name with '-' for '_'
+
+    @property
+    def cli(self) -> str:
+        return self.option or "--" + self.name.replace("_", "-")
+
+    @property
+    def choice_ids(self) -> Tuple[str, ...]:
+        return tuple(c[0] for c in self.choices)
+
+    def format_value(self, value) -> str:
+        """A value as the guide and messages show it."""
+        if self.kind == "bool":
+            return "on" if value else "off"
+        if self.kind == "enum":
+            return next((c[1] for c in self.choices if c[0] == value), str(value))
+        if self.kind in ("str", "path"):
+            return f"`{value}`"
+        return f"{value:g}" if isinstance(value, float) else str(value)
+
+    def limits_text(self) -> str:
+        """The limits in words (the guide's Limits column)."""
+        if self.kind == "enum":
+            return ", ".join(c[1] for c in self.choices)
+        if self.kind == "bool":
+            return "on / off"
+        if self.kind in ("str", "path"):
+            return "not empty" + ("; must end in `.shprobe`" if self.kind == "path" else "")
+        parts = []
+        if self.minimum is not None:
+            parts.append((">" if self.min_exclusive else "≥") + f" {self.minimum:g}")
+        if self.maximum is not None:
+            parts.append(f"≤ {self.maximum:g}")
+        if self.even:
+            parts.append("even")
+        return ", ".join(parts) or "any"
+
+    def check(self, value) -> Optional[str]:
+        """None if ``value`` is allowed, else why not (one sentence naming the setting)."""
+        what = f"{self.label} ({self.cli})"
+        if self.kind == "bool":
+            return None if isinstance(value, bool) else f"{what} must be on or off (got {value!r})"
+        if self.kind == "enum":
+            if value not in self.choice_ids:
+                return f"{what} must be one of {', '.join(self.choice_ids)} (got {value!r})"
+            return None
+        if self.kind in ("str", "path"):
+            if not isinstance(value, str) or not value:
+                return f"{what} is empty"
+            if self.kind == "path" and not value.endswith(".shprobe"):
+                return f"{what} must name a .shprobe file (got '{value}'): the bake writes only .shprobe files"
+            return None
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return f"{what} must be a number (got {value!r})"
+        if self.kind == "int" and not float(value).is_integer():
+            return f"{what} must be a whole number (got {value})"
+        if not math.isfinite(value):
+            return f"{what} must be finite (got {value})"
+        lo, hi = self.minimum, self.maximum
+        if lo is not None and (value <= lo if self.min_exclusive else value < lo):
+            return f"{what} must be {'>' if self.min_exclusive else '>='} {lo:g} (got {value:g})"
+        if hi is not None and value > hi:
+            return f"{what} must be <= {hi:g} (got {value:g})"
+        if self.even and int(value) % 2:
+            return f"{what} must be even (got {value})"
+        return None
+
+
+PIXEL_FILTER_CHOICES = (
+    ('BOX', "Box", "Each sample counts only for its own pixel: the panorama pixel is the exact "
+                   "solid-angle average the projection assumes"),
+    ('GAUSSIAN', "Gaussian", "Gaussian pixel filter"),
+    ('BLACKMAN_HARRIS', "Blackman-Harris", "Cycles' default filter; blurs across rows of "
+                                           "different solid angle"),
+)
+
+SETTINGS: Tuple[Setting, ...] = (
+    # The five documented parameters (DESIGN.md §6).
+    Setting("volume_collection", "str", "ProbeVolumes", "Probe Volume Collection",
+            "Collection of closed mesh objects; probes fill their union. Its objects are hidden "
+            "from the probe renders and left out of the glTF export",
+            doc="Collection of closed meshes; probes fill their union.", ui="volumes"),
+    Setting("min_cell_size", "float", 0.5, "Min Cell Size (m)",
+            "Smallest octree cell, used near scene geometry; also the spacing of the occupancy "
+            "grid written to the .shprobe",
+            doc="Smallest octree cell, used near geometry; also the `.shprobe` grid spacing. Halving "
+                "it gives up to 8× the probes (and 8× the bake time) and an 8× larger grid.",
+            minimum=0.01, soft_max=4.0, unit='LENGTH', suffix="m"),
+    Setting("max_cell_size", "float", 16.0, "Max Cell Size (m)",
+            "Largest octree cell, used in open space away from geometry",
+            doc="Largest cell, used in open space; at least Min Cell Size. Smaller = more probes in "
+                "empty space.",
+            minimum=0.01, soft_max=64.0, unit='LENGTH', suffix="m", ui="volumes"),
+    Setting("panorama_resolution", "int", 128, "Panorama Resolution",
+            "Width of each per-probe equirectangular render; height = width / 2",
+            doc="Panorama width (height = width/2). Time grows with the pixel count (×4 per "
+                "doubling); SH band 2 needs little resolution, see below. The band also sets a "
+                "minimum (2(L+1) samples per axis: 6×6 for L = 2).",
+            minimum=4, maximum=4096, even=True, suffix="px"),
+    Setting("max_band", "int", 2, "Max SH Band (L)",
+            "Highest SH band; L=2 gives 9 coefficients (the .shprobe v1 format holds L<=2)",
+            doc="The `.shprobe` v1 format holds L ≤ 2 (9 coefficients); L 3–4 write version 2, "
+                "which then also stores each probe's position and validity (1 − the placement's "
+                "back-face ratio).",
+            minimum=0, maximum=4),
+    # Settings that trade time against error.
+    Setting("samples", "int", 32, "Samples",
+            "Cycles samples per panorama pixel: render time grows linearly, noise falls as "
+            "1/sqrt(samples) (measured: 32 is within noise of 64-128 indoors; raise it for skies "
+            "with a small, very bright sun)",
+            doc="Cycles samples per pixel. Time is linear in it, noise falls as 1/√samples. In the "
+                "bright room at 32 bounces 8 / 16 / 32 / 64 / 128 spp give 0.88 / 0.63 / 0.39 / "
+                "0.31 / 0.25 % (table below); raise it for skies with a small, very bright sun.",
+            minimum=1, soft_max=4096),
+    Setting("max_bounces", "int", 32, "Bounces",
+            "Light bounces (total, diffuse and glossy): fewer is faster but darker indoors (light "
+            "missing ≈ albedo^bounces; bright room: 8 lose 13 %, 16 lose 2.8 %, 24 lose 0.6 %, 32 "
+            "are within noise); extra bounces cost little, outdoors 4 are enough",
+            doc="Total, diffuse and glossy bounces. Light missing ≈ albedo^bounces: in a bright "
+                "(albedo 0.8) room 2 / 4 / 8 / 12 / 16 / 24 / 32 bounces give 40 / 27 / 13 / 6.0 / "
+                "2.8 / 0.58 / 0.31 % error (64 spp); outdoors 4 are as good as 32. Extra bounces "
+                "cost little: only the paths that survive that long pay.",
+            minimum=0, maximum=64),
+    Setting("clamp_direct", "float", 0.0, "Clamp Direct",
+            "Clamp of direct-light samples (0 = off); clamping trades fireflies for bias",
+            doc="Clamp on direct samples (0 = off): fewer fireflies, biased low.",
+            minimum=0.0, ui_row="clamp"),
+    Setting("clamp_indirect", "float", 10.0, "Clamp Indirect",
+            "Clamp of indirect-light samples (0 = off; 10 is Cycles' default)",
+            doc="Clamp on indirect samples (0 = off; Cycles' default 10): suppresses fireflies "
+                "from small bright paths at a small bias.",
+            minimum=0.0, ui_row="clamp"),
+    Setting("pixel_filter", "enum", 'BOX', "Pixel Filter", "Cycles pixel filter for the panoramas",
+            doc="Box 1 px makes each pixel the exact solid-angle average the projection assumes; "
+                "Cycles' default Blackman–Harris 1.5 px blurs energy between rows of different "
+                "solid angle.",
+            choices=PIXEL_FILTER_CHOICES, ui_row="filter", ui_text=""),
+    Setting("filter_width", "float", 1.0, "Filter Width (px)",
+            "Pixel filter width; 1 px box = no blur between pixels",
+            doc="Width of the pixel filter.", minimum=0.01, maximum=10.0, suffix="px",
+            ui_row="filter", ui_text="Width"),
+    Setting("lights_visible", "bool", True, "Lamps Seen by Probes",
+            "Lamp objects are seen directly by the probe cameras, so a lamp's own emission counts "
+            "in the probes' light (as an emissive surface would); off hides lamps from the probe "
+            "cameras (they still light the scene)",
+            doc="Lamp objects are visible to the probe cameras, so a lamp's own emission counts in "
+                "the probe (as an emissive surface would). Off: lamps still light the scene but the "
+                "probes do not see them directly."),
+    Setting("persistent_data", "bool", True, "Persistent Data",
+            "Keep the scene in Cycles between probe renders, so a probe costs path tracing and not "
+            "scene sync",
+            doc="Keeps the scene in Cycles between probe renders, so a probe costs path tracing, "
+                "not scene sync."),
+    Setting("per_volume_files", "bool", False, "One File per Volume",
+            "Write sh_coeffs/<volume name>.shprobe for each volume (placed separately) instead of "
+            "one probes.shprobe for their union",
+            doc="Writes `sh_coeffs/<volume name>.shprobe` per volume (each placed on its own) "
+                "instead of one `probes.shprobe` for their union. Positions shared by volumes are "
+                "rendered once.",
+            ui="volumes"),
+    Setting("capture_sky", "bool", True, "Capture Sky",
+            "A volume bake also renders the world alone to sky.exr next to the probe files (the "
+            "engine's background, far light and reflections)",
+            doc="A volume bake also renders the world alone to `sky.exr` next to the probe files "
+                "(see *The sky*).",
+            ui="volumes"),
+    Setting("sky_resolution", "int", 512, "Sky Resolution",
+            "Width of sky.exr; height = width / 2",
+            doc="Width of `sky.exr` (height = width/2).",
+            minimum=4, maximum=16384, even=True, soft_max=4096, suffix="px", ui="volumes"),
+    Setting("probe_limit", "int", 20000, "Confirm Above (probes)",
+            "A bake of more probes than this asks for confirmation first (bake.py: needs "
+            "--allow-large); 0 = never ask",
+            doc="A bake of more probes than this asks for confirmation before the first render "
+                "(`bake.py` refuses it, exit 3, unless `--allow-large` is given); 0 = never ask. "
+                "20000 probes are about 5 h at the defaults in a closed room (estimate: see "
+                "*Before a bake starts*).",
+            minimum=0, ui="volumes"),
+    Setting("seed", "int", 0, "Seed", "Cycles noise seed", doc="Cycles noise seed.", minimum=0,
+            ui=None),
+    Setting("default_sh_scale", "float", 1.0, "Default SH Scale",
+            "SH scale written to the .shprobe header (engine default per probe)",
+            doc="Written to the `.shprobe` header.", minimum=0.0, ui=None),
+    Setting("default_ambient", "float", 0.1, "Default Ambient",
+            "Ambient term written to the .shprobe header",
+            doc="Written to the `.shprobe` header.", minimum=0.0, ui=None),
+    Setting("output_path", "path", DEFAULT_OUTPUT, "Output",
+            "The .shprobe written by Bake SH in Volumes ('//' = folder of the saved .blend); "
+            "per-volume files and the cursor bake's debug_probe.txt go in the same folder",
+            doc="The file Bake SH in Volumes writes; `//` is the folder of the saved `.blend`. An "
+                "existing file there must be a `.shprobe` (see *What can go wrong*).",
+            unit='FILE_PATH', option="--output"),
+)
+
+SETTINGS_BY_NAME = {s.name: s for s in SETTINGS}
+PIXEL_FILTERS = SETTINGS_BY_NAME["pixel_filter"].choice_ids
+
+
+def _cross_checks(s) -> Optional[str]:
+    """Rules between settings (each single setting's limits are in :data:`SETTINGS`)."""
+    if s.max_cell_size < s.min_cell_size:
+        return (f"Max Cell Size (m) (--max-cell-size) must be >= Min Cell Size (m) "
+                f"(--min-cell-size) (got {s.max_cell_size:g} < {s.min_cell_size:g})")
+    return None
+
+
+def _validate(self):
+    """Raise :class:`BakeError` naming the first invalid setting."""
+    for spec in SETTINGS:
+        why = spec.check(getattr(self, spec.name))
+        if why:
+            raise BakeError("Invalid setting: " + why)
+    why = _cross_checks(self)
+    if why:
+        raise BakeError("Invalid setting: " + why)
+
+
+def _from_props(cls, props, **overrides):
+    """Settings from a ``Scene.schnee_probes`` PropertyGroup, with keyword overrides."""
+    values = {f.name: getattr(props, f.name) for f in dataclasses.fields(cls) if hasattr(props, f.name)}
+    values.update(overrides)
+    return cls(**values)
+
+
+#: Every setting of a bake; fields (names, types, defaults) come from :data:`SETTINGS`.
+BakeSettings = dataclasses.make_dataclass(
+    "BakeSettings",
+    [(s.name, {"bool": bool, "int": int, "float": float}.get(s.kind, str), dataclasses.field(default=s.default))
+     for s in SETTINGS],
+    namespace={"validate": _validate, "from_props": classmethod(_from_props),
+               "__doc__": "Every setting of a bake (fields and defaults: settings.SETTINGS)."},
+)
+BakeSettings.__module__ = __name__
+
+
+# ------------------------------------------------------------------ bake.py
+def parse_bool(text):
+    t = str(text).lower()
+    if t in ("1", "on", "true", "yes"):
+        return True
+    if t in ("0", "off", "false", "no"):
+        return False
+    import argparse
+    raise argparse.ArgumentTypeError(f"expected on/off, got {text!r}")
+
+
+def add_arguments(parser):
+    """One ``bake.py`` option per setting. Values are checked by :meth:`BakeSettings.validate`
+    (exit 3, naming the limit); enums and small integer ranges are argparse choices (exit 2)."""
+    for s in SETTINGS:
+        kw = {"dest": s.name, "default": None}
+        default = s.format_value(s.default).strip("`")
+        unit = f" {s.suffix}" if s.suffix else ""
+        limits = "" if s.kind in ("bool", "enum") else "; " + s.limits_text().replace("`", "")
+        help_text = f"{s.help} (default {default}{unit}{limits})"
+        if s.kind == "bool":
+            kw.update(type=parse_bool, metavar="{on,off}")
+        elif s.kind == "enum":
+            kw.update(choices=s.choice_ids)
+        elif s.kind == "int":
+            kw["type"] = int
+            if s.minimum is not None and s.maximum is not None and s.maximum - s.minimum <= 8:
+                kw["choices"] = range(int(s.minimum), int(s.maximum) + 1)
+        elif s.kind == "float":
+            kw["type"] = float
+        if s.kind == "path":
+            kw["metavar"] = "PATH"
+        parser.add_argument(s.cli, help=help_text.replace("%", "%%"), **kw)
+
+
+# ------------------------------------------------------------------ user guide
+TABLE_BEGIN = "<!-- settings_table:begin -->"
+TABLE_END = "<!-- settings_table:end -->"
+
+
+def guide_table() -> str:
+    """The settings table of docs/user-guide.md (between TABLE_BEGIN and TABLE_END)."""
+    rows = ["<!-- generated from addon/schnee_probes/settings.py by scripts/gen_settings_table.py; "
+            "do not edit -->",
+            "| Setting (`bake.py` option) | Default | Limits | What it trades |",
+            "|---|---|---|---|"]
+    for s in SETTINGS:
+        default = s.format_value(s.default) + (f" {s.suffix}" if s.suffix else "")
+        rows.append(f"| {s.label} (`{s.cli}`) | {default} | {s.limits_text()} | {s.doc or s.help} |")
+    return "\n".join(rows)

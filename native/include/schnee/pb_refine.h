@@ -1,0 +1,70 @@
+/* Schnee probes — error-driven refinement of a corner octree, pass by pass (issue 12,
+ * docs/placement.md, "Error-driven refinement").
+ *
+ * How to use it (the bake drives it; this code never renders):
+ *   1. Start with a corner octree of Max Cell Size leaves over the volumes (pb_cotree_create, drop the
+ *      leaves outside), pb_cotree_finalize, bake its probes (pb_cotree_probe_positions).
+ *   2. pb_refine_tests_create(): the test points of every leaf that may still split (level > 0): its
+ *      centre and 6 face centres. They are lattice points and become corners of the children when the
+ *      leaf splits, so a test bake is never wasted. Points that already are probes are marked (no bake).
+ *   3. Bake the test points that need it, then pb_refine_decide(): per leaf, the relative irradiance
+ *      error (RMS over directions) between each test point's baked SH and the leaf's interpolation there;
+ *      a leaf splits when some error exceeds tolerance + k·noise, noise being the Monte-Carlo noise of
+ *      the two sides (per-probe estimates passed in). Leaves at Min Cell Size (level 0) never split.
+ *   4. pb_cotree_split(split flags), pb_cotree_finalize; the new probes are old probes, test points or
+ *      new edge midpoints (look old values up by lattice point); bake the new ones; back to 2 until no
+ *      leaf splits.
+ */
+#ifndef SCHNEE_PB_REFINE_H
+#define SCHNEE_PB_REFINE_H
+
+#include "schnee/pb_interp.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define PB_REFINE_TESTS_PER_LEAF 7 /* centre, −x, +x, −y, +y, −z, +z face centres */
+
+typedef struct pb_refine_tests {
+    uint32_t point_count; /* unique test points */
+    uint32_t *lattice;    /* point_count × 3, lattice coordinates (min cells) */
+    double *positions;    /* point_count × 3, engine space */
+    int32_t *probe; /* point_count: index of the probe already at that point (its value is used, no bake), or −1 */
+    uint32_t leaf_count;
+    int32_t *leaf_tests; /* leaf_count × 7 test point indices, −1 for leaves at Min Cell Size */
+} pb_refine_tests;
+
+/* Test points of a finalized tree, optionally only for leaves whose `active` flag is set (NULL = all
+ * leaves), e.g. leaves that split in the previous pass and their neighbours. */
+pb_result pb_refine_tests_create(const pb_cotree *tree, const uint8_t *active, pb_refine_tests **out, pb_error *err);
+void pb_refine_tests_destroy(pb_refine_tests *tests);
+
+typedef struct pb_refine_desc {
+    uint32_t max_band;           /* 0..4: band of the SH values below */
+    const double *probe_coeffs;  /* probe_count × pb_sh_count(max_band) × 3: radiance SH of the tree's probes */
+    const double *test_coeffs;   /* point_count × ... : baked at the test points (rows of points with probe ≥ 0
+                                    are not read) */
+    const float *probe_noise;    /* probe_count: relative RMS irradiance noise of each probe, or NULL = 0 */
+    const float *test_noise;     /* point_count, or NULL = 0 */
+    const float *probe_validity; /* probe_count, or NULL: probes with validity <= 0 (inside solids) are left out of
+                                    the interpolation (as pb_interp_options.validity) */
+    const uint8_t *test_valid;   /* point_count, or NULL: 0 = the test point is inside a solid; not compared */
+    double tolerance;            /* 0 = 0.05: relative irradiance error a leaf may have */
+    double noise_k;              /* 0 = 2: refine only when error > tolerance + noise_k · noise */
+} pb_refine_desc;
+
+/* Split flags (leaf_count bytes, 1 = split) and optionally each leaf's worst error and the
+ * threshold it was held to (NULL to skip). Leaves without tests get error 0 and flag 0. */
+pb_result pb_refine_decide(const pb_cotree *tree, const pb_refine_tests *tests, const pb_refine_desc *desc,
+                           uint8_t *split, double *leaf_error, double *leaf_threshold, pb_error *err);
+
+/* Relative irradiance error, RMS over directions and RGB, of SH `a` against reference `ref`
+ * (radiance SH, band max_band): ‖A·(a − ref)‖ / ‖A·ref‖ with A the Lambert band factors (exact, by
+ * the orthonormality of the basis). 0 when both are 0; `a` ≠ 0 against ref 0 gives 1. */
+double pb_refine_irradiance_error(uint32_t max_band, const double *a, const double *ref);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
