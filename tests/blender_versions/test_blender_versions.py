@@ -88,6 +88,11 @@ def session(request, tmp_path_factory):
         s["checks"] = _run(suite, "blender", "-b", "--python-exit-code", "1", "-P", inner / "version_checks.py",
                            "--", inner / "work", env=env)
         s["result"] = _result(s["checks"])
+        # Lamp conventions of this Blender's Cycles against the direct-light step (issue 11).
+        shutil.copy(HERE / "scripts" / "lamp_checks.py", outer / "lamp_checks.py")
+        (outer / "lamps").mkdir()
+        s["lamps"] = _result(_run(suite, "blender", "-b", "--factory-startup", "--python-exit-code", "1", "-P",
+                                  inner / "lamp_checks.py", "--", inner / "lamps", env=env))
         pkg = inner / "profile" / "extensions" / "user_default" / "schnee_probes"
         s["package"] = pkg
         # Headless, through the bake.py inside the installed package, Embree bindings recorded.
@@ -138,6 +143,33 @@ def test_bake_volumes_operator_matches_uniform_world(session):
     np.testing.assert_allclose(np.array(r["l0"]), np.tile(COLOR * L0, (8, 1)), rtol=1e-5)
     assert r["odd_max"] < 1e-5 * L0
     assert r["restored_after_bake"] == []
+
+
+def test_lamp_conventions_and_direct_light(session):
+    """docs/direct-light.md in this Blender (scripts/lamp_checks.py): a Sun of angle 0 bakes exactly
+    S·Y(d); a Sun of 10° lights a diffuse plane with S·cos θ (albedo/π); a point lamp of radius r
+    rendered by this Cycles matches the model the add-on picks for this version (Cycles 4.0+: a
+    sphere, half-angle asin(r/d); 3.x: a disc facing the viewer, atan(r/d), 6 % less here), and the
+    bake adds exactly that model's closed form."""
+    r = session["lamps"]
+    assert "error" not in r, r.get("error")
+    # The lamp (rotated 30° about Blender Y) emits along (-sin 30°, 0, -cos 30°): the probe sees its
+    # light from d = (sin 30°, 0, cos 30°), engine space (x, z, -y).
+    d = np.array([math.sin(math.radians(30.0)), 0.0, math.cos(math.radians(30.0))])
+    from schnee_probes import native
+    sun = np.array(r["sun_bake"])
+    assert sun[0, 0] == pytest.approx(3.0 * 0.5 / math.sqrt(math.pi), rel=1e-9)
+    np.testing.assert_allclose(sun, np.tile(3.0 * native.sh_basis(np.array([d[0], d[2], -d[1]]), 2)[:, None], 3),
+                               atol=1e-9)
+    assert r["sun_plane"] == pytest.approx(r["sun_plane_expected"], rel=0.01)
+    legacy = tuple(r["blender"][:2]) < (4, 0)
+    assert r["legacy_point"] is legacy
+    model = r["point_disc_l0"] if legacy else r["point_sphere_l0"]
+    other = r["point_sphere_l0"] if legacy else r["point_disc_l0"]
+    rendered = r["point_render_l0"][0]
+    assert 0.98 * model <= rendered <= 1.01 * model, (rendered, model, other)
+    assert abs(rendered - model) < abs(rendered - other)
+    assert r["point_bake_l0"] == pytest.approx([model] * 3, rel=1e-6)
 
 
 def test_bake_cursor_and_cancel(session):
