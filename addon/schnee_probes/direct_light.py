@@ -37,8 +37,15 @@ from . import native, render_settings, scene_export
 # Shadow rays (= quadrature cells) per lamp and probe; docs/direct-light.md gives the error bounds.
 SAMPLES_PER_LAMP = 256
 # Cycles before 4.0 draws a point/spot lamp as a disc facing the viewer and multiplies the spot cone
-# by cos γ; 4.0 made it a sphere and dropped the cosine (native.Lamp.legacy_point).
+# by cos γ. 4.0+ dropped the cosine; it draws the lamp as a sphere only with Soft Falloff off, and as
+# the same disc with it on (the default): measured per version by tests/blender_versions
+# (scripts/lamp_checks.py). native.Lamp.legacy_point / spot_cosine.
 LEGACY_POINT = bpy.app.version < (4, 0, 0)
+
+
+def _disc_lamp(light) -> bool:
+    """True when Cycles draws this point/spot lamp as a disc facing the viewer."""
+    return LEGACY_POINT or bool(getattr(light, "use_soft_falloff", True))
 
 
 def _engine(v) -> Tuple[float, float, float]:
@@ -92,7 +99,7 @@ def lamp_record(light, matrix_world, factor) -> native.Lamp:
         return native.Lamp("SUN", rgb, pos, _engine(emit), radius=float(light.angle))
     if kind in ('POINT', 'SPOT'):
         lamp = native.Lamp(kind, rgb, pos, _engine(emit), radius=float(light.shadow_soft_size),
-                           legacy_point=LEGACY_POINT)
+                           legacy_point=_disc_lamp(light), spot_cosine=LEGACY_POINT)
         if kind == 'SPOT':
             lamp.spot_size = float(light.spot_size)
             lamp.spot_blend = float(light.spot_blend)

@@ -815,7 +815,7 @@ def classify_placement(volumes: Sequence[Mesh], geometry: Sequence[Mesh], points
 
 LIGHT_TYPES = {"SUN": 0, "POINT": 1, "SPOT": 2, "AREA_RECT": 3, "AREA_ELLIPSE": 4}
 LIGHT_RECORD = 20  # float64 per lamp: type, position[3], direction[3], axis_u[3], rgb[3], radius,
-#                    size_u, size_v, spot_size, spot_blend, legacy_point, 0
+#                    size_u, size_v, spot_size, spot_blend, legacy_point, spot_cosine
 
 
 @dataclass
@@ -825,7 +825,9 @@ class Lamp:
     ``kind``: SUN, POINT, SPOT, AREA_RECT (square/rectangle) or AREA_ELLIPSE (disk/ellipse).
     ``color``: colour × strength (sun W/m², others W). ``direction``: where the lamp emits (its
     local −Z; for a sun the direction its light travels). ``radius``: point/spot radius (m), sun
-    angular diameter ``angle`` (rad). ``legacy_point``: Cycles ≤ 3.6 point/spot conventions."""
+    angular diameter ``angle`` (rad). ``legacy_point``: point/spot drawn as a disc facing the
+    viewer (Cycles ≤ 3.6; 4.0+ with Soft Falloff on), else a sphere. ``spot_cosine``: the spot cone
+    also × cos γ (Cycles ≤ 3.6)."""
     kind: str
     color: Tuple[float, float, float]
     position: Tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -837,13 +839,15 @@ class Lamp:
     spot_size: float = 0.0
     spot_blend: float = 0.0
     legacy_point: bool = True
+    spot_cosine: bool = True
 
     def record(self) -> list:
         return ([float(_choice(self.kind, LIGHT_TYPES, "kind"))] + [float(x) for x in self.position]
                 + [float(x) for x in self.direction] + [float(x) for x in self.axis_u]
                 + [float(x) for x in self.color]
                 + [float(self.radius), float(self.size_u), float(self.size_v), float(self.spot_size),
-                   float(self.spot_blend), 1.0 if self.legacy_point else 0.0, 0.0])
+                   float(self.spot_blend), 1.0 if self.legacy_point else 0.0,
+                   1.0 if self.spot_cosine else 0.0])
 
 
 def direct_project(lamps: Sequence[Lamp], probes: np.ndarray, max_band: int = 2, samples: int = 0,

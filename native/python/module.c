@@ -1436,6 +1436,7 @@ static PyObject *py_direct_project(PyObject *module, PyObject *args, PyObject *k
         l->spot_size = rec[16];
         l->spot_blend = rec[17];
         l->legacy_point = rec[18] != 0.0;
+        l->spot_cosine = rec[19] != 0.0;
     }
     mesh_list geo = {0};
     if (geo_obj != Py_None && mesh_list_get(geo_obj, "geometry", &geo) < 0) {

@@ -207,7 +207,7 @@ static double spot_factor(const pb_light *l, const double out_dir[3])
     if (!(c > cos_half)) return 0.0;
     const double smooth = (1.0 - cos_half) * l->spot_blend;
     double f = smooth > 0.0 ? smoothstep01((c - cos_half) / smooth) : 1.0;
-    if (l->legacy_point) f *= c;
+    if (l->spot_cosine) f *= c;
     return f;
 }
 

@@ -119,6 +119,7 @@ static pb_light point(double power, double radius, const double pos[3], bool leg
     l.direction[1] = -1.0;
     l.radius = radius;
     l.legacy_point = legacy;
+    l.spot_cosine = legacy;
     return l;
 }
 

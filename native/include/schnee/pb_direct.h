@@ -14,10 +14,11 @@
  *          ∫ L dω = S exactly; α = 0 is a delta: S · Y(d).
  *   Point: power P (W), radius r. L = P / (4π² r²) over the lamp's apparent disc; r = 0 is a delta of
  *          intensity P / (4π) (W/sr). Shape: Cycles ≤ 3.6 draws a disc of radius r facing the
- *          viewer (cone half-angle atan(r/d)), Cycles ≥ 4.0 a sphere (asin(r/d)): `legacy_point`.
+ *          viewer (cone half-angle atan(r/d)), and so does Cycles ≥ 4.0 with Soft Falloff on (its
+ *          default); with it off a sphere (asin(r/d)): `legacy_point`.
  *   Spot:  a point lamp times the cone attenuation: smoothstep((cos γ − cos(size/2)) / smooth) with
  *          smooth = (1 − cos(size/2)) · blend, γ the angle off the spot axis; Cycles ≤ 3.6 also
- *          multiplies by cos γ (`legacy_point`).
+ *          multiplies by cos γ (`spot_cosine`).
  *   Area:  power P (W), one-sided (emits along `direction`), uniform radiance L = P / (4 A) over the
  *          rectangle/ellipse of area A (square/disk: size_v = size_u).
  * Visibility: one shadow ray per quadrature cell from the probe to the cell's point on the lamp
@@ -54,7 +55,9 @@ typedef struct pb_light {
     double size_v;       /* area: size along direction × axis_u (m) */
     double spot_size;    /* spot: full cone angle (rad) */
     double spot_blend;   /* spot: 0..1 */
-    bool legacy_point;   /* Cycles ≤ 3.6 point/spot conventions (disc facing the viewer, cos γ) */
+    bool legacy_point;   /* point/spot drawn as a disc facing the viewer (Cycles ≤ 3.6, and 4.0+ with
+                            Soft Falloff on); false: a sphere (4.0+, Soft Falloff off) */
+    bool spot_cosine;    /* spot cone also × cos γ (Cycles ≤ 3.6) */
 } pb_light;
 
 typedef struct pb_direct_scene pb_direct_scene;

@@ -6,11 +6,11 @@ conventions the direct-light step (docs/direct-light.md) assumes, against this B
   must hold exactly S·Y(d) (the issue-11 example: L0 = 3 · 0.2821; before issue 11, zero).
 - sun_plane: a white diffuse plane (albedo 0.8) lit by a Sun of strength 3 and angle 10° at 40°
   from the normal, seen from above by an orthographic camera: a pixel renders 0.8·S·cos 40°/π.
-- point_render: a point lamp (P = 100 W, radius 0.25 m) 1 m from an equirect camera, black world,
-  rendered with the lamp visible to the camera and projected; L0 reported next to the two closed
-  forms, radiance P/(4π²r²) over a sphere (half-angle asin(r/d)) or a disc facing the viewer
-  (atan(r/d)).
-- point_bake_l0: the same lamp baked at the cursor (hidden from camera rays, added analytically).
+- {point,spot}_{soft,hard}_render_l0: a point/spot lamp (P = 100 W, radius 0.25 m) 1 m from an
+  equirect camera, black world, rendered with the lamp visible to the camera and projected, with
+  Soft Falloff on/off (Blender 4.0+); L0 reported next to the two closed forms, radiance
+  P/(4π²r²) over a sphere (half-angle asin(r/d)) or a disc facing the viewer (atan(r/d)).
+- {...}_bake_l0: the same lamp baked at the cursor (hidden from camera rays, added analytically).
 """
 import importlib
 import json
@@ -128,28 +128,44 @@ def main():
     out["sun_plane"] = img_mean
     out["sun_plane_expected"] = 0.8 * 3.0 * math.cos(math.radians(40.0)) / math.pi
 
-    # --- point lamp, radius 0.25, 1 m from an equirect camera (lamp visible to camera rays)
-    clear(scene)
-    lamp(scene, 'POINT', (1.0, 0.0, 1.0), energy=100.0, shadow_soft_size=0.25)
-    cd = bpy.data.cameras.new("Pano")
-    compat.set_equirectangular(cd)
-    cam = bpy.data.objects.new("Pano", cd)
-    cam.location = (0.0, 0.0, 1.0)
-    cam.rotation_euler = (math.pi / 2, 0.0, -math.pi / 2)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    scene.render.resolution_x, scene.render.resolution_y = 512, 256
-    scene.cycles.samples = 64
-    path = os.path.join(work, "point.exr")
-    render(scene, path)
-    out["point_render_l0"] = native.project_file(path, 0, negative="clamp")[0].tolist()
+    # --- point and spot lamps, radius 0.25, 1 m from an equirect camera (visible to camera rays),
+    # with Cycles 4.0+'s Soft Falloff on (its default) and off; the spot (90°, blend 0) points 20°
+    # away from the camera, so only a cos γ factor (Cycles 3.x) can change what is seen.
     r, d, p = 0.25, 1.0, 100.0
     radiance = p / (4.0 * math.pi ** 2 * r * r)
     y00 = 0.5 / math.sqrt(math.pi)
     out["point_sphere_l0"] = radiance * 2.0 * math.pi * (1.0 - math.sqrt(1.0 - (r / d) ** 2)) * y00
     out["point_disc_l0"] = radiance * 2.0 * math.pi * (1.0 - d / math.hypot(d, r)) * y00
+    out["cos_gamma"] = math.cos(math.radians(20.0))
     out["legacy_point"] = bool(direct_light.LEGACY_POINT)
-    out["point_bake_l0"] = cursor_bake(scene, bake_core, "point", (0.0, 0.0, 1.0))[0]
+    for kind in ('POINT', 'SPOT'):
+        for soft in (True, False):
+            clear(scene)
+            # Blender: the camera at (0, 0, 1) looks at the lamp at (1, 0, 1); the spot's axis
+            # (its local -Z) is turned to point at the camera, then 20° further about Blender Z.
+            rot = (0.0, math.pi / 2, math.radians(20.0))
+            ob = lamp(scene, kind, (1.0, 0.0, 1.0), rot, energy=p, shadow_soft_size=r)
+            if kind == 'SPOT':
+                ob.data.spot_size = math.radians(90.0)
+                ob.data.spot_blend = 0.0
+            if hasattr(ob.data, "use_soft_falloff"):
+                ob.data.use_soft_falloff = soft
+            elif not soft:
+                continue                      # Cycles 3.x: no such switch
+            key = f"{kind.lower()}_{'soft' if soft else 'hard'}"
+            cd = bpy.data.cameras.new("Pano")
+            compat.set_equirectangular(cd)
+            cam = bpy.data.objects.new("Pano", cd)
+            cam.location = (0.0, 0.0, 1.0)
+            cam.rotation_euler = (math.pi / 2, 0.0, -math.pi / 2)
+            scene.collection.objects.link(cam)
+            scene.camera = cam
+            scene.render.resolution_x, scene.render.resolution_y = 512, 256
+            scene.cycles.samples = 64
+            path = os.path.join(work, key + ".exr")
+            render(scene, path)
+            out[key + "_render_l0"] = native.project_file(path, 0, negative="clamp")[0][0]
+            out[key + "_bake_l0"] = cursor_bake(scene, bake_core, key, (0.0, 0.0, 1.0))[0][0]
 
 
 try:
