@@ -290,6 +290,15 @@ def sky_table(bake, pano_w: int, pano_h: int) -> np.ndarray:
     return native.sky_table(np.ascontiguousarray(world), pano_w, pano_h, bake.settings.max_band)
 
 
+def is_portal(light) -> bool:
+    """True for an area lamp that is a Cycles light portal (``cycles.is_portal``; ``is_portal``
+    where a Blender keeps it on the light itself)."""
+    if light.type != 'AREA':
+        return False
+    cycles = getattr(light, "cycles", None)
+    return bool(getattr(cycles, "is_portal", False) or getattr(light, "is_portal", False))
+
+
 def classify(light) -> Tuple[bool, Optional[Tuple[float, float, float]], str]:
     """(analytic, emission factor, message) for one light datablock (see the module docstring)."""
     factor, why = emission_factor(light)
@@ -333,6 +342,8 @@ def prepare(bake) -> Optional[DirectLightPlan]:
             if original.name in realtime or owner.hide_render or original.hide_render:
                 continue
             light = original.data
+            if is_portal(light):
+                continue    # a Cycles sky portal emits nothing: it only guides the world's sampling
             if original.name not in decided:
                 decided[original.name] = classify(light)
                 analytic, _, msg = decided[original.name]

@@ -5,7 +5,7 @@ down Cycles' lamp conventions, and two tiny add-on bakes (4 probes, 32x16, 16 sp
 
 Measured (this machine, Blender 3.4.1): area rectangle/disk panoramas match direct_project to
 6e-5 of L0; point/spot panoramas hold 0.62 % less energy than the disc of radius r facing the
-viewer that direct_project integrates (0.9938 .. 0.9944; the sphere model of Cycles 4 is 6 % off,
+viewer that direct_project integrates (0.9938 .. 0.9944; the sphere model of Cycles 4+ with Soft Falloff off is 6 % off,
 and without the cos γ factor the spot is 9-12 % off — both rejected below); the sun on a white
 plane matches E/π of the native sun disc to 1e-5 (angle 0 and 40°).
 """
@@ -59,7 +59,8 @@ def test_point_and_spot_convention(results, name):
 
 
 def test_convention_is_discriminating(results):
-    """The alternatives are far outside those tolerances: a sphere (Cycles 4) and a spot without cos γ."""
+    """The alternatives are far outside those tolerances: a sphere (Cycles 4+ with Soft Falloff off)
+    and a spot sphere without cos γ (Cycles 4+)."""
     from schnee_probes import native
     rendered, _ = _conv(results, "point")
     sphere = native.direct_project([native.Lamp("POINT", (100.0,) * 3, (2.0, 0.0, 0.0), radius=0.5,
@@ -69,7 +70,8 @@ def test_convention_is_discriminating(results):
     a = math.radians(25.0)
     modern = native.direct_project([native.Lamp("SPOT", (100.0,) * 3, (2.0, 0.0, 0.0), (-math.cos(a), 0.0, -math.sin(a)),
                                                 radius=0.5, spot_size=math.radians(60), spot_blend=0.5,
-                                                legacy_point=False)], np.zeros(3), 2, 4096)[0, 0, 0]
+                                                legacy_point=False, spot_cosine=False)], np.zeros(3), 2,
+                                   4096)[0, 0, 0]
     assert rendered[0] / modern < 0.9
 
 
@@ -113,3 +115,11 @@ def test_point_lamp_of_radius_zero_reaches_the_probes(results):
         d2 = float(np.sum((lamp - p) ** 2))
         assert c[0] == pytest.approx([200.0 / (4.0 * math.pi * d2) * K00] * 3, rel=1e-9)
     assert r["visible_camera"] == [True, False, True]
+
+
+def test_light_portal_adds_nothing(results):
+    """A Cycles light portal (an area lamp with is_portal) emits nothing; under a black world the
+    probes stay exactly zero: it is neither added analytically nor hidden from camera rays."""
+    r = _bake(results, "portal")
+    assert np.all(np.array(r["coeffs"]) == 0.0)
+    assert r["visible_camera"] == [True, True, True]

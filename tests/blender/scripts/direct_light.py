@@ -149,6 +149,9 @@ def bake_scene(out, name, kind):
     if kind == "sun":
         lib.box("Roof", (0.0, -3.0, 3.0), (6.0, 3.0, 3.2), material=lib.diffuse_material("Grey", (0.5, 0.5, 0.5)))
         ob = lamp('SUN', (0.0, 0.0, 10.0), energy=3.0)  # default angle, pointing straight down
+    elif kind == "portal":  # a Cycles light portal over the volume: it emits nothing
+        ob = lamp('AREA', (0.0, 0.0, 2.5), energy=200.0, size=1.0)
+        ob.data.cycles.is_portal = True
     else:
         ob = lamp('POINT', (-1.5, 0.0, 2.5), energy=200.0, shadow_soft_size=0.0)
     ob.visible_camera = True
@@ -174,6 +177,7 @@ def main():
     conventions(out)
     bake_scene(out, "sun", "sun")
     bake_scene(out, "point0", "point")
+    bake_scene(out, "portal", "portal")
 
 
 main()
