@@ -41,7 +41,7 @@ from typing import List, Optional, Sequence, Tuple
 import bpy
 import numpy as np
 
-from . import adaptive, compat, fingerprint, journal, light_modes, native, render_settings, scene_export
+from . import adaptive, compat, direct_light, fingerprint, journal, light_modes, native, render_settings, scene_export
 from .safe_open import file_kind
 # The settings are declared in settings.py; re-exported here for scripts that use bake_core.*.
 from .settings import DEFAULT_OUTPUT, PIXEL_FILTERS, BakeError, BakeSettings  # noqa: F401
@@ -149,6 +149,7 @@ class ProbeBake:
         self._closed = False
         self._sky_exr = None                # rendered sky (temporary folder) until finish()
         self._realtime_lights = []          # lamps hidden from the probe renders (light_modes.py)
+        self._direct = None                 # direct_light.DirectLightPlan (issue 11 hook)
         self.allow_large = allow_large      # bake above settings.probe_limit without asking
         self.estimated_seconds = None       # the cost model's estimate, set after placement
         self._cancel_requested = False
@@ -541,6 +542,8 @@ class ProbeBake:
         # and cancel like everything else here).
         for ob in self._realtime_lights:
             state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
+        # --- issue 11 hook: lamps added analytically are hidden from camera rays (direct_light.py).
+        self._direct = direct_light.prepare(self)
 
         cam_data = bpy.data.cameras.new("SchneeProbeCamera")
         compat.set_equirectangular(cam_data)
@@ -626,6 +629,14 @@ class ProbeBake:
             self.scene.update_tag()
             b = self._render_point(pos, i)
             cycles.samples, cycles.seed = s.samples, s.seed
+            if self._direct is not None and self._direct.lamps:
+                # Issue 11: the lamps' direct light is exact (no noise), so it goes into both halves
+                # before the noise estimate, and into every point before the refinement decides
+                # (a sun's shadow edge must draw refinement like any other change of the light).
+                t_d = time.perf_counter()
+                lamp = self._direct.project(np.asarray(pos)[None, :], s.max_band)[0]
+                a, b = a + lamp, b + lamp
+                self.timings["direct"] = self.timings.get("direct", 0.0) + time.perf_counter() - t_d
             self._cache.coeffs[i], self._cache.noise[i] = adaptive.combine_halves(a, b, s1, s2)
             self._cache.rendered[i] = True
             value, noise = self._cache.coeffs[i], float(self._cache.noise[i])
@@ -665,6 +676,10 @@ class ProbeBake:
                         "rendering from that position")
             raise BakeError(f"Projecting the panorama of probe {i + 1} at Blender "
                             f"({where[0]:.3f}, {where[1]:.3f}, {where[2]:.3f}) failed: {exc}{hint}") from exc
+        if self._direct is not None:         # --- issue 11 hook: the world seen directly
+            sky = self._direct.sky_coeffs(self, exr)
+            if sky is not None:
+                coeffs = coeffs + sky
         t3 = time.perf_counter()
         if not np.isfinite(coeffs).all():
             raise BakeError(f"Probe {i + 1}: the projected coefficients are not finite (NaN/Inf in "
@@ -728,6 +743,7 @@ class ProbeBake:
             sky_state.set(render, "resolution_x", s.sky_resolution, "render.resolution_x")
             sky_state.set(render, "resolution_y", s.sky_resolution // 2, "render.resolution_y")
             sky_state.set(render, "resolution_percentage", 100, "render.resolution_percentage")
+            sky_state.set(render, "film_transparent", False, "render.film_transparent")  # issue 11
             self._camera.location = (0.0, 0.0, 0.0)
             bpy.ops.render.render(write_still=False, layer=self.view_layer.name, scene=scene.name)
             image = bpy.data.images.get("Render Result")
@@ -756,6 +772,8 @@ class ProbeBake:
                 self._check_cancel()
                 if self.mode == "VOLUMES" and self.settings.capture_sky and self._sky_exr is None:
                     self.capture_sky()
+                if self._direct is not None and not self.adaptive:  # --- issue 11 hook: lamps' direct
+                    self._direct.add_to(self)  # light (Adaptive adds it per point, before deciding)
                 self._check_cancel()
                 files = self._write_outputs()
                 if self.journal_path is not None:  # the output is complete: the local journal is spent

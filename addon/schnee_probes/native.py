@@ -820,3 +820,71 @@ def classify_placement(volumes: Sequence[Mesh], geometry: Sequence[Mesh], points
         float(max_cell_size), int(threads), int(solid_ray_count), float(solid_backface_ratio))
     return (np.frombuffer(inside, dtype=np.uint8).astype(bool), np.frombuffer(ratio, dtype=np.float32),
             np.frombuffer(cls, dtype=np.uint8))
+
+
+# ---- direct light (issue 11, docs/direct-light.md) ---------------------------------------------
+
+LIGHT_TYPES = {"SUN": 0, "POINT": 1, "SPOT": 2, "AREA_RECT": 3, "AREA_ELLIPSE": 4}
+LIGHT_RECORD = 20  # float64 per lamp: type, position[3], direction[3], axis_u[3], rgb[3], radius,
+#                    size_u, size_v, spot_size, spot_blend, legacy_point, spot_cosine
+
+
+@dataclass
+class Lamp:
+    """One lamp for :func:`direct_project`, engine space, Blender/Cycles units.
+
+    ``kind``: SUN, POINT, SPOT, AREA_RECT (square/rectangle) or AREA_ELLIPSE (disk/ellipse).
+    ``color``: colour × strength (sun W/m², others W). ``direction``: where the lamp emits (its
+    local −Z; for a sun the direction its light travels). ``radius``: point/spot radius (m), sun
+    angular diameter ``angle`` (rad). ``legacy_point``: point/spot drawn as a disc facing the
+    viewer (Cycles ≤ 3.6; 4.0+ with Soft Falloff on), else a sphere. ``spot_cosine``: the spot cone
+    also × cos γ (Cycles ≤ 3.6)."""
+    kind: str
+    color: Tuple[float, float, float]
+    position: Tuple[float, float, float] = (0.0, 0.0, 0.0)
+    direction: Tuple[float, float, float] = (0.0, -1.0, 0.0)
+    axis_u: Tuple[float, float, float] = (1.0, 0.0, 0.0)
+    radius: float = 0.0
+    size_u: float = 0.0
+    size_v: float = 0.0
+    spot_size: float = 0.0
+    spot_blend: float = 0.0
+    legacy_point: bool = True
+    spot_cosine: bool = True
+
+    def record(self) -> list:
+        return ([float(_choice(self.kind, LIGHT_TYPES, "kind"))] + [float(x) for x in self.position]
+                + [float(x) for x in self.direction] + [float(x) for x in self.axis_u]
+                + [float(x) for x in self.color]
+                + [float(self.radius), float(self.size_u), float(self.size_v), float(self.spot_size),
+                   float(self.spot_blend), 1.0 if self.legacy_point else 0.0,
+                   1.0 if self.spot_cosine else 0.0])
+
+
+def direct_project(lamps: Sequence[Lamp], probes: np.ndarray, max_band: int = 2, samples: int = 0,
+                   geometry: Optional[Sequence[Mesh]] = None, ray_offset: float = 0.0) -> np.ndarray:
+    """Radiance projection of the lamps' direct light at each probe (engine space), shadowed by
+    ``geometry`` (opaque triangles; None = nothing occludes). ``samples``: quadrature cells and
+    shadow rays per lamp (0 = 256). Returns (P, sh_count, 3) float64. GIL released."""
+    band = _check_band(max_band)
+    p, _ = _vectors(probes, "probes")
+    rec = np.ascontiguousarray(np.array([lamp.record() for lamp in lamps], dtype=np.float64).reshape(-1))
+    geo = None if geometry is None else _meshes(geometry, "geometry")
+    out = _lib().direct_project(rec, p, band, int(samples), geo, float(ray_offset))
+    return np.frombuffer(out, dtype=np.float64).reshape(len(p), sh_count(band), 3)
+
+
+def sky_table(world: np.ndarray, pano_width: int, pano_height: int, max_band: int = 2,
+              rotation: Optional[np.ndarray] = None) -> np.ndarray:
+    """Per panorama cell (canonical mapping, row 0 at the top) the exact projection of the world
+    texels whose centres fall into it: ``world`` (H, W, C>=3) float32 equirect, same mapping, any
+    resolution. Returns (pano_height, pano_width, sh_count, 3) float64; the sum over all cells is
+    the world's projection (project_equirect)."""
+    band = _check_band(max_band)
+    arr = _array(world, "world", np.float32, _FLOAT_KINDS)
+    if arr.ndim != 3 or arr.shape[2] < 3:
+        raise _shape_error("world", "(H, W, C>=3)", arr)
+    rot = _rotation(rotation)
+    out = _lib().sky_table(arr, arr.shape[1], arr.shape[0], arr.shape[2], int(pano_width), int(pano_height),
+                           band, rot)
+    return np.frombuffer(out, dtype=np.float64).reshape(int(pano_height), int(pano_width), sh_count(band), 3)

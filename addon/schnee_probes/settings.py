@@ -248,12 +248,17 @@ SETTINGS: Tuple[Setting, ...] = (
             doc="Width of the pixel filter.", minimum=0.01, maximum=10.0, suffix="px",
             ui_row="filter", ui_text="Width"),
     Setting("lights_visible", "bool", True, "Lamps Seen by Probes",
-            "Lamp objects are seen directly by the probe cameras, so a lamp's own emission counts "
-            "in the probes' light (as an emissive surface would); off hides lamps from the probe "
-            "cameras (they still light the scene)",
-            doc="Lamp objects are visible to the probe cameras, so a lamp's own emission counts in "
-                "the probe (as an emissive surface would). Off: lamps still light the scene but the "
-                "probes do not see them directly."),
+            "The light reaching a probe straight from a baked lamp counts in the probes (Sun, Point, "
+            "Spot and Area lamps of constant emission added exactly, shadowed by the scene; others "
+            "seen by the probe cameras); off: lamps still light the scene, only their bounced light "
+            "is in the probes",
+            doc="The light that reaches a probe straight from a baked lamp counts in the probe. Sun, "
+                "Point, Spot and Area (spread 180°) lamps of constant emission are added exactly, "
+                "shadowed by the render geometry, and hidden from the probe cameras so nothing counts "
+                "twice; lamps with node-driven emission or a narrower spread are seen by the probe "
+                "cameras (path traced). Off: lamps still light the scene (their bounced light is in "
+                "the probes) but their direct light is not. Realtime lamps are never in the probes "
+                "(docs/direct-light.md)."),
     Setting("persistent_data", "bool", True, "Persistent Data",
             "Keep the scene in Cycles between probe renders, so a probe costs path tracing and not "
             "scene sync",

@@ -12,6 +12,7 @@
 #include <Python.h>
 
 #include "schnee/pb_ambient_cube.h"
+#include "schnee/pb_direct.h"
 #include "schnee/pb_interp.h"
 #include "schnee/pb_octree.h"
 #include "schnee/pb_refine.h"
@@ -1384,6 +1385,151 @@ static PyObject *py_result_string(PyObject *module, PyObject *args)
     return PyUnicode_FromString(pb_result_string((pb_result)code));
 }
 
+/* ---- direct light (issue 11, docs/direct-light.md) ---------------------------------------------- */
+
+#define PB_LIGHT_RECORD 20 /* doubles per lamp record, layout in addon/schnee_probes/native.py */
+
+static PyObject *py_direct_project(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"lights", "probes", "max_band", "samples", "geometry", "ray_offset", NULL};
+    PyObject *lights_obj, *probes_obj, *geo_obj = Py_None;
+    long band = 2;
+    Py_ssize_t samples = 0;
+    double offset = 0.0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO|lnOd:direct_project", kwlist, &lights_obj, &probes_obj, &band,
+                                     &samples, &geo_obj, &offset))
+        return NULL;
+    uint32_t samples32;
+    if (check_band(band) < 0 || check_u32(samples, "samples", &samples32) < 0) return NULL;
+    held_buffer lb, pb;
+    if (get_buffer(lights_obj, "lights", 'd', PB_LIGHT_RECORD, -1, &lb) < 0) return NULL;
+    if (get_buffer(probes_obj, "probes", 'd', 3, -1, &pb) < 0) {
+        release(&lb);
+        return NULL;
+    }
+    const Py_ssize_t nl = lb.count / PB_LIGHT_RECORD, np_ = pb.count / 3;
+    pb_light *lights = calloc((size_t)nl + 1, sizeof *lights);
+    if (!lights) {
+        release(&lb);
+        release(&pb);
+        return PyErr_NoMemory();
+    }
+    const double *rec = lb.view.buf;
+    for (Py_ssize_t i = 0; i < nl; i++, rec += PB_LIGHT_RECORD) {
+        pb_light *l = &lights[i];
+        if (!(rec[0] >= 0.0 && rec[0] < (double)PB_LIGHT_TYPE_COUNT_) || rec[0] != floor(rec[0])) {
+            free(lights);
+            release(&lb);
+            release(&pb);
+            return PyErr_Format(PyExc_ValueError, "lights[%zd]: unknown lamp type", i);
+        }
+        l->type = (pb_light_type)(int)rec[0];
+        for (int k = 0; k < 3; k++) {
+            l->position[k] = rec[1 + k];
+            l->direction[k] = rec[4 + k];
+            l->axis_u[k] = rec[7 + k];
+            l->color[k] = rec[10 + k];
+        }
+        l->radius = rec[13];
+        l->size_u = rec[14];
+        l->size_v = rec[15];
+        l->spot_size = rec[16];
+        l->spot_blend = rec[17];
+        l->legacy_point = rec[18] != 0.0;
+        l->spot_cosine = rec[19] != 0.0;
+    }
+    mesh_list geo = {0};
+    if (geo_obj != Py_None && mesh_list_get(geo_obj, "geometry", &geo) < 0) {
+        free(lights);
+        release(&lb);
+        release(&pb);
+        return NULL;
+    }
+    const uint32_t n = pb_sh_count((uint32_t)band);
+    double *out = calloc((size_t)np_ * n * 3 + 1, sizeof(double));
+    if (!out) {
+        mesh_list_free(&geo);
+        free(lights);
+        release(&lb);
+        release(&pb);
+        return PyErr_NoMemory();
+    }
+    pb_error err = {0};
+    pb_result r = PB_SUCCESS;
+    Py_BEGIN_ALLOW_THREADS;
+    pb_direct_scene *scene = NULL;
+    if (geo.count) r = pb_direct_scene_create(geo.desc, (uint32_t)geo.count, &scene, &err);
+    pb_direct_desc desc = {0};
+    desc.max_band = (uint32_t)band;
+    desc.samples = samples32;
+    desc.ray_offset = offset;
+    desc.scene = scene;
+    const double *probes = pb.view.buf;
+    for (Py_ssize_t p = 0; p < np_ && r == PB_SUCCESS; p++)
+        r = pb_direct_project(&desc, lights, (uint32_t)nl, probes + 3 * p, out + (size_t)p * n * 3, &err);
+    pb_direct_scene_destroy(scene);
+    Py_END_ALLOW_THREADS;
+    mesh_list_free(&geo);
+    free(lights);
+    release(&lb);
+    release(&pb);
+    if (r != PB_SUCCESS) {
+        free(out);
+        return raise_core(module, r, &err);
+    }
+    PyObject *res = bytes_out(out, (size_t)np_ * n * 3 * sizeof(double));
+    free(out);
+    return res;
+}
+
+static PyObject *py_sky_table(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"world",       "width",    "height",   "channels", "pano_width",
+                             "pano_height", "max_band", "rotation", NULL};
+    PyObject *world_obj, *rot_obj = Py_None;
+    Py_ssize_t width, height, channels, pw, ph;
+    long band = 2;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Onnnnn|lO:sky_table", kwlist, &world_obj, &width, &height, &channels,
+                                     &pw, &ph, &band, &rot_obj))
+        return NULL;
+    uint32_t w, h, c, pw32, ph32;
+    if (check_band(band) < 0 || check_u32(width, "width", &w) < 0 || check_u32(height, "height", &h) < 0 ||
+        check_u32(channels, "channels", &c) < 0 || check_u32(pw, "pano_width", &pw32) < 0 ||
+        check_u32(ph, "pano_height", &ph32) < 0)
+        return NULL;
+    if (c < 3) return PyErr_Format(PyExc_ValueError, "channels %u: at least 3 (RGB first) are needed", c);
+    const uint32_t n = pb_sh_count((uint32_t)band);
+    Py_ssize_t cells = product3(pw, ph, (Py_ssize_t)n * 3, "pano_width x pano_height x coefficients");
+    Py_ssize_t expected = product3(width, height, channels, "width x height x channels");
+    if (cells < 0 || expected < 0) return NULL;
+    if (cells > ((Py_ssize_t)1 << 28)) return PyErr_Format(PyExc_ValueError, "the sky table would be too large");
+    held_buffer world, rot;
+    if (get_buffer(world_obj, "world", 'f', 0, expected, &world) < 0) return NULL;
+    if (get_rotation(rot_obj, &rot) < 0) {
+        release(&world);
+        return NULL;
+    }
+    double *table = malloc(sizeof(double) * (size_t)cells + 1);
+    if (!table) {
+        release(&world);
+        release(&rot);
+        return PyErr_NoMemory();
+    }
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS r = pb_direct_sky_table(world.view.buf, w, h, c, pw32, ph32, (uint32_t)band,
+                                                   rot.view.obj ? rot.view.buf : NULL, table, &err);
+    Py_END_ALLOW_THREADS release(&world);
+    release(&rot);
+    if (r != PB_SUCCESS) {
+        free(table);
+        return raise_core(module, r, &err);
+    }
+    PyObject *res = bytes_out(table, (size_t)cells * sizeof(double));
+    free(table);
+    return res;
+}
+
 static PyMethodDef methods[] = {
     {"sh_basis", py_sh_basis, METH_VARARGS, "sh_basis(dirs: float64[N*3], max_band) -> bytearray float64[N*count]"},
     {"min_panorama_size", py_min_panorama_size, METH_VARARGS, "min_panorama_size(max_band) -> (w, h)"},
@@ -1414,6 +1560,12 @@ static PyMethodDef methods[] = {
      "ambient_cube_from_sh(coeffs: float64[P*count*3], max_band, fit) -> bytearray float64[P*18]"},
     {"ambient_cube_irradiance", py_ambient_cube_irradiance, METH_VARARGS,
      "ambient_cube_irradiance(cube: float64[18], normals: float64[N*3]) -> bytearray float64[N*3]"},
+    {"direct_project", (PyCFunction)(void (*)(void))py_direct_project, METH_VARARGS | METH_KEYWORDS,
+     "direct_project(lights: float64[N*20], probes: float64[P*3], max_band=2, samples=0, geometry=None, "
+     "ray_offset=0) -> bytearray float64[P*count*3] (docs/direct-light.md)"},
+    {"sky_table", (PyCFunction)(void (*)(void))py_sky_table, METH_VARARGS | METH_KEYWORDS,
+     "sky_table(world: float32[H*W*C], width, height, channels, pano_width, pano_height, max_band=2, "
+     "rotation=None) -> bytearray float64[pano_h*pano_w*count*3]"},
     {"result_string", py_result_string, METH_VARARGS, "result_string(code) -> str"},
     {"placement_classify", (PyCFunction)(void (*)(void))py_placement_classify, METH_VARARGS | METH_KEYWORDS,
      "placement_classify(volumes, geometry, points=None, boxes=None, ...) -> (inside, backface_ratio, box_class)"},

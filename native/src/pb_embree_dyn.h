@@ -1,6 +1,6 @@
 /* Schnee probes — Embree reached through function pointers (the Python module only).
  *
- * Force-included (-include) into pb_octree.c when it is compiled for _schnee_native: every Embree
+ * Force-included (-include) into pb_octree.c and pb_direct.c when they are compiled for _schnee_native: every Embree
  * call becomes a call through a pointer that pb_embree_load() fills with dlsym() from the Embree
  * the add-on package carries (lib/libembree3.so.3 next to the module; libembree4.so.4 when built
  * against Embree 4, PB_EMBREE_SONAME), opened RTLD_LOCAL. The module then has no undefined rtc*
@@ -13,7 +13,7 @@
 #include "schnee/pb_embree.h"
 #include <stddef.h>
 
-/* Every exported Embree function pb_octree.c calls (the rtcInit* helpers are inline), in Embree 3
+/* Every exported Embree function pb_octree.c and pb_direct.c call (the rtcInit* helpers are inline), in Embree 3
  * and 4 alike (pb_embree_compat.h). */
 #define PB_EMBREE_FUNCTIONS(X)                                                                                         \
     X(rtcAttachGeometry)                                                                                               \
@@ -25,6 +25,7 @@
     X(rtcNewDevice)                                                                                                    \
     X(rtcNewGeometry)                                                                                                  \
     X(rtcNewScene)                                                                                                     \
+    X(rtcOccluded1)                                                                                                    \
     X(rtcPointQuery)                                                                                                   \
     X(rtcReleaseDevice)                                                                                                \
     X(rtcReleaseGeometry)                                                                                              \
@@ -34,6 +35,7 @@
     X(rtcSetGeometryUserData)                                                                                          \
     X(rtcSetGeometryUserPrimitiveCount)                                                                                \
     X(rtcSetNewGeometryBuffer)                                                                                         \
+    X(rtcSetSceneBuildQuality)                                                                                         \
     X(rtcSetSceneFlags)
 
 #define PB_EMBREE_DECLARE(name) extern __typeof__(&name) pb_dyn_##name;
@@ -54,6 +56,7 @@ int pb_embree_load(char *msg, size_t msg_size);
 #define rtcNewDevice                     pb_dyn_rtcNewDevice
 #define rtcNewGeometry                   pb_dyn_rtcNewGeometry
 #define rtcNewScene                      pb_dyn_rtcNewScene
+#define rtcOccluded1                     pb_dyn_rtcOccluded1
 #define rtcPointQuery                    pb_dyn_rtcPointQuery
 #define rtcReleaseDevice                 pb_dyn_rtcReleaseDevice
 #define rtcReleaseGeometry               pb_dyn_rtcReleaseGeometry
@@ -63,6 +66,7 @@ int pb_embree_load(char *msg, size_t msg_size);
 #define rtcSetGeometryUserData           pb_dyn_rtcSetGeometryUserData
 #define rtcSetGeometryUserPrimitiveCount pb_dyn_rtcSetGeometryUserPrimitiveCount
 #define rtcSetNewGeometryBuffer          pb_dyn_rtcSetNewGeometryBuffer
+#define rtcSetSceneBuildQuality          pb_dyn_rtcSetSceneBuildQuality
 #define rtcSetSceneFlags                 pb_dyn_rtcSetSceneFlags
 #endif
 

@@ -65,9 +65,10 @@ def _rel_rms(a, b):
 def test_realtime_lamp_bakes_like_a_deleted_lamp(bakes):
     rt, deleted, seed1 = bakes["realtime"], bakes["deleted"], bakes["deleted_seed1"]
     assert rt["positions"] == deleted["positions"] and len(rt["positions"]) == 4
-    # Noise scale: the same scene with another seed (measured 4.1 % irradiance RMS at 16 spp).
+    # Noise scale: the same scene with another seed (measured 0.033 % irradiance RMS at 16 spp since
+    # the lamps' direct light is added analytically, issue 11; 4.1 % when it was path traced).
     noise = _rel_rms(seed1["coeffs"], deleted["coeffs"])
-    assert 1e-3 < noise < 0.1
+    assert 1e-4 < noise < 0.1
     # Same seed, same synced scene (the hidden lamp is not synced at all): the renders are the same
     # path by path, so the probes agree far below the noise (measured: bit-identical).
     assert _rel_rms(rt["coeffs"], deleted["coeffs"]) < 0.01 * noise

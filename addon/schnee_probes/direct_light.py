@@ -1,0 +1,362 @@
+"""Direct light of lamps added to the probes analytically (issue 11, docs/direct-light.md).
+
+Camera rays cannot see a Sun lamp at all, nor a point or spot lamp of radius 0, and see small lamps
+only with noise. So, when "Lamps Seen by Probes" (``lights_visible``) is on, every baked lamp whose
+emission is a constant and that the native core models exactly (Sun, Point, Spot, Area with spread
+180°) is
+
+* hidden from camera rays in the probe panoramas (``visible_camera = False``; it still lights the
+  scene, so its bounced light stays in the path-traced panorama), and
+* added to every probe as the exact SH projection of its direct radiance, shadowed by the render
+  geometry through Embree (``native.direct_project``).
+
+Lamps with a node-driven emission that is not a constant, and area lamps with a narrower spread,
+stay visible to camera rays (path traced as before); a Sun lamp of that kind, which camera rays
+cannot see, is added analytically with the constant part of its emission and a message. Realtime
+lamps (light_modes.py) are in neither. With ``lights_visible`` off no lamp is seen directly by the
+probes (the meaning of that setting is unchanged): nothing here runs.
+
+Use from the bake (bake_core.ProbeBake): ``plan = prepare(bake)`` once the render is set up (its
+changes — transparent film, lamps hidden from camera rays — go through the bake's StateGuard),
+``plan.add_sky(bake, i, exr)`` after each panorama, ``plan.add_to(bake)`` before the files are
+written.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from typing import List, Optional, Tuple
+
+import bpy
+import numpy as np
+
+from . import native, render_settings, scene_export
+
+# Shadow rays (= quadrature cells) per lamp and probe; docs/direct-light.md gives the error bounds.
+SAMPLES_PER_LAMP = 256
+# Cycles before 4.0 draws a point/spot lamp as a disc facing the viewer and multiplies the spot cone
+# by cos γ. 4.0+ dropped the cosine; it draws the lamp as a sphere only with Soft Falloff off, and as
+# the same disc with it on (the default): measured per version by tests/blender_versions
+# (scripts/lamp_checks.py). native.Lamp.legacy_point / spot_cosine.
+LEGACY_POINT = bpy.app.version < (4, 0, 0)
+
+
+def _disc_lamp(light) -> bool:
+    """True when Cycles draws this point/spot lamp as a disc facing the viewer."""
+    return LEGACY_POINT or bool(getattr(light, "use_soft_falloff", True))
+
+
+def _engine(v) -> Tuple[float, float, float]:
+    """Blender direction/point (x, y, z) -> engine (x, z, -y)."""
+    return (float(v[0]), float(v[2]), -float(v[1]))
+
+
+def emission_factor(light) -> Tuple[Optional[Tuple[float, float, float]], str]:
+    """(rgb, "") when the lamp's node tree scales its emission by a constant (no nodes: 1), else
+    (None, why). Cycles multiplies the lamp's colour × power by the Emission node at its output."""
+    if not getattr(light, "use_nodes", False) or light.node_tree is None:
+        return (1.0, 1.0, 1.0), ""
+    outputs = [n for n in light.node_tree.nodes if n.type == 'OUTPUT_LIGHT']
+    active = [n for n in outputs if getattr(n, "is_active_output", True)] or outputs
+    if not active:
+        return (0.0, 0.0, 0.0), ""
+    surface = active[0].inputs.get("Surface")
+    if surface is None or not surface.is_linked:
+        return (0.0, 0.0, 0.0), ""
+    node = surface.links[0].from_node
+    if node.type != 'EMISSION':
+        return None, f"its node tree feeds a {node.type.lower()} node, not an Emission node, to the output"
+    color, strength = node.inputs["Color"], node.inputs["Strength"]
+    if color.is_linked or strength.is_linked:
+        return None, "its Emission colour or strength is driven by nodes"
+    c = color.default_value
+    s = float(strength.default_value)
+    return (float(c[0]) * s, float(c[1]) * s, float(c[2]) * s), ""
+
+
+def _constant_part(light) -> Tuple[float, float, float]:
+    """The unlinked Emission values of a node-driven lamp (1 where none can be read)."""
+    try:
+        out = [n for n in light.node_tree.nodes if n.type == 'OUTPUT_LIGHT'][0]
+        node = out.inputs["Surface"].links[0].from_node
+        c, s = node.inputs["Color"].default_value, float(node.inputs["Strength"].default_value)
+        return float(c[0]) * s, float(c[1]) * s, float(c[2]) * s
+    except (IndexError, KeyError, AttributeError):
+        return 1.0, 1.0, 1.0
+
+
+def lamp_record(light, matrix_world, factor) -> native.Lamp:
+    """The native.Lamp of Blender light datablock ``light`` placed by ``matrix_world``."""
+    m = np.array(matrix_world, dtype=np.float64).reshape(4, 4)
+    col0, col1, col2 = m[:3, 0], m[:3, 1], m[:3, 2]
+    emit = -col2 / max(np.linalg.norm(col2), 1e-300)           # local -Z
+    rgb = tuple(float(light.color[k]) * float(light.energy) * factor[k] for k in range(3))
+    pos = _engine(m[:3, 3])
+    kind = light.type
+    if kind == 'SUN':
+        return native.Lamp("SUN", rgb, pos, _engine(emit), radius=float(light.angle))
+    if kind in ('POINT', 'SPOT'):
+        lamp = native.Lamp(kind, rgb, pos, _engine(emit), radius=float(light.shadow_soft_size),
+                           legacy_point=_disc_lamp(light), spot_cosine=LEGACY_POINT)
+        if kind == 'SPOT':
+            lamp.spot_size = float(light.spot_size)
+            lamp.spot_blend = float(light.spot_blend)
+        return lamp
+    # AREA: Cycles scales the lamp's size by its object scale; power is spread over the scaled area.
+    su = float(light.size) * float(np.linalg.norm(col0))
+    if light.shape in ('SQUARE', 'DISK'):
+        sv = float(light.size) * float(np.linalg.norm(col1))
+    else:
+        sv = float(light.size_y) * float(np.linalg.norm(col1))
+    u = col0 / max(np.linalg.norm(col0), 1e-300)
+    shape = "AREA_RECT" if light.shape in ('SQUARE', 'RECTANGLE') else "AREA_ELLIPSE"
+    return native.Lamp(shape, rgb, pos, _engine(emit), _engine(u), size_u=su, size_v=sv)
+
+
+@dataclass
+class DirectLightPlan:
+    """Which lamps are added analytically (and hidden from camera rays) and the shadow geometry."""
+    lamps: List[native.Lamp] = field(default_factory=list)
+    analytic: List[str] = field(default_factory=list)      # object names, hidden from camera rays
+    path_traced: List[str] = field(default_factory=list)   # object names left to camera rays
+    geometry: list = field(default_factory=list)
+    messages: List[str] = field(default_factory=list)
+    samples: int = SAMPLES_PER_LAMP
+    sky: bool = False                 # panoramas with a transparent film + exact world projection
+    sky_source: str = ""              # how the world was read (for the log and the docs' tests)
+    _table: Optional[np.ndarray] = None
+
+    def project(self, positions: np.ndarray, max_band: int) -> np.ndarray:
+        """(P, sh_count, 3): the lamps' direct radiance projection at engine-space positions."""
+        if not self.lamps or len(positions) == 0:
+            return np.zeros((len(positions), native.sh_count(max_band), 3))
+        return native.direct_project(self.lamps, np.asarray(positions, dtype=np.float64), max_band,
+                                     self.samples, self.geometry)
+
+    def add_to(self, bake):
+        """Adds the direct light to ``bake.coeffs`` (all probes at once) and records the time."""
+        t0 = time.perf_counter()
+        bake.coeffs += self.project(bake.positions, bake.settings.max_band)
+        bake.timings["direct"] = time.perf_counter() - t0
+
+
+    def sky_coeffs(self, bake, exr_path: str) -> Optional[np.ndarray]:
+        """Σ_cells vis(cell) · ∫_cell L_world Y dω for the panorama just rendered with a transparent
+        film (the world hidden from camera rays): vis = 1 − alpha. None when the sky is path traced."""
+        if not self.sky:
+            return None
+        t0 = time.perf_counter()
+        s = bake.settings
+        w, h = s.panorama_resolution, s.panorama_resolution // 2
+        if self._table is None:          # once per bake: the world read or captured, binned
+            self._table = sky_table(bake, w, h)
+            bake.timings["sky_table"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+        vis = 1.0 - read_alpha(exr_path, w, h)
+        np.clip(vis, 0.0, 1.0, out=vis)
+        out = np.einsum("hw,hwic->ic", vis, self._table)
+        bake.timings["sky_direct"] = bake.timings.get("sky_direct", 0.0) + time.perf_counter() - t0
+        return out
+
+
+def read_alpha(path: str, width: int, height: int) -> np.ndarray:
+    """(height, width) float64 alpha of an RGBA EXR written by the bake, row 0 at the top."""
+    img = bpy.data.images.load(path, check_existing=False)
+    try:
+        w, h = img.size
+        ch = img.channels
+        if (w, h) != (width, height) or ch != 4:
+            raise RuntimeError(f"panorama {path} is {w}x{h}x{ch}, expected {width}x{height} RGBA")
+        buf = np.empty(w * h * 4, dtype=np.float32)
+        img.pixels.foreach_get(buf)
+    finally:
+        bpy.data.images.remove(img)
+    return buf.reshape(h, w, 4)[::-1, :, 3].astype(np.float64)
+
+
+def world_image(world):
+    """(pixels (H, W, C) float32 top-down, strength, name) when the world is exactly an Environment
+    Texture (equirect, default mapping, linear float image) into a Background of constant strength,
+    else None: then the world is captured with Cycles instead."""
+    if world is None or not world.use_nodes or world.node_tree is None:
+        return None
+    outs = [n for n in world.node_tree.nodes if n.type == 'OUTPUT_WORLD']
+    active = [n for n in outs if getattr(n, "is_active_output", True)] or outs
+    if not active or not active[0].inputs["Surface"].is_linked:
+        return None
+    bg = active[0].inputs["Surface"].links[0].from_node
+    if bg.type != 'BACKGROUND' or bg.inputs["Strength"].is_linked or not bg.inputs["Color"].is_linked:
+        return None
+    env = bg.inputs["Color"].links[0].from_node
+    if env.type != 'TEX_ENVIRONMENT' or env.projection != 'EQUIRECTANGULAR' or env.inputs["Vector"].is_linked:
+        return None
+    if bg.inputs["Color"].links[0].from_socket.name != "Color":
+        return None
+    img = env.image
+    if img is None or img.source != 'FILE' or not img.is_float:
+        return None
+    if img.colorspace_settings.name not in ("Linear", "Linear Rec.709", "Non-Color", "Raw"):
+        return None
+    w, h = img.size
+    ch = img.channels
+    if w < 1 or h < 1 or ch < 3:
+        return None
+    buf = np.empty(w * h * ch, dtype=np.float32)
+    img.pixels.foreach_get(buf)
+    pixels = np.ascontiguousarray(buf.reshape(h, w, ch)[::-1])
+    return pixels, float(bg.inputs["Strength"].default_value), img.name
+
+
+# The Cycles capture of a world that is not a plain HDRI (docs/direct-light.md, "Measured"): a small,
+# very bright sun (Nishita's disc, 0.545°) covers a few pixels, and its estimate converges with the
+# samples that land on it. Measured against a 4096x2048 capture: 1024x512 at 128 spp 0.5 % low,
+# 2048x1024 at 32 spp 0.27 % (same cost: pixels help more than samples per pixel).
+def world_constant(world) -> Optional[Tuple[float, float, float]]:
+    """The world's radiance when it is one colour everywhere (no world: black; nodes off: its
+    colour; a Background with unlinked colour and strength; no surface: black), else None."""
+    if world is None:
+        return (0.0, 0.0, 0.0)
+    if not getattr(world, "use_nodes", True) or world.node_tree is None:
+        return tuple(float(c) for c in world.color[:3])
+    outs = [n for n in world.node_tree.nodes if n.type == 'OUTPUT_WORLD']
+    active = [n for n in outs if getattr(n, "is_active_output", True)] or outs
+    if not active:
+        return (0.0, 0.0, 0.0)
+    surface = active[0].inputs.get("Surface")
+    if surface is None or not surface.is_linked:
+        return (0.0, 0.0, 0.0)
+    bg = surface.links[0].from_node
+    if bg.type != 'BACKGROUND' or bg.inputs["Color"].is_linked or bg.inputs["Strength"].is_linked:
+        return None
+    c, k = bg.inputs["Color"].default_value, float(bg.inputs["Strength"].default_value)
+    return (float(c[0]) * k, float(c[1]) * k, float(c[2]) * k)
+
+
+SKY_CAPTURE_WIDTH = 2048
+SKY_CAPTURE_SAMPLES = 32
+
+
+def capture_world(bake, width: int) -> np.ndarray:
+    """The world alone rendered by Cycles from the probe camera at the origin (every object hidden,
+    opaque film), width x width/2, (H, W, 4) float32 top-down. Every change goes through a
+    render_settings.StateGuard and is put back right after the render (also on error)."""
+    scene = bake.scene
+    cam = bake._camera
+    r = scene.render
+    path = os.path.join(bake._tmpdir, "schnee_world_capture.exr")
+    with render_settings.StateGuard() as state:
+        for ob in scene.objects:
+            if ob is not cam:
+                state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
+        state.set(r, "resolution_x", width, "render.resolution_x")
+        state.set(r, "resolution_y", width // 2, "render.resolution_y")
+        state.set(r, "film_transparent", False, "render.film_transparent")
+        state.set(scene.cycles, "samples", SKY_CAPTURE_SAMPLES, "cycles.samples")
+        location = tuple(cam.location)
+        state.on_restore(lambda: setattr(cam, "location", location), "the probe camera's location")
+        cam.location = (0.0, 0.0, 0.0)
+        bpy.ops.render.render(write_still=False, layer=bake.view_layer.name, scene=scene.name)
+        bpy.data.images["Render Result"].save_render(path, scene=scene)
+    if state.failed:
+        bake.log("Schnee: could not restore " + ", ".join(state.failed))
+    img = bpy.data.images.load(path, check_existing=False)
+    try:
+        buf = np.empty(width * (width // 2) * 4, dtype=np.float32)
+        img.pixels.foreach_get(buf)
+    finally:
+        bpy.data.images.remove(img)
+    return np.ascontiguousarray(buf.reshape(width // 2, width, 4)[::-1])
+
+
+def sky_table(bake, pano_w: int, pano_h: int) -> np.ndarray:
+    """(pano_h, pano_w, sh_count, 3): the world pre-integrated per panorama cell (native.sky_table)."""
+    plan = bake._direct
+    src = world_image(bake.scene.world)
+    rgb = world_constant(bake.scene.world) if src is None else None
+    if rgb is not None:
+        world = np.empty((pano_h, pano_w, 3), dtype=np.float32)
+        world[:] = np.clip(np.array(rgb, dtype=np.float32), 0.0, None)
+        plan.sky_source = "constant colour ({:.6g}, {:.6g}, {:.6g})".format(*rgb)
+    elif src is not None:
+        pixels, strength, name = src
+        world = np.clip(pixels[:, :, :3] * np.float32(strength), 0.0, None)  # the HDRIs hold -1e-5 texels
+        plan.sky_source = f"image '{name}' {pixels.shape[1]}x{pixels.shape[0]}"
+    else:
+        width = max(SKY_CAPTURE_WIDTH, 8 * pano_w)
+        world = np.clip(capture_world(bake, width)[:, :, :3], 0.0, None)
+        plan.sky_source = f"Cycles capture {width}x{width // 2}"
+    bake.log(f"Schnee: world seen directly from {plan.sky_source}")
+    return native.sky_table(np.ascontiguousarray(world), pano_w, pano_h, bake.settings.max_band)
+
+
+def is_portal(light) -> bool:
+    """True for an area lamp that is a Cycles light portal (``cycles.is_portal``; ``is_portal``
+    where a Blender keeps it on the light itself)."""
+    if light.type != 'AREA':
+        return False
+    cycles = getattr(light, "cycles", None)
+    return bool(getattr(cycles, "is_portal", False) or getattr(light, "is_portal", False))
+
+
+def classify(light) -> Tuple[bool, Optional[Tuple[float, float, float]], str]:
+    """(analytic, emission factor, message) for one light datablock (see the module docstring)."""
+    factor, why = emission_factor(light)
+    if light.type == 'AREA' and float(getattr(light, "spread", math.pi)) < math.pi - 1e-6:
+        return False, None, "is an area lamp with a spread below 180°, which is path traced"
+    if factor is None:
+        if light.type == 'SUN':
+            return True, _constant_part(light), (f"is a Sun lamp whose {why[4:] if why.startswith('its ') else why}"
+                                                 ": the probes use its constant part only")
+        return False, None, f"is path traced because {why}"
+    return True, factor, ""
+
+
+def prepare(bake) -> Optional[DirectLightPlan]:
+    """Decides every baked lamp's way, hides the analytic ones from camera rays and gathers the
+    shadow geometry. Every Blender setting it changes goes through the bake's
+    render_settings.StateGuard (``bake._state``), restored by finish and cancel."""
+    s = bake.settings
+    scene, view_layer, state = bake.scene, bake.view_layer, bake._state
+    # The world seen directly: the panoramas get a transparent film (world hidden from camera rays,
+    # alpha = coverage) and add_sky() adds the exact world projection weighted by 1 - alpha.
+    state.set(scene.render, "film_transparent", True, "render.film_transparent")
+    state.set(scene.render.image_settings, "color_mode", 'RGBA', "render.image_settings.color_mode")
+    if not s.lights_visible:
+        return DirectLightPlan(sky=True)
+    realtime = {ob.name for ob in bake._realtime_lights}
+    coll = bpy.data.collections.get(s.volume_collection)
+    volume_names = frozenset(ob.name for ob in coll.all_objects) if coll is not None else frozenset()
+    plan = DirectLightPlan(sky=True)
+    evaluation = render_settings.RenderEvaluation(scene, view_layer,
+                                                  keep=volume_names | ({coll.name} if coll else set()))
+    with evaluation as depsgraph:
+        plan.geometry = scene_export.gather_geometry(depsgraph, volume_names)
+        decided = {}
+        for inst in depsgraph.object_instances:
+            ob = inst.object
+            if ob.type != 'LIGHT':
+                continue
+            original = ob.original
+            owner = inst.parent.original if inst.is_instance and inst.parent is not None else original
+            if original.name in realtime or owner.hide_render or original.hide_render:
+                continue
+            light = original.data
+            if is_portal(light):
+                continue    # a Cycles sky portal emits nothing: it only guides the world's sampling
+            if original.name not in decided:
+                decided[original.name] = classify(light)
+                analytic, _, msg = decided[original.name]
+                (plan.analytic if analytic else plan.path_traced).append(original.name)
+                if msg:
+                    plan.messages.append(f"Light '{original.name}' {msg}")
+            analytic, factor, _ = decided[original.name]
+            if analytic:
+                plan.lamps.append(lamp_record(light, inst.matrix_world, factor))
+    for name in plan.analytic:
+        ob = bpy.data.objects.get(name)
+        if ob is not None and hasattr(ob, "visible_camera"):
+            state.set(ob, "visible_camera", False, f"object[{ob.name}].visible_camera")
+    bake.messages.extend(plan.messages)
+    return plan
