@@ -117,6 +117,20 @@ def test_point_lamp_of_radius_zero_reaches_the_probes(results):
     assert r["visible_camera"] == [True, False, True]
 
 
+def test_adaptive_placement_gets_the_direct_light_at_every_point(results):
+    """Adaptive placement adds the exact direct light to every point it renders (probes and test
+    points, before the refinement decides): the same closed form at each, and zero measured noise
+    (the two half renders differ only by Cycles noise, and under a black world there is none)."""
+    r = _bake(results, "point0_adaptive")
+    coeffs, pos = np.array(r["coeffs"]), np.array(r["positions"])
+    assert len(pos) >= 8
+    lamp = np.array([-1.5, 2.5, 0.0])
+    for p, c in zip(pos, coeffs):
+        d2 = float(np.sum((lamp - p) ** 2))
+        assert c[0] == pytest.approx([200.0 / (4.0 * math.pi * d2) * K00] * 3, rel=1e-9)
+    assert max(r["noise"]) == 0.0
+
+
 def test_light_portal_adds_nothing(results):
     """A Cycles light portal (an area lamp with is_portal) emits nothing; under a black world the
     probes stay exactly zero: it is neither added analytically nor hidden from camera rays."""

@@ -142,7 +142,7 @@ def conventions(out):
         common.emit(case="sun_plane", angle=deg, rendered=below, l1_up=coeffs[1].tolist())
 
 
-def bake_scene(out, name, kind):
+def bake_scene(out, name, kind, placement="OCTREE"):
     lib.clear_scene()
     black_world()
     lib.probe_volume("Volume", (-2.0, -0.5, 0.0), (2.0, 0.5, 1.0))
@@ -157,7 +157,8 @@ def bake_scene(out, name, kind):
     ob.visible_camera = True
     ob.name = "Lamp"
     before = ob.visible_camera
-    settings = bake_core.BakeSettings(placement="OCTREE", min_cell_size=1.0, max_cell_size=1.0, panorama_resolution=32, samples=16,
+    settings = bake_core.BakeSettings(placement=placement, min_cell_size=0.5 if placement == "ADAPTIVE" else 1.0,
+                                      max_cell_size=1.0, panorama_resolution=32, samples=16,
                                       max_bounces=4, capture_sky=False,
                                       output_path=os.path.join(out, name, "probes.shprobe"))
     job = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings, log=lambda *_: None)
@@ -166,6 +167,11 @@ def bake_scene(out, name, kind):
     while job.step():
         pass
     result = job.finish()
+    if placement == "ADAPTIVE":  # every rendered point (probes and test points) of the refinement
+        done = job._cache.rendered
+        common.emit(case="bake", name=name, coeffs=job._cache.coeffs[done].tolist(),
+                    positions=job._cache.positions[done].tolist(), noise=job._cache.noise[done].tolist())
+        return
     common.emit(case="bake", name=name, coeffs=job.coeffs.tolist(), positions=job.positions.tolist(),
                 visible_camera=[before, during, bpy.data.objects["Lamp"].visible_camera],
                 messages=result.messages, direct_seconds=result.timings.get("direct"),
@@ -178,6 +184,7 @@ def main():
     bake_scene(out, "sun", "sun")
     bake_scene(out, "point0", "point")
     bake_scene(out, "portal", "portal")
+    bake_scene(out, "point0_adaptive", "point", placement="ADAPTIVE")
 
 
 main()
