@@ -157,3 +157,11 @@ def test_export_writes_the_v3_entry_and_the_validator_is_clean(scenes, tmp_path)
     report = json.loads(proc.stdout)
     assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, report
     assert proc.returncode == 0
+    # The engine loads both exported grids (v3 octree SH and v3 octree ambient cubes, half) without
+    # a mismatch between the entries and the files (tests/engine/test_engine_v3.py: the shading).
+    out = tmp_path / "x.exr"
+    proc = subprocess.run([str(REPO / "build" / "schnee-view"), r["gltf"], "--headless", "--output", str(out),
+                           "--width", "32", "--height", "32"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "mismatch" not in proc.stderr and "differs" not in proc.stderr, proc.stderr
+    assert out.stat().st_size > 0
