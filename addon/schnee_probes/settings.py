@@ -175,7 +175,10 @@ SETTINGS: Tuple[Setting, ...] = (
             doc="Adaptive only: the relative irradiance error (RMS over directions and RGB) a cell's "
                 "interpolation may show at its test points before it splits, on top of twice the "
                 "measured Monte-Carlo noise. Smaller = more probes near light changes; it does not add "
-                "probes where the light is smooth.",
+                "probes where the light is smooth. Bundled room (bench/results/placement.md, 64×32 px, "
+                "16 spp): 0.2 / 0.1 / 0.05 give 305 / 546 / 836 probes, 837 / 1485 / 1982 points "
+                "rendered and 11.8 / 4.8 / 3.3 % error between probes (floor 1.5 %; geometry octree "
+                "4.9 % with 2458 probes).",
             minimum=0.0, min_exclusive=True, maximum=1.0, ui="volumes"),
     Setting("file_version", "enum", 'V3', "File Version",
             "Adaptive placement: version 3 (the octree, interpolated continuously) or version 1 (the "
