@@ -2,8 +2,8 @@
 is not packaged for Debian and its Manager does not run here, so this runs the job type's
 compileJob in Node with a small stand-in for the Manager's `author` API (Task, Command,
 addCommand, addDependency, job.addTask — the names Flamenco's own job types use) and checks the
-tasks it authors: one `blender-render` task per shard with bake.py's --shard K/N, then a merge task
-with --merge-shards N depending on every shard; bad input is refused. What the real Manager does
+tasks it authors: per stage one `blender-render` task per shard with bake.py's --shard K/N, each
+stage after the previous, then a merge task with --merge-shards N after the last stage; bad input is refused. What the real Manager does
 with them is not tested here (said in docs/farm.md)."""
 import json
 import shutil
@@ -41,22 +41,27 @@ def _compile(tmp_path, settings):
     return json.loads(out.stdout)
 
 
-def test_one_task_per_shard_then_the_merge(tmp_path):
-    res = _compile(tmp_path, {"shards": 3, "bake_py": "/opt/addons/schnee_probes/bake.py",
+def test_one_task_per_shard_and_stage_then_the_merge(tmp_path):
+    res = _compile(tmp_path, {"shards": 3, "stages": 2, "bake_py": "/opt/addons/schnee_probes/bake.py",
                               "bake_args": "--samples 64 --output '//sh coeffs/probes.shprobe'",
                               "blendfile": "/farm/scene.blend"})
     tasks = res["tasks"]
-    assert [t["name"] for t in tasks] == ["shard-0-of-3", "shard-1-of-3", "shard-2-of-3", "merge"]
-    for k, t in enumerate(tasks[:3]):
+    first = ["stage-1-shard-0-of-3", "stage-1-shard-1-of-3", "stage-1-shard-2-of-3"]
+    second = ["stage-2-shard-0-of-3", "stage-2-shard-1-of-3", "stage-2-shard-2-of-3"]
+    assert [t["name"] for t in tasks] == first + second + ["merge"]
+    for i, t in enumerate(tasks[:6]):
         (cmd,) = t["commands"]
-        assert t["type"] == "blender" and cmd["type"] == "blender-render" and t["deps"] == []
+        assert t["type"] == "blender" and cmd["type"] == "blender-render"
+        assert t["deps"] == ([] if i < 3 else first)  # a stage after every task of the one before
         assert cmd["params"]["blendfile"] == "/farm/scene.blend"
         assert cmd["params"]["args"] == ["-P", "/opt/addons/schnee_probes/bake.py", "--", "--samples", "64",
-                                         "--output", "//sh coeffs/probes.shprobe", "--shard", f"{k}/3"]
-    assert tasks[3]["commands"][0]["params"]["args"][-2:] == ["--merge-shards", "3"]
-    assert tasks[3]["deps"] == ["shard-0-of-3", "shard-1-of-3", "shard-2-of-3"]
+                                         "--output", "//sh coeffs/probes.shprobe", "--shard", f"{i % 3}/3"]
+    assert tasks[6]["commands"][0]["params"]["args"][-2:] == ["--merge-shards", "3"]
+    assert tasks[6]["deps"] == second
 
 
 def test_zero_shards_is_refused(tmp_path):
-    res = _compile(tmp_path, {"shards": 0, "bake_py": "b.py", "bake_args": "", "blendfile": "x.blend"})
+    res = _compile(tmp_path, {"shards": 0, "stages": 1, "bake_py": "b.py", "bake_args": "", "blendfile": "x.blend"})
     assert res == {"error": "shards must be at least 1, not 0"}
+    res = _compile(tmp_path, {"shards": 2, "stages": 0, "bake_py": "b.py", "bake_args": "", "blendfile": "x.blend"})
+    assert res == {"error": "stages must be at least 1, not 0"}

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Flamenco job type "Schnee Probes Bake" (docs/farm.md): one Blender task per shard
-// (bake.py -- --shard K/N), then one merge task (--merge-shards N) that depends on every shard
-// task and writes the .shprobe files. Shards resume from their journals, so a task that Flamenco
+// Flamenco job type "Schnee Probes Bake" (docs/farm.md): per placement stage one Blender task per
+// shard (bake.py -- --shard K/N), each stage after the previous one, then one merge task
+// (--merge-shards N) after the last stage that writes the .shprobe files. Shards resume from their journals, so a task that Flamenco
 // re-queues after a failure re-renders only what it had not finished. Install: copy this file into
 // the `scripts/` folder next to the Flamenco Manager executable and restart the Manager.
 
@@ -16,6 +16,16 @@ const JOB_TYPE = {
             required: true,
             visible: "submission",
             description: "Number of shards (tasks that bake in parallel)",
+        },
+        {
+            key: "stages",
+            type: "int32",
+            default: 11,
+            required: true,
+            visible: "submission",
+            description: "Placement stages: 2 x floor(log2(Max / Min Cell Size)) + 1 for Adaptive placement " +
+                "(11 at the defaults 0.5 / 16 m; bake.py --farm prints it), 1 for the geometry octree. " +
+                "More than needed costs only a quick task per shard.",
         },
         {
             key: "bake_py",
@@ -59,16 +69,25 @@ function bakeCommand(settings, extra) {
 function compileJob(job) {
     const settings = job.settings;
     const n = settings.shards;
+    const stages = settings.stages;
     if (!(n >= 1)) throw `shards must be at least 1, not ${n}`;
-    const shardTasks = [];
-    for (let k = 0; k < n; k++) {
-        const task = author.Task(`shard-${k}-of-${n}`, "blender");
-        task.addCommand(bakeCommand(settings, ["--shard", `${k}/${n}`]));
-        job.addTask(task);
-        shardTasks.push(task);
+    if (!(stages >= 1)) throw `stages must be at least 1, not ${stages}`;
+    // One round of shard tasks per placement stage, each round after every task of the round
+    // before: a stage's points depend on all values of the previous one (docs/farm.md).
+    let previous = [];
+    for (let s = 0; s < stages; s++) {
+        const round = [];
+        for (let k = 0; k < n; k++) {
+            const task = author.Task(`stage-${s + 1}-shard-${k}-of-${n}`, "blender");
+            task.addCommand(bakeCommand(settings, ["--shard", `${k}/${n}`]));
+            for (const t of previous) task.addDependency(t);
+            job.addTask(task);
+            round.push(task);
+        }
+        previous = round;
     }
     const merge = author.Task("merge", "blender");
     merge.addCommand(bakeCommand(settings, ["--merge-shards", `${n}`]));
-    for (const t of shardTasks) merge.addDependency(t);
+    for (const t of previous) merge.addDependency(t);
     job.addTask(merge);
 }
