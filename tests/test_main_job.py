@@ -27,9 +27,12 @@ def test_main_job_end_to_end(tmp_path):
     assert f"main job: image   {out / 'frame.png'}" in proc.stdout
 
     probes = native.read_shprobe(str(out / "sh_coeffs" / "probes.shprobe"))
-    # Room 10 x 10 x 4 m at a 2 m grid: 5 x 2 x 5 cells, each inside the volume (docs/placement.md).
-    assert probes.grid_dims == (5, 2, 5)
-    assert probes.probe_count > 0 and (probes.grid >= 0).all()
+    # Adaptive placement (the default) writes a version 3 corner octree: its lattice of Min Cell Size
+    # 2 m spans whole 4 m root cells over the 10 x 4 x 10 m room, ceil(10 / 4) x 4 / 2 = 6 and
+    # 4 / 2 = 2 min cells per axis (docs/placement.md, docs/shprobe-format.md "Version 3").
+    assert probes.version == 3
+    assert probes.grid_dims == (6, 2, 6)
+    assert probes.probe_count > 0
 
     gltf = json.loads((out / "gltf" / "scene.gltf").read_text())
     grids = gltf["scenes"][0]["extensions"]["VULKAN_SCHNEE_engine_properties"]["shProbeGrids"]
