@@ -28,6 +28,7 @@ HERE = Path(__file__).resolve().parent
 CHROOT = REPO / "scripts" / "blender-chroot.sh"
 VALIDATOR = REPO / "tests" / "tools" / "validate_gltf.mjs"
 COLOR = np.array([0.25, 0.5, 1.0])
+PROBES = 27  # Adaptive placement's corners of 1 m cells in the 2 m cube volume (3 x 3 x 3)
 L0 = 2.0 * math.sqrt(math.pi)  # ∫Y00 dω = 4π · 1/(2√π)
 VERSIONS = {"trixie": (4, 3), "sid": (5, 2)}
 
@@ -136,11 +137,13 @@ def test_bake_volumes_operator_matches_uniform_world(session):
     r = session["result"]
     assert "error" not in r, r.get("error")
     assert r["bake_volumes"] == ["FINISHED"], r["bake_message"]
-    assert r["probe_count"] == 8  # 2 m cube, 1 m cells
+    # Adaptive placement (the default): the corners of the 1 m cells of the 2 m cube, 3 x 3 x 3
+    # (min = max cell size: one pass, nothing to refine).
+    assert r["probe_count"] == PROBES
     # Uniform radiance C: L0 = C·2√π (EXR float32, Cycles' 1-sample constant background: exact to
     # rounding); every coefficient odd under a reflection of the equirect grid vanishes (all but
     # Y20 and Y22, which the coarse 16 x 8 grid integrates to small non-zero values).
-    np.testing.assert_allclose(np.array(r["l0"]), np.tile(COLOR * L0, (8, 1)), rtol=1e-5)
+    np.testing.assert_allclose(np.array(r["l0"]), np.tile(COLOR * L0, (PROBES, 1)), rtol=1e-5)
     assert r["odd_max"] < 1e-5 * L0
     assert r["restored_after_bake"] == []
 
@@ -192,8 +195,8 @@ def test_headless_bake_py_from_the_package(session):
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     from schnee_probes import native  # the host's reader reads the file the chroot's Blender wrote
     f = native.read_shprobe(str(session["host"] / "headless" / "probes.shprobe"))
-    assert f.probe_count == 8
-    np.testing.assert_allclose(f.coeffs[:, 0, :], np.tile(COLOR * L0, (8, 1)), rtol=1e-5)
+    assert f.probe_count == PROBES
+    np.testing.assert_allclose(f.coeffs[:, 0, :], np.tile(COLOR * L0, (PROBES, 1)), rtol=1e-5)
 
 
 def test_blender_command_schnee_bake(session):
@@ -201,7 +204,7 @@ def test_blender_command_schnee_bake(session):
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     from schnee_probes import native
     f = native.read_shprobe(str(session["host"] / "cli" / "probes.shprobe"))
-    np.testing.assert_allclose(f.coeffs[:, 0, :], np.tile(COLOR * L0, (8, 1)), rtol=1e-5)
+    np.testing.assert_allclose(f.coeffs[:, 0, :], np.tile(COLOR * L0, (PROBES, 1)), rtol=1e-5)
 
 
 def test_missing_embree_explained_by_bake_py(session):
