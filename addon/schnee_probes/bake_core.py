@@ -210,6 +210,9 @@ class ProbeBake:
     def prepare(self, placement_progress=None):
         """Validate the input, place the probes and set up rendering. Raises :class:`BakeError`."""
         self._t0 = time.perf_counter()
+        # Before anything else: without the Cycles add-on nothing can be rendered (and scene.cycles
+        # does not exist), so refuse with what to do instead of failing after placement.
+        render_settings.require_cycles(self.scene)
         s = self.settings
         s.validate()
         self._realtime_lights = self._check_light_modes()

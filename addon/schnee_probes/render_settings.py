@@ -9,6 +9,19 @@ the bake itself (``bake_core.ProbeBake``), the sky capture and placement's rende
 import bpy
 
 from . import compat
+from .settings import BakeError
+
+CYCLES_DISABLED = ("The probes are rendered with Cycles, but the Cycles add-on is disabled: enable it in "
+                   "Preferences > Add-ons (Render: Cycles Render Engine)")
+
+
+def require_cycles(scene):
+    """``scene.cycles``; :class:`BakeError` saying what to do when the Cycles add-on is disabled
+    (then the scene has no Cycles settings and 'CYCLES' is no render engine)."""
+    cycles = compat.cycles_settings(scene)
+    if cycles is None:
+        raise BakeError(CYCLES_DISABLED)
+    return cycles
 
 # Nested pointers followed when snapshotting; others (ID pointers, collections) are kept by value
 # or skipped. Depth is bounded so cyclic RNA paths cannot recurse forever.
@@ -169,8 +182,9 @@ def apply_bake_settings(scene, view_layer, settings):
 
     ``settings`` is a :class:`bake_core.BakeSettings`. Everything written here is captured by a
     :class:`StateGuard` (:meth:`StateGuard.snapshot` of ``render``, ``cycles`` and
-    ``view_layer``) made before the call.
+    ``view_layer``) made before the call. Raises :class:`BakeError` (nothing changed) without Cycles.
     """
+    c = require_cycles(scene)
     r = scene.render
     r.engine = 'CYCLES'
     r.resolution_x = settings.panorama_resolution
@@ -195,7 +209,6 @@ def apply_bake_settings(scene, view_layer, settings):
     compat.set_existing(im, use_zbuffer=False)  # removed in Blender 4.x
     im.use_preview = False
 
-    c = scene.cycles
     c.samples = settings.samples
     c.use_denoising = False  # Debian's Blender has no OpenImageDenoise; a denoiser also biases
     c.use_adaptive_sampling = False  # the error should not depend on the image content

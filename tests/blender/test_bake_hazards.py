@@ -8,7 +8,8 @@
 - the probe count and an estimate are printed before the first render, and a bake above
   --probe-limit needs --allow-large;
 - NaN/Inf emission is refused naming the material and the object; Inf in a rendered panorama
-  names the probe and its position.
+  names the probe and its position;
+- with the Cycles add-on disabled both operators and bake.py refuse before placement, saying so.
 
 Runtime: about a minute on 2 cores (tiny panoramas, 1 sample).
 """
@@ -311,3 +312,36 @@ def test_inf_in_a_panorama_names_the_probe_and_its_position(scenes, tmp_path):
                             "again resumes from them"), msg
     else:
         assert not out.exists()
+
+
+# ------------------------------------------------------------------ Cycles add-on disabled
+CYCLES_DISABLED = "the Cycles add-on is disabled: enable it in Preferences > Add-ons"
+
+
+def test_bake_without_cycles_is_refused_before_anything(scenes, tmp_path):
+    """With the Cycles add-on disabled the scene has no ``cycles`` settings and 'CYCLES' is no render
+    engine: before, the bake placed the probes and then died in apply_bake_settings (TypeError /
+    AttributeError). Now both operators and bake.py refuse at once, saying what to do, and leave
+    the scene and the output folder as they were."""
+    proc = run_blender(SCRIPTS / "hazard_no_cycles.py", tmp_path, blend=scenes / "sky.blend", timeout=120)
+    r = json.loads([l for l in proc.stdout.splitlines() if l.startswith("RESULT ")][-1][7:])
+    assert r["cycles_enabled"] == [False, False] and r["scene_has_cycles"] is False
+    for op in ("volumes", "cursor"):
+        assert r[f"{op}_result"] == ["CANCELLED"]
+        assert CYCLES_DISABLED in r[f"{op}_message"], r[f"{op}_message"]
+    assert r["files"] == []
+    assert r["state_after"] == r["state_before"]
+    assert "Traceback" not in proc.stdout + proc.stderr
+
+    # bake.py, Cycles disabled by a --python-expr before it: exit 3 with the same words, no output.
+    blend = copy_blend(scenes, "sky.blend", tmp_path / "cli")
+    before = digest(blend)
+    cmd = ["blender", "-b", str(blend), "--factory-startup", "--python-exit-code", "1", "--python-expr",
+           "import addon_utils; addon_utils.disable('cycles', default_set=True)",
+           "-P", str(BAKE_PY), "--", *CELLS_2M, *TINY]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "PYTHONPATH": str(ADDON_DIR), "SCHNEE_REPO": str(REPO)})
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert last_error(proc).startswith("bake.py: error: ") and CYCLES_DISABLED in last_error(proc), last_error(proc)
+    assert "placing probes" not in proc.stdout  # refused before placement
+    assert sorted(p.name for p in blend.parent.iterdir()) == ["sky.blend"] and digest(blend) == before
