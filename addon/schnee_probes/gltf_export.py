@@ -30,6 +30,7 @@ import urllib.parse
 import bpy
 
 from . import compat, light_modes, nodes
+from .native import STRUCTURES
 
 EXT_ENGINE = "VULKAN_SCHNEE_engine_properties"
 EXT_MATERIALS = "VULKAN_SCHNEE_materials"
@@ -52,8 +53,8 @@ PROBE_MODES = ("off", "object", "pixel")
 # tests/engine/ext/test_probe_representations.c.
 PROBE_REPRESENTATION_PROPERTY = "schnee_probe_representation"
 PROBE_REPRESENTATIONS = ("sh", "ambientCube")
-# Version 3 files (docs/shprobe-format.md): the entry's "structure" and "storage" values.
-STRUCTURES = ("grid", "octree", "tetrahedra")
+# Version 3 files (docs/shprobe-format.md): the entry's "structure" values are native.STRUCTURES
+# (imported above), its "storage" values these.
 STORAGES = ("float32", "float16")
 
 

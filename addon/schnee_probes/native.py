@@ -414,6 +414,14 @@ def place_probes(volumes: Sequence[Mesh], geometry: Sequence[Mesh], min_cell_siz
 _IDENTITY_AXES = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
 
+# Version 3 interpolation structures, indexed by the file's structure field (PB_SHPROBE_GRID, _OCTREE,
+# _TETRA in native/include/schnee/pb_shprobe.h): the names of ShProbeFile.structure and of the glTF
+# entry's "structure" (gltf_export.py takes this tuple). The C reader's and the engine's tables
+# (native/src/pb_shprobe.c, engine/ext/sv_ext.c) are compared with it by
+# tests/python/test_structure_names.py.
+STRUCTURES = ("grid", "octree", "tetrahedra")
+
+
 @dataclass
 class ShProbeFile:
     """Contents of a ``.shprobe`` file (DESIGN.md §4, docs/shprobe-format.md)."""
@@ -476,7 +484,7 @@ def _shprobe_from_dict(d: dict) -> ShProbeFile:
         grid_axes=tuple(tuple(r) for r in d["grid_axes"]),
         representation="ambientCube" if cube else "sh",
         storage="float16" if d.get("storage", 0) == 1 else "float32",
-        structure=("grid", "octree", "tetrahedra")[d.get("structure", 0)],
+        structure=STRUCTURES[d.get("structure", 0)],
         leaves=_opt_rows(d.get("leaves"), np.uint32, 4),
         leaf_corners=_opt_rows(d.get("leaf_corners"), np.int32, 8),
         hanging_sources=_opt_rows(d.get("hanging_sources"), np.uint32, 4),

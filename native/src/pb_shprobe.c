@@ -175,10 +175,13 @@ uint32_t pb_shprobe_colour_count(const pb_shprobe *p)
     return p->representation == PB_SHPROBE_AMBIENT_CUBE ? 6u : pb_sh_count(p->max_band);
 }
 
-static const char *structure_name(uint32_t s)
-{
-    return s == PB_SHPROBE_OCTREE ? "octree" : (s == PB_SHPROBE_TETRA ? "tetrahedra" : "grid");
-}
+/* Indexed by pb_shprobe_structure; the same names as the add-on's native.STRUCTURES and the engine's
+ * sv_ext_grid_structure_name (tests/python/test_structure_names.py compares them). */
+static const char *const structure_names[] = {"grid", "octree", "tetrahedra"};
+_Static_assert(sizeof structure_names / sizeof structure_names[0] == PB_SHPROBE_TETRA + 1,
+               "one name per pb_shprobe_structure");
+
+static const char *structure_name(uint32_t s) { return s <= PB_SHPROBE_TETRA ? structure_names[s] : "grid"; }
 
 /* Version 3 kind fields and structure counts: known values, limits, what each structure requires.
  * `code` is the result for a wrong value (format when reading, invalid argument when writing). */
