@@ -1207,6 +1207,21 @@ pb_result pb_interp_from_shprobe(const pb_shprobe *f, pb_cotree **tree, pb_tetra
     return r;
 }
 
+/* The interpolation weights at the centre of cell j of a dense grid (min corner lo, cell size
+ * spacing, dims cells per axis; j in the version 1/2 grid order, x fastest, then y, then z). */
+static void dense_cell_weights(const pb_cotree *tree, const pb_tetra *tetra, const pb_interp_options *opt,
+                               const double lo[3], double spacing, const uint32_t dims[3], uint64_t j,
+                               pb_interp_weights *w)
+{
+    const uint64_t cell[3] = {j % dims[0], (j / dims[0]) % dims[1], j / ((uint64_t)dims[0] * dims[1])};
+    double p[3];
+    for (int k = 0; k < 3; k++) p[k] = lo[k] + spacing * ((double)cell[k] + 0.5);
+    if (tree)
+        pb_interp_query_cotree(tree, p, opt, w);
+    else
+        pb_interp_query_tetra(tetra, p, opt, w);
+}
+
 pb_result pb_interp_resample_dense(const pb_shprobe *f, double spacing, pb_shprobe **out, pb_error *err)
 {
     if (!f || !out) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_interp_resample_dense: NULL argument");
@@ -1260,14 +1275,8 @@ pb_result pb_interp_resample_dense(const pb_shprobe *f, double spacing, pb_shpro
     pb_interp_options opt = {.validity = f->validity};
     uint32_t n = 0;
     for (uint64_t j = 0; j < cells; j++) {
-        double p[3] = {lo[0] + spacing * ((double)(j % dims[0]) + 0.5),
-                       lo[1] + spacing * ((double)((j / dims[0]) % dims[1]) + 0.5),
-                       lo[2] + spacing * ((double)(j / ((uint64_t)dims[0] * dims[1])) + 0.5)};
         pb_interp_weights w;
-        if (tree)
-            pb_interp_query_cotree(tree, p, &opt, &w);
-        else
-            pb_interp_query_tetra(tetra, p, &opt, &w);
+        dense_cell_weights(tree, tetra, &opt, lo, spacing, dims, j, &w);
         map[j] = w.count ? (int32_t)n++ : -1;
     }
     if (n > PB_SHPROBE_MAX_PROBES) {
@@ -1284,14 +1293,8 @@ pb_result pb_interp_resample_dense(const pb_shprobe *f, double spacing, pb_shpro
     for (uint64_t j = 0; j < cells; j++) {
         g->grid[j] = map[j];
         if (map[j] < 0) continue;
-        double p[3] = {lo[0] + spacing * ((double)(j % dims[0]) + 0.5),
-                       lo[1] + spacing * ((double)((j / dims[0]) % dims[1]) + 0.5),
-                       lo[2] + spacing * ((double)(j / ((uint64_t)dims[0] * dims[1])) + 0.5)};
         pb_interp_weights w;
-        if (tree)
-            pb_interp_query_cotree(tree, p, &opt, &w);
-        else
-            pb_interp_query_tetra(tetra, p, &opt, &w);
+        dense_cell_weights(tree, tetra, &opt, lo, spacing, dims, j, &w);
         float *dst = g->coeffs + (size_t)map[j] * C * 3u;
         double acc[PB_SH_MAX_COEFFS * 3] = {0}, sc = 0.0, am = 0.0;
         for (uint32_t i = 0; i < w.count; i++) {
