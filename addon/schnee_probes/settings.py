@@ -295,11 +295,17 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("seed", "int", 0, "Seed", "Cycles noise seed", doc="Cycles noise seed.", minimum=0,
             ui=None),
     Setting("default_sh_scale", "float", 1.0, "Default SH Scale",
-            "SH scale written to the .shprobe header (engine default per probe)",
-            doc="Written to the `.shprobe` header.", minimum=0.0, ui=None),
+            "Stored in the .shprobe header's Default SH Scale field (kept for the version 1 layout); "
+            "readers, the engine included, ignore it: the engine scales by each probe's own scale "
+            "and the material's SH scale",
+            doc="Stored in the `.shprobe` header only; readers, the engine included, ignore it "
+                "(docs/shprobe-format.md, *What readers use*).", minimum=0.0, ui=None),
     Setting("default_ambient", "float", 0.1, "Default Ambient",
-            "Ambient term written to the .shprobe header",
-            doc="Written to the `.shprobe` header.", minimum=0.0, ui=None),
+            "Stored in the .shprobe header's Default Ambient field and as every probe's ambient (kept "
+            "for the version 1 layout); readers, the engine included, ignore both: the engine's "
+            "ambient term is the material's",
+            doc="Stored in the `.shprobe` header and as every probe's ambient; readers, the engine "
+                "included, ignore both (docs/shprobe-format.md, *What readers use*).", minimum=0.0, ui=None),
     Setting("output_path", "path", DEFAULT_OUTPUT, "Output",
             "The .shprobe written by Bake SH in Volumes ('//' = folder of the saved .blend); "
             "per-volume files and the cursor bake's debug_probe.txt go in the same folder",
