@@ -1,7 +1,20 @@
-"""Blender-version differences, in one place.
+"""Helpers for the Blender-version differences of the bake and the glTF export.
 
-One add-on for Blender 3.4 through 5.x (tested: 3.4, 4.3, 5.2; docs/install.md): every API that
-differs between those versions is reached through a helper here, never directly.
+One add-on for Blender 3.4 through 5.x (tested: 3.4, 4.3, 5.2; docs/install.md). Most APIs that
+differ between those versions are reached through a helper here. Not all: some checks stay where
+they are used, each a feature test rather than a version number:
+
+- ``__init__.register``: ``bpy.utils.register_cli_command`` (4.2+, ``blender --command schnee_bake``);
+- ``gltf_export.py``: the entry points each exporter generation looks up (``register_panel`` for
+  3.4-4.1, ``draw_export`` for 4.2-4.3, re-exported by ``__init__.__getattr__``), the exporter's
+  texture gathering called under ``try`` (its internals differ), ``.get`` on a material hook's
+  argument (not always a material);
+- ``bake.py``: the installed package's module name (legacy ``schnee_probes`` or a 4.2+ extension's
+  ``bl_ext.<repo>.schnee_probes``);
+- ``direct_light.py``: Cycles' point/spot lamp model before 4.0 (``LEGACY_POINT``) and lamp
+  properties that moved or are new (``use_soft_falloff``, 4.0+; ``is_portal`` on the lamp or on
+  its ``cycles`` settings);
+- ``nodes.py``: interface socket descriptions where the socket has one.
 """
 import bpy
 
@@ -122,13 +135,6 @@ def gltf_gather_texture_info():
         except (ImportError, AttributeError):
             continue
     return None
-
-
-def id_property(idblock, name, default=None):
-    """A custom (ID) property of ``idblock``: ``idblock.get(name)``, which 5.0 keeps for custom
-    properties (its removal of dict access concerns RNA-defined properties)."""
-    getter = getattr(idblock, "get", None)
-    return getter(name, default) if getter is not None else default
 
 
 def set_existing(struct, **values):
