@@ -221,7 +221,7 @@ SV_END(sv_gpu_cube_half)
 SV_SIZE_CHECK(sv_gpu_cube_half, 56)
 
 /* One probe grid for per-pixel sampling (std430, SV_BINDING_GRIDS), in glTF order. Cell (x, y, z)
- * has its centre at sv_cell_centre() (C, sv_probes.h) / cell_centre() (GLSL, shading.glsl). */
+ * has its centre at sv_cell_centre() (C, sv_probes.h) / cell_centre() (GLSL, gpu_types.glsl). */
 SV_STRUCT(sv_gpu_grid)
 {
     SV_VEC4(origin_spacing); /* xyz = min corner of cell (0,0,0), w = spacing (metres) */

@@ -260,8 +260,9 @@ bool svg_parse_nodes(ctx_ *c, const cJSON *root)
     return ok;
 }
 
-/* One shProbeGrids entry, checked on a scratch context so that a bad entry becomes a warning.
- * Fills pg's scalars; *uri and *name point into the JSON. */
+/* Appends the mesh, camera and light instances of the subtree at root_node (depth-first pre-order,
+ * children in file order) with their world matrices, grows the scene bounds by each mesh instance's
+ * box and marks every node visited in_scene. False only when out of memory. */
 static bool add_instances(ctx_ *c, uint32_t root_node)
 {
     sv_gltf *g = c->g;

@@ -52,9 +52,9 @@ typedef struct sv_options {
  * bounds from +Z and a little above. False (with a message) if --camera names no camera. */
 bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *view);
 
-/* Prints one line per object: `object <index> '<name>' probe <buffer index> center (x, y, z)`. */
-/* `object <i> '<name>' probe <index> center (x, y, z)` per object; for a probe interpolated from a
- * version 3 grid (a per-object slot) a second line `  grid <g> weights <n>: <index>:<w> ...`. */
+/* Prints `object <i> '<name>' probe <buffer index> center (x, y, z)` per object; for a probe
+ * interpolated from a version 3 grid (a per-object slot) a second line
+ * `  grid <g> weights <n>: <index>:<w> ...`. */
 void sv_app_print_assignments(const sv_scene *scene, const sv_probes *probes);
 
 /* Checks the validation counters; prints a summary and returns false if any message was seen. */
