@@ -7,8 +7,9 @@
 #                                      dist/schnee_probes-<version>-extension.zip (target
 #                                      schnee_extension, scripts/build_extension.sh).
 # Both hold the Python package, bake.py (the headless entry), the compiled module and, in lib/,
-# every shared library the module needs that a stock Linux system lacks (Embree, TBB: the ldd
-# closure of the module minus glibc, libstdc++ and libgcc), their RUNPATH set to $ORIGIN.
+# every shared library the module needs that a stock Linux system lacks (Embree, TBB, qhull: the ldd
+# closure of the module and of its Embree minus glibc, libstdc++ and libgcc), their RUNPATH set to
+# $ORIGIN.
 # <version> is bl_info["version"] of addon/schnee_probes/__init__.py.
 #
 # Included from the top-level CMakeLists (target schnee_addon_zip, part of ALL), and also run as a

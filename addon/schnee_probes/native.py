@@ -23,9 +23,10 @@ from typing import Callable, Optional, Sequence, Tuple
 import numpy as np
 
 # The module exports only PyInit__schnee_native (hidden visibility + version script) and links only
-# libc/libm: it opens Embree itself at import (dlopen RTLD_LOCAL + dlsym, native/src/pb_embree_dyn.h),
-# preferring an Embree 3 already in the process (Blender 3.x), else the one the add-on package
-# carries in lib/ (with TBB), so its Embree calls cannot bind to the Embree 4 of Blender 4.x/5.x.
+# libc, libm and qhull (libqhull_r, which the package carries in lib/). Embree it opens itself at
+# import (dlopen RTLD_LOCAL + dlsym, native/src/pb_embree_dyn.h), preferring an Embree 3 already in
+# the process (Blender 3.x), else the one the add-on package carries in lib/ (with TBB), so its
+# Embree calls cannot bind to the Embree 4 of Blender 4.x/5.x.
 try:
     from . import _schnee_native as _native
     _NATIVE_IMPORT_ERROR: Optional[BaseException] = None
@@ -54,8 +55,8 @@ def _explain(exc: Optional[BaseException]) -> str:
         what = "the package has no compiled bake core (_schnee_native.abi3.so)"
     elif "cannot open shared object file" in text:
         lib = text.split(":")[0].strip()
-        what = (f"a library the bake core needs is missing: {lib} (the package ships Embree and TBB in "
-                f"{os.path.join('schnee_probes', 'lib')}; the package seems incomplete)")
+        what = (f"a library the bake core needs is missing: {lib} (the package ships Embree, TBB and "
+                f"qhull in {os.path.join('schnee_probes', 'lib')}; the package seems incomplete)")
     elif "GLIBC" in text or "GLIBCXX" in text:
         what = f"this system's C/C++ runtime is older than the package was built for ({text})"
     else:

@@ -1,7 +1,7 @@
 """The add-on packages are self-contained and small (issue 13): the legacy zip and the extension
-package carry the module, Embree and TBB and nothing else binary; `ldd` of the module and of the
-Embree inside the unpacked package resolves with nothing from the system but glibc, libstdc++ and
-libgcc; the module exports only its PyInit and has no undefined Embree symbol (pb_embree_dyn.h); it
+package carry the module, Embree, TBB and qhull (libqhull_r, linked by the module for the Delaunay
+tetrahedra) and nothing else binary; `ldd` of the module and of the Embree inside the unpacked
+package resolves with nothing from the system but glibc, libstdc++ and libgcc; the module exports only its PyInit and has no undefined Embree symbol (pb_embree_dyn.h); it
 loads the packaged Embree and places probes from a plain Python that sees only the package.
 Runtime: ~3 s."""
 import os
