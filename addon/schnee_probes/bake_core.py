@@ -1082,7 +1082,10 @@ class CancelOnSignals:
     lists the signals received. Python runs the handler between two Python steps, so a render in
     progress finishes first (one probe's time at most). The previous handlers are put back on
     exit; a handler Python cannot restore (installed by C, e.g. Blender's own) is left alone
-    unless ``force`` is set (bake.py, which exits afterwards)."""
+    unless ``force`` is set (bake.py, which exits afterwards). With ``force``, once a signal was
+    caught the signals stay ignored after the block: the process is leaving with the first
+    signal's status, and a repeated Ctrl+C must not kill it half way through Blender's exit (the
+    default action that would otherwise be back; issue 14). SIGKILL and SIGQUIT still end it."""
 
     def __init__(self, bake, signals=(signal.SIGINT, signal.SIGTERM), force=False, log=print):
         self.bake = bake
@@ -1110,7 +1113,10 @@ class CancelOnSignals:
         return self
 
     def __exit__(self, *exc):
+        leaving = self.force and bool(self.caught)
         for sig, previous in self._previous.items():
+            if leaving:
+                previous = signal.SIG_IGN
             signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
         self._previous.clear()
         return False

@@ -153,8 +153,8 @@ class Running:
 
     def __init__(self, blend, args, env, pre=None):
         cmd = ["blender", "-b", str(blend), "--factory-startup"]
-        if pre:
-            cmd += ["-P", str(pre)]
+        for script in ([] if pre is None else pre if isinstance(pre, (list, tuple)) else [pre]):
+            cmd += ["-P", str(script)]
         cmd += ["-P", str(BAKE_PY), "--", "--placement", "OCTREE"] + [str(a) for a in args]
         full_env = {**os.environ, "PYTHONPATH": str(ADDON_DIR), "SCHNEE_REPO": str(REPO), **env}
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=full_env)
@@ -220,6 +220,64 @@ def test_signal_cancels_headless_bake_like_esc(scenes, tmp_path, sig, code):
     assert result["diff"] == [] and result["engine"] == "BLENDER_EEVEE"  # scene state restored
     assert list(tmp.iterdir()) == []  # temporary folder removed
     # Old output intact, no .partial; the probes baked so far are in the journal (docs/farm.md).
+    after = {p.name: digest(p) for p in out.iterdir()}
+    assert after.pop(journal.name) and after == before
+    assert len(journal_mod.read(str(journal)).values) == int(m.group(1))
+
+
+# Where the second Ctrl+C lands: during the next probe's render (each render slowed to 3 s, so
+# the cancel after the first one cannot be over yet), or while Blender exits after bake.py cleaned
+# up (an atexit hook sleeping 3 s, after the first signal's cancel of a 0.3 s render; before the
+# fix the default action was back by then: killed by SIGINT, exit -2).
+SECOND_SIGINT = {"during_render": {"SCHNEE_TEST_RENDER_DELAY": "3"},
+                 "during_exit": {"SCHNEE_TEST_RENDER_DELAY": "0.3", "SCHNEE_TEST_EXIT_DELAY": "3"}}
+
+
+@pytest.mark.parametrize("when", sorted(SECOND_SIGINT))
+def test_second_sigint_still_cancels_cleanly(scenes, tmp_path, when):
+    # A user pressing Ctrl+C twice, 0.5 s apart: the second one must not cut the clean-up or the
+    # exit short (no death by SIGINT, no KeyboardInterrupt traceback, no exit 2): still exit 130,
+    # the scene restored, the temporary folder gone and the previous output byte for byte.
+    blend = copy_blend(scenes, "room.blend", tmp_path)
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = {"TMPDIR": str(tmp)}
+    assert bake(blend, *CELLS_2M, *TINY, env=env).returncode == 0  # the previous output
+    out = tmp_path / "sh_coeffs"
+    before = {p.name: digest(p) for p in out.iterdir()}
+    assert set(before) == {"probes.shprobe", "sky.exr"}
+    run = Running(blend, ["--min-cell-size", "0.5", "--max-cell-size", "0.5", *TINY], {**env, **SECOND_SIGINT[when]},
+                  pre=[SCRIPTS / "slow_render.py", SCRIPTS / "bake_state_probe.py"])
+    run.wait_for("probe 1/")
+    assert list(tmp.glob("schnee_bake_*"))
+    run.proc.send_signal(signal.SIGINT)
+    if when == "during_exit":
+        run.wait_for("SLOW_EXIT start", timeout=30)  # bake.py is done; Blender is exiting
+    else:
+        time.sleep(0.5)
+    assert run.proc.poll() is None, "the second SIGINT must reach a running bake: " + run.out[-600:].decode(errors="replace") + run.err[-1500:].decode(errors="replace")
+    if when == "during_exit":
+        assert not list(tmp.glob("schnee_bake_*"))  # cleaned up before the exit started
+    run.proc.send_signal(signal.SIGINT)
+    rc, stdout, stderr = run.finish()
+    assert rc == 130, f"exit {rc}\n" + stdout[-2000:] + stderr[-3000:]
+    if when == "during_exit":
+        assert "SLOW_EXIT end" in stdout  # the exit ran to its end
+    last = stderr.strip().splitlines()[-1]
+    journal = out / "probes.shprobe.journal"
+    m = re.fullmatch(r"bake\.py: error: cancelled by SIGINT; render settings restored, existing files unchanged; "
+                     rf"(\d+) of 256 probes kept in {re.escape(str(journal))}; the same bake run again resumes "
+                     "from them", last)
+    assert m and 1 <= int(m.group(1)) < 256, last
+    assert stderr.count("SIGINT received: cancelling the bake") == 1  # said once, not per signal
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr
+    assert "probe 256/256" not in stdout
+    # (the progress line ends in neither \r nor \n: RESULT may follow it on the same line)
+    results = re.findall(r"RESULT (\{.*\})", stdout)
+    assert results, stdout[-1500:] + stderr[-3000:]
+    result = json.loads(results[-1])
+    assert result["diff"] == [] and result["engine"] == "BLENDER_EEVEE"
+    assert list(tmp.iterdir()) == []
     after = {p.name: digest(p) for p in out.iterdir()}
     assert after.pop(journal.name) and after == before
     assert len(journal_mod.read(str(journal)).values) == int(m.group(1))
