@@ -23,6 +23,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import ADDON_DIR, REPO, requires_native, run_blender
@@ -369,3 +370,53 @@ def test_inf_in_a_panorama_names_the_probe_and_its_position(scenes, tmp_path):
                             "again resumes from them"), msg
     else:
         assert not out.exists()
+
+
+def test_half_storage_overflow_names_the_probe_and_says_choose_float(scenes, tmp_path):
+    # Issue 14: an emission of 1e30 baked with half storage. The native writer refused the file
+    # naming only a record ("probe 3 face 0 R is 1e+30 (offset …)"): the bake must say which probe
+    # (where, in Blender coordinates) and what to do, and write nothing.
+    from schnee_probes import native, scene_export
+    blend = copy_blend(scenes, "emission_1e30.blend", tmp_path)
+    adaptive = ["--placement", "ADAPTIVE", "--file-version", "V3", *CELLS_2M, *TINY]
+    proc = bake(blend, *adaptive, "--probe-representation", "CUBE_FLOAT")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    out = tmp_path / "sh_coeffs" / "probes.shprobe"
+    previous = native.read_shprobe(str(out))
+    assert previous.representation == "ambientCube" and previous.storage == "float32"
+    assert np.abs(previous.coeffs).max() > 1e20  # the 1e30 light is there, beyond half floats
+    before = {p.name: digest(p) for p in out.parent.iterdir()}
+
+    proc = bake(blend, *adaptive, "--probe-representation", "CUBE_HALF")
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    msg = last_error(proc)
+    m = re.match(r"bake\.py: error: Probe Representation 'Ambient cube \(half\)' cannot store probes\.shprobe: "
+                 r"probe (\d+) of (\d+) at Blender \((-?[\d.]+), (-?[\d.]+), (-?[\d.]+)\) has the irradiance "
+                 r"(\S+) \(([RGB]), face ([+-][XYZ])\), beyond half floats' largest value 65504 \((\d+) probe\(s\) "
+                 r"in all\); choose Probe Representation 'Ambient cube \(float\)' \(--probe-representation "
+                 r"CUBE_FLOAT\), or lower the emission that lights it; existing files are unchanged", msg)
+    assert m, msg
+    k, n = int(m.group(1)) - 1, int(m.group(2))
+    assert n == previous.probe_count
+    # The probe named is the file's probe k: its position (engine space in the file) in Blender
+    # coordinates, and the first colour beyond the range in the same bake's float file.
+    where = scene_export.engine_to_blender(previous.positions[k])
+    np.testing.assert_allclose([float(m.group(i)) for i in (3, 4, 5)], where, atol=1e-3)
+    over = np.abs(previous.coeffs) > 65504
+    assert over[k].any() and not over[:k].any()
+    face, channel = (int(v) for v in np.argwhere(over[k])[0])
+    assert m.group(7) == "RGB"[channel] and m.group(8) == ("+X", "-X", "+Z", "-Z", "-Y", "+Y")[face]
+    assert float(m.group(6)) == pytest.approx(float(previous.coeffs[k, face, channel]), rel=1e-2)
+    assert int(m.group(9)) == int(over.any(axis=(1, 2)).sum())
+    # Nothing replaced, nothing partial; the probes are kept for a run with float storage.
+    after = {p.name: digest(p) for p in out.parent.iterdir()}
+    assert after.pop("probes.shprobe.journal") and after == before
+    assert not list(tmp_path.glob("**/*.partial"))
+    assert msg.endswith(f"; {n} baked point(s) kept in {out}.journal; the same bake run again resumes from them"), msg
+    # Following the advice costs no render: the representation is not in the journal's fingerprint.
+    proc = bake(blend, *adaptive, "--probe-representation", "CUBE_FLOAT")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert re.search(rf"Schnee: resuming from \S+: {n} of {n} probes already baked, 0 to render", proc.stdout), \
+        proc.stdout[-3000:]
+    again = native.read_shprobe(str(out))
+    np.testing.assert_array_equal(again.coeffs, previous.coeffs)
