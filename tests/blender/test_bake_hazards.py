@@ -320,6 +320,34 @@ def test_probe_count_and_estimate_before_the_first_render(scenes, tmp_path):
     assert lines[est].startswith("Schnee: 4 probe(s) to bake, estimated 2 s"), lines[est]
 
 
+def test_panel_estimate_matches_the_headless_line(scenes, tmp_path):
+    # properties.draw_estimate (the panel and the bake dialog) and bake.py on the same scene and
+    # settings: 4 x 4 x 2 m volume at 2 m cells, 256 x 128 px, 16 spp, sky 512 x 256. The model:
+    # 4 x 3.9 µs x 256 x 128 x 16 + 1.6 s + 0.15 µs x 512 x 256 x 16 = 8.18 + 1.6 + 0.31 = 10.1 s.
+    settings = {"placement": "OCTREE", "min_cell_size": 2.0, "max_cell_size": 2.0, "panorama_resolution": 256,
+                "samples": 16, "sky_resolution": 512, "capture_sky": True}
+    proc = run_blender(SCRIPTS / "draw_estimate.py", json.dumps(settings), blend=scenes / "sky.blend", timeout=120)
+    cases = json.loads([l for l in proc.stdout.splitlines() if l.startswith("RESULT ")][-1][7:])["cases"]
+    seconds = 4 * 3.9e-6 * 256 * 128 * 16 + 1.6 + 0.15e-6 * 512 * 256 * 16
+    assert f"{seconds:.0f} s" == "10 s"
+    assert cases["as_set"] == [["Up to 4 probes, at most ~10 s", "TIME"]]
+    assert cases["limit_3"] == [["Up to 4 probes, at most ~10 s", "TIME"],
+                                ["May exceed Confirm Above (3): the bake will ask", "ERROR"]]
+    assert cases["no_volumes"] == [["Probes: no usable probe volumes or settings", "INFO"]]
+    # The headless path, same scene and settings: the bound before placement, then (the exact
+    # count equals the bound here) the same estimate in the limit's refusal, before any render.
+    blend = copy_blend(scenes, "sky.blend", tmp_path)
+    proc = bake(blend, "--min-cell-size", "2", "--max-cell-size", "2", "--panorama-resolution", "256",
+                "--samples", "16", "--sky-resolution", "512", "--probe-limit", "3")
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    bound = re.search(r"Schnee: placing probes \(at most (\d+) ", proc.stdout)
+    assert bound and int(bound.group(1)) == 4, proc.stdout[-2000:]
+    refusal = re.search(r"(\d+) probes \(estimated ([^)]+)\) is more than the limit of 3", last_error(proc))
+    assert refusal, last_error(proc)
+    assert cases["as_set"][0][0] == f"Up to {bound.group(1)} probes, at most ~{refusal.group(2)}"
+    assert "probe 1/" not in proc.stdout
+
+
 def test_bake_above_the_limit_needs_allow_large(scenes, tmp_path):
     blend = copy_blend(scenes, "sky.blend", tmp_path)
     proc = bake(blend, *CELLS_2M, *TINY, "--probe-limit", "3")
