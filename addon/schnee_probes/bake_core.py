@@ -915,8 +915,11 @@ class ProbeBake:
             if s.probe_representation == "SH":
                 native.write_shprobe_v3(tmp, target.group.tree, coeffs.astype(np.float32), validity=validity, **kw)
             else:  # issue 16: the ambient cube fitted to each probe's SH
-                native.write_shprobe_v3(tmp, target.group.tree, native.ambient_cube_from_sh(coeffs),
-                                        representation="ambientCube",
+                cubes = native.ambient_cube_from_sh(coeffs)
+                if s.probe_representation == "CUBE_HALF":
+                    check_half_range(cubes, target.group.lattice_positions(target.group.tree.probe_lattice()),
+                                     target.path)
+                native.write_shprobe_v3(tmp, target.group.tree, cubes, representation="ambientCube",
                                         storage="float16" if s.probe_representation == "CUBE_HALF" else "float32",
                                         validity=validity, **kw)
             return
@@ -940,6 +943,33 @@ class ProbeBake:
         except BaseException:
             self.cancel()
             raise
+
+
+# Largest finite binary16 value: what Probe Representation "Ambient cube (half)" can store.
+HALF_MAX = 65504.0
+# Ambient-cube face k (engine axes +X, -X, +Y, -Y, +Z, -Z; native.ambient_cube_from_sh) named by
+# the Blender axis it faces (engine (x, y, z) = Blender (x, z, -y)).
+_CUBE_FACES_BLENDER = ("+X", "-X", "+Z", "-Z", "-Y", "+Y")
+
+
+def check_half_range(cubes, positions, path):
+    """Raise :class:`BakeError` unless every ambient-cube colour of ``cubes`` (P, 6, 3) fits
+    binary16 (|value| <= 65504): the native writer would refuse the file naming only a record
+    (issue 14: an emission of 1e30). The message names the first probe beyond the range, its
+    position in Blender coordinates (``positions`` (P, 3) are engine space) and what to do."""
+    cubes = np.asarray(cubes, dtype=np.float64)
+    over = np.abs(cubes) > HALF_MAX
+    if not over.any():
+        return
+    p, face, channel = (int(v) for v in np.argwhere(over)[0])
+    where = tuple(float(c) for c in scene_export.engine_to_blender(np.asarray(positions)[p]))
+    raise BakeError(
+        f"Probe Representation 'Ambient cube (half)' cannot store {os.path.basename(path)}: probe {p + 1} of "
+        f"{len(cubes)} at Blender ({where[0]:.3f}, {where[1]:.3f}, {where[2]:.3f}) has the irradiance "
+        f"{cubes[p, face, channel]:.4g} ({'RGB'[channel]}, face {_CUBE_FACES_BLENDER[face]}), beyond half "
+        f"floats' largest value {HALF_MAX:g} ({int(over.any(axis=(1, 2)).sum())} probe(s) in all); choose "
+        f"Probe Representation 'Ambient cube (float)' (--probe-representation CUBE_FLOAT), or lower the "
+        f"emission that lights it; existing files are unchanged")
 
 
 def bake_points(scene, view_layer, settings, points, log=print) -> np.ndarray:
@@ -1085,7 +1115,10 @@ class CancelOnSignals:
     lists the signals received. Python runs the handler between two Python steps, so a render in
     progress finishes first (one probe's time at most). The previous handlers are put back on
     exit; a handler Python cannot restore (installed by C, e.g. Blender's own) is left alone
-    unless ``force`` is set (bake.py, which exits afterwards)."""
+    unless ``force`` is set (bake.py, which exits afterwards). With ``force``, once a signal was
+    caught the signals stay ignored after the block: the process is leaving with the first
+    signal's status, and a repeated Ctrl+C must not kill it half way through Blender's exit (the
+    default action that would otherwise be back; issue 14). SIGKILL and SIGQUIT still end it."""
 
     def __init__(self, bake, signals=(signal.SIGINT, signal.SIGTERM), force=False, log=print):
         self.bake = bake
@@ -1113,7 +1146,10 @@ class CancelOnSignals:
         return self
 
     def __exit__(self, *exc):
+        leaving = self.force and bool(self.caught)
         for sig, previous in self._previous.items():
+            if leaving:
+                previous = signal.SIG_IGN
             signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
         self._previous.clear()
         return False

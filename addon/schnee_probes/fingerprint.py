@@ -32,7 +32,9 @@ _IGNORED = frozenset({
 })
 
 
-_NOT_VALUES = frozenset({"output_path", "probe_limit", "per_volume_files"})
+# Settings that change where or how the values are written, not the values (the journal holds the
+# baked SH; the ambient cube, float or half, is fitted from them when the file is written).
+_NOT_VALUES = frozenset({"output_path", "probe_limit", "per_volume_files", "probe_representation"})
 
 
 def _simple(struct) -> list:
@@ -149,7 +151,8 @@ def parts(scene, view_layer, settings) -> Dict[str, str]:
     render = [_simple(scene.render), _simple(scene.cycles) if hasattr(scene, "cycles") else [],
               _simple(scene.view_settings), _simple(view_layer)]
     return {
-        # Where the files go and when to ask for confirmation do not change a probe's value.
+        # Where the files go, how they store the values and when to ask for confirmation do not
+        # change a probe's value.
         "settings": _digest(sorted((k, v) for k, v in asdict(settings).items() if k not in _NOT_VALUES)),
         "geometry": geometry.hexdigest(),
         "materials": _digest(materials),

@@ -23,7 +23,7 @@ Every hook is idempotent: the exporter may call the material hook twice for one 
 import copy
 import math
 import os
-import shutil
+import stat
 import tempfile
 import urllib.parse
 
@@ -31,6 +31,7 @@ import bpy
 
 from . import compat, light_modes, nodes
 from .native import STRUCTURES
+from .safe_open import RefusedFile, file_kind, open_regular
 
 EXT_ENGINE = "VULKAN_SCHNEE_engine_properties"
 EXT_MATERIALS = "VULKAN_SCHNEE_materials"
@@ -197,22 +198,52 @@ def _blend_sh_dir():
     return os.path.join(os.path.dirname(os.path.abspath(bpy.data.filepath)), SH_DIR)
 
 
-def _copy_atomic(src, dst):
-    """Copy ``src`` to ``dst`` through a temporary file in the same folder (never a partial file)."""
+def _copy_atomic(src, dst, checked):
+    """Copy ``src`` to ``dst`` through a temporary file in the same folder (never a partial file).
+
+    ``checked`` is the ``os.stat`` of ``src`` taken before its content was validated: the file is
+    opened without blocking, regular files only (safe_open.open_regular: a path replaced by a FIFO
+    or a device meanwhile is refused at once, never read), and copied only if it is still that
+    file (device, inode, size, modification time), at most its checked size. Anything else raises
+    :class:`RefusedFile` (an OSError) naming ``src``."""
     if os.path.exists(dst) and os.path.samefile(src, dst):
         return  # exporting next to the .blend: the file is already where it belongs
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.splitext(dst)[1], dir=os.path.dirname(dst))
-    try:
-        with os.fdopen(fd, "wb") as out, open(src, "rb") as inp:
-            shutil.copyfileobj(inp, out)
-        shutil.copymode(src, tmp)  # mkstemp creates 0600; keep the source's permissions
-        os.replace(tmp, dst)
-    except BaseException:
+    inp, size = open_regular(src, "a file to export", 1 << 62)  # reads no more than the checked size (below)
+    with inp:
+        st = os.fstat(inp.fileno())
+        if (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns) != \
+                (checked.st_dev, checked.st_ino, checked.st_size, checked.st_mtime_ns):
+            raise RefusedFile(f"{src}: the file changed after it was checked; not copied", "I/O error")
+        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.splitext(dst)[1], dir=os.path.dirname(dst))
         try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+            with os.fdopen(fd, "wb") as out:
+                copied = 0
+                while copied < size:
+                    chunk = inp.read(min(1 << 20, size - copied))
+                    if not chunk:
+                        raise RefusedFile(f"{src}: the file shrank while it was copied; not copied", "I/O error")
+                    out.write(chunk)
+                    copied += len(chunk)
+            os.chmod(tmp, stat.S_IMODE(st.st_mode))  # mkstemp creates 0600; keep the source's permissions
+            os.replace(tmp, dst)
+        except BaseException:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+            raise
+
+
+def _regular_stat(path):
+    """(os.stat of ``path``, None) for a regular file (symbolic links followed), else (None, why):
+    stat never blocks, so a FIFO, a device, a folder or a symbolic link loop is named, not opened."""
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        return None, f"cannot read it: {exc.strerror}"
+    if not stat.S_ISREG(st.st_mode):
+        return None, f"not a regular file (a {file_kind(st.st_mode)})"
+    return st, None
 
 
 def _grid_entry(path, header, probes=None):
@@ -272,8 +303,9 @@ def collect_probe_grids(export_settings):
     src_dir = _blend_sh_dir()
     if src_dir is None or not os.path.isdir(src_dir):
         return entries
-    files = sorted(f for f in os.listdir(src_dir)
-                   if f.endswith(SH_SUFFIX) and os.path.isfile(os.path.join(src_dir, f)))
+    # Every *.shprobe name: one that is not a regular file (a FIFO, a device, a folder, a symbolic
+    # link loop) is skipped with a warning that names it, never opened.
+    files = sorted(f for f in os.listdir(src_dir) if f.endswith(SH_SUFFIX))
     if not files:
         return entries
 
@@ -287,6 +319,10 @@ def collect_probe_grids(export_settings):
     dst_dir = os.path.join(os.path.dirname(os.path.abspath(export_settings["gltf_filepath"])), SH_DIR)
     for fname in files:
         src = os.path.join(src_dir, fname)
+        checked, why = _regular_stat(src)
+        if checked is None:
+            _warn(export_settings, f"skipped {src}: {why}")
+            continue
         try:
             header = native.read_shprobe_header(src)
             # The header alone passes a file whose body the engine would refuse (grid entries out
@@ -298,7 +334,10 @@ def collect_probe_grids(export_settings):
             continue
         try:
             os.makedirs(dst_dir, exist_ok=True)
-            _copy_atomic(src, os.path.join(dst_dir, fname))
+            _copy_atomic(src, os.path.join(dst_dir, fname), checked)
+        except RefusedFile as exc:
+            _warn(export_settings, f"skipped {exc}")
+            continue
         except OSError as exc:
             _warn(export_settings, f"skipped {src}: cannot copy to {dst_dir}: {exc}")
             continue
@@ -315,7 +354,11 @@ def collect_sky(export_settings):
     export_settings[_KEY_SKY] = None
     src_dir = _blend_sh_dir()
     src = os.path.join(src_dir, SKY_FILE) if src_dir else None
-    if src is None or not os.path.isfile(src):
+    if src is None or not os.path.lexists(src):
+        return None
+    checked, why = _regular_stat(src)
+    if checked is None:
+        _warn(export_settings, f"skipped the sky {src}: {why}")
         return None
     try:
         from . import native
@@ -326,7 +369,10 @@ def collect_sky(export_settings):
     dst_dir = os.path.join(os.path.dirname(os.path.abspath(export_settings["gltf_filepath"])), SH_DIR)
     try:
         os.makedirs(dst_dir, exist_ok=True)
-        _copy_atomic(src, os.path.join(dst_dir, SKY_FILE))
+        _copy_atomic(src, os.path.join(dst_dir, SKY_FILE), checked)
+    except RefusedFile as exc:
+        _warn(export_settings, f"skipped the sky {exc}")
+        return None
     except OSError as exc:
         _warn(export_settings, f"skipped the sky {src}: cannot copy to {dst_dir}: {exc}")
         return None

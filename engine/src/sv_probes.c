@@ -78,6 +78,16 @@ static void check_entry(const sv_ext_probe_grid *e, const pb_shprobe *f, uint32_
             }
 }
 
+/* The core reader's message, without the "<path>: " it may already start with (the engine's own
+ * line names the path once). */
+static const char *reader_message(const pb_error *err, const char *path)
+{
+    const char *m = err->message[0] ? err->message : pb_result_string(err->code);
+    size_t n = strlen(path);
+    if (strncmp(m, path, n) == 0 && m[n] == ':' && m[n + 1] == ' ') return m + n + 2;
+    return m;
+}
+
 /* Before the bake's reader sees a grid's file: opened without blocking, a regular file of at most
  * SV_MAX_PROBE_FILE_BYTES that starts with the .shprobe magic (else it is not ours, and its
  * content is never quoted), whose header (pb_shprobe_read_header) implies exactly its size. */
@@ -108,8 +118,7 @@ static bool check_probe_file(const sv_ext_probe_grid *e, uint32_t index)
     pb_shprobe h;
     pb_error err = {0};
     if (pb_shprobe_read_header(e->path, &h, &err) != PB_SUCCESS) {
-        fprintf(stderr, "schnee-view: error: %s: cannot read %s: %s\n", what, e->path,
-                err.message[0] ? err.message : pb_result_string(err.code));
+        fprintf(stderr, "schnee-view: error: %s: cannot read %s: %s\n", what, e->path, reader_message(&err, e->path));
         return false;
     }
     return true;
@@ -135,7 +144,7 @@ bool sv_probes_load(const sv_ext *ext, sv_probes *out)
         }
         if (pb_shprobe_read(e->path, &f, &err) != PB_SUCCESS) {
             fprintf(stderr, "schnee-view: error: shProbeGrids[%u] '%s': cannot read %s: %s\n", i, e->name, e->path,
-                    err.message[0] ? err.message : pb_result_string(err.code));
+                    reader_message(&err, e->path));
             sv_probes_destroy(out);
             return false;
         }

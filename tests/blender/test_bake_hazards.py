@@ -24,6 +24,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import ADDON_DIR, REPO, requires_native, run_blender
@@ -154,8 +155,8 @@ class Running:
 
     def __init__(self, blend, args, env, pre=None):
         cmd = ["blender", "-b", str(blend), "--factory-startup"]
-        if pre:
-            cmd += ["-P", str(pre)]
+        for script in ([] if pre is None else pre if isinstance(pre, (list, tuple)) else [pre]):
+            cmd += ["-P", str(script)]
         cmd += ["-P", str(BAKE_PY), "--", "--placement", "OCTREE"] + [str(a) for a in args]
         full_env = {**os.environ, "PYTHONPATH": str(ADDON_DIR), "SCHNEE_REPO": str(REPO), **env}
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=full_env)
@@ -226,6 +227,64 @@ def test_signal_cancels_headless_bake_like_esc(scenes, tmp_path, sig, code):
     assert len(journal_mod.read(str(journal)).values) == int(m.group(1))
 
 
+# Where the second Ctrl+C lands: during the next probe's render (each render slowed to 3 s, so
+# the cancel after the first one cannot be over yet), or while Blender exits after bake.py cleaned
+# up (an atexit hook sleeping 3 s, after the first signal's cancel of a 0.3 s render; before the
+# fix the default action was back by then: killed by SIGINT, exit -2).
+SECOND_SIGINT = {"during_render": {"SCHNEE_TEST_RENDER_DELAY": "3"},
+                 "during_exit": {"SCHNEE_TEST_RENDER_DELAY": "0.3", "SCHNEE_TEST_EXIT_DELAY": "3"}}
+
+
+@pytest.mark.parametrize("when", sorted(SECOND_SIGINT))
+def test_second_sigint_still_cancels_cleanly(scenes, tmp_path, when):
+    # A user pressing Ctrl+C twice, 0.5 s apart: the second one must not cut the clean-up or the
+    # exit short (no death by SIGINT, no KeyboardInterrupt traceback, no exit 2): still exit 130,
+    # the scene restored, the temporary folder gone and the previous output byte for byte.
+    blend = copy_blend(scenes, "room.blend", tmp_path)
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = {"TMPDIR": str(tmp)}
+    assert bake(blend, *CELLS_2M, *TINY, env=env).returncode == 0  # the previous output
+    out = tmp_path / "sh_coeffs"
+    before = {p.name: digest(p) for p in out.iterdir()}
+    assert set(before) == {"probes.shprobe", "sky.exr"}
+    run = Running(blend, ["--min-cell-size", "0.5", "--max-cell-size", "0.5", *TINY], {**env, **SECOND_SIGINT[when]},
+                  pre=[SCRIPTS / "slow_render.py", SCRIPTS / "bake_state_probe.py"])
+    run.wait_for("probe 1/")
+    assert list(tmp.glob("schnee_bake_*"))
+    run.proc.send_signal(signal.SIGINT)
+    if when == "during_exit":
+        run.wait_for("SLOW_EXIT start", timeout=30)  # bake.py is done; Blender is exiting
+    else:
+        time.sleep(0.5)
+    assert run.proc.poll() is None, "the second SIGINT must reach a running bake: " + run.out[-600:].decode(errors="replace") + run.err[-1500:].decode(errors="replace")
+    if when == "during_exit":
+        assert not list(tmp.glob("schnee_bake_*"))  # cleaned up before the exit started
+    run.proc.send_signal(signal.SIGINT)
+    rc, stdout, stderr = run.finish()
+    assert rc == 130, f"exit {rc}\n" + stdout[-2000:] + stderr[-3000:]
+    if when == "during_exit":
+        assert "SLOW_EXIT end" in stdout  # the exit ran to its end
+    last = stderr.strip().splitlines()[-1]
+    journal = out / "probes.shprobe.journal"
+    m = re.fullmatch(r"bake\.py: error: cancelled by SIGINT; render settings restored, existing files unchanged; "
+                     rf"(\d+) of 256 probes kept in {re.escape(str(journal))}; the same bake run again resumes "
+                     "from them", last)
+    assert m and 1 <= int(m.group(1)) < 256, last
+    assert stderr.count("SIGINT received: cancelling the bake") == 1  # said once, not per signal
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr
+    assert "probe 256/256" not in stdout
+    # (the progress line ends in neither \r nor \n: RESULT may follow it on the same line)
+    results = re.findall(r"RESULT (\{.*\})", stdout)
+    assert results, stdout[-1500:] + stderr[-3000:]
+    result = json.loads(results[-1])
+    assert result["diff"] == [] and result["engine"] == "BLENDER_EEVEE"
+    assert list(tmp.iterdir()) == []
+    after = {p.name: digest(p) for p in out.iterdir()}
+    assert after.pop(journal.name) and after == before
+    assert len(journal_mod.read(str(journal)).values) == int(m.group(1))
+
+
 def test_killed_bake_leaves_a_folder_the_next_bake_removes(scenes, tmp_path):
     blend = copy_blend(scenes, "room.blend", tmp_path)
     tmp = tmp_path / "tmp"
@@ -260,6 +319,34 @@ def test_probe_count_and_estimate_before_the_first_render(scenes, tmp_path):
     assert bound < est < first_render
     # 4 x 3.9 µs x 16 x 8 px x 1 spp + 1.6 s upload + the sky at 0.15 µs x 512 x 256 = 1.62 s.
     assert lines[est].startswith("Schnee: 4 probe(s) to bake, estimated 2 s"), lines[est]
+
+
+def test_panel_estimate_matches_the_headless_line(scenes, tmp_path):
+    # properties.draw_estimate (the panel and the bake dialog) and bake.py on the same scene and
+    # settings: 4 x 4 x 2 m volume at 2 m cells, 256 x 128 px, 16 spp, sky 512 x 256. The model:
+    # 4 x 3.9 µs x 256 x 128 x 16 + 1.6 s + 0.15 µs x 512 x 256 x 16 = 8.18 + 1.6 + 0.31 = 10.1 s.
+    settings = {"placement": "OCTREE", "min_cell_size": 2.0, "max_cell_size": 2.0, "panorama_resolution": 256,
+                "samples": 16, "sky_resolution": 512, "capture_sky": True}
+    proc = run_blender(SCRIPTS / "draw_estimate.py", json.dumps(settings), blend=scenes / "sky.blend", timeout=120)
+    cases = json.loads([l for l in proc.stdout.splitlines() if l.startswith("RESULT ")][-1][7:])["cases"]
+    seconds = 4 * 3.9e-6 * 256 * 128 * 16 + 1.6 + 0.15e-6 * 512 * 256 * 16
+    assert f"{seconds:.0f} s" == "10 s"
+    assert cases["as_set"] == [["Up to 4 probes, at most ~10 s", "TIME"]]
+    assert cases["limit_3"] == [["Up to 4 probes, at most ~10 s", "TIME"],
+                                ["May exceed Confirm Above (3): the bake will ask", "ERROR"]]
+    assert cases["no_volumes"] == [["Probes: no usable probe volumes or settings", "INFO"]]
+    # The headless path, same scene and settings: the bound before placement, then (the exact
+    # count equals the bound here) the same estimate in the limit's refusal, before any render.
+    blend = copy_blend(scenes, "sky.blend", tmp_path)
+    proc = bake(blend, "--min-cell-size", "2", "--max-cell-size", "2", "--panorama-resolution", "256",
+                "--samples", "16", "--sky-resolution", "512", "--probe-limit", "3")
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    bound = re.search(r"Schnee: placing probes \(at most (\d+) ", proc.stdout)
+    assert bound and int(bound.group(1)) == 4, proc.stdout[-2000:]
+    refusal = re.search(r"(\d+) probes \(estimated ([^)]+)\) is more than the limit of 3", last_error(proc))
+    assert refusal, last_error(proc)
+    assert cases["as_set"][0][0] == f"Up to {bound.group(1)} probes, at most ~{refusal.group(2)}"
+    assert "probe 1/" not in proc.stdout
 
 
 def test_bake_above_the_limit_needs_allow_large(scenes, tmp_path):
@@ -345,3 +432,53 @@ def test_bake_without_cycles_is_refused_before_anything(scenes, tmp_path):
     assert last_error(proc).startswith("bake.py: error: ") and CYCLES_DISABLED in last_error(proc), last_error(proc)
     assert "placing probes" not in proc.stdout  # refused before placement
     assert sorted(p.name for p in blend.parent.iterdir()) == ["sky.blend"] and digest(blend) == before
+
+
+def test_half_storage_overflow_names_the_probe_and_says_choose_float(scenes, tmp_path):
+    # Issue 14: an emission of 1e30 baked with half storage. The native writer refused the file
+    # naming only a record ("probe 3 face 0 R is 1e+30 (offset …)"): the bake must say which probe
+    # (where, in Blender coordinates) and what to do, and write nothing.
+    from schnee_probes import native, scene_export
+    blend = copy_blend(scenes, "emission_1e30.blend", tmp_path)
+    adaptive = ["--placement", "ADAPTIVE", "--file-version", "V3", *CELLS_2M, *TINY]
+    proc = bake(blend, *adaptive, "--probe-representation", "CUBE_FLOAT")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    out = tmp_path / "sh_coeffs" / "probes.shprobe"
+    previous = native.read_shprobe(str(out))
+    assert previous.representation == "ambientCube" and previous.storage == "float32"
+    assert np.abs(previous.coeffs).max() > 1e20  # the 1e30 light is there, beyond half floats
+    before = {p.name: digest(p) for p in out.parent.iterdir()}
+
+    proc = bake(blend, *adaptive, "--probe-representation", "CUBE_HALF")
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    msg = last_error(proc)
+    m = re.match(r"bake\.py: error: Probe Representation 'Ambient cube \(half\)' cannot store probes\.shprobe: "
+                 r"probe (\d+) of (\d+) at Blender \((-?[\d.]+), (-?[\d.]+), (-?[\d.]+)\) has the irradiance "
+                 r"(\S+) \(([RGB]), face ([+-][XYZ])\), beyond half floats' largest value 65504 \((\d+) probe\(s\) "
+                 r"in all\); choose Probe Representation 'Ambient cube \(float\)' \(--probe-representation "
+                 r"CUBE_FLOAT\), or lower the emission that lights it; existing files are unchanged", msg)
+    assert m, msg
+    k, n = int(m.group(1)) - 1, int(m.group(2))
+    assert n == previous.probe_count
+    # The probe named is the file's probe k: its position (engine space in the file) in Blender
+    # coordinates, and the first colour beyond the range in the same bake's float file.
+    where = scene_export.engine_to_blender(previous.positions[k])
+    np.testing.assert_allclose([float(m.group(i)) for i in (3, 4, 5)], where, atol=1e-3)
+    over = np.abs(previous.coeffs) > 65504
+    assert over[k].any() and not over[:k].any()
+    face, channel = (int(v) for v in np.argwhere(over[k])[0])
+    assert m.group(7) == "RGB"[channel] and m.group(8) == ("+X", "-X", "+Z", "-Z", "-Y", "+Y")[face]
+    assert float(m.group(6)) == pytest.approx(float(previous.coeffs[k, face, channel]), rel=1e-2)
+    assert int(m.group(9)) == int(over.any(axis=(1, 2)).sum())
+    # Nothing replaced, nothing partial; the probes are kept for a run with float storage.
+    after = {p.name: digest(p) for p in out.parent.iterdir()}
+    assert after.pop("probes.shprobe.journal") and after == before
+    assert not list(tmp_path.glob("**/*.partial"))
+    assert msg.endswith(f"; {n} baked point(s) kept in {out}.journal; the same bake run again resumes from them"), msg
+    # Following the advice costs no render: the representation is not in the journal's fingerprint.
+    proc = bake(blend, *adaptive, "--probe-representation", "CUBE_FLOAT")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert re.search(rf"Schnee: resuming from \S+: {n} of {n} probes already baked, 0 to render", proc.stdout), \
+        proc.stdout[-3000:]
+    again = native.read_shprobe(str(out))
+    np.testing.assert_array_equal(again.coeffs, previous.coeffs)

@@ -155,14 +155,15 @@ def test_journal_of_other_settings_is_moved_aside(scenes, tmp_path, reference):
 
 
 def test_fingerprint_names_what_changed(scenes):
-    """Each edit changes exactly the part that holds it; editor-only changes and where the files go
-    change nothing (so they never block a resume)."""
+    """Each edit changes exactly the part that holds it; editor-only changes, where the files go and
+    how they store the values (SH / ambient cube, float / half) change nothing (so they never block
+    a resume)."""
     proc = run_blender(SCRIPTS / "fingerprint_parts.py", blend=scenes / "window_room.blend", timeout=120)
     changed = json.loads([l for l in proc.stdout.splitlines() if l.startswith("RESULT ")][-1][7:])["changed"]
     assert changed == {
         "nothing": [], "node moved in the editor": [], "material colour": ["materials"], "wall moved": ["geometry"],
         "world strength": ["world"], "bounces": ["render"], "lamp added": ["lights"],
-        "samples setting": ["settings"], "output path only": [],
+        "samples setting": ["settings"], "output path only": [], "probe representation only": [],
     }
 
 

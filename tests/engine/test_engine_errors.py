@@ -59,6 +59,51 @@ def test_malformed_shprobe(tmp_path, name, mutate):
     assert not (tmp_path / "x.png").exists()
 
 
+def v3_octree_bytes(tmp_path):
+    """A version 3 corner octree of SH (2 x 1 x 1 roots of 1 m), as the bake writes it."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "addon"))
+    from schnee_probes import native
+    tree = native.CornerOctree.uniform((0.0, 0.0, 0.0), 1.0, 0, (2, 1, 1))
+    tree.finalize()
+    path = tmp_path / "v3.shprobe"
+    count = native.write_shprobe_v3(str(path), tree, np.ones((tree.info()["probe_count"], 9, 3), np.float32))
+    return path.read_bytes(), count
+
+
+def v3_scene(d, data, count):
+    (d / "sh_coeffs").mkdir(exist_ok=True)
+    (d / "sh_coeffs" / "p.shprobe").write_bytes(data)
+    b = sg.GltfBuilder()
+    b.node("Cube", mesh=b.mesh("cube", sg.cube(0.5)))
+    e = sg.grid_entry("p", "sh_coeffs/p.shprobe", count, (0, 0, 0), (2, 1, 1), 1.0)
+    e.update(version=3, structure="octree", representation="sh", storage="float32")
+    b.probe_grids([e])
+    return b.write(d / "scene.gltf")
+
+
+def test_version_3_loads_and_an_unknown_version_or_structure_is_named(tmp_path):
+    # docs/user-guide.md "What can go wrong": the engine reads versions 1, 2 and 3 (a v3 octree
+    # loads); a version or a v3 structure it does not know ends the run naming the value, the
+    # offset and what it knows (the bake's reader's words), before any frame.
+    data, count = v3_octree_bytes(tmp_path)
+    assert struct.unpack_from("<II", data, 0)[1] == 3 and struct.unpack_from("<I", data, 100)[0] == 1  # octree
+    viewer.check(viewer.run(v3_scene(tmp_path, data, count), "--headless", "--output", tmp_path / "ok.png",
+                            "--width", 8, "--height", 8))
+    assert (tmp_path / "ok.png").stat().st_size > 0
+    shprobe = tmp_path / "sh_coeffs" / "p.shprobe"
+    for mutate, message in [
+        (lambda d: corrupt(d, 4, struct.pack("<I", 4)),
+         "unknown version 4 at offset 4; this reader knows versions 1, 2 and 3"),
+        (lambda d: corrupt(d, 100, struct.pack("<I", 3)),
+         "unknown structure 3 at offset 100; this reader knows 0 = grid, 1 = octree, 2 = tetrahedra"),
+    ]:
+        gltf = v3_scene(tmp_path, mutate(data), count)
+        proc = viewer.run(gltf, "--headless", "--output", tmp_path / "x.png", "--width", 8, "--height", 8)
+        assert proc.returncode == 1, proc.stderr
+        assert f"schnee-view: error: shProbeGrids[0] 'p': cannot read {shprobe}: {message}" in proc.stderr, proc.stderr
+        assert not (tmp_path / "x.png").exists()
+
+
 def test_good_shprobe_control(tmp_path):
     # The unmodified bytes load: the failures above come from the mutations alone.
     gltf = scene_with_probe_bytes(tmp_path, good_probe_bytes(tmp_path))

@@ -56,4 +56,6 @@ check("lamp added", lambda: scene.collection.objects.link(light), lambda: scene.
 import dataclasses  # noqa: E402
 check("samples setting", lambda: None, lambda: None, dataclasses.replace(base_settings, samples=base_settings.samples + 1))
 check("output path only", lambda: None, lambda: None, dataclasses.replace(base_settings, output_path="//elsewhere.shprobe"))
+check("probe representation only", lambda: None, lambda: None,
+      dataclasses.replace(base_settings, probe_representation="CUBE_HALF"))
 common.emit(changed=changed)

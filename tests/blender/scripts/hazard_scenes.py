@@ -8,6 +8,8 @@ emission_nan.blend   the same box, "GlowBox", material "NaNGlow": Principled BSD
 emission_huge.blend  a 2 m box "HugeBox" beside the volume, material "Huge": Emission Strength 1e38
                      (finite, so not refused up front; at 4 spp the render's sum of samples
                      overflows float32 to Inf in the panorama).
+emission_1e30.blend  the same box, "BrightBox", material "Bright": Emission Strength 1e30 (finite in
+                     float32 at any sample count here, but far beyond half floats' 65504).
 """
 import os
 import sys
@@ -61,4 +63,6 @@ emissive("GlowBox", "NaNGlow", nan_principled)
 lib.save(os.path.join(out, "emission_nan.blend"))
 emissive("HugeBox", "Huge", lambda t: emission_node(t, 1e38), (2.5, -1.0, 0.0), (4.5, 1.0, 2.0))
 lib.save(os.path.join(out, "emission_huge.blend"))
+emissive("BrightBox", "Bright", lambda t: emission_node(t, 1e30), (2.5, -1.0, 0.0), (4.5, 1.0, 2.0))
+lib.save(os.path.join(out, "emission_1e30.blend"))
 common.emit(ok=True)

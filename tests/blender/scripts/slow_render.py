@@ -1,12 +1,29 @@
 """Run before bake.py (``-P slow_render.py -P bake.py``): every render takes 0.2 s longer, so a
-test can interrupt a tiny bake at a chosen probe (it polls the journal) without racing it."""
+test can interrupt a tiny bake at a chosen probe (it polls the journal) without racing it.
+
+Environment (tests/blender/test_bake_hazards.py, a second Ctrl+C): ``SCHNEE_TEST_RENDER_DELAY``
+seconds instead of 0.2; ``SCHNEE_TEST_EXIT_DELAY`` seconds of sleep in an atexit hook, i.e. while
+Blender exits after bake.py has cleaned up (the window a late signal can land in)."""
+import atexit
+import os
 import time
 
 import bpy
 
+RENDER_DELAY = float(os.environ.get("SCHNEE_TEST_RENDER_DELAY", "0.2"))
+EXIT_DELAY = float(os.environ.get("SCHNEE_TEST_EXIT_DELAY", "0"))
+
 
 def _slow(*_args):
-    time.sleep(0.2)
+    time.sleep(RENDER_DELAY)
+
+
+def _slow_exit():
+    print("SLOW_EXIT start", flush=True)
+    time.sleep(EXIT_DELAY)
+    print("SLOW_EXIT end", flush=True)
 
 
 bpy.app.handlers.render_post.append(_slow)
+if EXIT_DELAY > 0:
+    atexit.register(_slow_exit)
