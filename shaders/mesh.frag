@@ -49,7 +49,8 @@ void main() {
     bool probe_lit; // E came from a baked probe rather than the fallback probe 0 (for baked lights)
     // Per pixel, a fragment no octree or dense grid holds takes the object's own probe when that was
     // interpolated from tetrahedra (no GPU point location for them), else the fallback probe 0.
-    if (mode == SV_PROBE_MODE_PIXEL) probe_lit = grid_irradiance(v_world, n, cube, e_probe);
+    if (mode == SV_PROBE_MODE_PIXEL)
+        probe_lit = grid_irradiance(v_world, n, cube, (draw.flags & SV_DRAW_MOVABLE) != 0u, e_probe);
     if (mode != SV_PROBE_MODE_PIXEL || (!probe_lit && (draw.flags & SV_DRAW_TETRA) != 0u)) {
         uint index = mode == SV_PROBE_MODE_OFF ? 0u : draw.probe_index;
         probe_lit = index != 0u;

@@ -108,11 +108,13 @@ int octree_locate(sv_gpu_grid gr, uvec3 q) {
 // weights skipped, probes of validity 0 dropped, renormalised). The hanging corners were resolved at
 // load into the entries after the probes (value and validity mass, sv_probes.c resolve_hanging), so
 // the 8 fetches give exactly the CPU's expanded and merged weights. On top, as the dense grids: the
-// back-face weight smoothstep(-0.1, 0.1, dot(c - p, n) / leaf size) of each corner, and the leaf's
+// back-face weight smoothstep(-0.1, 0.1, dot(c - p, n) / leaf size) of each corner (static objects only:
+// a movable object was not in the bake, so every corner holds the light where it now is, and on a
+// small convex object the weight would throw away the probes behind each surface point), and the leaf's
 // visibility mask (Embree segments from the leaf's centre to its corners through the static scene);
 // when these leave no weight, the plain CPU weights are used (the leaf's own field). False: no leaf
 // holds p, or every corner is invalid (the caller tries the next grid).
-bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, out vec3 e_out) {
+bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, bool movable, out vec3 e_out) {
     e_out = vec3(0.0);
     float h = gr.origin_spacing.w;
     vec3 p = p_surface + n * (frame.normal_bias * h);
@@ -145,7 +147,7 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, out ve
             if (pass == 0) {
                 if ((vis & (1u << c)) == 0u) continue;
                 vec3 corner = gr.origin_spacing.xyz + (l + o * s) * h;
-                w *= smoothstep(-0.1, 0.1, dot(corner - p_surface, n) / (s * h));
+                if (!movable) w *= smoothstep(-0.1, 0.1, dot(corner - p_surface, n) / (s * h));
             }
             if (w <= 0.0) continue;
             if (cube) {
@@ -172,7 +174,8 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, out ve
 // whose box holds p (moved by normal_bias grid spacings along n) is sampled trilinearly between
 // the centres of the 8 neighbouring cells (indices clamped at the grid's faces). A neighbour gets
 // weight  trilinear * validity * backface, where backface = smoothstep(-0.1, 0.1, dot(c - p, n) / spacing)
-// is ~0 for a probe centre c behind the surface's tangent plane (the anti-leak measure); empty
+// is ~0 for a probe centre c behind the surface's tangent plane (the anti-leak measure for the static
+// surfaces the bake saw; 1 for a movable object, SV_DRAW_MOVABLE, as in octree_irradiance); empty
 // cells (-1) are skipped and the weights renormalised. A neighbour is also dropped when the cell
 // holding p + 0.01 spacing * n (the "home" cell, on the lit side of the surface) cannot see it: its
 // visibility mask (Embree segments between cell centres, computed at load) has the bit clear. When every weight is 0 the cell holding
@@ -180,7 +183,7 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, out ve
 // Returns E(n) including each probe's own scale; false when no grid holds p. `cube`: the probes'
 // ambient cubes instead of their SH, with the same weights, validity and visibility rules
 // (docs/ambient-cube.md §5; the fit is linear, so this is the cube of the interpolated SH).
-bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, out vec3 e_out) {
+bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, bool movable, out vec3 e_out) {
     e_out = vec3(0.0);
     for (uint g = 0u; g < frame.grid_count; ++g) {
         sv_gpu_grid gr = grids[g];
@@ -188,7 +191,7 @@ bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, out vec3 e_out) {
         bool cube = cube_asked || (gr.base.z & SV_GRID_CUBE_ONLY) != 0u;
         if ((gr.base.z & SV_GRID_TETRA) != 0u) continue; // tetrahedra: per object only
         if ((gr.base.z & SV_GRID_OCTREE) != 0u) {
-            if (octree_irradiance(gr, p_surface, n, cube, e_out)) return true;
+            if (octree_irradiance(gr, p_surface, n, cube, movable, e_out)) return true;
             continue;
         }
         float h = gr.origin_spacing.w;
@@ -226,7 +229,7 @@ bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, out vec3 e_out) {
             vec3 centre = cell_centre(gr, ci);
             float t = dot(centre - p_surface, n) / h;
             uint pi = gr.base.x + uint(idx);
-            w *= smoothstep(-0.1, 0.1, t) * (cube ? cube_validity(pi) : probe_validity(pi));
+            w *= (movable ? 1.0 : smoothstep(-0.1, 0.1, t)) * (cube ? cube_validity(pi) : probe_validity(pi));
             if (w <= 0.0) continue;
             if (cube) {
                 e += w * cube_scale(pi) * cube_irradiance(pi, n);

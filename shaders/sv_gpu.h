@@ -111,6 +111,9 @@
     4u /* the object's probe comes from a tetrahedra grid: per pixel falls back to the
                                 object's own interpolated probe (no GPU point location for tetrahedra) */
 
+#define SV_DRAW_MOVABLE 8u /* the object has moved (not in the static scene the probes were baked with): per pixel,
+                              no back-face weights (every corner saw the light where the object now is) */
+
 /* Grid flags (sv_gpu_grid.base.z). */
 #define SV_GRID_OCTREE    1u /* corner octree (.shprobe v3 structure 1): leaves in the cell buffer */
 #define SV_GRID_CUBE_ONLY 2u /* the grid's file holds ambient cubes only (representation 1) */

@@ -1077,7 +1077,7 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
         const float *w = obj->world; /* column-major: det of the upper 3x3 */
         float det = w[0] * (w[5] * w[10] - w[9] * w[6]) - w[4] * (w[1] * w[10] - w[9] * w[2]) +
                     w[8] * (w[1] * w[6] - w[5] * w[2]);
-        draw.flags = (det < 0.0f ? SV_DRAW_MIRRORED : 0u) | obj->probe_flags;
+        draw.flags = (det < 0.0f ? SV_DRAW_MIRRORED : 0u) | (obj->movable ? SV_DRAW_MOVABLE : 0u) | obj->probe_flags;
         const sv_gltf_mesh *mesh = &g->meshes[obj->mesh];
         for (uint32_t p = 0; p < mesh->primitive_count; ++p) {
             uint32_t pi = r->mesh_prim_base[obj->mesh] + p;
