@@ -217,11 +217,14 @@ SETTINGS: Tuple[Setting, ...] = (
     # Settings that trade time against error.
     Setting("samples", "int", 32, "Samples",
             "Cycles samples per panorama pixel: render time grows linearly, noise falls as "
-            "1/sqrt(samples) (measured: 32 is within noise of 64-128 indoors; raise it for skies "
-            "with a small, very bright sun)",
+            "1/sqrt(samples) (measured: 32 is within noise of 64-128 indoors; the sky and lamps "
+            "seen directly are exact at any samples, so a small bright sun needs no more)",
             doc="Cycles samples per pixel. Time is linear in it, noise falls as 1/√samples. In the "
                 "bright room at 32 bounces 8 / 16 / 32 / 64 / 128 spp give 0.88 / 0.63 / 0.39 / "
-                "0.31 / 0.25 % (table below); raise it for skies with a small, very bright sun.",
+                "0.31 / 0.25 % (table below). The sky and the lamps a probe sees directly are "
+                "added exactly (docs/direct-light.md), so a small bright sun in the sky or a Sun "
+                "lamp needs no more samples (sun scenes of the table); a sky seen through glass "
+                "is still path traced.",
             minimum=1, soft_max=4096),
     Setting("max_bounces", "int", 32, "Bounces",
             "Light bounces (total, diffuse and glossy): fewer is faster but darker indoors (light "

@@ -1,8 +1,14 @@
 #!/usr/bin/python3
-"""Speed-accuracy sweep of the probe bake: one command regenerates the report.
+"""Speed-accuracy sweep of the probe bake: one command regenerates the report (or some of its scenes).
 
     /usr/bin/python3 bench/sweep/run.py --full      # run time: bench/results/sweep.md
+    /usr/bin/python3 bench/sweep/run.py --full --scenes sun_yard sun_window   # some scenes, merged
     /usr/bin/python3 bench/sweep/run.py --analyse-only --workdir DIR   # report from kept raw output
+
+With --scenes, only those scenes are baked; their analysis replaces theirs in the existing
+bench/results/sweep.json and every other scene's figures (and the far/sun extremes) are kept from
+it, so the report is regenerated whole without re-running them. sweep.json records each run
+(``runs``: command, scenes, seconds, date).
 
 Writes bench/results/sweep.md (tables, Pareto fronts, recommendations), sweep.png (error against
 bake time) and sweep.json (every measured figure plus the reference coefficients, which the reduced
@@ -17,7 +23,13 @@ References (how each is obtained):
   against REF_TOL. The reference has the sweep's highest resolution, so these scenes sweep
   resolution only up to 128x64 (a 256x128 row would share the reference's resolution bias):
   resolution bias beyond 256x128 is not measured there;
-- the 1e5 sun: the HDRI's projection plus the sphere's analytic projection, per probe.
+- the 1e5 sun: the HDRI's projection plus the sphere's analytic projection, per probe;
+- sun_yard and sun_window (issue 11: a Sun lamp plus a sky with a sun, outdoors and through a
+  window): like interior and courtyard, two converged bakes checked against REF_TOL (no sample
+  points' reference: their placement study is not run). Their sweep rows (sun_rows()) are the
+  shipped defaults and cheaper rows around CENTRE32. The lamp is added analytically (hidden from
+  camera rays); worker.py adds it after the renders as ProbeBake.finish() does, and its time per
+  probe is in s/probe (column *direct*).
 
 Noise: worker.py gives every probe its own Cycles seed (seed * 1000 + probe index), so a row's
 error is a mean over independent noise samples; the report gives mean +- std over the probes.
@@ -93,6 +105,21 @@ def render_rows(bounces=True):
     return rows
 
 
+def sun_rows():
+    """sun_yard / sun_window: the shipped defaults' neighbourhood and cheaper rows, around CENTRE32
+    (resolution up to 128x64: the reference is 256x128)."""
+    c = CENTRE32
+    rows = [row("base 128x64 64spp 32b", c)]
+    rows += [row(f"res {r}x{r // 2}", c, panorama_resolution=r) for r in (32, 64)]
+    rows += [row(f"{n} spp", c, samples=n) for n in (8, 16, 32, 128)]
+    rows += [row(f"{b} bounces", c, max_bounces=b) for b in (4, 8, 16)]
+    combos = [(64, 8, 8), (64, 16, 8), (64, 32, 16), (128, 8, 8), (128, 8, 16), (128, 16, 16),
+              (128, 32, 8), (128, 32, 16)]
+    rows += [row(f"{r}x{r // 2} {n}spp {b}b", panorama_resolution=r, samples=n, max_bounces=b)
+             for r, n, b in combos]
+    return rows
+
+
 def fixed(jid, settings, points="probes", band=4, seed=0):
     s = dict(settings)
     s.update(max_band=band, seed=seed)
@@ -106,9 +133,10 @@ def sweep_jobs(rows):
     return jobs
 
 
-def ref_jobs():
+def ref_jobs(samples=True):
     return ([fixed(f"ref:{seed}", REF, points="probes", seed=seed) for seed in (1, 2)]
-            + [fixed(f"refs:{seed}", REF_SAMPLES, points="samples", seed=seed) for seed in (1, 2)])
+            + ([fixed(f"refs:{seed}", REF_SAMPLES, points="samples", seed=seed) for seed in (1, 2)]
+               if samples else []))
 
 
 def placement_jobs(configs):
@@ -137,6 +165,9 @@ def plan(full=True):
     p["courtyard"] = ((0, 0, 0), sweep_jobs(render_rows()) + ref_jobs()
                       + placement_jobs([(1.0, 1.0), (1.0, 2.0), (1.0, 4.0), (2.0, 2.0), (2.0, 8.0),
                                         (0.5, 16.0)]))  # 0.5/16 m: the shipped placement
+    # Issue 11: a Sun lamp plus a sky with a sun, outdoors and through a window.
+    p["sun_yard"] = ((0, 0, 0), sweep_jobs(sun_rows()) + ref_jobs(samples=False))
+    p["sun_window"] = ((0, 0, 0), sweep_jobs(sun_rows()) + ref_jobs(samples=False))
     return p
 
 
@@ -202,6 +233,8 @@ def probe_times(res):
 
 def timing(res, sync_by_res, settings):
     render, write, proj = probe_times(res)
+    # The analytic lamps (issue 11), added for all probes at once after the renders.
+    direct = float(res.get("direct_seconds", 0.0)) / max(len(res["times"]), 1)
     sync = sync_by_res.get(settings.get("panorama_resolution", 128))
     n = settings.get("samples", 64)
     if sync is None:
@@ -210,11 +243,13 @@ def timing(res, sync_by_res, settings):
         # 1-spp render = sync + one sample of tracing (bench_bake.py's split).
         sync_s = max(0.0, sync - (render - sync) / max(n - 1, 1))
     first = res["times"][0]
-    return {"s_per_probe": render + write + proj, "render": render, "sync": sync_s,
+    return {"s_per_probe": render + write + proj + direct, "render": render, "sync": sync_s,
+            "direct_lamps": direct,
             "trace": render - sync_s, "exr_write": write, "projection": proj,
             "exr_and_projection": write + proj,
             # The first probe also uploads the scene (Persistent Data keeps it for the rest).
-            "first_probe": float(sum(first)), "first_probe_setup": float(sum(first)) - (render + write + proj)}
+            "first_probe": float(sum(first)) + direct,
+            "first_probe_setup": float(sum(first)) - (render + write + proj)}
 
 
 def analyse(docs):
@@ -242,15 +277,17 @@ def analyse(docs):
             sc["sun"] = {"radiance": rad, "solid_angle": omega, "direction_engine": d.tolist()}
         elif "ref:1" in jobs:
             a, b = (np.asarray(jobs[f"ref:{s}"]["coeffs"]) for s in (1, 2))
-            sa, sb = (np.asarray(jobs[f"refs:{s}"]["coeffs"]) for s in (1, 2))
-            refs = {"probes": (a + b) / 2, "samples": (sa + sb) / 2}
-            sconv = [metrics.errors(sa[i], sb[i], 2)[0] for i in range(len(sa))]
-            sc["ref_samples_convergence"] = {
-                "settings": REF_SAMPLES, "seed1_vs_seed2_rel_rms_mean": float(np.mean(sconv)),
-                "seed1_vs_seed2_rel_rms_max": float(np.max(sconv)),
-                "estimated_error": float(np.mean(sconv)) / 2, "tolerance": REF_TOL_SAMPLES,
-                "pass": bool(float(np.mean(sconv)) / 2 <= REF_TOL_SAMPLES),
-                "seconds_per_probe": float(probe_times(jobs["refs:1"]).sum())}
+            refs = {"probes": (a + b) / 2, "samples": None}
+            if "refs:1" in jobs:
+                sa, sb = (np.asarray(jobs[f"refs:{s}"]["coeffs"]) for s in (1, 2))
+                refs["samples"] = (sa + sb) / 2
+                sconv = [metrics.errors(sa[i], sb[i], 2)[0] for i in range(len(sa))]
+                sc["ref_samples_convergence"] = {
+                    "settings": REF_SAMPLES, "seed1_vs_seed2_rel_rms_mean": float(np.mean(sconv)),
+                    "seed1_vs_seed2_rel_rms_max": float(np.max(sconv)),
+                    "estimated_error": float(np.mean(sconv)) / 2, "tolerance": REF_TOL_SAMPLES,
+                    "pass": bool(float(np.mean(sconv)) / 2 <= REF_TOL_SAMPLES),
+                    "seconds_per_probe": float(probe_times(jobs["refs:1"]).sum())}
             conv = [metrics.errors(a[i], b[i], 2) for i in range(len(a))]
             est = float(np.mean([c[0] for c in conv])) / 2
             sc["reference"] = "mean of two bakes (256x128, 128 spp, 32 bounces, clamp off), seeds 1 and 2"
@@ -260,8 +297,11 @@ def analyse(docs):
                                      "seconds_per_probe": float(probe_times(jobs["ref:1"]).sum()),
                                      "estimated_error": est, "tolerance": REF_TOL,
                                      "pass": bool(est <= REF_TOL)}
-            sc["reference_coeffs"] = {"probes": refs["probes"].tolist(), "samples": refs["samples"].tolist(),
+            sc["reference_coeffs"] = {"probes": refs["probes"].tolist(),
+                                      "samples": None if refs["samples"] is None else refs["samples"].tolist(),
                                       "seed1": a.tolist(), "seed2": b.tolist()}
+            if jobs["ref:1"].get("analytic_lamps"):
+                sc["reference"] += "; lamps added analytically: " + ", ".join(jobs["ref:1"]["analytic_lamps"])
         else:
             refs = None
         if scene.startswith("sky_") or scene == "sun":
@@ -403,10 +443,35 @@ def shprobe_bytes():
     return out
 
 
+def merge(result, old):
+    """``result`` (some scenes) merged into ``old`` (a previous sweep.json): the scenes run now
+    replace theirs, every other scene, the extremes computed from scenes not run now (far, sun) and
+    the earlier runs are kept. Returns the merged document (JSON types: keys are strings)."""
+    new = json.loads(json.dumps(result, default=float))
+    out = dict(old)
+    out["scenes"] = dict(old.get("scenes", {}))
+    out["scenes"].update(new["scenes"])
+    for key in ("far", "sun"):
+        if key in new:
+            out[key] = new[key]
+    out["settings"] = dict(old.get("settings", {}), **new["settings"])
+    out["shprobe_bytes"] = new["shprobe_bytes"]
+    runs = old.get("runs") or [{"command": old.get("command"), "scenes": sorted(old.get("scenes", {})),
+                                "seconds": old.get("sweep_seconds")}]
+    # Each earlier run keeps the scenes whose figures still come from it (its seconds as measured).
+    runs = [dict(r, scenes=[n for n in r["scenes"] if n not in new["scenes"]]) for r in runs]
+    out["runs"] = [r for r in runs if r["scenes"]] + new["runs"]
+    out["sweep_seconds"] = sum(r["seconds"] or 0.0 for r in out["runs"])
+    out.pop("pareto", None)
+    out.pop("recommended", None)
+    return out
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--full", action="store_true", help="run the whole sweep (required)")
-    ap.add_argument("--only", nargs="*", help="scenes to run (default: all)")
+    ap.add_argument("--scenes", "--only", nargs="*", dest="scenes",
+                    help="scenes to run (default: all); with some, merge into the existing sweep.json")
     ap.add_argument("--workdir", help="keep the workers' raw output here (default: a temp folder)")
     ap.add_argument("--analyse-only", action="store_true", help="rebuild the report from --workdir")
     args = ap.parse_args()
@@ -415,10 +480,13 @@ if __name__ == "__main__":
     workdir = args.workdir or tempfile.mkdtemp(prefix="schnee_sweep_")
     os.makedirs(workdir, exist_ok=True)
     p = plan()
+    unknown = sorted(set(args.scenes or ()) - set(p))
+    if unknown:
+        ap.error(f"unknown scenes {unknown}; known: {sorted(p)}")
+    subset = bool(args.scenes) and set(args.scenes) != set(p)
     docs = {}
-    t0 = time.perf_counter()
     for scene, (offset, jobs) in p.items():
-        if args.only and scene not in args.only:
+        if args.scenes and scene not in args.scenes:
             continue
         out_path = os.path.join(workdir, f"{scene}.out.json")
         if args.analyse_only:
@@ -428,8 +496,18 @@ if __name__ == "__main__":
         docs[scene] = run_scene(scene, offset, jobs, workdir)
     result = analyse(docs)
     result["shprobe_bytes"] = shprobe_bytes()
-    result["sweep_seconds"] = sum(d.get("seconds", 0.0) for d in docs.values())
-    result["command"] = "/usr/bin/python3 bench/sweep/run.py --full"
+    seconds = sum(d.get("seconds", 0.0) for d in docs.values())
+    command = "/usr/bin/python3 bench/sweep/run.py --full" + (
+        " --scenes " + " ".join(args.scenes) if subset else "")
+    result["runs"] = [{"command": command, "scenes": sorted(docs), "seconds": seconds,
+                       "date": time.strftime("%Y-%m-%d", time.gmtime())}]
+    result["sweep_seconds"] = seconds
+    result["command"] = command
+    stored = os.path.join(RESULTS, "sweep.json")
+    if subset:
+        with open(stored, encoding="utf-8") as fh:
+            result = merge(result, json.load(fh))
     import report  # noqa: E402  (bench/sweep/report.py)
     report.write(result, RESULTS)
-    print(f"wrote {RESULTS}/sweep.md, sweep.png, sweep.json ({result['sweep_seconds'] / 60:.1f} min)")
+    print(f"wrote {RESULTS}/sweep.md, sweep.png, sweep.json ({seconds / 60:.1f} min this run, "
+          f"{result['sweep_seconds'] / 60:.1f} min over {len(result['runs'])} run(s))")

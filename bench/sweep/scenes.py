@@ -17,6 +17,14 @@ Scenes:
 - ``sun``: courtyard.exr plus a small emissive sphere of radiance 1e5 (radius 5 cm at 1.75 m from
   the probe, 2.6e-3 sr, about one pixel of a 128x64 panorama: "a sun of 1e5 in one panorama").
   Reference: analytic (HDRI + sphere).
+- ``sun_yard`` (issue 11): the courtyard's geometry lit by a Sun lamp (SUN_LAMP_STRENGTH W/m²,
+  SUN_LAMP_ANGLE, 30° up from the south-west: the wings throw a hard shadow across the yard's
+  south-west half, the pillar one to its north-east) under sunrise.exr (a sky with a low sun,
+  half of its energy in 4 texels). Three probes in the lamp's sun, three in shadow.
+- ``sun_window`` (issue 11): the interior's room without its ceiling panel, lit by a Sun lamp
+  (35° up) through the window (a sun patch on the floor) and forest.exr through the same window.
+  Two probes in the sunbeam, four out of it. Both: reference = the interior's converged bakes.
+  Which probes are in the lamp's sun is checked by ``lamp_lit`` (a ray against the scene's boxes).
 """
 import math
 import os
@@ -38,6 +46,14 @@ SUN_RADIUS = 0.05
 SUN_CENTRE = (1.2, 1.0, 1.8)     # 1.75 m from SUN_PROBE
 SUN_PROBE = (0.0, 0.0, 1.0)
 SUN_PROBE2 = (0.4, -0.3, 1.2)    # a second probe (1.64 m from the sphere): two noise samples per row
+
+
+# The Sun lamps of sun_yard / sun_window: strength (W/m², Blender's Sun "Strength"), angular
+# diameter, and the unit direction TOWARDS the sun (Blender space; the lamp shines along minus it).
+SUN_LAMP_STRENGTH = 4.0
+SUN_LAMP_ANGLE = math.radians(0.5)
+SUN_YARD_TO_SUN = (-0.6123724356957947, -0.6123724356957945, 0.5)          # 30° up, from the SW
+SUN_WINDOW_TO_SUN = (0.28016649959323564, 0.7697511313200572, 0.5735764363510462)  # 35° up, 20° off +Y
 
 
 @dataclass
@@ -86,7 +102,8 @@ def build(name: str, offset: Vec = (0.0, 0.0, 0.0)) -> SceneSpec:
     scene.render.engine = 'CYCLES'
     scene.cycles.use_denoising = False
     builder = {"sky_courtyard": _sky("courtyard.exr"), "sky_forest": _sky("forest.exr"),
-               "interior": _interior, "courtyard": _courtyard, "sun": _sun}.get(name)
+               "interior": _interior, "courtyard": _courtyard, "sun": _sun,
+               "sun_yard": _sun_yard, "sun_window": _sun_window}.get(name)
     if builder is None:
         raise ValueError(f"unknown sweep scene {name!r}")
     spec = builder(offset)
@@ -132,15 +149,24 @@ def _interior(offset):
     return SceneSpec("", "courtyard.exr", probes, samples, placement=[(1.0, 4.0), (2.0, 8.0)])
 
 
-def _courtyard(offset):
-    _world("forest.exr")
+# Solid boxes of the courtyard (Blender space, before the offset): ground, two wings, a pillar.
+YARD_BOXES = [("Ground", (-7.0, -7.0, -0.2), (7.0, 7.0, 0.0)),
+              ("WingWest", (-7.0, -7.0, 0.0), (-5.0, 7.0, 4.0)),
+              ("WingSouth", (-5.0, -7.0, 0.0), (7.0, -5.0, 4.0)),
+              ("Pillar", (1.0, 1.0, 0.0), (2.0, 2.0, 3.0))]
+
+
+def _yard_geometry(offset):
     coll = lib.collection("Yard")
     stone = lib.diffuse_material("Stone", (0.5, 0.48, 0.45))
     grass = lib.diffuse_material("Ground", (0.25, 0.3, 0.18))
-    _box("Ground", (-7.0, -7.0, -0.2), (7.0, 7.0, 0.0), offset, coll, grass)
-    _box("WingWest", (-7.0, -7.0, 0.0), (-5.0, 7.0, 4.0), offset, coll, stone)
-    _box("WingSouth", (-5.0, -7.0, 0.0), (7.0, -5.0, 4.0), offset, coll, stone)
-    _box("Pillar", (1.0, 1.0, 0.0), (2.0, 2.0, 3.0), offset, coll, stone)
+    for name, a, b in YARD_BOXES:
+        _box(name, a, b, offset, coll, grass if name == "Ground" else stone)
+
+
+def _courtyard(offset):
+    _world("forest.exr")
+    _yard_geometry(offset)
     # The yard volume: 0.5 m above the ground (movables walk there), clear of the wings by 1 m, so
     # the octree refines around the pillar and at the wings' faces only.
     lib.probe_volume("YardVolume", *_shift([(-4.0, -4.0, 0.5), (6.0, 6.0, 4.5)], offset))
@@ -176,3 +202,87 @@ def sun_direction_and_solid_angle():
     dist = math.sqrt(sum(x * x for x in d))
     cos_a = math.sqrt(1.0 - (SUN_RADIUS / dist) ** 2)
     return [x / dist for x in d], 2.0 * math.pi * (1.0 - cos_a)
+
+
+def _sun_lamp(to_sun, offset):
+    """A Sun lamp of SUN_LAMP_STRENGTH and SUN_LAMP_ANGLE shining along ``-to_sun``."""
+    from mathutils import Vector
+    data = bpy.data.lights.new("SunLamp", type='SUN')
+    data.energy = SUN_LAMP_STRENGTH
+    data.angle = SUN_LAMP_ANGLE
+    ob = bpy.data.objects.new("SunLamp", data)
+    bpy.context.scene.collection.objects.link(ob)
+    ob.location = _shift([(0.0, 0.0, 10.0)], offset)[0]  # a Sun's position does not matter
+    ob.rotation_euler = (-Vector(to_sun)).to_track_quat('-Z', 'Y').to_euler()
+    return ob
+
+
+def lamp_lit(point, to_sun, boxes):
+    """Whether the ray from ``point`` towards the sun misses every box (a, b) (pure Python, no
+    Blender: the scenes' probe lists were chosen with it; tests/bench checks them)."""
+    for a, b in boxes:
+        t0, t1 = 1e-6, 1e9
+        for i in range(3):
+            if abs(to_sun[i]) < 1e-12:
+                if not a[i] <= point[i] <= b[i]:
+                    break
+                continue
+            u, v = (a[i] - point[i]) / to_sun[i], (b[i] - point[i]) / to_sun[i]
+            t0, t1 = max(t0, min(u, v)), min(t1, max(u, v))
+        else:
+            if t0 <= t1:
+                return False
+    return True
+
+
+# sun_yard: the courtyard's probes plus two; (-3,-3,1), (0,-2,1) lie in the wings' shadow of the
+# lamp, (2.5,2.5,1) in the pillar's; (4,4,2.5), (-1,3,3.5), (3,-1,1.5) in its sun.
+SUN_YARD_PROBES = [(-3.0, -3.0, 1.0), (4.0, 4.0, 2.5), (2.5, 2.5, 1.0), (-1.0, 3.0, 3.5),
+                   (0.0, -2.0, 1.0), (3.0, -1.0, 1.5)]
+# sun_window: (0.5,1.5,1.25) and (-0.4,0.6,0.8) in the sunbeam through the window; the interior's
+# (-0.5,-0.5,1.75), (-1.5,-0.5,0.75), (0.5,-0.5,0.75) and (1.2,1,0.5) beside the floor's sun patch
+# out of it.
+SUN_WINDOW_PROBES = [(0.5, 1.5, 1.25), (-0.4, 0.6, 0.8), (-0.5, -0.5, 1.75), (-1.5, -0.5, 0.75),
+                     (0.5, -0.5, 0.75), (1.2, 1.0, 0.5)]
+ROOM_WINDOW = (-0.8, 0.8, 0.9, 2.0)   # x0, x1, z0, z1 of the opening in the +Y wall (room_walls)
+ROOM_TABLE = ((-1.6, -1.6, 0.0), (-0.6, -0.9, 0.75))
+
+
+def room_boxes():
+    """The room's solid boxes as lib.room_walls builds them (interior -2..2 x -2..2 x 0..2.5, walls
+    0.2 m, the window ROOM_WINDOW) plus the table: for lamp_lit."""
+    x0, y0, z0, x1, y1, z1, t = -2.0, -2.0, 0.0, 2.0, 2.0, 2.5, 0.2
+    wx0, wx1, wz0, wz1 = ROOM_WINDOW
+    return [((x0 - t, y0 - t, z0 - t), (x1 + t, y1 + t, z0)), ((x0 - t, y0 - t, z1), (x1 + t, y1 + t, z1 + t)),
+            ((x0 - t, y0, z0), (x0, y1, z1)), ((x1, y0, z0), (x1 + t, y1, z1)),
+            ((x0, y0 - t, z0), (x1, y0, z1)), ((x0, y1, z0), (wx0, y1 + t, z1)),
+            ((wx1, y1, z0), (x1, y1 + t, z1)), ((wx0, y1, z0), (wx1, y1 + t, wz0)),
+            ((wx0, y1, wz1), (wx1, y1 + t, z1)), ROOM_TABLE]
+
+
+def _sun_yard(offset):
+    _world("sunrise.exr")
+    _yard_geometry(offset)
+    _sun_lamp(SUN_YARD_TO_SUN, offset)
+    lib.probe_volume("YardVolume", *_shift([(-4.0, -4.0, 0.5), (6.0, 6.0, 4.5)], offset))
+    samples = seeded_samples([(-3.4, 2.2, 1.2), (0.3, -3.1, 1.0), (3.6, 1.6, 0.9), (2.9, 4.8, 1.7),
+                              (-1.7, -0.6, 2.6), (0.6, 2.4, 1.3)],
+                             (-3.9, -3.9, 0.6), (5.9, 5.9, 4.4), [((1.0, 1.0, 0.0), (2.0, 2.0, 3.0))], seed=11)
+    return SceneSpec("", "sunrise.exr", list(SUN_YARD_PROBES), samples)
+
+
+def _sun_window(offset):
+    _world("forest.exr")
+    walls = lib.collection("Room")
+    plaster = lib.diffuse_material("Plaster", (0.8, 0.8, 0.8))
+    lo, hi = _shift([(-2.0, -2.0, 0.0), (2.0, 2.0, 2.5)], offset)
+    wx, wz = offset[0], offset[2]
+    x0, x1, z0, z1 = ROOM_WINDOW
+    lib.room_walls(lo, hi, coll=walls, material=plaster, window=(wx + x0, wx + x1, wz + z0, wz + z1))
+    wood = lib.diffuse_material("Wood", (0.45, 0.25, 0.12))
+    _box("Table", *ROOM_TABLE, offset, walls, wood)
+    _sun_lamp(SUN_WINDOW_TO_SUN, offset)
+    lib.probe_volume("RoomVolume", lo, hi)
+    samples = seeded_samples([(0.2, 1.2, 1.4), (-0.3, 0.6, 0.9), (1.3, -1.1, 0.5), (-1.2, 0.3, 1.6)],
+                             (-1.85, -1.85, 0.15), (1.85, 1.85, 2.35), [ROOM_TABLE], seed=11)
+    return SceneSpec("", "forest.exr", list(SUN_WINDOW_PROBES), samples)

@@ -78,7 +78,15 @@ def run_fixed(job, spec, tmp):
         # The cursor bake's stepper with our positions: same render settings, camera and projection.
         bake.bake_positions(eng)
         rows = _stepped(bake, s.seed)
+        # The lamps added analytically (issue 11; hidden from the camera rays by prepare) join the
+        # coefficients in ProbeBake.finish(), which a fixed-position bake does not reach: add them
+        # here as finish() does, and report their time (all probes at once) on its own.
+        direct = 0.0
+        if bake._direct is not None and bake._direct.lamps:
+            bake._direct.add_to(bake)
+            direct = bake.timings["direct"]
         return {"coeffs": bake.coeffs.tolist(), "times": rows, "positions": eng.tolist(),
+                "direct_seconds": direct, "analytic_lamps": list(bake._direct.analytic) if bake._direct else [],
                 "settings_effective": dataclasses.asdict(s)}
     finally:
         bake.cancel()
