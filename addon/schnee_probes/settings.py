@@ -180,6 +180,19 @@ SETTINGS: Tuple[Setting, ...] = (
                 "rendered and 11.8 / 4.8 / 3.3 % error between probes (floor 1.5 %; geometry octree "
                 "4.9 % with 2458 probes).",
             minimum=0.0, min_exclusive=True, maximum=1.0, ui="volumes"),
+    Setting("refinement_tests", "enum", 'CENTRE', "Refinement Tests",
+            "Adaptive placement: where a cell is tested before it may split: its centre only, or its "
+            "centre and its six face centres (up to about twice the test renders, for the light "
+            "changes a centre misses)",
+            doc="Adaptive only: the test points of a cell. **Centre**: one test at the cell's centre "
+                "(a split cell's face centres are baked as its children's corners anyway). **Centre "
+                "and faces**: the centre and the six face centres; catches light that changes along "
+                "a face but not at the centre, at up to about twice the renders of the cells that "
+                "do not split. Measured in bench/results/placement.md.",
+            choices=(('CENTRE', "Centre", "Test each cell at its centre"),
+                     ('CENTRE_FACES', "Centre and faces", "Test each cell at its centre and its six face "
+                                                          "centres: more renders")),
+            ui="volumes"),
     Setting("file_version", "enum", 'V3', "File Version",
             "Adaptive placement: version 3 (the octree, interpolated continuously) or version 1 (the "
             "same light resampled onto a dense grid of Min Cell Size, for engines that read only "
