@@ -53,7 +53,7 @@ def main():
     ap.add_argument("--max-cell", type=float, default=16.0)
     ap.add_argument("--tolerance", type=float, nargs="*", default=[0.05],
                     help="Error Tolerance values of the adaptive bakes (none: only --old)")
-    ap.add_argument("--tests", nargs="+", default=["CENTRE"], choices=["CENTRE", "CENTRE_FACES"],
+    ap.add_argument("--tests", nargs="+", default=["CENTRE_FACES"], choices=["CENTRE_FACES", "CENTRE"],
                     help="Refinement Tests of the adaptive bakes (each tolerance is baked with each)")
     ap.add_argument("--points", type=int, default=64)
     ap.add_argument("--ref-samples", type=int, default=128)

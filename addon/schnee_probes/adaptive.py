@@ -34,7 +34,7 @@ from . import native
 
 SOLID_RATIO = 0.25          # the placement's default back-face ratio (docs/placement.md)
 RENDER_INSET = 0.01         # m: nodes on or beyond the volumes' bounding box render this far inside it
-TEST_MODES = ("CENTRE", "CENTRE_FACES")   # Refinement Tests: a leaf's centre, or centre + 6 face centres
+TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
 NOISE_K = 2.0               # refine only where error > tolerance + NOISE_K · noise (pb_refine's default)
 # Lambert band factors A_l (irradiance = Σ A_l L_lm Y_lm), l = 0..4.
 _LAMBERT = (math.pi, 2.0 * math.pi / 3.0, math.pi / 4.0, 0.0, -math.pi / 24.0)
@@ -197,7 +197,7 @@ class AdaptiveGroup:
     are being baked), ``finished`` when nothing splits any more."""
 
     def __init__(self, name: str, path: str, volumes, geometry, min_cell: float, max_cell: float,
-                 tolerance: float, tests: str = "CENTRE"):
+                 tolerance: float, tests: str = "CENTRE_FACES"):
         if tests not in TEST_MODES:
             raise ValueError(f"refinement tests {tests!r}: expected one of {', '.join(TEST_MODES)}")
         self.name, self.path = name, path
