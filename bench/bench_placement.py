@@ -1,11 +1,15 @@
-"""Adaptive placement vs the geometry octree on the bundled room, in real Blender + Cycles.
+"""Placements and interpolations against a reference at points between probes, in real Blender + Cycles.
 
-    blender -b --factory-startup -P bench/bench_placement.py -- OUT.json [options]
+    blender -b --factory-startup -P bench/bench_placement.py -- OUT.json [--scene room|courtyard|hall] [options]
 
-Builds the bundled room (scenes/make_default_scene.py), bakes it with the Adaptive placement (and,
-with --old, the geometry octree) at the given settings, then bakes reference probes at --points
-seeded random points of the room (not inside furniture, not at probes) at --ref-samples, and a
-"floor" probe at each point with the bake's own settings. Error = relative irradiance RMS over
+Builds the scene (bench/placement_scenes.py: the bundled room, the sweep's courtyard, a large hall),
+bakes reference probes at --points seeded random points of the volume (not inside solids) at
+--ref-samples and a "floor" probe at each point with the bake's own settings, then each placement:
+the Adaptive placement (each --tolerance x --tests; its probes interpolated by the corner octree,
+the file's structure, and with --tetra also by a Delaunay tetrahedralisation of the same probes),
+uniform grids of --uniform cell sizes (corner probes, trilinear; only the probes the points use are
+baked, time = all the grid's probes x the measured time per probe) and, with --old / --old-points,
+the geometry octree. Error = relative irradiance RMS over
 directions and RGB (adaptive.irradiance_error, the refinement's metric) of each placement's
 per-object value at the point (v3: the corner octree's interpolation with validity; v1: the grid
 cell's probe, as the engine's per-object lookup) against the reference. Writes OUT.json; the
@@ -21,12 +25,13 @@ import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(REPO, "scenes"))
+sys.path.insert(0, os.path.join(REPO, "bench"))
 sys.path.insert(0, os.path.join(REPO, "addon"))
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
-import make_default_scene  # noqa: E402
+import placement_scenes  # noqa: E402
 import schnee_probes  # noqa: E402
 from schnee_probes import adaptive, bake_core, native  # noqa: E402
 
@@ -35,6 +40,12 @@ def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     ap = argparse.ArgumentParser()
     ap.add_argument("out")
+    ap.add_argument("--scene", default="room", choices=placement_scenes.SCENES)
+    ap.add_argument("--seed", type=int, default=2024, help="seed of the evaluation points")
+    ap.add_argument("--uniform", type=float, nargs="*", default=[],
+                    help="cell sizes (m) of uniform corner grids to compare (trilinear)")
+    ap.add_argument("--tetra", action="store_true",
+                    help="also interpolate each Adaptive bake's probes by Delaunay tetrahedra")
     ap.add_argument("--res", type=int, default=128)
     ap.add_argument("--samples", type=int, default=32)
     ap.add_argument("--bounces", type=int, default=32)
@@ -42,6 +53,8 @@ def main():
     ap.add_argument("--max-cell", type=float, default=16.0)
     ap.add_argument("--tolerance", type=float, nargs="*", default=[0.05],
                     help="Error Tolerance values of the adaptive bakes (none: only --old)")
+    ap.add_argument("--tests", nargs="+", default=["CENTRE_FACES"], choices=["CENTRE_FACES", "CENTRE"],
+                    help="Refinement Tests of the adaptive bakes (each tolerance is baked with each)")
     ap.add_argument("--points", type=int, default=64)
     ap.add_argument("--ref-samples", type=int, default=128)
     ap.add_argument("--old", action="store_true", help="also bake the geometry octree")
@@ -51,7 +64,7 @@ def main():
                          "there: same settings and seed), time = probes x the measured time per probe")
     a = ap.parse_args(argv)
 
-    make_default_scene.build()
+    sc = placement_scenes.build(a.scene)
     schnee_probes.register()
     tmp = tempfile.mkdtemp(prefix="bench_placement_")
     scene, layer = bpy.context.scene, bpy.context.view_layer
@@ -63,17 +76,9 @@ def main():
         base.update(kw)
         return bake_core.BakeSettings(**base)
 
-    # Seeded points in the room's interior (Blender x, y in -5..5, z in 0..4 -> engine), outside the
-    # furniture boxes by 0.1 m.
-    rng = np.random.default_rng(2024)
-    pts = []
-    while len(pts) < a.points:
-        p = rng.uniform([-4.8, -4.8, 0.2], [4.8, 4.8, 3.8])
-        if any(np.all(p > np.subtract(lo, 0.1)) and np.all(p < np.add(hi, 0.1))
-               for _, lo, hi in make_default_scene.FURNITURE):
-            continue
-        pts.append(p)
-    blender_pts = np.array(pts)
+    # Seeded points in the volume, outside the solids (placement_scenes.points; the room keeps the
+    # points of the first run of this benchmark).
+    blender_pts = np.array(placement_scenes.points(sc, a.points, a.seed))
     engine_pts = np.stack([blender_pts[:, 0], blender_pts[:, 2], -blender_pts[:, 1]], axis=1)
 
     out = {"settings": vars(a), "rows": [], "load_start": os.getloadavg()}
@@ -82,21 +87,62 @@ def main():
     out["reference_seconds"] = time.perf_counter() - t
     floor = bake_core.bake_points(scene, layer, settings(), engine_pts, log=lambda s: None)
     out["floor"] = stats(adaptive.irradiance_error(floor, ref))
+    out["floor_point_errors"] = [round(float(e), 5) for e in adaptive.irradiance_error(floor, ref)]
+    out["points_blender"] = blender_pts.round(4).tolist()
 
-    for tol in a.tolerance:
-        path = os.path.join(tmp, f"adaptive_{tol:g}.shprobe")
-        b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", error_tolerance=tol, output_path=path),
-                                log=print)
+    for tol, tests in [(tol, tests) for tol in a.tolerance for tests in a.tests]:
+        path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}.shprobe")
+        b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", error_tolerance=tol,
+                                                       refinement_tests=tests, output_path=path), log=print)
         t, cpu = time.perf_counter(), cpu_seconds()
         r = b.run()
         sec, cpu = time.perf_counter() - t, cpu_seconds() - cpu
         f = native.read_shprobe(path)
         got = native.interpolation_from_file(path).interpolate(engine_pts, f.coeffs, f.validity)
-        out["rows"].append({"placement": "adaptive", "tolerance": tol, "seconds": sec, "cpu_seconds": cpu,
+        err = adaptive.irradiance_error(got, ref)
+        out["rows"].append({"placement": "adaptive", "tolerance": tol, "tests": tests, "seconds": sec,
+                            "cpu_seconds": cpu,
                             "probes": r.probe_count, "render_seconds": r.timings["render"],
                             "renders": r.renders, "passes": [vars(p) for p in r.passes],
-                            "file_bytes": os.path.getsize(path),
-                            "error": stats(adaptive.irradiance_error(got, ref))})
+                            "file_bytes": os.path.getsize(path), "error": stats(err),
+                            "point_errors": [round(float(e), 5) for e in err]})
+        print("ROW", json.dumps(out["rows"][-1]), flush=True)
+        if a.tetra:
+            # The same probes, interpolated by a Delaunay tetrahedralisation of the valid ones.
+            pos = native.interpolation_from_file(path).positions()
+            keep = np.asarray(f.validity) > 0
+            tet = native.Tetrahedra.create(pos[keep])
+            got_t = tet.interpolate(engine_pts, np.asarray(f.coeffs)[keep])
+            err_t = adaptive.irradiance_error(got_t, ref)
+            out["rows"].append({"placement": "adaptive", "interpolation": "tetrahedra", "tolerance": tol,
+                                "tests": tests, "probes": int(keep.sum()), "renders": r.renders,
+                                "cpu_seconds": cpu, "seconds": sec, "error": stats(err_t),
+                                "point_errors": [round(float(e), 5) for e in err_t]})
+            print("ROW", json.dumps(out["rows"][-1]), flush=True)
+    for cell in a.uniform:
+        # A uniform grid of corner probes: the Adaptive placement's first layer with Min = Max Cell
+        # Size (same lattice rules, same solid test, same render positions), never refined.
+        b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", min_cell_size=cell,
+                                                       max_cell_size=cell), log=lambda s: None)
+        b.prepare()
+        group, cache = b._groups[0], b._cache
+        pidx = group.probe_index
+        validity = cache.validity(pidx)
+        probes, w = group.tree.query(engine_pts, validity)
+        need = np.unique(probes[(w > 0) & (probes >= 0)])
+        count = int((validity > 0).sum())
+        b.cancel()
+        t, cpu = time.perf_counter(), cpu_seconds()
+        vals = np.zeros((len(pidx),) + ref.shape[1:])
+        vals[need] = bake_core.bake_points(scene, layer, settings(), cache.positions[pidx[need]], log=lambda s: None)
+        sec, cpu = time.perf_counter() - t, cpu_seconds() - cpu
+        got = group.tree.interpolate(engine_pts, vals, validity)
+        err = adaptive.irradiance_error(got, ref)
+        out["rows"].append({"placement": f"uniform grid {cell:g} m", "interpolation": "trilinear",
+                            "probes": count, "renders": count, "baked": int(len(need)),
+                            "seconds_estimate": count * sec / max(1, len(need)),
+                            "cpu_seconds_estimate": count * cpu / max(1, len(need)),
+                            "error": stats(err), "point_errors": [round(float(e), 5) for e in err]})
         print("ROW", json.dumps(out["rows"][-1]), flush=True)
     if a.old:
         path = os.path.join(tmp, "octree.shprobe")
@@ -136,6 +182,7 @@ def main():
                             "cpu_seconds_estimate": count * cpu / len(uniq), "baked": len(uniq),
                             "error": stats(adaptive.irradiance_error(got, ref))})
         print("ROW", json.dumps(out["rows"][-1]), flush=True)
+    out["scene"] = a.scene
     out["load_end"] = os.getloadavg()
     with open(a.out, "w", encoding="utf-8") as fh:
         json.dump(out, fh, indent=1)

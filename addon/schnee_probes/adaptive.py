@@ -5,8 +5,9 @@ decides where. The algorithm is docs/placement.md, "Error-driven refinement"; th
 
 1. a layer of Max Cell Size leaves over the volumes' bounding box, leaves outside the volumes
    dropped; its corner probes are baked;
-2. every leaf above Min Cell Size gets its test points (centre, face centres); those that are not
-   probes yet are baked (a point is baked once: :class:`PointCache` keys it by position);
+2. every leaf above Min Cell Size gets its test points (its centre; with Refinement Tests "Centre
+   and faces" also its face centres); those that are not probes yet are baked (a point is baked
+   once: :class:`PointCache` keys it by position);
 3. ``refine_decide`` compares each test's value with the leaf's interpolation there, allowing
    ``tolerance + 2σ`` with σ the Monte-Carlo noise of the probes and tests involved; flagged leaves
    split; children entirely outside the volumes are dropped; the new corners (test points: already
@@ -24,8 +25,8 @@ relative irradiance RMS of the difference, halved (:func:`noise_of_halves`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import Callable, List, Optional, Sequence
+from dataclasses import dataclass
+from typing import Callable, List, Optional
 
 import numpy as np
 
@@ -33,6 +34,7 @@ from . import native
 
 SOLID_RATIO = 0.25          # the placement's default back-face ratio (docs/placement.md)
 RENDER_INSET = 0.01         # m: nodes on or beyond the volumes' bounding box render this far inside it
+TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
 NOISE_K = 2.0               # refine only where error > tolerance + NOISE_K · noise (pb_refine's default)
 # Lambert band factors A_l (irradiance = Σ A_l L_lm Y_lm), l = 0..4.
 _LAMBERT = (math.pi, 2.0 * math.pi / 3.0, math.pi / 4.0, 0.0, -math.pi / 24.0)
@@ -101,6 +103,21 @@ def stage_bound(min_cell: float, max_cell: float) -> int:
     array per stage."""
     level = min(20, max(0, int(math.floor(math.log2(max_cell / min_cell) + 1e-9))))
     return 2 * level + 1
+
+
+def centre_only(tests: "native.RefineTests") -> "native.RefineTests":
+    """The same test points with every leaf's face tests removed (Refinement Tests "Centre"): the
+    points only faces referred to are dropped, the rest keep their order (the sorted lattice order
+    of ``refine_tests``), so the result is as deterministic as the input."""
+    lt = np.array(tests.leaf_tests, dtype=np.int32, copy=True)
+    lt[:, 1:] = -1
+    used = np.zeros(len(tests.positions), dtype=bool)
+    used[lt[:, 0][lt[:, 0] >= 0]] = True
+    new_index = np.full(len(tests.positions), -1, dtype=np.int32)
+    new_index[used] = np.arange(int(used.sum()), dtype=np.int32)
+    lt[:, 0] = np.where(lt[:, 0] >= 0, new_index[np.maximum(lt[:, 0], 0)], -1)
+    return native.RefineTests(lattice=tests.lattice[used], positions=tests.positions[used],
+                              probe=tests.probe[used], leaf_tests=lt)
 
 
 class PointCache:
@@ -180,11 +197,14 @@ class AdaptiveGroup:
     are being baked), ``finished`` when nothing splits any more."""
 
     def __init__(self, name: str, path: str, volumes, geometry, min_cell: float, max_cell: float,
-                 tolerance: float):
+                 tolerance: float, tests: str = "CENTRE_FACES"):
+        if tests not in TEST_MODES:
+            raise ValueError(f"refinement tests {tests!r}: expected one of {', '.join(TEST_MODES)}")
         self.name, self.path = name, path
         self.volumes, self.geometry = volumes, geometry
         self.min_cell = float(min_cell)
         self.tolerance = float(tolerance)
+        self.test_mode = tests
         verts = np.concatenate([np.asarray(v[1], dtype=np.float64).reshape(-1, 3) for v in volumes])
         self.origin, self.root_level, dims = lattice_frame(verts, min_cell, max_cell)
         self.box_min, self.box_max = verts.min(axis=0), verts.max(axis=0)
@@ -257,6 +277,8 @@ class AdaptiveGroup:
             return []
         if self.stage == "probes":
             tests = self.tree.refine_tests()
+            if self.test_mode == "CENTRE":
+                tests = centre_only(tests)
             need = tests.probe < 0
             if len(tests.positions) == 0 or not (tests.leaf_tests >= 0).any():
                 self.finished = True

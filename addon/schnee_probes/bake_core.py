@@ -456,7 +456,7 @@ class ProbeBake:
             self._check_cancel()
             try:
                 group = adaptive.AdaptiveGroup(name, path, vols, geometry, s.min_cell_size, s.max_cell_size,
-                                               s.error_tolerance)
+                                               s.error_tolerance, s.refinement_tests)
                 todo = group.start(self._cache)
             except native.SchneeError as exc:
                 raise BakeError(f"Probe placement failed: {exc}") from exc

@@ -84,9 +84,10 @@ def test_combine_halves_mean_and_noise():
     assert adaptive.split_samples(5) == (2, 3)
 
 
-def test_shadow_plane_refines_only_the_cells_it_crosses():
+@pytest.mark.parametrize("tests", adaptive.TEST_MODES)
+def test_shadow_plane_refines_only_the_cells_it_crosses(tests):
     # A sun switched on for x > 3.3: only leaves crossed by x = 3.3 may split, down to Min Cell Size.
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests)
 
     def field(p):
         return np.array([sh_of(1.0, 3.0 if x > 3.3 else 0.0) for x in p[:, 0]])
@@ -102,13 +103,14 @@ def test_shadow_plane_refines_only_the_cells_it_crosses():
     assert [p.smallest_cell for p in group.passes] == [2.0, 1.0, 0.5]
 
 
-def test_linear_field_and_bounded_noise_split_nothing():
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+@pytest.mark.parametrize("tests", adaptive.TEST_MODES)
+def test_linear_field_and_bounded_noise_split_nothing(tests):
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests)
     drive(group, lambda p: np.array([sh_of(1.0 + 0.2 * x, 0.5) for x in p[:, 0]]))
     assert len(group.passes) == 1 and group.passes[0].split == 0
     # ±8 % noise (above the 5 % tolerance) with its estimate passed in: no split either.
     rng = np.random.default_rng(5)
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests)
     drive(group, lambda p: np.array([sh_of(1.0, 0.0) * (1 + rng.uniform(-0.08, 0.08)) for _ in p]), noise=0.05)
     assert group.passes[0].split == 0
 
@@ -120,3 +122,34 @@ def test_nodes_on_the_volume_boundary_render_just_inside_it():
     inset = adaptive.RENDER_INSET
     assert np.allclose(got, [[inset, inset, inset], [8 - inset, 2 - inset, 2 - inset], [4, 1, 1],
                              [8 - inset, inset, 0.5]])
+
+
+def test_centre_tests_keep_each_leafs_centre_and_drop_face_only_points():
+    tree = native.CornerOctree.uniform((0.0, 0.0, 0.0), 0.5, 2, (2, 1, 1))  # two 2 m leaves side by side
+    tree.finalize()
+    full = tree.refine_tests()
+    got = adaptive.centre_only(full)
+    # Closed form: 2 centres (1,1,1) and (3,1,1); faces: 11 distinct (the shared face x = 2 once).
+    assert len(full.positions) == 2 + 11
+    assert sorted(map(tuple, got.positions)) == [(1.0, 1.0, 1.0), (3.0, 1.0, 1.0)]
+    assert np.all(got.leaf_tests[:, 1:] == -1)
+    for leaf in range(2):  # each leaf's centre test is the same point as before
+        assert tuple(got.positions[got.leaf_tests[leaf, 0]]) == tuple(full.positions[full.leaf_tests[leaf, 0]])
+    assert np.all(got.probe == -1)
+
+
+def test_centre_tests_render_fewer_points_for_the_same_refinement():
+    # The shadow plane of the test above: both modes split the same leaves (same tree), the centre
+    # mode renders fewer points (the face centres of leaves that do not split are never baked).
+    def field(p):
+        return np.array([sh_of(1.0, 3.0 if x > 3.3 else 0.0) for x in p[:, 0]])
+    trees, renders = {}, {}
+    for mode in adaptive.TEST_MODES:
+        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, mode)
+        cache = drive(group, field)
+        trees[mode] = group.tree.info()["leaves"].tolist()
+        renders[mode] = int(cache.rendered.sum())
+    assert trees["CENTRE"] == trees["CENTRE_FACES"]
+    assert renders["CENTRE"] < renders["CENTRE_FACES"]
+    with pytest.raises(ValueError, match="refinement tests"):
+        adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, "FACES")
