@@ -111,7 +111,8 @@
     4u /* the object's probe comes from a tetrahedra grid: per pixel falls back to the
                                 object's own interpolated probe (no GPU point location for tetrahedra) */
 
-#define SV_DRAW_MOVABLE 8u /* the object has moved (not in the static scene the probes were baked with): per pixel,
+#define SV_DRAW_MOVABLE                                                                                                \
+    8u /* the object has moved (not in the static scene the probes were baked with): per pixel,
                               no back-face weights (every corner saw the light where the object now is) */
 
 /* Grid flags (sv_gpu_grid.base.z). */
