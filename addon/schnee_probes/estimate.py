@@ -8,14 +8,15 @@ refines the estimate with the measured times (``ProbeBake.remaining_seconds``).
 import numpy as np
 
 # Per-probe cost model of the time estimate: seconds per probe ≈ SECONDS_PER_PIXEL_SAMPLE × width ×
-# height × samples. Calibrated on the sweep behind bench/RESULTS.md (bench/results/sweep.json, the
-# project's 2-core machine): in the bright closed room at 16-32 bounces every row, 32×16 to 128×64 px
-# and 8 to 128 spp, took 3.46-3.84 µs per pixel-sample (defaults: 128×64 × 32 spp = 262144
+# height × samples. Calibrated on the sweep's 12.3-min run (bench/results/estimate_calibration.json,
+# the project's 2-core machine; later runs on a busier machine replaced those scenes in
+# sweep.json): in the bright closed room at 16-32 bounces every row, 32×16 to 128×64 px and 8 to
+# 128 spp, took 3.46-3.84 µs per pixel-sample (defaults: 128×64 × 32 spp = 262144
 # pixel-samples in 0.92-0.98 s); the courtyard took 0.6 µs, sky-only scenes 0.15 µs. The constant
 # is just above the slowest room row, so before any probe is rendered the estimate is an upper one
 # (a closed room); after the first probes it is replaced by the measured mean per probe (without
 # the first, which also pays the scene upload). tests/python/test_estimate.py checks the model
-# against every row of the sweep.
+# against every row of that run.
 SECONDS_PER_PIXEL_SAMPLE = 3.9e-6
 FIRST_PROBE_SECONDS = 1.6           # scene upload before the first render (0.7-1.6 s measured)
 

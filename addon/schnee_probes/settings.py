@@ -235,8 +235,8 @@ SETTINGS: Tuple[Setting, ...] = (
             "1/sqrt(samples) (measured: 32 is within noise of 64-128 indoors; the sky and lamps "
             "seen directly are exact at any samples, so a small bright sun needs no more)",
             doc="Cycles samples per pixel. Time is linear in it, noise falls as 1/√samples. In the "
-                "bright room at 32 bounces 8 / 16 / 32 / 64 / 128 spp give 0.88 / 0.63 / 0.39 / "
-                "0.31 / 0.25 % (table below). The sky and the lamps a probe sees directly are "
+                "bright room at 32 bounces 8 / 16 / 32 / 64 / 128 spp give 0.81 / 0.57 / 0.42 / "
+                "0.33 / 0.28 % (table below). The sky and the lamps a probe sees directly are "
                 "added exactly (docs/direct-light.md), so a small bright sun in the sky or a Sun "
                 "lamp needs no more samples (sun scenes of the table); a sky seen through glass "
                 "is still path traced.",
@@ -247,7 +247,7 @@ SETTINGS: Tuple[Setting, ...] = (
             "are within noise); extra bounces cost little, outdoors 4 are enough",
             doc="Total, diffuse and glossy bounces. Light missing ≈ albedo^bounces: in a bright "
                 "(albedo 0.8) room 2 / 4 / 8 / 12 / 16 / 24 / 32 bounces give 40 / 27 / 13 / 6.0 / "
-                "2.8 / 0.58 / 0.31 % error (64 spp); outdoors 4 are as good as 32. Extra bounces "
+                "2.8 / 0.57 / 0.33 % error (64 spp); outdoors 4 are as good as 32. Extra bounces "
                 "cost little: only the paths that survive that long pay.",
             minimum=0, maximum=64),
     Setting("clamp_direct", "float", 0.0, "Clamp Direct",

@@ -126,6 +126,12 @@ def pre_direct(sc):
     return not any("direct_lamps" in r for r in sc["rows"] if "errors" in r)
 
 
+def _placement_origin(sc):
+    """Placement study kept from an earlier run (the scene re-run with --no-placement)."""
+    run = sc.get("placement_run")
+    return f"; kept from `{run}`, measured before issue 11, not re-run" if run else ""
+
+
 def _runs_line(res, what):
     runs = res.get("runs")
     if not runs:
@@ -193,8 +199,12 @@ def summary(res):
         sc = res["scenes"].get(name)
         d = next((r for r in _rows(sc) if r["label"] == "defaults"), None) if sc else None
         if d:
+            e = [_err(r) for r in _rows(sc)]
+            span = f"{min(e):.1e}" if f"{min(e):.1e}" == f"{max(e):.1e}" else f"{min(e):.1e}–{max(e):.1e}"
+            err = _pm(d) if _err(d) >= 1e-4 else (f"{_err(d):.1e} relative RMS (every row {span}: "
+                                                 "exact to rounding)")
             say(f"- Sky only, {label} (exact reference, {len(sc['spec']['probes'])} probes): shipped "
-                f"defaults {_pm(d)}, {_s(d['s_per_probe'], 2)} s/probe"
+                f"defaults {err}, {_s(d['s_per_probe'], 2)} s/probe"
                 + (" (measured before issue 11; sky-only bakes are now exact at every setting, "
                    "tests/blender/test_direct_sky.py)." if pre_direct(sc) else "."))
     sun = res["scenes"].get("sun")
@@ -216,7 +226,8 @@ def summary(res):
         parts = [f"{p['kind']} {p['min']:g}/{p['max']:g} m: {p['probes']} probes, {_pct(p['rel_rms_mean'], 1)}"
                  for p in sorted(sc["placement"], key=lambda p: p["bake_seconds"])]
         say(f"- Placement, {name} ({len(sc['spec']['samples'])} sample points, error at the points; "
-            f"baked at the points themselves {_pct(sc['placement_exact']['rel_rms_mean'], 1)}): "
+            f"baked at the points themselves {_pct(sc['placement_exact']['rel_rms_mean'], 1)}"
+            f"{_placement_origin(sc)}): "
             + "; ".join(parts) + ".")
     say("\nRecommended (cheapest measured row at DESIGN.md's 128 px within the scene's target):\n")
     say("| Scene (measured on) | Target | Recommended | s/probe | Error |")
@@ -416,7 +427,7 @@ def write(res, folder):
             continue
         ex = sc["placement_exact"]["rel_rms_mean"]
         say(f"**{name}** ({len(sc['spec']['samples'])} sample points; baked at the points themselves: "
-            f"{_pct(ex)})\n")
+            f"{_pct(ex)}{_placement_origin(sc)})\n")
         say("| placement | Min/Max cell | probes | grid | file | bake s | error at points (mean) | worst point | worst direction | mean distance point→probe | per pixel: mean | per pixel: worst point |")
         say("|---|---|---|---|---|---|---|---|---|---|---|---|")
         for p in sorted(sc["placement"], key=lambda p: p["bake_seconds"]):

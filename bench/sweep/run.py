@@ -3,11 +3,14 @@
 
     /usr/bin/python3 bench/sweep/run.py --full      # run time: bench/results/sweep.md
     /usr/bin/python3 bench/sweep/run.py --full --scenes sun_yard sun_window   # some scenes, merged
+    /usr/bin/python3 bench/sweep/run.py --full --no-placement --scenes interior courtyard   # no placement study
     /usr/bin/python3 bench/sweep/run.py --analyse-only --workdir DIR   # report from kept raw output
 
 With --scenes, only those scenes are baked; their analysis replaces theirs in the existing
 bench/results/sweep.json and every other scene's figures (and the far/sun extremes) are kept from
-it, so the report is regenerated whole without re-running them. sweep.json records each run
+it, so the report is regenerated whole without re-running them. --no-placement leaves out the
+placement study of interior and courtyard (its sample points' references, the 10 km test: the most
+expensive jobs); merged with --scenes, the earlier run's placement figures are kept and marked. sweep.json records each run
 (``runs``: command, scenes, seconds, date).
 
 Writes bench/results/sweep.md (tables, Pareto fronts, recommendations), sweep.png (error against
@@ -142,13 +145,28 @@ def ref_jobs(samples=True):
 def placement_jobs(configs):
     jobs = [fixed("place:exact", PLACE, points="samples", band=2)]
     for mn, mx in configs:
-        s = dict(PLACE, min_cell_size=mn, max_cell_size=mx, max_band=2)
+        # The study's placements are the geometry octree (issue 12 made Adaptive the default; its
+        # version-3 corner octree has no dense grid for the lookup and trilinear mirror below).
+        s = dict(PLACE, min_cell_size=mn, max_cell_size=mx, max_band=2, placement="GEOMETRY_OCTREE")
         jobs.append({"id": f"place:{mn:g}/{mx:g}", "kind": "placement", "settings": s})
     return jobs
 
 
-def plan(full=True):
-    """{scene: (offset, jobs)} of the full sweep (the reduced one lives in the test)."""
+PLACEMENT_JOBS = ("place:", "refs:", "far:")  # the placement study, its references, the 10 km test
+
+
+def plan(full=True, placement=True):
+    """{scene: (offset, jobs)} of the full sweep (the reduced one lives in the test). placement=False
+    leaves out the placement study, its sample points' references and the 10 km test (PLACEMENT_JOBS;
+    merge() then keeps the earlier run's figures of those)."""
+    p = _plan()
+    if not placement:
+        p = {k: (off, [j for j in jobs if not j["id"].startswith(PLACEMENT_JOBS)])
+             for k, (off, jobs) in p.items() if k != "interior_10km"}
+    return p
+
+
+def _plan():
     p = {}
     p["sky_courtyard"] = ((0, 0, 0), sweep_jobs(render_rows(bounces=False)) + [
         fixed(f"tiny:{r}:L{b}", dict(BASE, panorama_resolution=r, samples=64), band=b)
@@ -451,6 +469,22 @@ def merge(result, old):
     out = dict(old)
     out["scenes"] = dict(old.get("scenes", {}))
     out["scenes"].update(new["scenes"])
+    # A scene re-run with --no-placement keeps the earlier run's placement study (its sample points'
+    # reference and the 10 km test's origin bakes), marked with the run that measured it.
+    carried = {}
+    for name, sc in new["scenes"].items():
+        prev = old.get("scenes", {}).get(name) or {}
+        if sc.get("placement") or not prev.get("placement"):
+            continue
+        for k in ("placement", "placement_exact", "ref_samples_convergence", "far", "far_placement"):
+            if k in prev:
+                sc[k] = prev[k]
+        if (prev.get("reference_coeffs") or {}).get("samples") is not None:
+            sc.setdefault("reference_coeffs", {})["samples"] = prev["reference_coeffs"]["samples"]
+        src = prev.get("placement_run") or next(
+            (r["command"] for r in (old.get("runs") or []) if name in r["scenes"]), old.get("command"))
+        sc["placement_run"] = src
+        carried[name] = src
     for key in ("far", "sun"):
         if key in new:
             out[key] = new[key]
@@ -459,7 +493,10 @@ def merge(result, old):
     runs = old.get("runs") or [{"command": old.get("command"), "scenes": sorted(old.get("scenes", {})),
                                 "seconds": old.get("sweep_seconds")}]
     # Each earlier run keeps the scenes whose figures still come from it (its seconds as measured).
-    runs = [dict(r, scenes=[n for n in r["scenes"] if n not in new["scenes"]]) for r in runs]
+    stale = {f"{n} (placement study)" for n in new["scenes"] if n not in carried}
+    runs = [dict(r, scenes=[n for n in r["scenes"] if n not in new["scenes"] and n not in stale]
+                 + [f"{n} (placement study)" for n, src in carried.items()
+                    if src == r["command"] and n in r["scenes"]]) for r in runs]
     out["runs"] = [r for r in runs if r["scenes"]] + new["runs"]
     out["sweep_seconds"] = sum(r["seconds"] or 0.0 for r in out["runs"])
     out.pop("pareto", None)
@@ -474,12 +511,15 @@ if __name__ == "__main__":
                     help="scenes to run (default: all); with some, merge into the existing sweep.json")
     ap.add_argument("--workdir", help="keep the workers' raw output here (default: a temp folder)")
     ap.add_argument("--analyse-only", action="store_true", help="rebuild the report from --workdir")
+    ap.add_argument("--no-placement", action="store_true",
+                    help="skip the placement study (and its sample points' references and the 10 km "
+                         "test) of interior/courtyard; with --scenes, their earlier figures are kept")
     args = ap.parse_args()
     if not (args.full or args.analyse_only):
         ap.error("pass --full (the reduced sweep runs in tests/bench/test_sweep_reduced.py)")
     workdir = args.workdir or tempfile.mkdtemp(prefix="schnee_sweep_")
     os.makedirs(workdir, exist_ok=True)
-    p = plan()
+    p = plan(placement=not args.no_placement)
     unknown = sorted(set(args.scenes or ()) - set(p))
     if unknown:
         ap.error(f"unknown scenes {unknown}; known: {sorted(p)}")
@@ -498,7 +538,7 @@ if __name__ == "__main__":
     result["shprobe_bytes"] = shprobe_bytes()
     seconds = sum(d.get("seconds", 0.0) for d in docs.values())
     command = "/usr/bin/python3 bench/sweep/run.py --full" + (
-        " --scenes " + " ".join(args.scenes) if subset else "")
+        " --scenes " + " ".join(args.scenes) if subset else "") + (" --no-placement" if args.no_placement else "")
     result["runs"] = [{"command": command, "scenes": sorted(docs), "seconds": seconds,
                        "date": time.strftime("%Y-%m-%d", time.gmtime())}]
     result["sweep_seconds"] = seconds

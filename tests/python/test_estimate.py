@@ -1,5 +1,7 @@
-"""The bake's time estimate (addon/schnee_probes/estimate.py) against the measured sweep behind
-bench/RESULTS.md (bench/results/sweep.json), and the probe-count bound (plain Python, < 1 s)."""
+"""The bake's time estimate (addon/schnee_probes/estimate.py) against the sweep rows it is calibrated
+on (bench/results/estimate_calibration.json: the 12.3-min run of bench/sweep/run.py --full, whose
+figures later runs on a busier machine replaced in sweep.json), and the probe-count bound (plain
+Python, < 1 s)."""
 import json
 from types import SimpleNamespace
 
@@ -10,13 +12,11 @@ from conftest import REPO
 from schnee_probes import estimate
 from schnee_probes.settings import BakeSettings
 
-SWEEP = json.loads((REPO / "bench" / "results" / "sweep.json").read_text())
+CALIBRATION = json.loads((REPO / "bench" / "results" / "estimate_calibration.json").read_text())
 
 
 def _rows(scene):
-    for r in SWEEP["scenes"][scene]["rows"]:
-        if "settings" not in r:  # rows of other tables (bands, placement) carry no timing
-            continue
+    for r in CALIBRATION["scenes"][scene]:
         s = r["settings"]
         w, spp = s.get("panorama_resolution", 128), s.get("samples", 32)
         yield r["label"], w, spp, s.get("max_bounces", 32), r["s_per_probe"]
