@@ -11,51 +11,16 @@
 #include "schnee/pb_sh.h"
 #include "schnee/pb_shprobe.h"
 #include "testutil.h"
+#include "watchdog.h"
 
 #include <errno.h>
 #include <fcntl.h>
-#include <signal.h>
 #include <stdlib.h>
-#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
 #include <sys/un.h>
 #include <unistd.h>
-
-#define WATCHDOG_S        20
-#define MAX_CALL_S        2.0
-#define MAX_RSS_GROWTH_KB (64 * 1024)
-
-static char g_dir[64];
-static const char *g_current = "";
-
-static void join(char *out, size_t n, const char *name) { snprintf(out, n, "%s/%s", g_dir, name); }
-
-static void on_alarm(int sig)
-{
-    (void)sig;
-    static const char msg[] = "FAIL: a reader blocked (watchdog fired) on: ";
-    ssize_t ignored = write(2, msg, sizeof msg - 1);
-    ignored = write(2, g_current, strlen(g_current));
-    ignored = write(2, "\n", 1);
-    (void)ignored;
-    _exit(1);
-}
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static long peak_rss_kb(void)
-{
-    struct rusage ru;
-    getrusage(RUSAGE_SELF, &ru);
-    return ru.ru_maxrss;
-}
 
 /* The file types every reader gets. */
 typedef struct hostile {
@@ -103,10 +68,7 @@ static pb_result run_reader(reader which, const char *path, pb_error *err)
 {
     char label[256];
     snprintf(label, sizeof label, "%s(%s)", reader_names[which], path);
-    g_current = label;
-    long rss0 = peak_rss_kb();
-    double t0 = now_s();
-    alarm(WATCHDOG_S);
+    wd_call call = wd_begin(label);
     pb_result r = PB_SUCCESS;
     memset(err, 0, sizeof *err);
     switch (which) {
@@ -138,13 +100,8 @@ static pb_result run_reader(reader which, const char *path, pb_error *err)
     }
     case READER_COUNT: break;
     }
-    alarm(0);
-    double dt = now_s() - t0;
-    long grew = peak_rss_kb() - rss0;
-    if (dt > MAX_CALL_S) TU_FAIL_("%s took %.2f s (limit %.1f s)", label, dt, MAX_CALL_S);
-    if (grew > MAX_RSS_GROWTH_KB)
-        TU_FAIL_("%s grew the peak RSS by %ld KiB (limit %d KiB)", label, grew, MAX_RSS_GROWTH_KB);
-    printf("  %-60s %.4f s, +%ld KiB: %s\n", label, dt, grew, err->message);
+    wd_end(&call);
+    printf("  %-60s %.4f s, +%ld KiB: %s\n", label, call.seconds, call.grown_kb, err->message);
     return r;
 }
 
@@ -492,19 +449,12 @@ static void test_writer_refuses_foreign_destinations(void)
 
 int main(void)
 {
-    signal(SIGALRM, on_alarm);
-    snprintf(g_dir, sizeof g_dir, "/tmp/schnee_hostile_XXXXXX");
-    if (!mkdtemp(g_dir)) {
-        perror("mkdtemp");
-        return 2;
-    }
+    if (!wd_setup("schnee_hostile")) return 2;
     TU_RUN(test_readers_refuse_special_files);
     TU_RUN(test_no_content_in_messages);
     TU_RUN(test_image_limits);
     TU_RUN(test_exr_header_announcements);
     TU_RUN(test_writer_refuses_foreign_destinations);
-    char cmd[128];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
-    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_dir);
+    wd_cleanup();
     return TU_EXIT();
 }

@@ -17,47 +17,12 @@
 #include "sv_probes.h"
 #include "sv_sky.h"
 #include "testutil.h"
+#include "watchdog.h"
 
 #include <fcntl.h>
-#include <signal.h>
 #include <stdlib.h>
-#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
-
-#define WATCHDOG_S        20
-#define MAX_CALL_S        2.0
-#define MAX_RSS_GROWTH_KB (64 * 1024)
-
-static char g_dir[64];
-static const char *g_current = "";
-
-static void on_alarm(int sig)
-{
-    (void)sig;
-    static const char msg[] = "FAIL: an engine reader blocked (watchdog fired) on: ";
-    ssize_t ignored = write(2, msg, sizeof msg - 1);
-    ignored = write(2, g_current, strlen(g_current));
-    ignored = write(2, "\n", 1);
-    (void)ignored;
-    _exit(1);
-}
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static long peak_rss_kb(void)
-{
-    struct rusage ru;
-    getrusage(RUSAGE_SELF, &ru);
-    return ru.ru_maxrss;
-}
-
-static void join(char *out, size_t n, const char *name) { snprintf(out, n, "%s/%s", g_dir, name); }
 
 typedef struct special {
     const char *label;
@@ -129,9 +94,7 @@ static bool run_reader(which w, const char *path, const char *label)
     dup2(lfd, 2);
     close(lfd);
 
-    long rss0 = peak_rss_kb();
-    double t0 = now_s();
-    alarm(WATCHDOG_S);
+    wd_call call = wd_begin(cur);
     bool ok;
     if (w == PROBES) {
         sv_probes probes;
@@ -142,9 +105,7 @@ static bool run_reader(which w, const char *path, const char *label)
         ok = sv_sky_load(&ext, &sky);
         if (ok) sv_sky_destroy(&sky);
     }
-    alarm(0);
-    double dt = now_s() - t0;
-    long grown = peak_rss_kb() - rss0;
+    wd_end(&call);
 
     fflush(stderr);
     dup2(saved, 2);
@@ -156,11 +117,8 @@ static bool run_reader(which w, const char *path, const char *label)
         g_msg[n] = 0;
         fclose(f);
     }
-    fprintf(stderr, "  %s -> %s in %.3f s, +%ld KB: %s", cur, ok ? "true" : "false", dt, grown,
+    fprintf(stderr, "  %s -> %s in %.3f s, +%ld KB: %s", cur, ok ? "true" : "false", call.seconds, call.grown_kb,
             g_msg[0] ? g_msg : "(no message)\n");
-    TU_CHECK(dt < MAX_CALL_S);
-    TU_CHECK(grown < MAX_RSS_GROWTH_KB);
-    g_current = "";
     return ok;
 }
 
@@ -224,17 +182,10 @@ static void test_good_files_load(void)
 
 int main(void)
 {
-    snprintf(g_dir, sizeof g_dir, "/tmp/sv_readers_XXXXXX");
-    if (!mkdtemp(g_dir)) {
-        perror("mkdtemp");
-        return 1;
-    }
-    signal(SIGALRM, on_alarm);
+    if (!wd_setup("sv_readers")) return 1;
     TU_RUN(test_special_files_are_refused_at_once);
     TU_RUN(test_a_file_not_ours_is_not_quoted);
     TU_RUN(test_good_files_load);
-    char cmd[128];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
-    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_dir);
+    wd_cleanup();
     return TU_EXIT();
 }
