@@ -192,8 +192,9 @@ class Running:
         return rc, self.out.decode(errors="replace"), self.err.decode(errors="replace")
 
 
-@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["SIGINT", "SIGTERM"])
-def test_signal_cancels_headless_bake_like_esc(scenes, tmp_path, sig, code):
+def _previous_output(scenes, tmp_path):
+    """The room baked once (the output a cancelled bake must leave intact), with TMPDIR in the test's
+    folder: (blend, tmp, env, output folder, {name: digest} of the output)."""
     blend = copy_blend(scenes, "room.blend", tmp_path)
     tmp = tmp_path / "tmp"
     tmp.mkdir()
@@ -202,14 +203,13 @@ def test_signal_cancels_headless_bake_like_esc(scenes, tmp_path, sig, code):
     out = tmp_path / "sh_coeffs"
     before = {p.name: digest(p) for p in out.iterdir()}
     assert set(before) == {"probes.shprobe", "sky.exr"}
-    # 0.5 m cells: 256 probes, long enough to be interrupted after the first.
-    run = Running(blend, ["--min-cell-size", "0.5", "--max-cell-size", "0.5", *TINY], env,
-                  pre=SCRIPTS / "bake_state_probe.py")
-    run.wait_for("probe 1/")
-    assert list(tmp.glob("schnee_bake_*")), "the bake's temporary folder should exist while it runs"
-    run.proc.send_signal(sig)
-    rc, stdout, stderr = run.finish()
-    assert rc == code, stdout[-2000:] + stderr[-2000:]
+    return blend, tmp, env, out, before
+
+
+def _assert_cancelled_like_esc(stdout, stderr, sig, tmp, out, before):
+    """A headless bake of 256 probes cancelled by ``sig``: the documented last line, no traceback,
+    the scene state restored (bake_state_probe.py's RESULT), the temporary folder removed, the old
+    output intact and the probes baked so far in the journal. Returns how many were kept."""
     last = stderr.strip().splitlines()[-1]
     journal = out / "probes.shprobe.journal"
     m = re.fullmatch(rf"bake\.py: error: cancelled by {signal.Signals(sig).name}; render settings restored, "
@@ -218,13 +218,31 @@ def test_signal_cancels_headless_bake_like_esc(scenes, tmp_path, sig, code):
     assert m and 1 <= int(m.group(1)) < 256, last
     assert "Traceback" not in stderr
     assert "probe 256/256" not in stdout
-    result = json.loads([l for l in stdout.splitlines() if l.startswith("RESULT ")][-1][7:])
+    # (the progress line ends in neither \r nor \n: RESULT may follow it on the same line)
+    results = re.findall(r"RESULT (\{.*\})", stdout)
+    assert results, stdout[-1500:] + stderr[-3000:]
+    result = json.loads(results[-1])
     assert result["diff"] == [] and result["engine"] == "BLENDER_EEVEE"  # scene state restored
     assert list(tmp.iterdir()) == []  # temporary folder removed
     # Old output intact, no .partial; the probes baked so far are in the journal (docs/farm.md).
     after = {p.name: digest(p) for p in out.iterdir()}
     assert after.pop(journal.name) and after == before
     assert len(journal_mod.read(str(journal)).values) == int(m.group(1))
+    return int(m.group(1))
+
+
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["SIGINT", "SIGTERM"])
+def test_signal_cancels_headless_bake_like_esc(scenes, tmp_path, sig, code):
+    blend, tmp, env, out, before = _previous_output(scenes, tmp_path)
+    # 0.5 m cells: 256 probes, long enough to be interrupted after the first.
+    run = Running(blend, ["--min-cell-size", "0.5", "--max-cell-size", "0.5", *TINY], env,
+                  pre=SCRIPTS / "bake_state_probe.py")
+    run.wait_for("probe 1/")
+    assert list(tmp.glob("schnee_bake_*")), "the bake's temporary folder should exist while it runs"
+    run.proc.send_signal(sig)
+    rc, stdout, stderr = run.finish()
+    assert rc == code, stdout[-2000:] + stderr[-2000:]
+    _assert_cancelled_like_esc(stdout, stderr, sig, tmp, out, before)
 
 
 # Where the second Ctrl+C lands: during the next probe's render (each render slowed to 3 s, so
@@ -240,14 +258,7 @@ def test_second_sigint_still_cancels_cleanly(scenes, tmp_path, when):
     # A user pressing Ctrl+C twice, 0.5 s apart: the second one must not cut the clean-up or the
     # exit short (no death by SIGINT, no KeyboardInterrupt traceback, no exit 2): still exit 130,
     # the scene restored, the temporary folder gone and the previous output byte for byte.
-    blend = copy_blend(scenes, "room.blend", tmp_path)
-    tmp = tmp_path / "tmp"
-    tmp.mkdir()
-    env = {"TMPDIR": str(tmp)}
-    assert bake(blend, *CELLS_2M, *TINY, env=env).returncode == 0  # the previous output
-    out = tmp_path / "sh_coeffs"
-    before = {p.name: digest(p) for p in out.iterdir()}
-    assert set(before) == {"probes.shprobe", "sky.exr"}
+    blend, tmp, env, out, before = _previous_output(scenes, tmp_path)
     run = Running(blend, ["--min-cell-size", "0.5", "--max-cell-size", "0.5", *TINY], {**env, **SECOND_SIGINT[when]},
                   pre=[SCRIPTS / "slow_render.py", SCRIPTS / "bake_state_probe.py"])
     run.wait_for("probe 1/")
@@ -265,24 +276,9 @@ def test_second_sigint_still_cancels_cleanly(scenes, tmp_path, when):
     assert rc == 130, f"exit {rc}\n" + stdout[-2000:] + stderr[-3000:]
     if when == "during_exit":
         assert "SLOW_EXIT end" in stdout  # the exit ran to its end
-    last = stderr.strip().splitlines()[-1]
-    journal = out / "probes.shprobe.journal"
-    m = re.fullmatch(r"bake\.py: error: cancelled by SIGINT; render settings restored, existing files unchanged; "
-                     rf"(\d+) of 256 probes kept in {re.escape(str(journal))}; the same bake run again resumes "
-                     "from them", last)
-    assert m and 1 <= int(m.group(1)) < 256, last
+    _assert_cancelled_like_esc(stdout, stderr, signal.SIGINT, tmp, out, before)
     assert stderr.count("SIGINT received: cancelling the bake") == 1  # said once, not per signal
-    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr
-    assert "probe 256/256" not in stdout
-    # (the progress line ends in neither \r nor \n: RESULT may follow it on the same line)
-    results = re.findall(r"RESULT (\{.*\})", stdout)
-    assert results, stdout[-1500:] + stderr[-3000:]
-    result = json.loads(results[-1])
-    assert result["diff"] == [] and result["engine"] == "BLENDER_EEVEE"
-    assert list(tmp.iterdir()) == []
-    after = {p.name: digest(p) for p in out.iterdir()}
-    assert after.pop(journal.name) and after == before
-    assert len(journal_mod.read(str(journal)).values) == int(m.group(1))
+    assert "KeyboardInterrupt" not in stderr
 
 
 def test_killed_bake_leaves_a_folder_the_next_bake_removes(scenes, tmp_path):
