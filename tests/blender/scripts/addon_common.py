@@ -20,6 +20,16 @@ def emit(**values):
     print("RESULT " + json.dumps(values), flush=True)
 
 
+def tiny_bake_settings(scene):
+    """The hazard scripts' smallest bake: one 2 m cell, 16 px panoramas, 1 sample. Returns the
+    scene's add-on properties."""
+    props = scene.schnee_probes
+    props.min_cell_size = props.max_cell_size = 2.0
+    props.panorama_resolution = 16
+    props.samples = 1
+    return props
+
+
 def parse_results(stdout):
     return [json.loads(line[7:]) for line in stdout.splitlines() if line.startswith("RESULT ")]
 

@@ -16,10 +16,7 @@ import schnee_probes  # noqa: E402
 out = common.args()[0]
 schnee_probes.register()
 scene = bpy.context.scene
-props = scene.schnee_probes
-props.min_cell_size = props.max_cell_size = 2.0
-props.panorama_resolution = 16
-props.samples = 1
+props = common.tiny_bake_settings(scene)
 props.output_path = os.path.join(out, "sh_coeffs", "probes.shprobe")
 addon_utils.disable("cycles", default_set=True)
 results = {"cycles_enabled": list(addon_utils.check("cycles")), "scene_has_cycles": hasattr(scene, "cycles")}

@@ -14,10 +14,7 @@ from schnee_probes import bake_core, estimate  # noqa: E402
 out = common.args()[0]
 schnee_probes.register()
 scene = bpy.context.scene
-props = scene.schnee_probes
-props.min_cell_size = props.max_cell_size = 2.0
-props.panorama_resolution = 16
-props.samples = 1
+props = common.tiny_bake_settings(scene)
 results = {}
 
 
