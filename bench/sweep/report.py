@@ -142,6 +142,28 @@ def _runs_line(res, what):
             "so compare seconds within one run only.")
 
 
+def _pair_table(say, left, right, titles, order_by):
+    """Two scenes side by side: a row per setting of scene ``order_by`` (0 = left, 1 = right; the
+    other's matching row or '–'), sorted by its seconds per probe, the defaults and the shipped row
+    starred; then each scene's reference convergence line."""
+    scenes = (left, right)
+    other = [{r["label"]: r for r in _rows(sc)} for sc in scenes]
+    say(f"| Setting | {titles[0]} | s/probe | {titles[1]} | s/probe |")
+    say("|---|---|---|---|---|")
+    for r in sorted(_rows(scenes[order_by]), key=lambda r: r["s_per_probe"]):
+        pair = [r, r]
+        pair[1 - order_by] = other[1 - order_by].get(r["label"])
+        name = f"{r['label']} ({_short(r['settings'])})"
+        if r["label"] == "defaults" or is_shipped(r):
+            name = f"**{name} ★**"
+        cells = [f"{_pm(x) if x else '–'} | {_s(x['s_per_probe'], 2) if x else '–'}" for x in pair]
+        say(f"| {name} | {cells[0]} | {cells[1]} |")
+    say("")
+    for name, sc in zip(titles, scenes):
+        if sc.get("ref_convergence"):
+            say(f"- {_ref_line(sc['ref_convergence'], name + ' reference (256×128, 128 spp, 32 b)')}.")
+
+
 def summary(res):
     """The fragment docs/user-guide.md copies verbatim (bench/results/sweep_summary.md); a function
     of sweep.json alone, so tests/bench/test_results_consistency.py can regenerate and compare it."""
@@ -153,20 +175,7 @@ def summary(res):
     say("Irradiance relative RMS error at L = 2, mean ± std over the scene's probes (each probe its "
         "own Cycles seed), and bake seconds per probe:\n")
     if sc_i and sc_c:
-        ri, rc = {r["label"]: r for r in _rows(sc_i)}, {r["label"]: r for r in _rows(sc_c)}
-        say("| Setting | Room | s/probe | Courtyard | s/probe |")
-        say("|---|---|---|---|---|")
-        for r in sorted(_rows(sc_i), key=lambda r: r["s_per_probe"]):
-            c = rc.get(r["label"])
-            name = f"{r['label']} ({_short(r['settings'])})"
-            if r["label"] == "defaults" or is_shipped(r):
-                name = f"**{name} ★**"
-            say(f"| {name} | {_pm(r)} | {_s(r['s_per_probe'], 2)} | {_pm(c) if c else '–'} | "
-                f"{_s(c['s_per_probe'], 2) if c else '–'} |")
-        say("")
-        for name, sc in (("Room", sc_i), ("Courtyard", sc_c)):
-            if sc.get("ref_convergence"):
-                say(f"- {_ref_line(sc['ref_convergence'], name + ' reference (256×128, 128 spp, 32 b)')}.")
+        _pair_table(say, sc_i, sc_c, ("Room", "Courtyard"), order_by=0)
         say("- Resolution bias beyond 256×128 (the references' resolution) is not measured in the room "
             "and the courtyard; their resolution rows stop at 128×64.")
         if pre_direct(sc_i) or pre_direct(sc_c):
@@ -177,20 +186,7 @@ def summary(res):
     if sc_y and sc_w:
         say("\nSun lamp plus a sky with a sun (issue 11: lamp and sky seen directly are exact, the rest is "
             "path traced); same measure, reference = two converged bakes as above:\n")
-        ry, rw = {r["label"]: r for r in _rows(sc_y)}, {r["label"]: r for r in _rows(sc_w)}
-        say("| Setting | Sun yard | s/probe | Sun window | s/probe |")
-        say("|---|---|---|---|---|")
-        for r in sorted(_rows(sc_w), key=lambda r: r["s_per_probe"]):
-            y = ry.get(r["label"])
-            name = f"{r['label']} ({_short(r['settings'])})"
-            if r["label"] == "defaults" or is_shipped(r):
-                name = f"**{name} ★**"
-            say(f"| {name} | {_pm(y) if y else '–'} | {_s(y['s_per_probe'], 2) if y else '–'} | {_pm(r)} | "
-                f"{_s(r['s_per_probe'], 2)} |")
-        say("")
-        for name, sc in (("Sun yard", sc_y), ("Sun window", sc_w)):
-            if sc.get("ref_convergence"):
-                say(f"- {_ref_line(sc['ref_convergence'], name + ' reference (256×128, 128 spp, 32 b)')}.")
+        _pair_table(say, sc_y, sc_w, ("Sun yard", "Sun window"), order_by=1)
         d = [r["direct_lamps"] for sc in (sc_y, sc_w) for r in _rows(sc) if "direct_lamps" in r]
         if d:
             say(f"- The Sun lamp's analytic direct light (256 shadow rays) costs {1e3 * min(d):.2f}–"
