@@ -126,18 +126,32 @@ def _sky(hdri):
     return make
 
 
-def _interior(offset):
-    _world("courtyard.exr")
+
+ROOM_WINDOW = (-0.8, 0.8, 0.9, 2.0)   # x0, x1, z0, z1 of the opening in the +Y wall (room_walls)
+ROOM_TABLE = ((-1.6, -1.6, 0.0), (-0.6, -0.9, 0.75))
+
+
+def _room_shell(offset):
+    """The 4 x 4 x 2.5 m room's walls (albedo 0.8) with ROOM_WINDOW: (collection, lo, hi)."""
     walls = lib.collection("Room")
     plaster = lib.diffuse_material("Plaster", (0.8, 0.8, 0.8))
     lo, hi = _shift([(-2.0, -2.0, 0.0), (2.0, 2.0, 2.5)], offset)
     wx, wz = offset[0], offset[2]
-    lib.room_walls(lo, hi, coll=walls, material=plaster,
-                   window=(wx - 0.8, wx + 0.8, wz + 0.9, wz + 2.0))
+    x0, x1, z0, z1 = ROOM_WINDOW
+    lib.room_walls(lo, hi, coll=walls, material=plaster, window=(wx + x0, wx + x1, wz + z0, wz + z1))
+    return walls, lo, hi
+
+
+def _room_table(offset, walls):
+    _box("Table", *ROOM_TABLE, offset, walls, lib.diffuse_material("Wood", (0.45, 0.25, 0.12)))
+
+
+def _interior(offset):
+    _world("courtyard.exr")
+    walls, lo, hi = _room_shell(offset)
     panel = lib.diffuse_material("Panel", (1, 1, 1), emission=(1.0, 0.95, 0.85), strength=8.0)
     _box("Panel", (-0.5, -1.2, 2.45), (0.5, -0.7, 2.5), offset, walls, panel)
-    wood = lib.diffuse_material("Wood", (0.45, 0.25, 0.12))
-    _box("Table", (-1.6, -1.6, 0.0), (-0.6, -0.9, 0.75), offset, walls, wood)
+    _room_table(offset, walls)
     lib.probe_volume("RoomVolume", lo, hi)
     # Probes: cell centres of the 1 m grid (the default placement's kind of position): window side,
     # under the panel, next to the table, the middle. Sample points: where movables would stand,
@@ -145,7 +159,7 @@ def _interior(offset):
     probes = [(0.5, 1.5, 1.25), (-0.5, -0.5, 1.75), (-1.5, -0.5, 0.75), (0.5, -0.5, 0.75)]
     samples = seeded_samples([(0.2, 1.2, 1.4), (-0.3, 0.6, 0.9), (1.3, -1.1, 0.5), (-1.2, 0.3, 1.6)],
                              (-1.85, -1.85, 0.15), (1.85, 1.85, 2.35),
-                             [((-1.6, -1.6, 0.0), (-0.6, -0.9, 0.75)), ((-0.5, -1.2, 2.45), (0.5, -0.7, 2.5))])
+                             [ROOM_TABLE, ((-0.5, -1.2, 2.45), (0.5, -0.7, 2.5))])
     return SceneSpec("", "courtyard.exr", probes, samples, placement=[(1.0, 4.0), (2.0, 8.0)])
 
 
@@ -244,8 +258,6 @@ SUN_YARD_PROBES = [(-3.0, -3.0, 1.0), (4.0, 4.0, 2.5), (2.5, 2.5, 1.0), (-1.0, 3
 # out of it.
 SUN_WINDOW_PROBES = [(0.5, 1.5, 1.25), (-0.4, 0.6, 0.8), (-0.5, -0.5, 1.75), (-1.5, -0.5, 0.75),
                      (0.5, -0.5, 0.75), (1.2, 1.0, 0.5)]
-ROOM_WINDOW = (-0.8, 0.8, 0.9, 2.0)   # x0, x1, z0, z1 of the opening in the +Y wall (room_walls)
-ROOM_TABLE = ((-1.6, -1.6, 0.0), (-0.6, -0.9, 0.75))
 
 
 def room_boxes():
@@ -273,14 +285,8 @@ def _sun_yard(offset):
 
 def _sun_window(offset):
     _world("forest.exr")
-    walls = lib.collection("Room")
-    plaster = lib.diffuse_material("Plaster", (0.8, 0.8, 0.8))
-    lo, hi = _shift([(-2.0, -2.0, 0.0), (2.0, 2.0, 2.5)], offset)
-    wx, wz = offset[0], offset[2]
-    x0, x1, z0, z1 = ROOM_WINDOW
-    lib.room_walls(lo, hi, coll=walls, material=plaster, window=(wx + x0, wx + x1, wz + z0, wz + z1))
-    wood = lib.diffuse_material("Wood", (0.45, 0.25, 0.12))
-    _box("Table", *ROOM_TABLE, offset, walls, wood)
+    walls, lo, hi = _room_shell(offset)
+    _room_table(offset, walls)
     _sun_lamp(SUN_WINDOW_TO_SUN, offset)
     lib.probe_volume("RoomVolume", lo, hi)
     samples = seeded_samples([(0.2, 1.2, 1.4), (-0.3, 0.6, 0.9), (1.3, -1.1, 0.5), (-1.2, 0.3, 1.6)],
