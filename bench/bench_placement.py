@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 
 import placement_scenes  # noqa: E402
 import schnee_probes  # noqa: E402
-from schnee_probes import adaptive, bake_core, native  # noqa: E402
+from schnee_probes import adaptive, bake_core, native, scene_export  # noqa: E402
 
 
 def main():
@@ -79,7 +79,7 @@ def main():
     # Seeded points in the volume, outside the solids (placement_scenes.points; the room keeps the
     # points of the first run of this benchmark).
     blender_pts = np.array(placement_scenes.points(sc, a.points, a.seed))
-    engine_pts = np.stack([blender_pts[:, 0], blender_pts[:, 2], -blender_pts[:, 1]], axis=1)
+    engine_pts = scene_export.blender_to_engine(blender_pts)
 
     out = {"settings": vars(a), "rows": [], "load_start": os.getloadavg()}
     t = time.perf_counter()

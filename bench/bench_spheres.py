@@ -149,6 +149,7 @@ def main():
     if addon_utils.enable("schnee_probes", default_set=True) is None:
         sys.exit("bench_spheres: the schnee_probes add-on could not be enabled (build it first)")
     from schnee_probes import bake_core, native, nodes
+    from schnee_probes.scene_export import blender_to_engine as to_engine
     scene = build_scene(spheres, a.size, nodes)
     layer = bpy.context.view_layer
     blend = os.path.join(out, "scene.blend")
@@ -374,12 +375,6 @@ def build_scene(spheres, size, nodes):
     return scene
 
 
-def to_engine(v):
-    """Blender (x, y, z) -> engine / glTF (x, z, -y)."""
-    v = np.asarray(v, dtype=np.float64)
-    return np.stack([v[..., 0], v[..., 2], -v[..., 1]], axis=-1)
-
-
 # -------------------------------------------------------------------- camera geometry
 def camera_rays(cam, size, offsets=(0.5, 0.5)):
     """World (Blender) ray directions (size, size, 3) through pixel (row from the top, column) at the
@@ -422,6 +417,7 @@ def sphere_hits(cam, size, centre, radius):
 
 def geometry_check(hit_c, n_c, mask, cov, eng_normals):
     """Alignment of the analytic sphere with Cycles' coverage / normals and the engine's normals."""
+    from schnee_probes.scene_export import blender_to_engine as to_engine
     alpha = cov[..., 3]
     cyc_n = cov[..., :3] / np.maximum(alpha, 1e-9)[..., None]
     cyc_n /= np.maximum(np.linalg.norm(cyc_n, axis=-1, keepdims=True), 1e-9)
