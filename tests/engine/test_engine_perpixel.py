@@ -149,6 +149,33 @@ def test_wall_does_not_leak(tmp_path):
     assert np.allclose(e / np.pi, 0.05, rtol=1e-6)
 
 
+def test_movable_quad_gets_no_back_face_weight(tmp_path):
+    # The wall quad of the test above, but movable (placed with --move): it was not in the bake, so
+    # the bright probe behind its face holds the light where the quad now is and keeps its trilinear
+    # weight (docs/engine.md, "Movable objects get no back-face weight"). Closed form: uniform
+    # radiance per cell, so every pixel is the x-interpolation (1 - f)·0.05 + f·5 with f = 0.49
+    # (x = 1.99 between the centres 1.5 and 2.5); the moved quad is the only mesh, so no masks.
+    grid = np.array([[[0, 1, 2, 3]]], np.int32)
+    coeffs = np.stack([ref.uniform_coeffs(r) for r in (0.05, 0.05, 5.0, 5.0)])
+    entry = write_grid(tmp_path, "rooms", coeffs, grid, (0, 0, 0), 1.0)
+    b = sg.GltfBuilder()
+    m = b.material("white", sh_scale=1.0, ambient_term=0.0)
+    b.node("Wall", mesh=b.mesh("wall", sg.quad(1.0, 1.0, 0, -1.0), m), translation=(9.0, 9.0, 9.0))
+    b.node("Camera", camera=b.ortho_camera("side", 0.45), translation=(0.5, 0.5, 0.5), rotation=sg.ROT_LOOK_POS_X)
+    b.probe_grids([entry])
+    scene = b.write(tmp_path / "wall.gltf")
+    pix = render(scene, tmp_path / "p.exr", "--probe-mode", "pixel", "--move", "Wall", 1.99, 0.5, 0.5)
+    f = 1.99 - 1.5
+    want = (1 - f) * 0.05 + f * 5.0
+    assert np.allclose(pix, want, rtol=1e-4), (pix.min(), pix.max(), want)
+    # The numpy rule without back-face weights agrees; with them it is the static wall's 0.05.
+    p, n = np.array([[1.99, 0.5, 0.5]]), np.array([[-1.0, 0, 0]])
+    e, _ = ref.grid_irradiance(p, n, grid, (0, 0, 0), 1.0, coeffs, backface=False)
+    assert np.allclose(e / np.pi, want, rtol=1e-6)
+    e, _ = ref.grid_irradiance(p, n, grid, (0, 0, 0), 1.0, coeffs)
+    assert np.allclose(e / np.pi, 0.05, rtol=1e-6)
+
+
 def floor_by_wall_scene(d, wall):
     # Four 1 m cells along x: radiance 0.05 (cells 0, 1) and 5 (cells 2, 3); a floor at y = 0.1 for
     # x in [0, 1.98], z in [0, 1], seen from above; optionally a two-sided wall (both faces) at x = 2.

@@ -70,10 +70,11 @@ def smoothstep(e0, e1, x):
     return t * t * (3 - 2 * t)
 
 
-def grid_irradiance(p, n, grid, origin, spacing, coeffs, validity=None, evaluate=irradiance):
+def grid_irradiance(p, n, grid, origin, spacing, coeffs, validity=None, evaluate=irradiance, backface=True):
     """Per-pixel E(n) at points p (N, 3) with normals n (N, 3) for one axis-aligned grid
     (grid: int (Z, Y, X) of probe indices / -1, coeffs (count, 9, 3)). Returns (E (N, 3), held (N,)).
-    evaluate(coeffs[k], n): irradiance of one probe (cube_irradiance with cubes for the ambient cube)."""
+    evaluate(coeffs[k], n): irradiance of one probe (cube_irradiance with cubes for the ambient cube).
+    backface=False: a movable object's rule (no back-face weights, docs/engine.md)."""
     p = np.asarray(p, float)
     n = np.asarray(n, float)
     Z, Y, X = grid.shape
@@ -93,7 +94,7 @@ def grid_irradiance(p, n, grid, origin, spacing, coeffs, validity=None, evaluate
         w = np.prod(np.where(o == 1, f, 1 - f), axis=1)
         centre = np.asarray(origin, float) + (ci + 0.5) * spacing
         t = np.einsum("ij,ij->i", centre - p, n) / spacing
-        w = w * smoothstep(-0.1, 0.1, t) * np.where(idx >= 0, validity[np.maximum(idx, 0)], 0.0)
+        w = w * (smoothstep(-0.1, 0.1, t) if backface else 1.0) * np.where(idx >= 0, validity[np.maximum(idx, 0)], 0.0)
         w = np.where(idx >= 0, w, 0.0)
         ek = np.stack([evaluate(coeffs[j], n[i]) if j >= 0 else np.zeros(3) for i, j in enumerate(idx)])
         e += w[:, None] * ek
