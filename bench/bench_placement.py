@@ -55,8 +55,18 @@ def main():
                     help="Error Tolerance values of the adaptive bakes (none: only --old)")
     ap.add_argument("--tests", nargs="+", default=["CENTRE_FACES"], choices=["CENTRE_FACES", "CENTRE"],
                     help="Refinement Tests of the adaptive bakes (each tolerance is baked with each)")
+    ap.add_argument("--predict", type=float, nargs="+", default=[adaptive.PREDICT],
+                    help="adaptive.PREDICT factors of the adaptive bakes (default: the add-on's; 0 = every "
+                         "child tested; each tolerance x tests is baked with each)")
     ap.add_argument("--points", type=int, default=64)
     ap.add_argument("--ref-samples", type=int, default=128)
+    ap.add_argument("--ref-res", type=int, default=None,
+                    help="reference panorama width (default --res): runs at different render "
+                         "qualities share one reference with the same --ref-* options")
+    ap.add_argument("--ref-bounces", type=int, default=None, help="reference bounces (default --bounces)")
+    ap.add_argument("--ref-cache", default=None,
+                    help="npz of the references: read when its key (scene, points, seed, --ref-*) matches, "
+                         "else baked and written (runs at different qualities share one reference)")
     ap.add_argument("--old", action="store_true", help="also bake the geometry octree")
     ap.add_argument("--old-points", action="store_true",
                     help="the geometry octree's per-object error without baking all its probes: place it, "
@@ -83,15 +93,25 @@ def main():
 
     out = {"settings": vars(a), "rows": [], "load_start": os.getloadavg()}
     t = time.perf_counter()
-    ref = bake_core.bake_points(scene, layer, settings(samples=a.ref_samples), engine_pts, log=lambda s: None)
+    ref_key = json.dumps([a.scene, a.points, a.seed, a.ref_samples, a.ref_res or a.res, a.ref_bounces or a.bounces])
+    if a.ref_cache and os.path.exists(a.ref_cache) and str(np.load(a.ref_cache)["key"]) == ref_key:
+        ref = np.load(a.ref_cache)["ref"]
+        out["reference_cached"] = a.ref_cache
+    else:
+        ref = bake_core.bake_points(scene, layer, settings(samples=a.ref_samples, panorama_resolution=a.ref_res or a.res,
+                                                           max_bounces=a.ref_bounces or a.bounces),
+                                    engine_pts, log=lambda s: None)
+        if a.ref_cache:
+            np.savez(a.ref_cache, key=ref_key, ref=ref)
     out["reference_seconds"] = time.perf_counter() - t
     floor = bake_core.bake_points(scene, layer, settings(), engine_pts, log=lambda s: None)
     out["floor"] = stats(adaptive.irradiance_error(floor, ref))
     out["floor_point_errors"] = [round(float(e), 5) for e in adaptive.irradiance_error(floor, ref)]
     out["points_blender"] = blender_pts.round(4).tolist()
 
-    for tol, tests in [(tol, tests) for tol in a.tolerance for tests in a.tests]:
-        path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}.shprobe")
+    for tol, tests, pred in [(tol, tests, pred) for tol in a.tolerance for tests in a.tests for pred in a.predict]:
+        path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}_{pred:g}.shprobe")
+        adaptive.PREDICT = pred
         b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", error_tolerance=tol,
                                                        refinement_tests=tests, output_path=path), log=print)
         t, cpu = time.perf_counter(), cpu_seconds()
@@ -100,7 +120,8 @@ def main():
         f = native.read_shprobe(path)
         got = native.interpolation_from_file(path).interpolate(engine_pts, f.coeffs, f.validity)
         err = adaptive.irradiance_error(got, ref)
-        out["rows"].append({"placement": "adaptive", "tolerance": tol, "tests": tests, "seconds": sec,
+        out["rows"].append({"placement": "adaptive", "tolerance": tol, "tests": tests, "predict": pred,
+                            "seconds": sec,
                             "cpu_seconds": cpu,
                             "probes": r.probe_count, "render_seconds": r.timings["render"],
                             "renders": r.renders, "passes": [vars(p) for p in r.passes],
@@ -115,7 +136,7 @@ def main():
             got_t = tet.interpolate(engine_pts, np.asarray(f.coeffs)[keep])
             err_t = adaptive.irradiance_error(got_t, ref)
             out["rows"].append({"placement": "adaptive", "interpolation": "tetrahedra", "tolerance": tol,
-                                "tests": tests, "probes": int(keep.sum()), "renders": r.renders,
+                                "tests": tests, "predict": pred, "probes": int(keep.sum()), "renders": r.renders,
                                 "cpu_seconds": cpu, "seconds": sec, "error": stats(err_t),
                                 "point_errors": [round(float(e), 5) for e in err_t]})
             print("ROW", json.dumps(out["rows"][-1]), flush=True)

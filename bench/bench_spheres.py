@@ -64,6 +64,16 @@ render (ISOLATED_SAMPLES) with the sphere visible to camera rays only (no shadow
 shows the room's light without the sphere; its difference from the reference is the sphere's effect
 on its surroundings, and each column is also compared with it (errors_vs_isolated).
 
+With --sun (the hard-shadow case): the same room with a Sun lamp (the sweep's sun_window lamp:
+SUN_LAMP_STRENGTH W/m², SUN_LAMP_ANGLE; 35° up, straight along -Y, so the sunbeam through the
+window is bounded by the vertical planes x = ±1.5 of the window's sides) marked "baked" (in the
+probes: the bake adds its exact direct term; the engine then adds no direct term on probe-lit
+surfaces, docs/engine.md "Lights: baked or realtime"), and the SUN_SPHERES: one in the sunbeam and
+one in hard shadow 0.2 m beside it (next to the sunlit floor and to probes in the sun). On the
+spheres' diffuse surfaces Cycles' Combined pass is still albedo * E / pi, E now holding the lamp's
+direct light; which sphere points are sunlit is checked analytically (sun_lit) when the scene is
+built.
+
 Writes OUT_DIR/spheres.json (all numbers, settings, timings), OUT_DIR/table.md (the table),
 OUT_DIR/spheres.png (per sphere: Cycles | per object | per pixel | converged floor), the EXRs.
 The report is bench/results/spheres.md (numbers copied from the JSON with the command).
@@ -72,6 +82,7 @@ file, the Cycles renders and the floor probes already there (same options assume
 engine renders and the comparison.
 """
 import argparse
+import importlib.util
 import json
 import math
 import os
@@ -95,6 +106,11 @@ from mathutils import Vector  # noqa: E402
 import make_default_scene  # noqa: E402
 import scene_lib as lib  # noqa: E402
 
+# The sweep's scene module (its Sun lamp and ray test), by path: "scenes" is also the scene folder.
+_spec = importlib.util.spec_from_file_location("sweep_scenes", os.path.join(REPO, "bench", "sweep", "scenes.py"))
+sweep_scenes = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(sweep_scenes)
+
 ALBEDO = 0.8
 RADIUS = 0.3
 CAM_DISTANCE = 1.2
@@ -110,6 +126,26 @@ SPHERES = (
     ("window_edge", (1.4, 4.2, 2.0), (1.0, -0.3, 0.1)),     # 0.8 m from the window, at its +x edge
     ("floor", (-0.3, 1.2, 0.32), (0.3, -1.0, 0.55)),        # 2 cm above the floor
 )
+
+# --sun: direction towards the sun (Blender space), 35° up over the +Y window; spheres in the sunbeam
+# and in hard shadow beside it (the beam's side is the plane x = -1.5).
+SUN_TO_SUN = (0.0, math.cos(math.radians(35.0)), math.sin(math.radians(35.0)))
+SUN_SPHERES = (
+    ("sunlit", (0.0, 2.5, 0.6), (0.3, -1.0, 0.4)),          # wholly in the sunbeam
+    ("sun_shadow", (-2.0, 2.5, 0.6), (0.6, -1.0, 0.35)),    # wholly in shadow, 0.2 m beside the beam
+)
+
+
+def sun_lit(point):
+    """Whether the ray from ``point`` (Blender) towards the sun leaves the room through the window
+    and misses the furniture (pure Python: the room's walls, window and boxes are axis-aligned)."""
+    x0, x1, z0, z1 = make_default_scene.WINDOW
+    wall_y = make_default_scene.ROOM_MAX[1]
+    t = (wall_y - point[1]) / SUN_TO_SUN[1]
+    x, z = point[0] + t * SUN_TO_SUN[0], point[2] + t * SUN_TO_SUN[2]
+    if not (x0 < x < x1 and z0 < z < z1):
+        return False
+    return sweep_scenes.lamp_lit(point, SUN_TO_SUN, [(a, b) for _, a, b in make_default_scene.FURNITURE])
 
 
 def main():
@@ -130,6 +166,8 @@ def main():
     ap.add_argument("--floor-samples", type=int, default=256, help="converged floor probe: spp")
     ap.add_argument("--isolated-samples", type=int, default=256,
                     help="spp of the Cycles render with the sphere invisible to all but the camera (0: none)")
+    ap.add_argument("--sun", action="store_true",
+                    help="the hard-shadow case: a baked Sun lamp through the window and SUN_SPHERES")
     ap.add_argument("--spheres", nargs="*", default=None, help="subset of sphere names")
     ap.add_argument("--reuse", action="store_true",
                     help="keep the probe file, Cycles renders and floor probes already in OUT")
@@ -137,7 +175,7 @@ def main():
     a = ap.parse_args(argv)
     out = os.path.abspath(a.out)
     os.makedirs(out, exist_ok=True)
-    spheres = [s for s in SPHERES if a.spheres is None or s[0] in a.spheres]
+    spheres = [s for s in (SUN_SPHERES if a.sun else SPHERES) if a.spheres is None or s[0] in a.spheres]
     t_start = time.perf_counter()
     timings = {}
     result = {"command": "blender -b --factory-startup -P bench/bench_spheres.py -- " + " ".join(
@@ -151,6 +189,19 @@ def main():
     from schnee_probes import bake_core, native, nodes
     from schnee_probes.scene_export import blender_to_engine as to_engine
     scene = build_scene(spheres, a.size, nodes)
+    if a.sun:
+        lamp = sweep_scenes._sun_lamp(SUN_TO_SUN, (0.0, 0.0, 0.0))
+        lamp["schnee_light_mode"] = "baked"
+        result["sun"] = {"to_sun": SUN_TO_SUN, "strength": sweep_scenes.SUN_LAMP_STRENGTH,
+                         "angle_deg": math.degrees(sweep_scenes.SUN_LAMP_ANGLE), "spheres_lit": {}}
+        # Each sphere is wholly in the sun or wholly in shadow, as its name says (200 surface points).
+        dirs = np.random.default_rng(7).normal(size=(200, 3))
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        for name, centre, _ in spheres:
+            lit = [sun_lit(np.array(centre) + RADIUS * d) for d in dirs]
+            result["sun"]["spheres_lit"][name] = sum(lit) / len(lit)
+            if sum(lit) not in (0, len(lit)) or (sum(lit) > 0) != (name == "sunlit"):
+                sys.exit(f"bench_spheres: sphere {name} is {sum(lit)}/{len(lit)} sunlit")
     layer = bpy.context.view_layer
     blend = os.path.join(out, "scene.blend")
     lib.save(blend)

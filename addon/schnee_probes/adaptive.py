@@ -36,6 +36,17 @@ SOLID_RATIO = 0.25          # the placement's default back-face ratio (docs/plac
 RENDER_INSET = 0.01         # m: nodes on or beyond the volumes' bounding box render this far inside it
 TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
 NOISE_K = 2.0               # refine only where error > tolerance + NOISE_K · noise (pb_refine's default)
+# Prediction of children that pass (saves their tests): a leaf's error falls by a measured rate per
+# halving — the ratio of its parent's error next to it to its own worst error, both over their
+# thresholds — and a smooth field's trilinear error falls as h², 4× per halving (exactly 4 for a
+# quadratic field), so the rate is capped at PREDICT. A child whose predicted error (its parent's
+# error next to it over that rate) is below 1 is not tested. The rate needs two levels measured: the
+# first layer's children, and any leaf whose error did not fall, are always tested (at coarse scales
+# the light is far from the h² regime). 0 = every child tested. Module-level so the benchmark can
+# compare factors (bench/bench_placement.py --predict); measured in bench/results/placement.md.
+PREDICT = 4.0
+# leaf_tests columns adjacent to child octant bit b of an axis: −face for b = 0, +face for b = 1.
+_FACE_COL = ((1, 2), (3, 4), (5, 6))
 # Lambert band factors A_l (irradiance = Σ A_l L_lm Y_lm), l = 0..4.
 _LAMBERT = (math.pi, 2.0 * math.pi / 3.0, math.pi / 4.0, 0.0, -math.pi / 24.0)
 
@@ -111,11 +122,24 @@ def centre_only(tests: "native.RefineTests") -> "native.RefineTests":
     of ``refine_tests``), so the result is as deterministic as the input."""
     lt = np.array(tests.leaf_tests, dtype=np.int32, copy=True)
     lt[:, 1:] = -1
+    return restrict_tests(tests, lt)
+
+
+def without_leaves(tests: "native.RefineTests", skip: np.ndarray) -> "native.RefineTests":
+    """The same test points with the ``skip`` (L,) leaves' tests removed (see :func:`restrict_tests`)."""
+    lt = np.array(tests.leaf_tests, dtype=np.int32, copy=True)
+    lt[np.asarray(skip, dtype=bool)] = -1
+    return restrict_tests(tests, lt)
+
+
+def restrict_tests(tests: "native.RefineTests", lt: np.ndarray) -> "native.RefineTests":
+    """``tests`` with leaf_tests replaced by ``lt`` (some entries set to −1): the points no leaf refers
+    to any more are dropped, the rest keep their order."""
     used = np.zeros(len(tests.positions), dtype=bool)
-    used[lt[:, 0][lt[:, 0] >= 0]] = True
+    used[lt[lt >= 0]] = True
     new_index = np.full(len(tests.positions), -1, dtype=np.int32)
     new_index[used] = np.arange(int(used.sum()), dtype=np.int32)
-    lt[:, 0] = np.where(lt[:, 0] >= 0, new_index[np.maximum(lt[:, 0], 0)], -1)
+    lt = np.where(lt >= 0, new_index[np.maximum(lt, 0)], -1).astype(np.int32)
     return native.RefineTests(lattice=tests.lattice[used], positions=tests.positions[used],
                               probe=tests.probe[used], leaf_tests=lt)
 
@@ -189,6 +213,7 @@ class PassRecord:
     smallest_cell: float
     tests: int = 0
     split: int = 0
+    predicted: int = 0      # leaves not tested: predicted to pass from their parent's error (PREDICT)
 
 
 class AdaptiveGroup:
@@ -220,6 +245,9 @@ class AdaptiveGroup:
         self.test_index = None      # cache index per test point
         self.probe_index = None     # cache index per tree probe
         self.last_errors = None
+        self.predict = float(PREDICT)
+        self.settled = set()        # leaf keys (x, y, z, level) predicted to pass: never tested
+        self.parent_ratio = {}      # leaf key -> its parent's error over threshold next to it
 
     # -- geometry queries through the placement's rules
     def _classify_boxes(self, leaves: np.ndarray) -> np.ndarray:
@@ -279,6 +307,12 @@ class AdaptiveGroup:
             tests = self.tree.refine_tests()
             if self.test_mode == "CENTRE":
                 tests = centre_only(tests)
+            if self.settled:
+                leaves = self.tree.info()["leaves"]
+                skip = np.array([tuple(int(v) for v in lf) in self.settled for lf in leaves], dtype=bool)
+                skip &= (tests.leaf_tests >= 0).any(axis=1)
+                self.passes[-1].predicted = int(skip.sum())
+                tests = without_leaves(tests, skip)
             need = tests.probe < 0
             if len(tests.positions) == 0 or not (tests.leaf_tests >= 0).any():
                 self.finished = True
@@ -306,12 +340,15 @@ class AdaptiveGroup:
             probe_validity=cache.validity(pidx), test_valid=test_valid, tolerance=self.tolerance,
             noise_k=NOISE_K)
         self.last_errors = (err, thr)
-        self.tests = self.test_index = None
         n = int(split.sum())
         self.passes[-1].split = n
         if n == 0:
+            self.tests = self.test_index = None
             self.finished = True
             return []
+        if self.predict > 0:
+            self._settle_children(split, thr, cache.coeffs[pidx], cache.validity(pidx), test_coeffs, test_valid)
+        self.tests = self.test_index = None
         self.tree.split(split)
         self.tree.finalize()
         self._drop_outside()
@@ -323,6 +360,42 @@ class AdaptiveGroup:
                                       self.smallest_cell()))
         self.stage = "probes"
         return todo
+
+    def _settle_children(self, split, thr, probe_coeffs, validity, test_coeffs, test_valid):
+        """Mark the children of split leaves that are predicted to pass (see PREDICT). A child's
+        parent ratio is the parent's worst error over its threshold at the test points next to the
+        child (the parent's centre and the three face centres of the child's octant; where none of
+        those was compared, inside solids, the parent's worst over all its tests)."""
+        tests = self.tests
+        values = test_coeffs.copy()
+        is_probe = tests.probe >= 0
+        values[is_probe] = probe_coeffs[tests.probe[is_probe]]
+        interp = self.tree.interpolate(tests.positions, probe_coeffs, validity)
+        err_t = irradiance_error(interp, values)
+        valid_t = np.asarray(test_valid, dtype=bool).copy()
+        valid_t[is_probe] &= np.asarray(validity)[tests.probe[is_probe]] > 0
+        err_t = np.where(valid_t & np.isfinite(err_t), err_t, np.nan)
+        leaves = self.tree.info()["leaves"]
+        for i in np.flatnonzero(split):
+            x, y, z, lv = (int(v) for v in leaves[i])
+            if lv == 0:
+                continue
+            cols = tests.leaf_tests[i]
+            ratios = np.where(cols >= 0, err_t[np.maximum(cols, 0)], np.nan) / max(float(thr[i]), 1e-12)
+            whole = np.nanmax(ratios) if np.isfinite(ratios).any() else np.inf
+            # The rate this leaf's error fell by since its parent (1 = unknown or not falling).
+            before = self.parent_ratio.get((x, y, z, lv))
+            rate = 1.0 if before is None or not whole > 0 else min(self.predict, max(1.0, before / whole))
+            half = 1 << (lv - 1)
+            for octant in range(8):
+                bits = ((octant >> 0) & 1, (octant >> 1) & 1, (octant >> 2) & 1)
+                near = [ratios[0]] + [ratios[_FACE_COL[a][bits[a]]] for a in range(3)]
+                near = [r for r in near if np.isfinite(r)]
+                worst = max(near) if near else whole
+                child = (x + bits[0] * half, y + bits[1] * half, z + bits[2] * half, lv - 1)
+                self.parent_ratio[child] = float(worst)
+                if worst / rate < 1.0:
+                    self.settled.add(child)
 
     def stage_count(self) -> int:
         """An upper bound of the stages (probe bakes and test bakes) of this group's refinement."""

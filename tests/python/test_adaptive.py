@@ -153,3 +153,52 @@ def test_centre_tests_render_fewer_points_for_the_same_refinement():
     assert renders["CENTRE"] < renders["CENTRE_FACES"]
     with pytest.raises(ValueError, match="refinement tests"):
         adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, "FACES")
+
+
+def _quadratic_hall(predict, monkeypatch):
+    """The hall at Min/Max Cell 0.125/2 m under f = 1 + x² (SH L0) with adaptive.PREDICT = predict:
+    (group, renders, error at 500 seeded points)."""
+    monkeypatch.setattr(adaptive, "PREDICT", predict)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05)
+
+    def field(p):
+        return np.array([sh_of(1.0 + x * x, 0.5) for x in p[:, 0]])
+    cache = drive(group, field)
+    pts = np.random.default_rng(1).uniform((0, 0, 0), (8, 2, 2), (500, 3))
+    got = group.tree.interpolate(pts, cache.coeffs[group.probe_index], cache.validity(group.probe_index))
+    return group, int(cache.rendered.sum()), adaptive.irradiance_error(got, field(pts))
+
+
+def test_prediction_skips_the_tests_of_children_a_smooth_field_lets_pass(monkeypatch):
+    # Trilinear interpolation of a quadratic field errs by a quarter after each halving (error ∝ h²
+    # f''). Once a leaf's error is seen falling that fast, its children whose parent erred by less
+    # than 4× their threshold pass without a test: the same tree, the same error, fewer renders.
+    plain, renders_all, err_all = _quadratic_hall(0.0, monkeypatch)
+    group, renders, err = _quadratic_hall(4.0, monkeypatch)
+    assert sum(p.predicted for p in group.passes) > 0 and sum(p.predicted for p in plain.passes) == 0
+    assert group.tree.info()["leaves"].tolist() == plain.tree.info()["leaves"].tolist()
+    assert np.array_equal(err, err_all) and err.max() <= 0.05
+    assert renders < 0.4 * renders_all          # 412 vs 1164 renders
+
+
+def test_prediction_needs_a_measured_rate(monkeypatch):
+    # The first layer's children are always tested: at 16 m in a 10 m room nothing says the light
+    # is in the h² regime yet. With Max Cell 2 m the quadratic field's first split leaves have no
+    # rate; only their children's children are predicted.
+    monkeypatch.setattr(adaptive, "PREDICT", 4.0)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05)
+    drive(group, lambda p: np.array([sh_of(1.0 + x * x, 0.5) for x in p[:, 0]]))
+    assert [p.predicted for p in group.passes][:2] == [0, 0]
+
+
+def test_prediction_still_refines_a_shadow_edge_to_min_cell(monkeypatch):
+    # A step is not smooth: the parent crossed by it errs by far more than 4× its threshold next to
+    # the children that hold the edge, so they are tested and the edge refines to Min Cell Size.
+    monkeypatch.setattr(adaptive, "PREDICT", 4.0)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+    drive(group, lambda p: np.array([sh_of(1.0, 3.0 if x > 3.3 else 0.0) for x in p[:, 0]]))
+    leaves = group.tree.info()["leaves"].astype(float)
+    size, lo = 0.5 * 2 ** leaves[:, 3], leaves[:, 0] * 0.5
+    crossed = (lo < 3.3) & (lo + size > 3.3)
+    assert crossed.any() and np.all(size[crossed] == 0.5)
+    assert np.all((lo[size < 2] >= 2.0) & (lo[size < 2] + size[size < 2] <= 4.0))
