@@ -12,7 +12,8 @@ decides where. The algorithm is docs/placement.md, "Error-driven refinement"; th
    ``tolerance + 2σ`` with σ the Monte-Carlo noise of the probes and tests involved; flagged leaves
    split; children entirely outside the volumes are dropped; the new corners (test points: already
    baked, edge midpoints: new) are baked; back to 2 until nothing splits or every leaf is at Min Cell
-   Size.
+   Size. Children predicted to pass (PREDICT: their parent's error next to them, over the rate the
+   error was measured falling per halving) are never tested (docs/placement.md, step 4a).
 
 Points inside solid geometry (the placement's solid test: more than ``SOLID_RATIO`` of 64 rays hit
 back faces) are never rendered: as probes they get validity 0 (left out of the interpolation), as
