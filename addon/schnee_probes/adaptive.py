@@ -46,6 +46,9 @@ NOISE_K = 2.0               # refine only where error > tolerance + NOISE_K · n
 # the light is far from the h² regime). 0 = every child tested. Module-level so the benchmark can
 # compare factors (bench/bench_placement.py --predict); measured in bench/results/placement.md.
 PREDICT = 4.0
+# The direct-light check of a leaf (AdaptiveGroup.direct_check) samples the lamps' exact direct term
+# on this many steps per axis of the leaf (5³ − 8 points; fewer where that is finer than Min Cell).
+DIRECT_DIVISIONS = 4
 # leaf_tests columns adjacent to child octant bit b of an axis: −face for b = 0, +face for b = 1.
 _FACE_COL = ((1, 2), (3, 4), (5, 6))
 # Lambert band factors A_l (irradiance = Σ A_l L_lm Y_lm), l = 0..4.
@@ -136,6 +139,9 @@ def without_leaves(tests: "native.RefineTests", skip: np.ndarray) -> "native.Ref
 def restrict_tests(tests: "native.RefineTests", lt: np.ndarray) -> "native.RefineTests":
     """``tests`` with leaf_tests replaced by ``lt`` (some entries set to −1): the points no leaf refers
     to any more are dropped, the rest keep their order."""
+    if len(tests.positions) == 0:
+        return native.RefineTests(lattice=tests.lattice, positions=tests.positions, probe=tests.probe,
+                                  leaf_tests=np.full_like(np.asarray(lt, dtype=np.int32), -1))
     used = np.zeros(len(tests.positions), dtype=bool)
     used[lt[lt >= 0]] = True
     new_index = np.full(len(tests.positions), -1, dtype=np.int32)
@@ -215,6 +221,7 @@ class PassRecord:
     tests: int = 0
     split: int = 0
     predicted: int = 0      # leaves not tested: predicted to pass from their parent's error (PREDICT)
+    direct_split: int = 0   # leaves split by the lamps' exact direct light alone (no test flagged them)
 
 
 class AdaptiveGroup:
@@ -223,7 +230,8 @@ class AdaptiveGroup:
     are being baked), ``finished`` when nothing splits any more."""
 
     def __init__(self, name: str, path: str, volumes, geometry, min_cell: float, max_cell: float,
-                 tolerance: float, tests: str = "CENTRE_FACES"):
+                 tolerance: float, tests: str = "CENTRE_FACES",
+                 direct: Optional[Callable[[np.ndarray], Optional[np.ndarray]]] = None):
         if tests not in TEST_MODES:
             raise ValueError(f"refinement tests {tests!r}: expected one of {', '.join(TEST_MODES)}")
         self.name, self.path = name, path
@@ -249,6 +257,11 @@ class AdaptiveGroup:
         self.predict = float(PREDICT)
         self.settled = set()        # leaf keys (x, y, z, level) predicted to pass: never tested
         self.parent_ratio = {}      # leaf key -> its parent's error over threshold next to it
+        # The lamps' exact direct light at engine-space points ((N, C, 3) radiance SH, or None when
+        # no lamp is added analytically): leaves whose interpolation of it is off split (no render).
+        self.direct = direct
+        self._direct_of = {}        # cache index -> direct SH at that point's render position
+        self._direct_split = None   # per leaf of the current tree: the direct check failed
 
     # -- geometry queries through the placement's rules
     def _classify_boxes(self, leaves: np.ndarray) -> np.ndarray:
@@ -315,7 +328,12 @@ class AdaptiveGroup:
                 self.passes[-1].predicted = int(skip.sum())
                 tests = without_leaves(tests, skip)
             need = tests.probe < 0
+            self._direct_split = self.direct_check(cache)
             if len(tests.positions) == 0 or not (tests.leaf_tests >= 0).any():
+                if self._direct_split.any():
+                    self.passes[-1].direct_split = int(self._direct_split.sum())
+                    self.passes[-1].split = int(self._direct_split.sum())
+                    return self._split(self._direct_split, cache)
                 self.finished = True
                 return []
             self.tests = tests
@@ -341,6 +359,9 @@ class AdaptiveGroup:
             probe_validity=cache.validity(pidx), test_valid=test_valid, tolerance=self.tolerance,
             noise_k=NOISE_K)
         self.last_errors = (err, thr)
+        if self._direct_split is not None:
+            self.passes[-1].direct_split = int((self._direct_split & ~split).sum())
+            split = split | self._direct_split
         n = int(split.sum())
         self.passes[-1].split = n
         if n == 0:
@@ -350,6 +371,11 @@ class AdaptiveGroup:
         if self.predict > 0:
             self._settle_children(split, thr, cache.coeffs[pidx], cache.validity(pidx), test_coeffs, test_valid)
         self.tests = self.test_index = None
+        return self._split(split, cache)
+
+    def _split(self, split: np.ndarray, cache: PointCache) -> List[int]:
+        """Split the flagged leaves, drop children outside the volumes, request the new probes."""
+        self._direct_split = None
         self.tree.split(split)
         self.tree.finalize()
         self._drop_outside()
@@ -361,6 +387,60 @@ class AdaptiveGroup:
                                       self.smallest_cell()))
         self.stage = "probes"
         return todo
+
+    def direct_check(self, cache: PointCache) -> np.ndarray:
+        """(L,) bool: leaves above Min Cell Size whose interpolation of the lamps' exact direct light
+        is off by more than the tolerance somewhere on a lattice of DIRECT_DIVISIONS steps per axis
+        inside the leaf (at most one per Min Cell Size; the leaf's corners excluded), relative to the
+        interpolated total light there. The direct term costs no render (shadow rays only), so a
+        sunbeam's edge that passes between a leaf's test points, or crosses a leaf predicted to
+        pass, still draws refinement. Points inside solid geometry are not compared."""
+        leaves = self.tree.info()["leaves"]
+        out = np.zeros(len(leaves), dtype=bool)
+        if self.direct is None:
+            return out
+        lat_parts, leaf_of = [], []
+        for lv in np.unique(leaves[:, 3]):
+            lv = int(lv)
+            sel = np.flatnonzero(leaves[:, 3] == lv)
+            if lv == 0 or len(sel) == 0:
+                continue
+            div = min(1 << lv, DIRECT_DIVISIONS)
+            r = range(div + 1)
+            offs = np.array([(i, j, k) for i in r for j in r for k in r
+                             if not (i in (0, div) and j in (0, div) and k in (0, div))], dtype=np.int64)
+            step = (1 << lv) // div
+            lat_parts.append((leaves[sel, None, :3].astype(np.int64) + offs[None] * step).reshape(-1, 3))
+            leaf_of.append(np.repeat(sel, len(offs)))
+        if not lat_parts:
+            return out
+        lat, leaf_of = np.concatenate(lat_parts), np.concatenate(leaf_of)
+        uniq, inverse = np.unique(lat, axis=0, return_inverse=True)
+        pos = self.lattice_positions(uniq)
+        at = self.render_positions(pos)
+        exact = self.direct(at)
+        if exact is None:
+            return out
+        pidx = self.probe_index
+        missing = [int(i) for i in pidx if int(i) not in self._direct_of]
+        if missing:
+            vals = self.direct(cache.positions[missing])
+            for i, v in zip(missing, vals):
+                self._direct_of[i] = v
+        d_probe = np.array([self._direct_of[int(i)] for i in pidx])
+        validity = cache.validity(pidx)
+        interp = self.tree.interpolate(pos, d_probe, validity)
+        total = self.tree.interpolate(pos, cache.coeffs[pidx], validity)
+        w = _band_weights(exact.shape[-2])[:, None]
+        num = np.sqrt(np.sum((w * (interp - exact)) ** 2, axis=(-2, -1)))
+        den = np.sqrt(np.sum((w * total) ** 2, axis=(-2, -1)))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            err = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+        err = np.nan_to_num(err)
+        err[np.asarray(self.classify_points(at)) > SOLID_RATIO] = 0.0
+        fail = err[inverse.reshape(-1)] > self.tolerance
+        out[np.unique(leaf_of[fail])] = True
+        return out
 
     def _settle_children(self, split, thr, probe_coeffs, validity, test_coeffs, test_valid):
         """Mark the children of split leaves that are predicted to pass (see PREDICT). A child's

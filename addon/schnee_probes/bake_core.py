@@ -456,7 +456,7 @@ class ProbeBake:
             self._check_cancel()
             try:
                 group = adaptive.AdaptiveGroup(name, path, vols, geometry, s.min_cell_size, s.max_cell_size,
-                                               s.error_tolerance, s.refinement_tests)
+                                               s.error_tolerance, s.refinement_tests, direct=self._direct_at)
                 todo = group.start(self._cache)
             except native.SchneeError as exc:
                 raise BakeError(f"Probe placement failed: {exc}") from exc
@@ -469,6 +469,16 @@ class ProbeBake:
             self.targets.append(_Target(path, name, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int32),
                                         (0, 0, 0), (0.0, 0.0, 0.0), float(s.min_cell_size), None, group))
         self.positions = self._cache.positions
+
+    def _direct_at(self, positions: np.ndarray) -> Optional[np.ndarray]:
+        """The lamps' exact direct light (radiance SH) at engine-space positions, or None when no lamp
+        is added analytically: the refinement's direct-light check (adaptive.AdaptiveGroup)."""
+        if self._direct is None or not self._direct.lamps:
+            return None
+        t = time.perf_counter()
+        out = self._direct.project(np.asarray(positions, dtype=np.float64).reshape(-1, 3), self.settings.max_band)
+        self.timings["direct"] = self.timings.get("direct", 0.0) + time.perf_counter() - t
+        return out
 
     def _advance_adaptive(self):
         """Every queued point is rendered: move each group on (tests -> decision -> split -> new
@@ -485,9 +495,12 @@ class ProbeBake:
                     raise BakeError(f"Refinement of '{g.name}' failed: {exc}") from exc
                 if len(g.passes) > before:
                     prev, rec = g.passes[-2], g.passes[-1]
+                    extra = "".join([f", {prev.predicted} predicted to pass" if prev.predicted else "",
+                                     f", {prev.direct_split} split by the lamps' direct light"
+                                     if prev.direct_split else ""])
                     self.log(f"Schnee: '{g.name}': pass {prev.pass_index}: {prev.split} of {prev.leaves} "
-                             f"cell(s) split ({prev.tests} test points); pass {rec.pass_index}: {rec.leaves} "
-                             f"cells down to {rec.smallest_cell:g} m, {rec.probes} probes")
+                             f"cell(s) split ({prev.tests} test points{extra}); pass {rec.pass_index}: "
+                             f"{rec.leaves} cells down to {rec.smallest_cell:g} m, {rec.probes} probes")
                 elif g.finished:
                     rec = g.passes[-1]
                     self.log(f"Schnee: '{g.name}': refinement done after {rec.pass_index} pass(es): "

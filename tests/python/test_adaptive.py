@@ -202,3 +202,48 @@ def test_prediction_still_refines_a_shadow_edge_to_min_cell(monkeypatch):
     crossed = (lo < 3.3) & (lo + size > 3.3)
     assert crossed.any() and np.all(size[crossed] == 0.5)
     assert np.all((lo[size < 2] >= 2.0) & (lo[size < 2] + size[size < 2] <= 4.0))
+
+
+def test_direct_light_draws_refinement_to_a_beam_the_tests_miss():
+    # A sunbeam 0.5 m wide (2.4 < x < 2.9) under a constant sky: every test point of the 2 m leaves
+    # (centres and face centres) lies at a whole-metre x, outside the beam, so the rendered tests
+    # alone never see it and nothing splits. The lamps' exact direct term, sampled at quarter steps
+    # of each leaf (x = 2.5 is in the beam), splits exactly the leaves that hold the beam down to
+    # Min Cell Size, with no extra render.
+    def beam(p):
+        return (p[:, 0] > 2.4) & (p[:, 0] < 2.9)
+
+    def direct(p):
+        return np.array([sh_of(0.0, 3.0 if b else 0.0) for b in beam(p)])
+
+    def total(p):
+        return np.array([sh_of(1.0, 0.0)] * len(p)) + direct(p)
+
+    plain = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+    drive(plain, total)
+    assert len(plain.passes) == 1 and plain.passes[0].split == 0      # the beam is missed
+
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, direct=direct)
+    cache = drive(group, total)
+    leaves = group.tree.info()["leaves"].astype(float)
+    size, lo = 0.5 * 2 ** leaves[:, 3], leaves[:, 0] * 0.5
+    holds = (lo < 2.9) & (lo + size > 2.4)
+    assert holds.any() and np.all(size[holds] == 0.5)
+    assert np.all((lo[size < 2] >= 2.0) & (lo[size < 2] + size[size < 2] <= 4.0))
+    assert sum(p.direct_split for p in group.passes) > 0
+    # Every render is a probe or a test: the direct check itself renders nothing.
+    assert int(cache.rendered.sum()) == len(cache)
+    # With the beam's corners baked, the probes at x = 2.5 hold the sun: the interpolation at the
+    # beam's centre line has at least half of it.
+    got = group.tree.interpolate(np.array([[2.65, 1.0, 1.0]]), cache.coeffs[group.probe_index])
+    assert got[0, 2, 0] >= 1.5
+
+
+def test_restricting_tests_of_a_tree_without_test_points():
+    # Every leaf at Min Cell Size: no test point; removing leaves' tests keeps it empty (no error).
+    tree = native.CornerOctree.uniform((0.0, 0.0, 0.0), 0.5, 0, (2, 1, 1))
+    tree.finalize()
+    tests = tree.refine_tests()
+    assert len(tests.positions) == 0
+    got = adaptive.without_leaves(tests, np.ones(len(tests.leaf_tests), dtype=bool))
+    assert len(got.positions) == 0 and np.all(got.leaf_tests == -1) and got.leaf_tests.shape == (2, 7)
