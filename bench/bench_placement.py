@@ -18,7 +18,6 @@ report is bench/results/placement.md (numbers copied by hand with the command li
 import argparse
 import json
 import os
-import resource
 import sys
 import tempfile
 import time
@@ -32,6 +31,7 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 import placement_scenes  # noqa: E402
+from bench_util import cpu_seconds  # noqa: E402
 import schnee_probes  # noqa: E402
 from schnee_probes import adaptive, bake_core, native, scene_export  # noqa: E402
 
@@ -208,12 +208,6 @@ def main():
     with open(a.out, "w", encoding="utf-8") as fh:
         json.dump(out, fh, indent=1)
     print("WROTE", a.out)
-
-
-def cpu_seconds():
-    """CPU seconds of this process (all threads, user + system): load-independent cost."""
-    u = resource.getrusage(resource.RUSAGE_SELF)
-    return u.ru_utime + u.ru_stime
 
 
 def stats(e):

@@ -86,7 +86,6 @@ import importlib.util
 import json
 import math
 import os
-import resource
 import shlex
 import struct
 import subprocess
@@ -97,6 +96,7 @@ import zlib
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(REPO, "scenes"))
 sys.path.insert(0, os.path.join(REPO, "addon"))
+sys.path.insert(0, os.path.join(REPO, "bench"))
 
 import addon_utils  # noqa: E402
 import bpy  # noqa: E402
@@ -105,6 +105,7 @@ from mathutils import Vector  # noqa: E402
 
 import make_default_scene  # noqa: E402
 import scene_lib as lib  # noqa: E402
+from bench_util import cpu_seconds  # noqa: E402
 
 # The sweep's scene module (its Sun lamp and ray test), by path: "scenes" is also the scene folder.
 _spec = importlib.util.spec_from_file_location("sweep_scenes", os.path.join(REPO, "bench", "sweep", "scenes.py"))
@@ -643,11 +644,6 @@ def write_montage(path, npz_paths):
     with open(path, "wb") as fh:
         fh.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
                  + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
-
-
-def cpu_seconds():
-    u = resource.getrusage(resource.RUSAGE_SELF)
-    return u.ru_utime + u.ru_stime
 
 
 def markdown_table(rows):
