@@ -15,6 +15,8 @@ from addon_common import scene_lib as lib  # noqa: E402
 import schnee_probes  # noqa: E402
 from schnee_probes import operators  # noqa: E402
 
+# Ctrl+C's handler when Blender started (the bake installs its own and must put this one back).
+SIGINT_BEFORE = signal.getsignal(signal.SIGINT)
 out = common.args()[0]
 lib.clear_scene()
 lib.hdri_world("courtyard.exr")
@@ -70,7 +72,7 @@ def tick():
             with bpy.context.temp_override(**ctx):
                 bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT')
             results["sigint_handler_during_bake"] = signal.getsignal(signal.SIGINT) is not None and \
-                signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+                signal.getsignal(signal.SIGINT) is not SIGINT_BEFORE
             phase[0] = "sigint"
     elif phase[0] == "sigint":
         os.kill(os.getpid(), signal.SIGINT)  # what Ctrl+C in the terminal sends
@@ -80,7 +82,9 @@ def tick():
             results["sigint_message"] = props.last_message
             results["sigint_file_unchanged"] = os.path.getmtime(shprobe) == results["mtime"]
             results["engine_after_sigint"] = bpy.context.scene.render.engine
-            results["sigint_handler_after"] = signal.getsignal(signal.SIGINT) is signal.default_int_handler
+            # The handler Blender started with is back: Python's default_int_handler from a terminal,
+            # SIG_IGN when started in the background by a shell without job control (nohup cmd &).
+            results["sigint_handler_after"] = signal.getsignal(signal.SIGINT) is SIGINT_BEFORE
             # Above Confirm Above: refused (a confirmation dialog opens), nothing changes.
             props.probe_limit = 10
             with bpy.context.temp_override(**ctx):
