@@ -122,21 +122,32 @@ def test_centre_agrees_with_per_object(tmp_path):
     assert np.abs(pix[0, 0] - obj[0, 0]).max() > 0.05
 
 
+def two_rooms(d):
+    """A row of four 1 m cells along x: a dark room (cells 0, 1: uniform radiance 0.05) and a bright
+    one (cells 2, 3: radiance 5). Returns (grid, coeffs, the written grid's glTF entry)."""
+    grid = np.array([[[0, 1, 2, 3]]], np.int32)
+    coeffs = np.stack([ref.uniform_coeffs(r) for r in (0.05, 0.05, 5.0, 5.0)])
+    return grid, coeffs, write_grid(d, "rooms", coeffs, grid, (0, 0, 0), 1.0)
+
+
+def wall_quad_scene(d, at):
+    """The two rooms with a 1 m quad "Wall" facing -x at ``at``, seen from the dark side by an
+    orthographic camera at the dark room's centre. Returns (scene, grid, coeffs)."""
+    grid, coeffs, entry = two_rooms(d)
+    b = sg.GltfBuilder()
+    m = b.material("white", sh_scale=1.0, ambient_term=0.0)
+    b.node("Wall", mesh=b.mesh("wall", sg.quad(1.0, 1.0, 0, -1.0), m), translation=at)
+    b.node("Camera", camera=b.ortho_camera("side", 0.45), translation=(0.5, 0.5, 0.5), rotation=sg.ROT_LOOK_POS_X)
+    b.probe_grids([entry])
+    return b.write(d / "wall.gltf"), grid, coeffs
+
+
 def test_wall_does_not_leak(tmp_path):
-    # A row of four 1 m cells along x; a wall at x = 2 separates a dark room (cells 0, 1: uniform
-    # radiance 0.05) from a bright one (cells 2, 3: radiance 5). The quad is the wall's dark face at
+    # Two rooms (two_rooms) separated by a wall at x = 2. The quad is the wall's dark face at
     # x = 1.99, facing -x, seen from the dark side. Plain trilinear at x = 1.99 would give the bright
     # probe weight 0.49 (pixel ~2.5); the bright centre (x = 2.5) lies 0.51 spacings behind the
     # face, so its back-face weight is 0 and the face stays exactly as dark as per object.
-    grid = np.array([[[0, 1, 2, 3]]], np.int32)
-    coeffs = np.stack([ref.uniform_coeffs(r) for r in (0.05, 0.05, 5.0, 5.0)])
-    entry = write_grid(tmp_path, "rooms", coeffs, grid, (0, 0, 0), 1.0)
-    b = sg.GltfBuilder()
-    m = b.material("white", sh_scale=1.0, ambient_term=0.0)
-    b.node("Wall", mesh=b.mesh("wall", sg.quad(1.0, 1.0, 0, -1.0), m), translation=(1.99, 0.5, 0.5))
-    b.node("Camera", camera=b.ortho_camera("side", 0.45), translation=(0.5, 0.5, 0.5), rotation=sg.ROT_LOOK_POS_X)
-    b.probe_grids([entry])
-    scene = b.write(tmp_path / "wall.gltf")
+    scene, grid, coeffs = wall_quad_scene(tmp_path, (1.99, 0.5, 0.5))
     obj = render(scene, tmp_path / "o.exr", "--probe-mode", "object")
     pix = render(scene, tmp_path / "p.exr", "--probe-mode", "pixel")
     assert np.allclose(obj, 0.05, rtol=1e-5)  # per object: the dark cell (1, 0, 0)
@@ -155,15 +166,7 @@ def test_movable_quad_gets_no_back_face_weight(tmp_path):
     # weight (docs/engine.md, "Movable objects get no back-face weight"). Closed form: uniform
     # radiance per cell, so every pixel is the x-interpolation (1 - f)·0.05 + f·5 with f = 0.49
     # (x = 1.99 between the centres 1.5 and 2.5); the moved quad is the only mesh, so no masks.
-    grid = np.array([[[0, 1, 2, 3]]], np.int32)
-    coeffs = np.stack([ref.uniform_coeffs(r) for r in (0.05, 0.05, 5.0, 5.0)])
-    entry = write_grid(tmp_path, "rooms", coeffs, grid, (0, 0, 0), 1.0)
-    b = sg.GltfBuilder()
-    m = b.material("white", sh_scale=1.0, ambient_term=0.0)
-    b.node("Wall", mesh=b.mesh("wall", sg.quad(1.0, 1.0, 0, -1.0), m), translation=(9.0, 9.0, 9.0))
-    b.node("Camera", camera=b.ortho_camera("side", 0.45), translation=(0.5, 0.5, 0.5), rotation=sg.ROT_LOOK_POS_X)
-    b.probe_grids([entry])
-    scene = b.write(tmp_path / "wall.gltf")
+    scene, grid, coeffs = wall_quad_scene(tmp_path, (9.0, 9.0, 9.0))
     pix = render(scene, tmp_path / "p.exr", "--probe-mode", "pixel", "--move", "Wall", 1.99, 0.5, 0.5)
     f = 1.99 - 1.5
     want = (1 - f) * 0.05 + f * 5.0
@@ -179,9 +182,7 @@ def test_movable_quad_gets_no_back_face_weight(tmp_path):
 def floor_by_wall_scene(d, wall):
     # Four 1 m cells along x: radiance 0.05 (cells 0, 1) and 5 (cells 2, 3); a floor at y = 0.1 for
     # x in [0, 1.98], z in [0, 1], seen from above; optionally a two-sided wall (both faces) at x = 2.
-    grid = np.array([[[0, 1, 2, 3]]], np.int32)
-    coeffs = np.stack([ref.uniform_coeffs(r) for r in (0.05, 0.05, 5.0, 5.0)])
-    entry = write_grid(d, "rooms", coeffs, grid, (0, 0, 0), 1.0)
+    grid, coeffs, entry = two_rooms(d)
     b = sg.GltfBuilder()
     m = b.material("white", sh_scale=1.0, ambient_term=0.0)
     b.node("Floor", mesh=b.mesh("floor", sg.quad(1.0, 1.98, 1), m), translation=(0.99, 0.1, 0.5))
