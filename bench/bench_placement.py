@@ -94,8 +94,9 @@ def main():
     out = {"settings": vars(a), "rows": [], "load_start": os.getloadavg()}
     t = time.perf_counter()
     ref_key = json.dumps([a.scene, a.points, a.seed, a.ref_samples, a.ref_res or a.res, a.ref_bounces or a.bounces])
-    if a.ref_cache and os.path.exists(a.ref_cache) and str(np.load(a.ref_cache)["key"]) == ref_key:
-        ref = np.load(a.ref_cache)["ref"]
+    cached = np.load(a.ref_cache) if a.ref_cache and os.path.exists(a.ref_cache) else None
+    if cached is not None and str(cached["key"]) == ref_key:
+        ref = cached["ref"]
         out["reference_cached"] = a.ref_cache
     else:
         ref = bake_core.bake_points(scene, layer, settings(samples=a.ref_samples, panorama_resolution=a.ref_res or a.res,

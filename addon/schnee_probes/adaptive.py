@@ -60,15 +60,21 @@ def _band_weights(count: int) -> np.ndarray:
     return np.concatenate([np.full(2 * l + 1, _LAMBERT[l]) for l in range(band + 1)])
 
 
+def irradiance_norm(c: np.ndarray) -> np.ndarray:
+    """‖A·c‖ over the coefficients and RGB of radiance SH ``c`` ((..., C, 3)): the irradiance's RMS
+    over directions (times √(4π)), the norm of the refinement's metric."""
+    c = np.asarray(c, dtype=np.float64)
+    w = _band_weights(c.shape[-2])[:, None]
+    return np.sqrt(np.sum((w * c) ** 2, axis=(-2, -1)))
+
+
 def irradiance_error(a: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """Relative irradiance error, RMS over directions and RGB, of radiance SH ``a`` against ``ref``
     ((..., C, 3) each): ‖A·(a − ref)‖ / ‖A·ref‖ (the metric of pb_refine_irradiance_error); 0 where
     both are 0, 1 where only ref is."""
     a = np.asarray(a, dtype=np.float64)
     ref = np.asarray(ref, dtype=np.float64)
-    w = _band_weights(a.shape[-2])[:, None]
-    num = np.sqrt(np.sum((w * (a - ref)) ** 2, axis=(-2, -1)))
-    den = np.sqrt(np.sum((w * ref) ** 2, axis=(-2, -1)))
+    num, den = irradiance_norm(a - ref), irradiance_norm(ref)
     with np.errstate(divide="ignore", invalid="ignore"):
         out = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num > 0, 1.0, 0.0))
     return out
@@ -93,9 +99,7 @@ def combine_halves(a: np.ndarray, b: np.ndarray, s1: int, s2: int):
 
 
 def _rel(d: np.ndarray, ref: np.ndarray) -> float:
-    w = _band_weights(ref.shape[-2])[:, None]
-    den = math.sqrt(float(np.sum((w * ref) ** 2)))
-    num = math.sqrt(float(np.sum((w * d) ** 2)))
+    den, num = float(irradiance_norm(ref)), float(irradiance_norm(d))
     return num / den if den > 0 else 0.0
 
 
@@ -431,9 +435,7 @@ class AdaptiveGroup:
         validity = cache.validity(pidx)
         interp = self.tree.interpolate(pos, d_probe, validity)
         total = self.tree.interpolate(pos, cache.coeffs[pidx], validity)
-        w = _band_weights(exact.shape[-2])[:, None]
-        num = np.sqrt(np.sum((w * (interp - exact)) ** 2, axis=(-2, -1)))
-        den = np.sqrt(np.sum((w * total) ** 2, axis=(-2, -1)))
+        num, den = irradiance_norm(interp - exact), irradiance_norm(total)
         with np.errstate(divide="ignore", invalid="ignore"):
             err = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
         err = np.nan_to_num(err)
