@@ -35,6 +35,10 @@ from . import native
 
 SOLID_RATIO = 0.25          # the placement's default back-face ratio (docs/placement.md)
 RENDER_INSET = 0.01         # m: nodes on or beyond the volumes' bounding box render this far inside it
+# A node inside solid geometry (on a furniture face or edge, where the solid test is a coin toss, or
+# just inside it) renders at the nearest free point within this reach (at most a quarter of Min Cell
+# Size) instead of being left out: measured in bench/results/placement.md (docs/placement.md, step 2).
+RELOCATE = 0.05
 TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
 NOISE_K = 2.0               # refine only where error > tolerance + NOISE_K · noise (pb_refine's default)
 # Prediction of children that pass (saves their tests): a leaf's error falls by a measured rate per
@@ -49,6 +53,16 @@ PREDICT = 4.0
 # The direct-light check of a leaf (AdaptiveGroup.direct_check) samples the lamps' exact direct term
 # on this many steps per axis of the leaf (5³ − 8 points; fewer where that is finer than Min Cell).
 DIRECT_DIVISIONS = 4
+# A sun in the sky image (its light is in the panoramas, not a lamp's exact term) is checked like a
+# lamp (AdaptiveGroup.direct_check, docs/placement.md step 4b) through a stand-in Sun lamp: the
+# texels connected to the brightest one and at least SKY_SUN_FRACTION as bright, when they span
+# at most SKY_SUN_MAX_ANGLE from their centre (a wider bright region casts no hard shadow).
+SKY_SUN_FRACTION = 0.05
+SKY_SUN_MAX_ANGLE = math.radians(5.0)
+# Relocation directions: the 6 axes first, then the 12 edge and 8 corner diagonals (unit vectors).
+_RELOCATE_DIRS = np.array(sorted(((i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
+                                  if (i, j, k) != (0, 0, 0)), key=lambda d: sum(map(abs, d))), dtype=np.float64)
+_RELOCATE_DIRS /= np.linalg.norm(_RELOCATE_DIRS, axis=1)[:, None]
 # leaf_tests columns adjacent to child octant bit b of an axis: −face for b = 0, +face for b = 1.
 _FACE_COL = ((1, 2), (3, 4), (5, 6))
 # Lambert band factors A_l (irradiance = Σ A_l L_lm Y_lm), l = 0..4.
@@ -153,6 +167,56 @@ def restrict_tests(tests: "native.RefineTests", lt: np.ndarray) -> "native.Refin
     lt = np.where(lt >= 0, new_index[np.maximum(lt, 0)], -1).astype(np.int32)
     return native.RefineTests(lattice=tests.lattice[used], positions=tests.positions[used],
                               probe=tests.probe[used], leaf_tests=lt)
+
+
+def sky_sun(world: np.ndarray) -> Optional["native.Lamp"]:
+    """A Sun lamp (engine space) standing in for the sun of an equirectangular world image (H, W, ≥3)
+    radiance, rows top-down, the texel directions of pb_direct_sky_table (θ = π(row + ½)/H from
+    Blender +Z, φ = π − 2π(col + ½)/W), or None when it has none. The sun is the brightest texel's
+    8-connected region (wrapping in φ) of texels at least SKY_SUN_FRACTION of its luminance: its
+    colour × strength is the region's ∫L dω, its direction the luminance-weighted mean (the light
+    travels the other way), its angle the diameter of the disc of the region's solid angle. None
+    for a black world and when the region reaches beyond SKY_SUN_MAX_ANGLE from its centre or
+    holds more than 0.1 % of the texels (a bright sky, a window: no hard shadow to check). Only
+    the refinement's direct-light check uses it; the probes keep the sun their panoramas saw."""
+    w = np.asarray(world)
+    if w.ndim != 3 or w.shape[2] < 3 or w.shape[0] < 1 or w.shape[1] < 1:
+        raise ValueError(f"world image of shape {w.shape}: expected (H, W, >=3)")
+    h, wd = w.shape[:2]
+    # float32 over the whole image (an 8k world is 32 M texels), float64 only for the sun's texels
+    lum = 0.2126 * w[:, :, 0].astype(np.float32) + 0.7152 * w[:, :, 1] + 0.0722 * w[:, :, 2]
+    peak = float(lum.max())
+    if not (peak > 0.0 and math.isfinite(peak)):
+        return None
+    bright = lum >= SKY_SUN_FRACTION * peak
+    start = np.unravel_index(int(np.argmax(lum)), lum.shape)
+    region = np.zeros_like(bright)
+    region[start] = True
+    stack, count, limit = [start], 1, max(64, (h * wd) // 1000)
+    while stack:
+        r, c = stack.pop()
+        for dr in (-1, 0, 1):
+            for dc in (-1, 0, 1):
+                rr, cc = r + dr, (c + dc) % wd
+                if 0 <= rr < h and bright[rr, cc] and not region[rr, cc]:
+                    region[rr, cc] = True
+                    stack.append((rr, cc))
+                    count += 1
+                    if count > limit:
+                        return None
+    rows, cols = np.nonzero(region)
+    dw = (2.0 * math.pi / wd) * (np.cos(math.pi * rows / h) - np.cos(math.pi * (rows + 1) / h))
+    theta, phi = math.pi * (rows + 0.5) / h, math.pi - 2.0 * math.pi / wd * (cols + 0.5)
+    d = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=1)
+    centre = (d * (lum[rows, cols].astype(np.float64) * dw)[:, None]).sum(axis=0)
+    centre /= np.linalg.norm(centre)
+    if float(np.arccos(np.clip(d @ centre, -1.0, 1.0)).max()) > SKY_SUN_MAX_ANGLE:
+        return None
+    flux = (w[rows, cols, :3].astype(np.float64) * dw[:, None]).sum(axis=0)
+    radius = math.acos(max(-1.0, 1.0 - float(dw.sum()) / (2.0 * math.pi)))
+    travel = -np.array([centre[0], centre[2], -centre[1]])     # Blender (x, y, z) -> engine (x, z, -y)
+    return native.Lamp("SUN", tuple(float(v) for v in flux), direction=tuple(float(v) for v in travel),
+                       radius=2.0 * radius)
 
 
 class PointCache:
@@ -303,6 +367,39 @@ class AdaptiveGroup:
         boundary, which is what the interpolation next to it needs."""
         return np.clip(nodes, self.box_min + RENDER_INSET, self.box_max - RENDER_INSET)
 
+    def render_points(self, nodes: np.ndarray) -> np.ndarray:
+        """Where a node's panorama is rendered and solid-tested: :meth:`render_positions`, and a node
+        the solid test puts inside solid geometry moved to the nearest free point within
+        ``min(RELOCATE, Min Cell Size / 4)`` (:meth:`relocate`)."""
+        return self.relocate(self.render_positions(nodes))
+
+    def relocate(self, at: np.ndarray) -> np.ndarray:
+        """Points inside solid geometry (back-face ratio > SOLID_RATIO) moved to the nearest point
+        that is not, tried at a quarter, half and all of the reach along the 26 axis and diagonal
+        directions (axes first; at one distance the lowest ratio wins); points deeper inside stay.
+        A lattice node on a furniture face or at its edge with the floor is a coin toss for the solid
+        test and, left out, makes its open neighbours take the light of probes a cell away (the
+        hanging rules of a solid leaf next to them); rendered 1–5 cm outside, it holds the light
+        there, as the nodes on the volume's faces do (RENDER_INSET)."""
+        at = np.array(at, dtype=np.float64).reshape(-1, 3)
+        reach = min(RELOCATE, 0.25 * self.min_cell)
+        if len(at) == 0 or reach <= 0:
+            return at
+        solid = np.flatnonzero(np.asarray(self.classify_points(at)) > SOLID_RATIO)
+        if len(solid) == 0:
+            return at
+        steps = reach * np.array([0.25, 0.5, 1.0])
+        cand = at[solid, None, None, :] + steps[None, :, None, None] * _RELOCATE_DIRS[None, None]
+        cand = np.clip(cand, self.box_min + RENDER_INSET, self.box_max - RENDER_INSET)
+        ratio = np.asarray(self.classify_points(cand.reshape(-1, 3))).reshape(cand.shape[:3])
+        for i, s in enumerate(solid):
+            for k in range(len(steps)):
+                free = np.flatnonzero(ratio[i, k] <= SOLID_RATIO)
+                if len(free):
+                    at[s] = cand[i, k, free[np.argmin(ratio[i, k, free])]]
+                    break
+        return at
+
     def smallest_cell(self) -> float:
         leaves = self.tree.info()["leaves"]
         return self.min_cell * float(2 ** int(leaves[:, 3].min())) if len(leaves) else self.min_cell
@@ -311,7 +408,7 @@ class AdaptiveGroup:
     def start(self, cache: PointCache) -> List[int]:
         """Request the first layer's probes; returns the cache indices to render."""
         self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()),
-                                             self.classify_points, self.render_positions)
+                                             self.classify_points, self.render_points)
         info = self.tree.info()
         self.passes.append(PassRecord(1, len(info["leaves"]), int(info["probe_count"]), self.smallest_cell()))
         return todo
@@ -342,7 +439,7 @@ class AdaptiveGroup:
                 return []
             self.tests = tests
             self.test_index = np.full(len(tests.positions), -1, dtype=np.int64)
-            idx, todo = cache.index(self.lattice_positions(tests.lattice[need]), self.classify_points, self.render_positions)
+            idx, todo = cache.index(self.lattice_positions(tests.lattice[need]), self.classify_points, self.render_points)
             self.test_index[need] = idx
             self.passes[-1].tests = int(need.sum())
             self.stage = "tests"
@@ -385,7 +482,7 @@ class AdaptiveGroup:
         self._drop_outside()
         self.tree.finalize()
         self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()),
-                                             self.classify_points, self.render_positions)
+                                             self.classify_points, self.render_points)
         info = self.tree.info()
         self.passes.append(PassRecord(len(self.passes) + 1, len(info["leaves"]), int(info["probe_count"]),
                                       self.smallest_cell()))

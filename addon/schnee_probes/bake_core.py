@@ -150,6 +150,7 @@ class ProbeBake:
         self._sky_exr = None                # rendered sky (temporary folder) until finish()
         self._realtime_lights = []          # lamps hidden from the probe renders (light_modes.py)
         self._direct = None                 # direct_light.DirectLightPlan (issue 11 hook)
+        self._sky_sun = None                # [the world image's sun as a Sun lamp] or [] (_check_lamps)
         self.allow_large = allow_large      # bake above settings.probe_limit without asking
         self.estimated_seconds = None       # the cost model's estimate, set after placement
         self._cancel_requested = False
@@ -470,13 +471,33 @@ class ProbeBake:
                                         (0, 0, 0), (0.0, 0.0, 0.0), float(s.min_cell_size), None, group))
         self.positions = self._cache.positions
 
+    def _check_lamps(self) -> list:
+        """The lamps of the refinement's direct-light check: the lamps added analytically, and a Sun
+        standing in for a sun in the world image (adaptive.sky_sun; only where the shadow geometry
+        was gathered, i.e. with Lamps Seen by Probes, and the world is an image read as it is)."""
+        if self._sky_sun is None:
+            self._sky_sun = []
+            d = self._direct
+            if d is not None and d.geometry:
+                src = direct_light.world_image(self.scene.world)
+                sun = None if src is None else adaptive.sky_sun(np.clip(src[0][:, :, :3] * src[1], 0.0, None))
+                if sun is not None:
+                    self._sky_sun = [sun]
+                    deg = math.degrees(sun.radius)
+                    self.log(f"Schnee: the world's sun ({deg:.2g}° wide) is checked like a lamp where the "
+                             "probes' light is interpolated")
+        return (list(self._direct.lamps) if self._direct is not None else []) + self._sky_sun
+
     def _direct_at(self, positions: np.ndarray) -> Optional[np.ndarray]:
-        """The lamps' exact direct light (radiance SH) at engine-space positions, or None when no lamp
-        is added analytically: the refinement's direct-light check (adaptive.AdaptiveGroup)."""
-        if self._direct is None or not self._direct.lamps:
+        """The check lamps' exact direct light (radiance SH) at engine-space positions, or None when
+        there is none: the refinement's direct-light check (adaptive.AdaptiveGroup)."""
+        lamps = self._check_lamps()
+        if not lamps:
             return None
         t = time.perf_counter()
-        out = self._direct.project(np.asarray(positions, dtype=np.float64).reshape(-1, 3), self.settings.max_band)
+        pts = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        out = (native.direct_project(lamps, pts, self.settings.max_band, self._direct.samples, self._direct.geometry)
+               if len(pts) else np.zeros((0, native.sh_count(self.settings.max_band), 3)))
         self.timings["direct"] = self.timings.get("direct", 0.0) + time.perf_counter() - t
         return out
 

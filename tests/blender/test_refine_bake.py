@@ -165,3 +165,18 @@ def test_export_writes_the_v3_entry_and_the_validator_is_clean(scenes, tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "mismatch" not in proc.stderr and "differs" not in proc.stderr, proc.stderr
     assert out.stat().st_size > 0
+
+
+def test_direct_check_takes_the_sun_of_a_world_image(scenes, tmp_path):
+    """Under sunrise.exr (strength 2) the direct-light check gets one Sun lamp standing in for the
+    image's sun (adaptive.sky_sun of the pixels Blender holds; the same as of the file read by OIIO),
+    none under a constant world or with Lamps Seen by Probes off (no shadow geometry then)."""
+    r = run_case(scenes, "open", "skysun", tmp_path)
+    assert len(r["image"]) == 1 and r["image"][0]["kind"] == "SUN"
+    lamp, own = r["image"][0], r["oiio"]
+    assert np.allclose(lamp["color"], own["color"], rtol=1e-5)
+    assert np.allclose(lamp["direction"], own["direction"], atol=1e-6)
+    assert lamp["angle"] == pytest.approx(own["angle"], rel=1e-6)
+    # sunrise.exr's sun: 8° above the horizon (docs/placement.md step 4b), light travelling down.
+    assert np.degrees(np.arcsin(-lamp["direction"][1])) == pytest.approx(8.1, abs=0.5)
+    assert r["constant"] == [] and r["lamps_off"] == []

@@ -247,3 +247,74 @@ def test_restricting_tests_of_a_tree_without_test_points():
     assert len(tests.positions) == 0
     got = adaptive.without_leaves(tests, np.ones(len(tests.leaf_tests), dtype=bool))
     assert len(got.positions) == 0 and np.all(got.leaf_tests == -1) and got.leaf_tests.shape == (2, 7)
+
+
+def test_nodes_in_a_solid_surface_render_just_outside_it_and_deep_ones_stay_out():
+    """A node on a block's face or at its edge with the floor (the solid test's coin toss) renders
+    at the nearest free point within min(RELOCATE, Min Cell / 4); a node deep inside stays solid."""
+    block = box_mesh("block", (3.0, 0.0, 0.0), (4.0, 1.0, 1.0))
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [block], 0.5, 2.0, 0.05)
+    reach = min(adaptive.RELOCATE, 0.25 * 0.5)
+    nodes = np.array([[4.0, 0.5, 0.5],     # on the +x face
+                      [4.0, 0.0, 0.5],     # the face's edge with the floor (rendered 1 cm up first)
+                      [3.5, 0.5, 1.0],     # on the top... of a face: +z face
+                      [3.5, 0.5, 0.5],     # 0.5 m deep
+                      [6.0, 1.0, 1.0]])    # free
+    at = group.render_positions(nodes)
+    ratio_before = group.classify_points(at)
+    assert (ratio_before[:4] > adaptive.SOLID_RATIO).sum() >= 2 and ratio_before[3] > adaptive.SOLID_RATIO
+    got = group.render_points(nodes)
+    ratio = group.classify_points(got)
+    for i in range(3):
+        moved = np.linalg.norm(got[i] - at[i])
+        if ratio_before[i] > adaptive.SOLID_RATIO:
+            assert 0 < moved <= reach + 1e-12 and ratio[i] <= adaptive.SOLID_RATIO
+        else:
+            assert moved == 0
+    assert got[0][0] > 4.0 and got[1][0] > 4.0 and got[2][2] > 1.0   # outside the block, beside it
+    assert np.array_equal(got[3], at[3]) and ratio[3] > adaptive.SOLID_RATIO   # deep: stays, left out
+    assert np.array_equal(got[4], nodes[4])
+    # Through the bake loop: the relocated corners are rendered and valid, the deep one is not.
+    cache = drive(group, lambda p: np.array([sh_of(1.0, 0.0)] * len(p)))
+    pos = cache.positions[group.probe_index]
+    lattice = group.lattice_positions(group.tree.probe_lattice())
+    val = cache.validity(group.probe_index)
+    on_face = np.flatnonzero(np.all(np.isclose(lattice, [4.0, 0.0, 0.0]), axis=1))
+    deep = np.flatnonzero(np.all(np.isclose(lattice, [3.5, 0.5, 0.5]), axis=1))
+    assert len(on_face) == 1 and val[on_face[0]] > 0 and pos[on_face[0]][0] > 4.0
+    assert len(deep) == 0 or val[deep[0]] == 0
+
+
+def _equirect_directions(h, w):
+    """Blender-space direction of each texel of an (h, w) world image (pb_direct_sky_table's map)."""
+    rows, cols = np.mgrid[0:h, 0:w]
+    theta, phi = math.pi * (rows + 0.5) / h, math.pi - 2.0 * math.pi / w * (cols + 0.5)
+    return np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
+
+
+def test_sky_sun_stands_in_for_the_sun_of_a_world_image():
+    """The stand-in Sun lamp carries the light of the world's sun disc: its projection equals the
+    disc's own exact projection (native.sky_table, the bake's world path, checked against Cycles in
+    tests/blender/test_direct_sky.py) in every SH band, to the disc's discretisation."""
+    h, w = 256, 512
+    d = _equirect_directions(h, w)
+    sun = np.array([0.5, -0.6, 0.45]) / np.linalg.norm([0.5, -0.6, 0.45])
+    disc = d @ sun >= math.cos(math.radians(1.5))
+    world = np.full((h, w, 3), 0.5, dtype=np.float32)
+    world[disc] = (2000.0, 1800.0, 1500.0)
+    lamp = adaptive.sky_sun(world)
+    assert lamp is not None and lamp.kind == "SUN"
+    only = np.where(disc[..., None], world, 0.0).astype(np.float32)
+    exact = native.sky_table(only, 8, 4, 2).sum(axis=(0, 1))
+    got = native.direct_project([lamp], np.zeros((1, 3)), 2)[0]
+    assert adaptive.irradiance_error(got, exact) < 0.005
+    assert np.allclose(lamp.color, exact[0] * math.sqrt(4.0 * math.pi), rtol=1e-9)   # ∫L dω
+    assert math.degrees(lamp.radius) == pytest.approx(3.0, abs=0.3)                  # 1.5° radius disc
+    # No compact bright region, no sun: a uniform sky, a black world, a bright region 20° wide.
+    assert adaptive.sky_sun(np.ones((h, w, 3), dtype=np.float32)) is None
+    assert adaptive.sky_sun(np.zeros((h, w, 3), dtype=np.float32)) is None
+    wide = np.full((h, w, 3), 0.5, dtype=np.float32)
+    wide[d @ sun >= math.cos(math.radians(20.0))] = 50.0
+    assert adaptive.sky_sun(wide) is None
+    with pytest.raises(ValueError):
+        adaptive.sky_sun(np.ones((4, 8)))

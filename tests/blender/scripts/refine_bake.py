@@ -10,6 +10,8 @@ CASE:
            (an error while rendering): the first file must stay byte for byte, temp folders gone,
            the scene's settings back
   export   bake into //sh_coeffs of a saved copy, export glTF, report the entry
+  skysun   the lamps of the direct-light check (ProbeBake._check_lamps) under sunrise.exr (a sun
+           in the image), a constant world, and with Lamps Seen by Probes off (prepare only)
 Prints one RESULT line (addon_common.emit).
 """
 import glob
@@ -186,5 +188,31 @@ elif CASE == "export":
          copied=os.path.isfile(os.path.join(OUT, "export", "sh_coeffs", "probes.shprobe")),
          cube_representation=cube.representation, cube_storage=cube.storage, cube_rel=cube_rel,
          cube_positions_equal=bool(np.array_equal(cube.positions, sh.positions)))
+elif CASE == "skysun":
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "scenes"))
+    import scene_lib  # noqa: E402
+    results = {}
+    scene_lib.hdri_world("sunrise.exr", strength=2.0)
+
+    def check_lamps(**kw):
+        b = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings(**kw), log=print)
+        try:
+            b.prepare()
+            return [dict(kind=lp.kind, color=list(lp.color), direction=list(lp.direction), angle=lp.radius)
+                    for lp in b._check_lamps()]
+        finally:
+            b.cancel()
+    results["image"] = check_lamps()
+    # The same image read by OIIO (not Blender's pixels), times the Background strength.
+    own = adaptive.sky_sun(native.read_image(scene_lib.studiolight_path("sunrise.exr")) * 2.0)
+    results["oiio"] = dict(color=list(own.color), direction=list(own.direction), angle=own.radius)
+    results["lamps_off"] = check_lamps(lights_visible=False)
+    world = bpy.context.scene.world
+    world.node_tree.nodes.clear()
+    out_node = world.node_tree.nodes.new("ShaderNodeOutputWorld")
+    bg = world.node_tree.nodes.new("ShaderNodeBackground")
+    world.node_tree.links.new(bg.outputs["Background"], out_node.inputs["Surface"])
+    results["constant"] = check_lamps()
+    emit(**results)
 else:
     raise SystemExit(f"unknown case {CASE}")
