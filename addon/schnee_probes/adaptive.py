@@ -45,9 +45,10 @@ NOISE_K = 2.0               # refine only where error > tolerance + NOISE_K · n
 # halving — the ratio of its parent's error next to it to its own worst error, both over their
 # thresholds — and a smooth field's trilinear error falls as h², 4× per halving (exactly 4 for a
 # quadratic field), so the rate is capped at PREDICT. A child whose predicted error (its parent's
-# error next to it over that rate) is below 1 is not tested. The rate needs two levels measured: the
-# first layer's children, and any leaf whose error did not fall, are always tested (at coarse scales
-# the light is far from the h² regime). 0 = every child tested. Module-level so the benchmark can
+# error next to it over that rate) is below 1 is not tested. Rates must have been measured at two
+# consecutive levels (the leaf's and its parent's halving): until then, and where the error did not
+# fall, a child passes untested only where its parent passed next to it (at coarse scales the light
+# is far from the h² regime). 0 = every child tested. Module-level so the benchmark can
 # compare factors (bench/bench_placement.py --predict); measured in bench/results/placement.md.
 PREDICT = 4.0
 # The direct-light check of a leaf (AdaptiveGroup.direct_check) samples the lamps' exact direct term
@@ -325,6 +326,7 @@ class AdaptiveGroup:
         self.predict = float(PREDICT)
         self.settled = set()        # leaf keys (x, y, z, level) predicted to pass: never tested
         self.parent_ratio = {}      # leaf key -> its parent's error over threshold next to it
+        self.parent_rate = {}       # leaf key -> the rate its parent's error fell by (when measured)
         # The lamps' exact direct light at engine-space points ((N, C, 3) radiance SH, or None when
         # no lamp is added analytically): leaves whose interpolation of it is off split (no render).
         self.direct = direct
@@ -563,9 +565,16 @@ class AdaptiveGroup:
             cols = tests.leaf_tests[i]
             ratios = np.where(cols >= 0, err_t[np.maximum(cols, 0)], np.nan) / max(float(thr[i]), 1e-12)
             whole = np.nanmax(ratios) if np.isfinite(ratios).any() else np.inf
-            # The rate this leaf's error fell by since its parent (1 = unknown or not falling).
+            # The rate this leaf's error fell by since its parent predicts its children only when
+            # its parent's rate was measured too (two consecutive halvings seen). The first rate
+            # alone, at the coarsest levels, was chance: in the room at 128×64 px a 4 m leaf from
+            # floor to ceiling predicted from the 16 m → 8 m rate was never tested, 15–28 % off at
+            # nine points. Unknown: 1 (a child passes only where its parent itself passed).
+            # (min(own, parent's) was measured too: more accurate, 1.4–1.5× the renders; see
+            # bench/results/placement.md.)
             before = self.parent_ratio.get((x, y, z, lv))
-            rate = 1.0 if before is None or not whole > 0 else min(self.predict, max(1.0, before / whole))
+            measured = None if before is None or not whole > 0 else min(self.predict, max(1.0, before / whole))
+            rate = 1.0 if measured is None or (x, y, z, lv) not in self.parent_rate else measured
             half = 1 << (lv - 1)
             for octant in range(8):
                 bits = ((octant >> 0) & 1, (octant >> 1) & 1, (octant >> 2) & 1)
@@ -574,6 +583,8 @@ class AdaptiveGroup:
                 worst = max(near) if near else whole
                 child = (x + bits[0] * half, y + bits[1] * half, z + bits[2] * half, lv - 1)
                 self.parent_ratio[child] = float(worst)
+                if measured is not None:
+                    self.parent_rate[child] = measured
                 if worst / rate < 1.0:
                     self.settled.add(child)
 

@@ -178,7 +178,8 @@ def test_prediction_skips_the_tests_of_children_a_smooth_field_lets_pass(monkeyp
     assert sum(p.predicted for p in group.passes) > 0 and sum(p.predicted for p in plain.passes) == 0
     assert group.tree.info()["leaves"].tolist() == plain.tree.info()["leaves"].tolist()
     assert np.array_equal(err, err_all) and err.max() <= 0.05
-    assert renders < 0.4 * renders_all          # 412 vs 1164 renders
+    # 556 vs 1164 renders (412 while one measured rate was enough: see the next-but-one test)
+    assert renders < 0.5 * renders_all
 
 
 def test_prediction_needs_a_measured_rate(monkeypatch):
@@ -189,6 +190,28 @@ def test_prediction_needs_a_measured_rate(monkeypatch):
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05)
     drive(group, lambda p: np.array([sh_of(1.0 + x * x, 0.5) for x in p[:, 0]]))
     assert [p.predicted for p in group.passes][:2] == [0, 0]
+
+
+def test_prediction_needs_the_rate_measured_at_two_levels(monkeypatch):
+    # A smooth field whose error falls 4× from 2 m to 1 m leaves, plus a small bright spot that
+    # only a 0.5 m leaf's centre test can see: predicted from that one rate, the spot's 0.5 m leaf
+    # was never tested (measured in Cycles: the bundled room at 128×64 px, a 4 m leaf predicted
+    # from the 16 m → 8 m rate, 15–28 % off at nine points). With both its own rate and its
+    # parent's required, that leaf is tested and the spot refines.
+    monkeypatch.setattr(adaptive, "PREDICT", 4.0)
+    spot = np.array([0.75, 0.25, 0.25])      # centre of a 0.5 m leaf, 0.43 m from its parent's tests
+
+    def field(p):
+        bump = 3.0 * np.exp(-np.sum((p - spot) ** 2, axis=1) / (2 * 0.06 ** 2))
+        return np.array([sh_of(1.0 + 0.3 * x * x + b, 0.5) for x, b in zip(p[:, 0], bump)])
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05)
+    cache = drive(group, field)
+    got = group.tree.interpolate(spot[None], cache.coeffs[group.probe_index], cache.validity(group.probe_index))
+    assert adaptive.irradiance_error(got, field(spot[None]))[0] < 0.05
+    leaves = group.tree.info()["leaves"].astype(float)
+    lo, size = leaves[:, :3] * 0.125, 0.125 * 2 ** leaves[:, 3]
+    holds = np.all((lo <= spot) & (spot < lo + size[:, None]), axis=1)
+    assert size[holds].max() <= 0.25
 
 
 def test_prediction_still_refines_a_shadow_edge_to_min_cell(monkeypatch):
