@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, List, Optional
+from typing import Callable, List, Optional, Tuple
 
 import numpy as np
 
@@ -241,10 +241,11 @@ class PointCache:
     def key(p) -> tuple:
         return tuple(int(round(c * 1e6)) for c in p)
 
-    def index(self, points: np.ndarray, classify: Callable[[np.ndarray], np.ndarray],
-              render_at: Optional[Callable[[np.ndarray], np.ndarray]] = None) -> (np.ndarray, List[int]):
-        """(cache index per point, indices of new points that need a render). ``render_at`` maps a
-        node position to where its panorama is rendered (and solid-tested); default: the node."""
+    def index(self, points: np.ndarray,
+              locate: Callable[[np.ndarray], Tuple[np.ndarray, np.ndarray]]) -> (np.ndarray, List[int]):
+        """(cache index per point, indices of new points that need a render). ``locate`` maps node
+        positions (N, 3) to where their panoramas are rendered and the solid test's back-face ratio
+        there: (positions (N, 3), ratio (N,))."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         out = np.empty(len(pts), dtype=np.int64)
         new_pts = []
@@ -258,10 +259,9 @@ class PointCache:
             out[i] = j
         if not new_pts:
             return out, []
-        new = np.array(new_pts)
-        if render_at is not None:
-            new = np.asarray(render_at(new), dtype=np.float64).reshape(-1, 3)
-        ratio = np.asarray(classify(new), dtype=np.float32)
+        new, ratio = locate(np.array(new_pts))
+        new = np.asarray(new, dtype=np.float64).reshape(-1, 3)
+        ratio = np.asarray(ratio, dtype=np.float32)
         first = len(self.positions)
         self.positions = np.concatenate([self.positions, new])
         self.coeffs = np.concatenate([self.coeffs, np.zeros((len(new), self.count_coeffs, 3))])
@@ -369,38 +369,35 @@ class AdaptiveGroup:
         boundary, which is what the interpolation next to it needs."""
         return np.clip(nodes, self.box_min + RENDER_INSET, self.box_max - RENDER_INSET)
 
-    def render_points(self, nodes: np.ndarray) -> np.ndarray:
-        """Where a node's panorama is rendered and solid-tested: :meth:`render_positions`, and a node
-        the solid test puts inside solid geometry moved to the nearest free point within
-        ``min(RELOCATE, Min Cell Size / 4)`` (:meth:`relocate`)."""
-        return self.relocate(self.render_positions(nodes))
-
-    def relocate(self, at: np.ndarray) -> np.ndarray:
-        """Points inside solid geometry (back-face ratio > SOLID_RATIO) moved to the nearest point
-        that is not, tried at a quarter, half and all of the reach along the 26 axis and diagonal
-        directions (axes first; at one distance the lowest ratio wins); points deeper inside stay.
-        A lattice node on a furniture face or at its edge with the floor is a coin toss for the solid
-        test and, left out, makes its open neighbours take the light of probes a cell away (the
-        hanging rules of a solid leaf next to them); rendered 1–5 cm outside, it holds the light
-        there, as the nodes on the volume's faces do (RENDER_INSET)."""
-        at = np.array(at, dtype=np.float64).reshape(-1, 3)
+    def locate(self, nodes: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """(positions (N, 3), back-face ratio (N,)): where each node's panorama is rendered and the
+        solid test there (the PointCache's ``locate``). The node is moved into the volumes' box
+        (:meth:`render_positions`); if the solid test puts it inside solid geometry (ratio >
+        SOLID_RATIO), it moves to the nearest free point within ``min(RELOCATE, Min Cell Size / 4)``,
+        tried at a quarter, half and all of that reach along the 26 axis and diagonal directions
+        (axes first; at one distance the lowest ratio wins); points deeper inside stay. A lattice
+        node on a furniture face or at its edge with the floor is a coin toss for the solid test and,
+        left out, makes its open neighbours take the light of probes a cell away (the hanging rules
+        of a solid leaf next to them); rendered 1–5 cm outside, it holds the light there, as the
+        nodes on the volume's faces do (RENDER_INSET)."""
+        at = self.render_positions(np.asarray(nodes, dtype=np.float64).reshape(-1, 3))
+        ratio = np.asarray(self.classify_points(at), dtype=np.float32) if len(at) else np.zeros(0, np.float32)
         reach = min(RELOCATE, 0.25 * self.min_cell)
-        if len(at) == 0 or reach <= 0:
-            return at
-        solid = np.flatnonzero(np.asarray(self.classify_points(at)) > SOLID_RATIO)
-        if len(solid) == 0:
-            return at
+        solid = np.flatnonzero(ratio > SOLID_RATIO)
+        if len(solid) == 0 or reach <= 0:
+            return at, ratio
         steps = reach * np.array([0.25, 0.5, 1.0])
         cand = at[solid, None, None, :] + steps[None, :, None, None] * _RELOCATE_DIRS[None, None]
         cand = np.clip(cand, self.box_min + RENDER_INSET, self.box_max - RENDER_INSET)
-        ratio = np.asarray(self.classify_points(cand.reshape(-1, 3))).reshape(cand.shape[:3])
+        cr = np.asarray(self.classify_points(cand.reshape(-1, 3)), dtype=np.float32).reshape(cand.shape[:3])
         for i, s in enumerate(solid):
             for k in range(len(steps)):
-                free = np.flatnonzero(ratio[i, k] <= SOLID_RATIO)
+                free = np.flatnonzero(cr[i, k] <= SOLID_RATIO)
                 if len(free):
-                    at[s] = cand[i, k, free[np.argmin(ratio[i, k, free])]]
+                    j = free[np.argmin(cr[i, k, free])]
+                    at[s], ratio[s] = cand[i, k, j], cr[i, k, j]
                     break
-        return at
+        return at, ratio
 
     def smallest_cell(self) -> float:
         leaves = self.tree.info()["leaves"]
@@ -409,8 +406,7 @@ class AdaptiveGroup:
     # -- the state machine
     def start(self, cache: PointCache) -> List[int]:
         """Request the first layer's probes; returns the cache indices to render."""
-        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()),
-                                             self.classify_points, self.render_points)
+        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()), self.locate)
         info = self.tree.info()
         self.passes.append(PassRecord(1, len(info["leaves"]), int(info["probe_count"]), self.smallest_cell()))
         return todo
@@ -441,7 +437,7 @@ class AdaptiveGroup:
                 return []
             self.tests = tests
             self.test_index = np.full(len(tests.positions), -1, dtype=np.int64)
-            idx, todo = cache.index(self.lattice_positions(tests.lattice[need]), self.classify_points, self.render_points)
+            idx, todo = cache.index(self.lattice_positions(tests.lattice[need]), self.locate)
             self.test_index[need] = idx
             self.passes[-1].tests = int(need.sum())
             self.stage = "tests"
@@ -483,8 +479,7 @@ class AdaptiveGroup:
         self.tree.finalize()
         self._drop_outside()
         self.tree.finalize()
-        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()),
-                                             self.classify_points, self.render_points)
+        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()), self.locate)
         info = self.tree.info()
         self.passes.append(PassRecord(len(self.passes) + 1, len(info["leaves"]), int(info["probe_count"]),
                                       self.smallest_cell()))

@@ -495,9 +495,8 @@ class ProbeBake:
         if not lamps:
             return None
         t = time.perf_counter()
-        pts = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-        out = (native.direct_project(lamps, pts, self.settings.max_band, self._direct.samples, self._direct.geometry)
-               if len(pts) else np.zeros((0, native.sh_count(self.settings.max_band), 3)))
+        out = self._direct.project(np.asarray(positions, dtype=np.float64).reshape(-1, 3), self.settings.max_band,
+                                   lamps)
         self.timings["direct"] = self.timings.get("direct", 0.0) + time.perf_counter() - t
         return out
 

@@ -128,11 +128,13 @@ class DirectLightPlan:
     sky_source: str = ""              # how the world was read (for the log and the docs' tests)
     _table: Optional[np.ndarray] = None
 
-    def project(self, positions: np.ndarray, max_band: int) -> np.ndarray:
-        """(P, sh_count, 3): the lamps' direct radiance projection at engine-space positions."""
-        if not self.lamps or len(positions) == 0:
+    def project(self, positions: np.ndarray, max_band: int, lamps: Optional[list] = None) -> np.ndarray:
+        """(P, sh_count, 3): the direct radiance projection of ``lamps`` (default: the plan's) at
+        engine-space positions, shadowed by the plan's geometry."""
+        lamps = self.lamps if lamps is None else lamps
+        if not lamps or len(positions) == 0:
             return np.zeros((len(positions), native.sh_count(max_band), 3))
-        return native.direct_project(self.lamps, np.asarray(positions, dtype=np.float64), max_band,
+        return native.direct_project(lamps, np.asarray(positions, dtype=np.float64), max_band,
                                      self.samples, self.geometry)
 
     def add_to(self, bake):

@@ -280,14 +280,15 @@ def test_nodes_in_a_solid_surface_render_just_outside_it_and_deep_ones_stay_out(
     reach = min(adaptive.RELOCATE, 0.25 * 0.5)
     nodes = np.array([[4.0, 0.5, 0.5],     # on the +x face
                       [4.0, 0.0, 0.5],     # the face's edge with the floor (rendered 1 cm up first)
-                      [3.5, 0.5, 1.0],     # on the top... of a face: +z face
+                      [3.5, 0.5, 1.0],     # on the +z face
                       [3.5, 0.5, 0.5],     # 0.5 m deep
                       [6.0, 1.0, 1.0]])    # free
     at = group.render_positions(nodes)
     ratio_before = group.classify_points(at)
     assert (ratio_before[:4] > adaptive.SOLID_RATIO).sum() >= 2 and ratio_before[3] > adaptive.SOLID_RATIO
-    got = group.render_points(nodes)
+    got, ratio_got = group.locate(nodes)
     ratio = group.classify_points(got)
+    assert np.array_equal(ratio_got, ratio.astype(np.float32))   # the ratio it returns is the one there
     for i in range(3):
         moved = np.linalg.norm(got[i] - at[i])
         if ratio_before[i] > adaptive.SOLID_RATIO:
