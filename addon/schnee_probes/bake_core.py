@@ -237,7 +237,8 @@ class ProbeBake:
             raise BakeError("No probe could be placed: every candidate position is inside solid "
                             "geometry. Check the probe volumes or use a smaller Min Cell Size.")
         self._check_cancel()
-        self.estimated_seconds = estimate_seconds(self.total, s, sky=self.mode == "VOLUMES")
+        self.estimated_seconds = estimate_seconds(self.total, s, sky=self.mode == "VOLUMES",
+                                                  renders=2 if self.adaptive else 1)
         if self.adaptive:
             self.log(f"Schnee: pass 1: {self.total} probe(s) of Max Cell Size to bake, estimated "
                      f"{format_duration(self.estimated_seconds)} (at most; then test points and finer "
@@ -730,7 +731,8 @@ class ProbeBake:
         (without the first probe's scene upload once a second one is done)."""
         left = self.total - self.done
         if self.rendered == 0:
-            return estimate_seconds(left, self.settings, sky=self.mode == "VOLUMES")
+            return estimate_seconds(left, self.settings, sky=self.mode == "VOLUMES",
+                                    renders=2 if self.adaptive else 1)
         spent = self.timings["render"] + self.timings["write_exr"] + self.timings["project"]
         if self.rendered >= 2 and self._first_probe_seconds is not None:
             per = (spent - self._first_probe_seconds) / (self.rendered - 1)

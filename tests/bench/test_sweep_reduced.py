@@ -24,11 +24,11 @@ sys.path.insert(0, str(REPO / "bench" / "sweep"))
 SWEEP_JSON = REPO / "bench" / "results" / "sweep.json"
 
 # Promised in docs/user-guide.md ("Recommended settings"): irradiance relative RMS at L = 2 of a
-# default bake (128×64, 32 spp, 32 bounces). The full sweep measured 1.8e-7 (sky, 8 probes, exact
+# default bake (128×64, 8 spp, 32 bounces). The full sweep measured 1.8e-7 (sky, 8 probes, exact
 # since issue 11; 0.57 ± 0.44 % before, when forest.exr's small sun was path traced) and
-# 0.42 ± 0.22 % (room, 4 probes with their own seeds, reference good to ~0.1 %; 0.39 ± 0.13 % in the
-# run before issue 11); the promises leave room for run-to-run noise (bench/results/sweep.md). The
-# room promise was 4 % while the default was 16 bounces (2.6 %).
+# 0.81 ± 0.31 % (room, 4 probes with their own seeds, reference good to ~0.1 %; 0.42 ± 0.22 % at the
+# 32 spp default before issue 12); the promises leave room for run-to-run noise
+# (bench/results/sweep.md). The room promise was 4 % while the default was 16 bounces (2.6 %).
 PROMISE_SKY = 0.015       # sky-only forest.exr (small sun), exact reference
 PROMISE_INTERIOR = 0.015  # bright closed room with a window
 

@@ -141,7 +141,8 @@ def test_operators_refuse_outputs_not_ours(scenes, tmp_path):
     # of a sky-only scene (measured 0.15 µs per pixel-sample in the sweep, ~25x cheaper than the
     # room the model assumes) it is the measured mean of probes 2-4 times the 28 left.
     assert r["total"] == 32
-    assert r["estimated"] == pytest.approx(32 * 3.9e-6 * 128 * 64 * 16 + 1.6, rel=1e-9)
+    # 32 probes x (3.9 µs x 128 x 64 px x 16 spp + 0.03 s per render) + 1.6 s scene upload.
+    assert r["estimated"] == pytest.approx(32 * (3.9e-6 * 128 * 64 * 16 + 0.03) + 1.6, rel=1e-9)
     assert r["model_before"] == pytest.approx(r["estimated"], rel=1e-9)
     measured = (r["spent_4"] - r["first_probe"]) / 3 * 28
     assert r["remaining_after_4"] == pytest.approx(measured, rel=1e-9)

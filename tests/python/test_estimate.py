@@ -41,12 +41,17 @@ def test_model_matches_the_closed_room_and_bounds_every_measured_row():
 
 def test_defaults_estimate_and_sky_term():
     s = BakeSettings()
-    # 128 x 64 px x 32 spp x 3.9 µs = 1.02 s per probe (measured 0.92-0.98 s in the room).
+    assert s.placement == "ADAPTIVE" and s.samples == 8
+    # 128 x 64 px x 8 spp x 3.9 µs + 2 renders x 0.03 s = 0.32 s per point (measured in the bundled
+    # room: 0.36 s for two 4-spp renders, 0.35 s for one 8-spp render).
     assert estimate.estimate_seconds(1, s) - estimate.FIRST_PROBE_SECONDS == pytest.approx(
-        128 * 64 * 32 * 3.9e-6, rel=1e-12)
+        128 * 64 * 8 * 3.9e-6 + 2 * 0.03, rel=1e-12)
+    one = BakeSettings(placement="OCTREE", samples=32)
+    assert estimate.estimate_seconds(1, one) - estimate.FIRST_PROBE_SECONDS == pytest.approx(
+        128 * 64 * 32 * 3.9e-6 + 0.03, rel=1e-12)
     assert estimate.estimate_seconds(0, s) == 0.0
     with_sky = estimate.estimate_seconds(10, s, sky=True) - estimate.estimate_seconds(10, s)
-    assert with_sky == pytest.approx(0.15e-6 * 512 * 256 * 32, rel=1e-12)
+    assert with_sky == pytest.approx(0.15e-6 * 512 * 256 * 8, rel=1e-12)
     assert estimate.estimate_seconds(10, BakeSettings(capture_sky=False), sky=True) == \
         estimate.estimate_seconds(10, BakeSettings(capture_sky=False))
 

@@ -1,7 +1,7 @@
 """Sky-only bakes with the world seen directly (issue 11): ``... -P direct_sky.py -- OUT_DIR [NAMES...]``.
 
 For every bundled HDRI (datafiles/studiolights/world/*.exr, or the NAMES given) and for a Nishita
-Sky Texture world: one volume bake of 1 probe at the add-on's defaults (128x64, 32 spp, band 2,
+Sky Texture world: one volume bake of 1 probe at the add-on's defaults (128x64, 8 spp, band 2,
 box filter) with seeds 0 and 1. Reference: the HDRI file projected natively (project_file); for the
 Nishita sky, the world rendered alone at 4096x2048 with 16 spp and another seed (0.07 % from
 another seed's), projected the same way. Emits RESULT lines with the coefficients, the reference and the bake's sky source.
