@@ -175,12 +175,13 @@ SETTINGS: Tuple[Setting, ...] = (
             doc="Adaptive only: the relative irradiance error (RMS over directions and RGB) a cell's "
                 "interpolation may show at its test points before it splits, on top of twice the "
                 "measured Monte-Carlo noise. Smaller = more probes near light changes; it does not add "
-                "probes where the light is smooth. Bundled room (bench/results/placement.md, 64×32 px, "
-                "16 spp, cells predicted to pass left untested): 0.05 / 0.03 give 712 / 922 probes, "
-                "1152 / 1456 points rendered and 4.2 / 2.8 % mean error between probes (floor 1.5 %); "
-                "before the prediction 0.05 gave 836 probes, 1982 points and 3.3 %, so the default went "
-                "to 0.03 (fewer renders and less error than that; courtyard: 690 vs 1436 points, 1.96 "
-                "vs 2.03 %).",
+                "probes where the light is smooth. Bundled room at the add-on's defaults "
+                "(bench/results/placement.md): 1075 probes, 1516 points rendered, 2.2 % mean error "
+                "between probes (floor 1.0 %), 7.9 min on 2 cores. At reduced quality (64×32 px, 16 "
+                "spp) 0.05 / 0.03 gave 712 / 1008 probes, 1152 / 1547 points and 4.2 / 2.5 %; before "
+                "the prediction 0.05 gave 836 probes, 1982 points and 3.3 %, so the default went to "
+                "0.03. Below 0.03 the probes' noise limits it at low Samples (4 spp: 0.02 gives 3.0 % "
+                "where 0.03 gives 3.2 %).",
             minimum=0.0, min_exclusive=True, maximum=1.0, ui="volumes"),
     Setting("refinement_tests", "enum", 'CENTRE_FACES', "Refinement Tests",
             "Adaptive placement: where a cell is tested before it may split: its centre and its six "
