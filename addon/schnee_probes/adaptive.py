@@ -9,7 +9,7 @@ decides where. The algorithm is docs/placement.md, "Error-driven refinement"; th
    and faces" also its face centres); those that are not probes yet are baked (a point is baked
    once: :class:`PointCache` keys it by position);
 3. ``refine_decide`` compares each test's value with the leaf's interpolation there, allowing
-   ``tolerance + 2σ`` with σ the Monte-Carlo noise of the probes and tests involved; flagged leaves
+   ``sqrt(tolerance² + (2σ)²)`` with σ the Monte-Carlo noise of the probes and tests involved; flagged leaves
    split; children entirely outside the volumes are dropped; the new corners (test points: already
    baked, edge midpoints: new) are baked; back to 2 until nothing splits or every leaf is at Min Cell
    Size. Children predicted to pass (PREDICT: their parent's error next to them, over the rate the
@@ -40,7 +40,7 @@ RENDER_INSET = 0.01         # m: nodes on or beyond the volumes' bounding box re
 # Size) instead of being left out: measured in bench/results/placement.md (docs/placement.md, step 2).
 RELOCATE = 0.05
 TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
-NOISE_K = 2.0               # refine only where error > tolerance + NOISE_K · noise (pb_refine's default)
+NOISE_K = 2.0               # refine only where error > sqrt(tolerance² + (NOISE_K · noise)²) (pb_refine's default)
 # Prediction of children that pass (saves their tests): a leaf's error falls by a measured rate per
 # halving — the ratio of its parent's error next to it to its own worst error, both over their
 # thresholds — and a smooth field's trilinear error falls as h², 4× per halving (exactly 4 for a

@@ -159,7 +159,7 @@ SETTINGS: Tuple[Setting, ...] = (
             "dense grid of versions 1/2",
             doc="**Adaptive**: a layer of Max Cell Size cells, then pass by pass a test probe at each "
                 "cell's centre and face centres; a cell splits where the light interpolated from its "
-                "corners misses a test by more than Error Tolerance (+ 2× the probes' measured noise); "
+                "corners misses a test by more than Error Tolerance (twice the probes' measured noise added in quadrature); "
                 "test probes become the finer cells' probes. Writes `.shprobe` version 3 (corner "
                 "octree, trilinear, continuous). **Geometry Octree**: the placement before issue 12 "
                 "(every cell touching geometry down to Min Cell Size, one probe per leaf, versions "
@@ -176,12 +176,12 @@ SETTINGS: Tuple[Setting, ...] = (
                 "interpolation may show at its test points before it splits, on top of twice the "
                 "measured Monte-Carlo noise. Smaller = more probes near light changes; it does not add "
                 "probes where the light is smooth. Bundled room at the add-on's defaults "
-                "(bench/results/placement.md): 1075 probes, 1516 points rendered, 2.2 % mean error "
-                "between probes (floor 1.0 %), 7.9 min on 2 cores. At reduced quality (64×32 px, 16 "
-                "spp) 0.05 / 0.03 gave 712 / 1008 probes, 1152 / 1547 points and 4.2 / 2.5 %; before "
-                "the prediction 0.05 gave 836 probes, 1982 points and 3.3 %, so the default went to "
-                "0.03. Below 0.03 the probes' noise limits it at low Samples (4 spp: 0.02 gives 3.0 % "
-                "where 0.03 gives 3.2 %).",
+                "(bench/results/placement.md): 1513 probes, 2019 points rendered, 1.85 % mean error "
+                "between probes (floor 1.0 %), 11.2 min on 2 cores; at 4 spp 2.7 % in 5.5 min. The "
+                "noise is added in quadrature (sqrt(tolerance² + (2σ)²)), so the tolerance holds at "
+                "low Samples too; with the sum tolerance + 2σ used before, 0.03 gave 2.2 % and 0.02 "
+                "2.05 %. At reduced quality (64×32 px, 16 spp, that rule) 0.05 / 0.03 gave 712 / 1008 "
+                "probes, 1152 / 1547 points and 4.2 / 2.5 %.",
             minimum=0.0, min_exclusive=True, maximum=1.0, ui="volumes"),
     Setting("refinement_tests", "enum", 'CENTRE_FACES', "Refinement Tests",
             "Adaptive placement: where a cell is tested before it may split: its centre and its six "
@@ -241,7 +241,7 @@ SETTINGS: Tuple[Setting, ...] = (
             doc="Cycles samples per pixel. Time is linear in it, noise falls as 1/√samples. In the "
                 "bright room at 32 bounces 8 / 16 / 32 / 64 / 128 spp give 0.81 / 0.57 / 0.42 / "
                 "0.33 / 0.28 % per probe (table below); between the probes of the bundled room the "
-                "default 8 spp bake is 2.2 % off, 32 spp take 4× as long for the 0.4 points per "
+                "default 8 spp bake is 1.85 % off, 32 spp take 4× as long for the 0.4 points per "
                 "probe (*Placement: measured*). The sky and the lamps a probe sees directly are "
                 "added exactly (docs/direct-light.md), so a small bright sun in the sky or a Sun "
                 "lamp needs no more samples (sun scenes of the table); a sky seen through glass "

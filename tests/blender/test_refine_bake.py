@@ -94,9 +94,10 @@ def test_shadow_boundary_draws_refinement_to_it_and_nowhere_else(shadow):
 def test_v3_interpolation_matches_probes_baked_at_random_points(shadow):
     # 16 seeded points; reference probes baked there at 4x the samples. Away from the penumbra
     # (more than one Min Cell Size beyond it) the light is smooth or black, and the file's corner
-    # octree interpolation must be within the refinement's own bound: Error Tolerance 0.05 + 2x the
-    # measured noise (about 0.02 at 16 samples) -> 0.10 at any point, 0.05 on average (measured:
-    # 0.069 max, 0.017 mean; dark points exactly 0).
+    # octree interpolation must be within the refinement's own bound: Error Tolerance 0.07 and 2x the
+    # measured noise (about 0.02 at 16 samples) in quadrature, about 0.08, with the reference's own
+    # noise -> 0.10 at any point, 0.05 on average (measured at 0.05 with the linear sum tol + 2σ,
+    # about 0.09: 0.069 max, 0.017 mean; dark points exactly 0).
     pts = np.array(shadow["points"])
     err = np.array(shadow["point_error"])
     b, w = boundary(pts[:, 2])

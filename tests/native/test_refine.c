@@ -198,9 +198,10 @@ static void test_linear_field_refines_nothing(void)
 
 static void test_noise_accounted(void)
 {
-    /* The linear field with bounded relative noise n = 2 % per probe: the error at a test point is at
-     * most n·(1 + max‖c_i‖/‖c_t‖)/(1 − n) ≈ 4.7 % (values vary by < 35 % across a leaf), the threshold
-     * at least tol + 2n = 6 % with k = 2 and tol = 2 %. */
+    /* The linear field with bounded relative noise n = 2 % per probe (each point scaled by 1 + n·u,
+     * u in [−1, 1]): the threshold is at least sqrt(tol² + (2n)²·9/8) = 4.7 % with k = 2 and tol =
+     * 2 %, and the error at a test point reaches that only if every corner's u and the test's are ±1
+     * in opposite directions (the deterministic u here do not). */
     pb_cotree *t = make_roots();
     TU_REQUIRE(t != NULL);
     int bakes = 0;
@@ -210,6 +211,57 @@ static void test_noise_accounted(void)
     uint32_t n = run_pass(&t, linear_field, 0.02, false, 0.02, &bakes, NULL);
     TU_CHECK(n > 0 && n != UINT32_MAX); /* without the noise estimate, noise alone refines */
     pb_cotree_destroy(t);
+}
+
+/* Constant field c; every test point baked as c·(1 + δ) (relative error e = δ/(1 + δ) against the
+ * interpolated c), noise n on every probe and test. The threshold is the tolerance and k·σ added in
+ * quadrature, σ² = n_test² + Σ w_i² n_i²: for a leaf's centre (8 corners of weight 1/8, Σw² = 1/8)
+ * sqrt(tol² + k²·n²·9/8); face centres (Σw² = 1/4) have the larger threshold, so the centre is each
+ * leaf's worst margin. tol 3 %, n 1 %, k 2: 3.674 %. An error of 4 % splits (it would not under the
+ * linear sum tol + k·σ = 5.12 %), 3.5 % does not. */
+static void test_noise_threshold_adds_in_quadrature(void)
+{
+    const double tol = 0.03, n = 0.01, k = 2.0;
+    const double expect = sqrt(tol * tol + k * k * (n * n + n * n / 8.0));
+    const double errors[2] = {0.04, 0.035};
+    for (int c = 0; c < 2; c++) {
+        pb_cotree *t = make_roots();
+        TU_REQUIRE(t != NULL);
+        pb_error err = {0};
+        uint32_t P = pb_cotree_probe_count(t), L = pb_cotree_leaf_count(t);
+        pb_refine_tests *tests = NULL;
+        TU_REQUIRE(pb_refine_tests_create(t, NULL, &tests, &err) == PB_SUCCESS);
+        double *pc = malloc((size_t)P * NC * 3 * sizeof(double));
+        double *tc = malloc(((size_t)tests->point_count + 1) * NC * 3 * sizeof(double));
+        float *pn = malloc(P * sizeof(float)), *tn = malloc(((size_t)tests->point_count + 1) * sizeof(float));
+        const double delta = errors[c] / (1.0 - errors[c]);
+        for (uint32_t i = 0; i < P; i++) {
+            for (int m = 0; m < NC * 3; m++) pc[i * NC * 3 + m] = 1.0 + 0.1 * m;
+            pn[i] = (float)n;
+        }
+        for (uint32_t j = 0; j < tests->point_count; j++) {
+            for (int m = 0; m < NC * 3; m++) tc[j * NC * 3 + m] = (1.0 + 0.1 * m) * (1.0 + delta);
+            tn[j] = (float)n;
+        }
+        pb_refine_desc d = {.max_band = BAND,
+                            .probe_coeffs = pc,
+                            .test_coeffs = tc,
+                            .probe_noise = pn,
+                            .test_noise = tn,
+                            .tolerance = tol,
+                            .noise_k = k};
+        uint8_t *split = malloc(L);
+        double *le = malloc(L * sizeof(double)), *lt = malloc(L * sizeof(double));
+        TU_REQUIRE(pb_refine_decide(t, tests, &d, split, le, lt, &err) == PB_SUCCESS);
+        for (uint32_t i = 0; i < L; i++) {
+            TU_CHECK_NEAR(le[i], errors[c], 1e-12);
+            TU_CHECK_NEAR(lt[i], expect, 1e-8); /* noise passed as float */
+            TU_CHECK(split[i] == (c == 0));
+        }
+        free(split), free(le), free(lt), free(pc), free(tc), free(pn), free(tn);
+        pb_refine_tests_destroy(tests);
+        pb_cotree_destroy(t);
+    }
 }
 
 static void test_error_metric(void)
@@ -233,6 +285,7 @@ int main(void)
     TU_RUN(test_error_metric);
     TU_RUN(test_linear_field_refines_nothing);
     TU_RUN(test_noise_accounted);
+    TU_RUN(test_noise_threshold_adds_in_quadrature);
     TU_RUN(test_shadow_edge_draws_refinement);
     return TU_EXIT();
 }

@@ -9,8 +9,9 @@
  *      leaf splits, so a test bake is never wasted. Points that already are probes are marked (no bake).
  *   3. Bake the test points that need it, then pb_refine_decide(): per leaf, the relative irradiance
  *      error (RMS over directions) between each test point's baked SH and the leaf's interpolation there;
- *      a leaf splits when some error exceeds tolerance + k·noise, noise being the Monte-Carlo noise of
- *      the two sides (per-probe estimates passed in). Leaves at Min Cell Size (level 0) never split.
+ *      a leaf splits when some error exceeds sqrt(tolerance² + (k·noise)²), noise being the Monte-Carlo
+ *      noise of the two sides (per-probe estimates passed in; independent noise adds to the light's
+ *      own error in quadrature). Leaves at Min Cell Size (level 0) never split.
  *   4. pb_cotree_split(split flags), pb_cotree_finalize; the new probes are old probes, test points or
  *      new edge midpoints (look old values up by lattice point); bake the new ones; back to 2 until no
  *      leaf splits.
@@ -51,7 +52,7 @@ typedef struct pb_refine_desc {
                                     the interpolation (as pb_interp_options.validity) */
     const uint8_t *test_valid;   /* point_count, or NULL: 0 = the test point is inside a solid; not compared */
     double tolerance;            /* 0 = 0.05: relative irradiance error a leaf may have */
-    double noise_k;              /* 0 = 2: refine only when error > tolerance + noise_k · noise */
+    double noise_k;              /* 0 = 2: refine only when error > sqrt(tolerance² + (noise_k · noise)²) */
 } pb_refine_desc;
 
 /* Split flags (leaf_count bytes, 1 = split) and optionally each leaf's worst error and the

@@ -80,7 +80,11 @@ def temp_dirs():
 
 
 if CASE == "shadow":
-    s = settings()
+    # Error Tolerance 0.07: since the noise adds to the light's error in quadrature (threshold
+    # sqrt(tol² + (2σ)²), σ ≈ 2 % here) the threshold at 0.05 is 6.4 %, no longer 9 %, and the bright
+    # plane's smooth falloff (3-5 % over a 2 m cell, plus noise) split cells 2.8 m from the shadow;
+    # at 0.07 the threshold is about 8 %, the penumbra's error ~100 %.
+    s = settings(error_tolerance=0.07)
     b, r = bake(s)
     f, out = file_summary(r.files[0])
     out["passes"] = [vars(p) for p in r.passes]
