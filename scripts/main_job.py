@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The main job on the bundled default scene: generate → bake → export glTF → render with the engine.
 
-    ./run.sh                 # preview bake settings (586 probes, 610 points rendered: ~1.5 min on 2 cores)
+    ./run.sh                 # preview bake settings (605 probes, 622 points rendered: ~1.5 min on 2 cores)
     ./run.sh --full          # the add-on's default settings (2019 points rendered: ~11 min on 2 cores)
     ./run.sh --out DIR       # where everything goes (default: out/default)
 
