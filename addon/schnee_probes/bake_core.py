@@ -189,6 +189,11 @@ class ProbeBake:
     def adaptive(self) -> bool:
         return self.mode == "VOLUMES" and self.settings.placement == "ADAPTIVE"
 
+    @property
+    def renders_per_point(self) -> int:
+        """Renders of one point: two half-sample renders for the Adaptive noise estimate, else one."""
+        return 2 if self.adaptive else 1
+
     def request_cancel(self):
         """Ask the bake to stop (signal handlers, Esc): the next check point raises
         :class:`BakeCancelled`; the caller's cancel()/run() restores the scene and writes nothing."""
@@ -238,7 +243,7 @@ class ProbeBake:
                             "geometry. Check the probe volumes or use a smaller Min Cell Size.")
         self._check_cancel()
         self.estimated_seconds = estimate_seconds(self.total, s, sky=self.mode == "VOLUMES",
-                                                  renders=2 if self.adaptive else 1)
+                                                  renders=self.renders_per_point)
         if self.adaptive:
             self.log(f"Schnee: pass 1: {self.total} probe(s) of Max Cell Size to bake, estimated "
                      f"{format_duration(self.estimated_seconds)} (at most; then test points and finer "
@@ -732,7 +737,7 @@ class ProbeBake:
         left = self.total - self.done
         if self.rendered == 0:
             return estimate_seconds(left, self.settings, sky=self.mode == "VOLUMES",
-                                    renders=2 if self.adaptive else 1)
+                                    renders=self.renders_per_point)
         spent = self.timings["render"] + self.timings["write_exr"] + self.timings["project"]
         if self.rendered >= 2 and self._first_probe_seconds is not None:
             per = (spent - self._first_probe_seconds) / (self.rendered - 1)

@@ -31,7 +31,7 @@ def estimate_seconds(probes, settings, sky=False, renders=None) -> float:
     ``renders`` per probe defaults to the settings' placement (2 for Adaptive)."""
     w = settings.panorama_resolution
     if renders is None:
-        renders = 2 if getattr(settings, "placement", None) == "ADAPTIVE" else 1
+        renders = 2 if settings.placement == "ADAPTIVE" else 1
     per = SECONDS_PER_PIXEL_SAMPLE * w * (w // 2) * settings.samples + RENDER_SECONDS * renders
     total = probes * per + (FIRST_PROBE_SECONDS if probes else 0.0)
     if sky and settings.capture_sky:

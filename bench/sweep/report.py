@@ -20,8 +20,8 @@ SUN_SCENES = ("sun_yard", "sun_window")
 # The add-on's defaults chosen from this sweep (bake_core.BakeSettings / properties.py); the reduced
 # sweep test checks that a default bake really uses them. Rows with these settings are starred.
 # Samples 8 since issue 12: the error a movable object sees is the interpolation's between probes
-# (2.2 % in the room at 8 spp against a converged reference, bench/results/placement.md), while 32
-# spp buy 0.4 points per probe (0.81 -> 0.42 % in the room) for 4x the bake time.
+# (1.85 % in the room at the defaults against a converged reference, bench/results/placement.md),
+# while 32 spp buy 0.4 points per probe (0.81 -> 0.42 % in the room) for 4x the bake time.
 SHIPPED = dict(panorama_resolution=128, samples=8, max_bounces=32, clamp_indirect=10.0,
                pixel_filter="BOX", filter_width=1.0)
 TITLES = {"interior": "Interior (closed room, panel, window)", "courtyard": "Open courtyard",
