@@ -67,6 +67,10 @@ def main():
     ap.add_argument("--ref-cache", default=None,
                     help="npz of the references: read when its key (scene, points, seed, --ref-*) matches, "
                          "else baked and written (runs at different qualities share one reference)")
+    ap.add_argument("--sun-mode", choices=["baked", "mixed"], default="baked",
+                    help="light mode of the scene's Sun lamps (schnee_light_mode): mixed = the probes hold "
+                         "their bounced light only and the engine adds their direct light, shadowed; the "
+                         "error is then of probe + the exact direct term (shadow-map error not included)")
     ap.add_argument("--old", action="store_true", help="also bake the geometry octree")
     ap.add_argument("--old-points", action="store_true",
                     help="the geometry octree's per-object error without baking all its probes: place it, "
@@ -91,9 +95,26 @@ def main():
     blender_pts = np.array(placement_scenes.points(sc, a.points, a.seed))
     engine_pts = scene_export.blender_to_engine(blender_pts)
 
+    # Mixed suns: what a moving object gets is the probes' value plus the engine's direct term,
+    # which per pixel with shadow maps is the sun's exact shadowed direct light (direct_light's
+    # projection, the one a baked sun adds to the probes). It is added to every value compared.
+    direct = 0.0
+    if a.sun_mode == "mixed":
+        for ob in scene.objects:
+            if ob.type == 'LIGHT' and ob.data.type == 'SUN':
+                ob["schnee_light_mode"] = "mixed"
+        b = bake_core.ProbeBake(scene, layer, settings(), log=lambda s: None)
+        b.prepare()
+        direct = b._direct.project(engine_pts, 2, lamps=b._direct.mixed_lamps)
+        b.cancel()
+
+    def error(got):
+        return adaptive.irradiance_error(got + direct, ref + direct)
+
     out = {"settings": vars(a), "rows": [], "load_start": os.getloadavg()}
     t = time.perf_counter()
-    ref_key = json.dumps([a.scene, a.points, a.seed, a.ref_samples, a.ref_res or a.res, a.ref_bounces or a.bounces])
+    ref_key = json.dumps([a.scene, a.points, a.seed, a.ref_samples, a.ref_res or a.res, a.ref_bounces or a.bounces]
+                         + ([a.sun_mode] if a.sun_mode != "baked" else []))
     cached = np.load(a.ref_cache) if a.ref_cache and os.path.exists(a.ref_cache) else None
     if cached is not None and str(cached["key"]) == ref_key:
         ref = cached["ref"]
@@ -106,8 +127,8 @@ def main():
             np.savez(a.ref_cache, key=ref_key, ref=ref)
     out["reference_seconds"] = time.perf_counter() - t
     floor = bake_core.bake_points(scene, layer, settings(), engine_pts, log=lambda s: None)
-    out["floor"] = stats(adaptive.irradiance_error(floor, ref))
-    out["floor_point_errors"] = [round(float(e), 5) for e in adaptive.irradiance_error(floor, ref)]
+    out["floor"] = stats(error(floor))
+    out["floor_point_errors"] = [round(float(e), 5) for e in error(floor)]
     out["points_blender"] = blender_pts.round(4).tolist()
 
     for tol, tests, pred in [(tol, tests, pred) for tol in a.tolerance for tests in a.tests for pred in a.predict]:
@@ -120,7 +141,7 @@ def main():
         sec, cpu = time.perf_counter() - t, cpu_seconds() - cpu
         f = native.read_shprobe(path)
         got = native.interpolation_from_file(path).interpolate(engine_pts, f.coeffs, f.validity)
-        err = adaptive.irradiance_error(got, ref)
+        err = error(got)
         out["rows"].append({"placement": "adaptive", "tolerance": tol, "tests": tests, "predict": pred,
                             "seconds": sec,
                             "cpu_seconds": cpu,
@@ -135,7 +156,7 @@ def main():
             keep = np.asarray(f.validity) > 0
             tet = native.Tetrahedra.create(pos[keep])
             got_t = tet.interpolate(engine_pts, np.asarray(f.coeffs)[keep])
-            err_t = adaptive.irradiance_error(got_t, ref)
+            err_t = error(got_t)
             out["rows"].append({"placement": "adaptive", "interpolation": "tetrahedra", "tolerance": tol,
                                 "tests": tests, "predict": pred, "probes": int(keep.sum()), "renders": r.renders,
                                 "cpu_seconds": cpu, "seconds": sec, "error": stats(err_t),
@@ -159,7 +180,7 @@ def main():
         vals[need] = bake_core.bake_points(scene, layer, settings(), cache.positions[pidx[need]], log=lambda s: None)
         sec, cpu = time.perf_counter() - t, cpu_seconds() - cpu
         got = group.tree.interpolate(engine_pts, vals, validity)
-        err = adaptive.irradiance_error(got, ref)
+        err = error(got)
         out["rows"].append({"placement": f"uniform grid {cell:g} m", "interpolation": "trilinear",
                             "probes": count, "renders": count, "baked": int(len(need)),
                             "seconds_estimate": count * sec / max(1, len(need)),
@@ -178,7 +199,7 @@ def main():
         out["rows"].append({"placement": "geometry octree", "seconds": sec, "cpu_seconds": cpu,
                             "probes": r.probe_count, "render_seconds": r.timings["render"],
                             "renders": r.renders or r.probe_count, "file_bytes": os.path.getsize(path),
-                            "error": stats(adaptive.irradiance_error(got, ref))})
+                            "error": stats(error(got))})
         print("ROW", json.dumps(out["rows"][-1]), flush=True)
     if a.old_points:
         b = bake_core.ProbeBake(scene, layer, settings(placement="OCTREE"), log=print)
@@ -202,7 +223,7 @@ def main():
                             "renders": count, "placement_seconds": place_s,
                             "seconds_estimate": place_s + count * sec / len(uniq),
                             "cpu_seconds_estimate": count * cpu / len(uniq), "baked": len(uniq),
-                            "error": stats(adaptive.irradiance_error(got, ref))})
+                            "error": stats(error(got))})
         print("ROW", json.dumps(out["rows"][-1]), flush=True)
     out["scene"] = a.scene
     out["load_end"] = os.getloadavg()

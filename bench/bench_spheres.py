@@ -68,7 +68,7 @@ With --sun (the hard-shadow case): the same room with a Sun lamp (the sweep's su
 SUN_LAMP_STRENGTH W/m², SUN_LAMP_ANGLE; 35° up, straight along -Y, so the sunbeam through the
 window is bounded by the vertical planes x = ±1.5 of the window's sides) marked "baked" (in the
 probes: the bake adds its exact direct term; the engine then adds no direct term on probe-lit
-surfaces, docs/engine.md "Lights: baked or realtime"), and the SUN_SPHERES: one in the sunbeam and
+surfaces, docs/engine.md "Lights: baked, mixed or realtime"), and the SUN_SPHERES: one in the sunbeam and
 one in hard shadow 0.2 m beside it (next to the sunlit floor and to probes in the sun). On the
 spheres' diffuse surfaces Cycles' Combined pass is still albedo * E / pi, E now holding the lamp's
 direct light; which sphere points are sunlit is checked analytically (sun_lit) when the scene is
@@ -169,6 +169,9 @@ def main():
                     help="spp of the Cycles render with the sphere invisible to all but the camera (0: none)")
     ap.add_argument("--sun", action="store_true",
                     help="the hard-shadow case: a baked Sun lamp through the window and SUN_SPHERES")
+    ap.add_argument("--sun-mode", default="baked", choices=("baked", "mixed"),
+                    help="--sun: the lamp's light mode; mixed = its bounced light in the probes, its direct "
+                         "light from the engine with shadow maps (the CPU models and floors add it exactly)")
     ap.add_argument("--spheres", nargs="*", default=None, help="subset of sphere names")
     ap.add_argument("--reuse", action="store_true",
                     help="keep the probe file, Cycles renders and floor probes already in OUT")
@@ -192,7 +195,7 @@ def main():
     scene = build_scene(spheres, a.size, nodes)
     if a.sun:
         lamp = sweep_scenes._sun_lamp(SUN_TO_SUN, (0.0, 0.0, 0.0))
-        lamp["schnee_light_mode"] = "baked"
+        lamp["schnee_light_mode"] = a.sun_mode
         result["sun"] = {"to_sun": SUN_TO_SUN, "strength": sweep_scenes.SUN_LAMP_STRENGTH,
                          "angle_deg": math.degrees(sweep_scenes.SUN_LAMP_ANGLE), "spheres_lit": {}}
         # Each sphere is wholly in the sun or wholly in shadow, as its name says (200 surface points).
@@ -351,6 +354,15 @@ def main():
         surf = np.nan_to_num(surf)
         plain_img = ALBEDO * np.maximum(np.array(
             [native.irradiance(c, nn) for c, nn in zip(surf, n_eng)]), 0.0) / math.pi
+        if a.sun and a.sun_mode == "mixed":
+            # The probes hold no direct sun: every model gets the engine's term, the sun's exact
+            # direct light on a Lambert surface, S cos / pi where the point is lit (sun_lit: the
+            # sphere is wholly in the beam or in shadow; the 0.5 degree disc is a direction here).
+            to_sun = np.asarray(SUN_TO_SUN, dtype=np.float64) / np.linalg.norm(SUN_TO_SUN)
+            lit = float(sun_lit(np.array(centre)))
+            sun_img = (ALBEDO * sweep_scenes.SUN_LAMP_STRENGTH * lit / math.pi
+                       * np.maximum(n_c[mask] @ to_sun, 0.0))[:, None] * np.ones(3)
+            floor_img, conv_img, cpu_img, plain_img = (x + sun_img for x in (floor_img, conv_img, cpu_img, plain_img))
 
         R = ref[mask]
         row = {"name": name, "centre_blender": list(centre), "pixels": int(mask.sum()),

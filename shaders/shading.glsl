@@ -300,12 +300,32 @@ vec3 probe_color(uint index) {
     return vec3(float(h & 255u), float((h >> 8) & 255u), float((h >> 16) & 255u)) / 255.0 * 0.8 + 0.2;
 }
 
+// Visibility in [0, 1] of a directional light from p through its shadow map layer (docs/engine.md
+// "Shadows"): the point is moved along n by (0.5 + 3 sin(theta)) shadow texels (theta = angle between
+// n and l), which keeps a plane's own depth behind the sample over the whole filter footprint (at most
+// 2 sqrt(2) texels from the sample: the 3x3 grid of 1-texel steps plus the hardware's 2x2 bilinear
+// compare), then a 3x3 PCF of bilinear LESS_OR_EQUAL comparisons (1 = lit). Outside the map: lit.
+float shadow_visibility(int layer, vec3 p, vec3 n, float nl) {
+    vec4 prm = frame.shadow_params[layer];
+    float sin_t = sqrt(max(1.0 - nl * nl, 0.0));
+    vec3 q = p + n * (prm.x * (0.5 + 3.0 * sin_t));
+    vec4 c = frame.shadow_view_proj[layer] * vec4(q, 1.0);
+    vec2 uv = c.xy * 0.5 + 0.5;
+    float z = clamp(c.z, 0.0, 1.0);
+    float sum = 0.0;
+    for (int j = -1; j <= 1; ++j)
+        for (int i = -1; i <= 1; ++i) sum += texture(shadow_tex, vec4(uv + vec2(i, j) * prm.z, float(layer), z));
+    return sum / 9.0;
+}
+
 // Direct light of the KHR_lights_punctual lights: Lambert diffuse plus a normalised Blinn-Phong
 // lobe (exponent from roughness, Schlick-free F0 = mix(0.04, albedo, metallic)).
 // probe_lit: the surface's probe term came from a baked probe (not the fallback probe 0). The bake
 // rendered a baked light (VULKAN_SCHNEE_light.mode "baked") into those probes, direct and bounced,
 // so adding its direct term there would count it twice: it is skipped. Where the fallback lights
 // the surface (probe mode off, or outside every grid) no probe holds the light and it is added.
+// Realtime and mixed lights (spot.z 0 and 2) always add it; a directional one with a shadow map
+// layer (spot.w >= 0) is multiplied by shadow_visibility().
 vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, bool probe_lit) {
     vec3 v = normalize(frame.camera_pos.xyz - p);
     vec3 f0 = mix(vec3(0.04), albedo, metallic);
@@ -314,7 +334,7 @@ vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, 
     vec3 sum = vec3(0.0);
     for (uint i = 0u; i < frame.light_count; ++i) {
         sv_gpu_light light = lights[i];
-        if (probe_lit && light.spot.z > 0.5) continue;
+        if (probe_lit && abs(light.spot.z - float(SV_LIGHT_BAKED)) < 0.5) continue;
         uint type = uint(light.direction_type.w);
         vec3 l;
         float atten = 1.0;
@@ -340,6 +360,7 @@ vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, 
         if (nl <= 0.0) continue;
         vec3 h = normalize(l + v);
         float spec = (s + 8.0) / (8.0 * SH_PI) * pow(max(dot(n, h), 0.0), s);
+        if (type == 0u && light.spot.w > -0.5) atten *= shadow_visibility(int(light.spot.w + 0.5), p, n, nl);
         vec3 radiance = light.color.rgb * atten;
         sum += ((1.0 - metallic) * albedo / SH_PI + f0 * spec) * radiance * nl;
     }

@@ -25,6 +25,7 @@
 #define SV_VEC4(n)           vec4 n
 #define SV_UVEC4(n)          uvec4 n
 #define SV_MAT4(n)           mat4 n
+#define SV_MAT4_ARRAY(n, k)  mat4 n[k]
 #define SV_VEC4_ARRAY(n, k)  vec4 n[k]
 #define SV_UINT_ARRAY(n, k)  uint n[k]
 #define SV_UVEC2_ARRAY(n, k) uvec2 n[k]
@@ -42,6 +43,7 @@
 #define SV_VEC4(n)                float n[4]
 #define SV_UVEC4(n)               uint32_t n[4]
 #define SV_MAT4(n)                float n[16]
+#define SV_MAT4_ARRAY(n, k)       float n[k][16]
 #define SV_VEC4_ARRAY(n, k)       float n[k][4]
 #define SV_UINT_ARRAY(n, k)       uint32_t n[k]
 #define SV_UVEC2_ARRAY(n, k)      uint32_t n[k][2]
@@ -65,7 +67,8 @@
 #define SV_BINDING_SKY         9  /* sampler2D: equirect sky with prefiltered mips */
 #define SV_BINDING_BRDF_LUT    10 /* sampler2D: split-sum BRDF LUT */
 #define SV_BINDING_CUBES_HALF  11 /* SSBO sv_gpu_cube_half[] (ambient cubes, half storage) */
-#define SV_SCENE_BINDING_COUNT 12 /* bindings in set 0 */
+#define SV_BINDING_SHADOW      12 /* sampler2DArrayShadow: directional shadow maps, one layer per shadowed light */
+#define SV_SCENE_BINDING_COUNT 13 /* bindings in set 0 */
 /* Set 1 (per material). */
 #define SV_SET_MATERIAL           1
 #define SV_BINDING_BASE_COLOR_TEX 0
@@ -129,6 +132,15 @@
 #define SV_FRAME_NO_SPECULAR 4u /* skip the sky's specular reflections (--no-specular) */
 #define SV_FRAME_NO_RENORM   8u /* do not scale sky specular by probe / sky irradiance */
 
+/* VULKAN_SCHNEE_light.mode on the GPU (sv_gpu_light.spot.z, as a float). */
+#define SV_LIGHT_REALTIME 0u /* "realtime" or no extension: direct term always */
+#define SV_LIGHT_BAKED    1u /* "baked": direct term only where the fallback probe 0 lights the surface */
+#define SV_LIGHT_MIXED    2u /* "mixed": bounced light in the probes, direct term always (shadowed) */
+
+/* Directional shadow maps (docs/engine.md "Shadows"): at most this many directional lights (mixed or
+ * realtime) get a layer of the shadow map array; further ones are unshadowed. */
+#define SV_MAX_SHADOWS 4
+
 #define SV_TONEMAP_NONE        0u /* clamp only */
 #define SV_TONEMAP_PBR_NEUTRAL 1u /* Khronos PBR Neutral (default) */
 #define SV_TONEMAP_ACES        2u /* Narkowicz's ACES filmic fit */
@@ -148,9 +160,15 @@ SV_STRUCT(sv_gpu_frame)
     SV_UINT(probe_mode);           /* SV_PROBE_MODE_*: override for every material, or _MATERIAL */
     SV_FLOAT(normal_bias);         /* per-pixel: sample point moved along n by this many grid spacings */
     SV_UINT(probe_representation); /* SV_PROBE_REP_*: override for every material, or _MATERIAL */
+    /* Shadow map layer k (the light whose sv_gpu_light.spot.w is k): world -> light clip space, an
+     * orthographic projection fitted to the scene's world bounds (x, y in [-1, 1], z in [0, 1]). */
+    SV_MAT4_ARRAY(shadow_view_proj, SV_MAX_SHADOWS);
+    /* x = world size of one shadow texel (the larger of the two axes), y = 1 / light-space depth range
+     * (metres), z = 1 / resolution (a texel in uv), w = 0. */
+    SV_VEC4_ARRAY(shadow_params, SV_MAX_SHADOWS);
 }
 SV_END(sv_gpu_frame)
-SV_SIZE_CHECK(sv_gpu_frame, 176)
+SV_SIZE_CHECK(sv_gpu_frame, 496)
 
 /* Per-draw push constants (std430), one draw per mesh primitive of an object. */
 SV_STRUCT(sv_gpu_draw)
@@ -164,6 +182,14 @@ SV_STRUCT(sv_gpu_draw)
 }
 SV_END(sv_gpu_draw)
 SV_SIZE_CHECK(sv_gpu_draw, 128) /* the guaranteed push-constant range */
+
+/* Per-draw push constants of the shadow pass (std430, shadow.vert): depth only. */
+SV_STRUCT(sv_gpu_shadow_draw)
+{
+    SV_MAT4(light_mvp); /* column-major object -> light clip space (shadow_view_proj[layer] * model) */
+}
+SV_END(sv_gpu_shadow_draw)
+SV_SIZE_CHECK(sv_gpu_shadow_draw, 64)
 
 /* Material (std430, SV_BINDING_MATERIALS). */
 SV_STRUCT(sv_gpu_material)
@@ -249,7 +275,8 @@ SV_STRUCT(sv_gpu_light)
     SV_VEC4(direction_type); /* xyz unit direction the light points to, w = type (0 dir, 1 point, 2 spot) */
     SV_VEC4(color);          /* rgb = colour * intensity (lux for directional, candela otherwise) */
     SV_VEC4(spot);           /* x = angle scale, y = angle offset (KHR_lights_punctual spot formula),
-                                z = 1 for a baked light (VULKAN_SCHNEE_light.mode), 0 realtime */
+                                z = SV_LIGHT_* mode (VULKAN_SCHNEE_light.mode: 0 realtime, 1 baked, 2 mixed),
+                                w = shadow map layer (directional mixed/realtime lights), -1 = unshadowed */
 }
 SV_END(sv_gpu_light)
 SV_SIZE_CHECK(sv_gpu_light, 64)

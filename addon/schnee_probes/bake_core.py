@@ -149,6 +149,7 @@ class ProbeBake:
         self._closed = False
         self._sky_exr = None                # rendered sky (temporary folder) until finish()
         self._realtime_lights = []          # lamps hidden from the probe renders (light_modes.py)
+        self._mixed_lights = frozenset()    # names of lamps whose direct light the probes leave out
         self._direct = None                 # direct_light.DirectLightPlan (issue 11 hook)
         self._sky_sun = None                # [the world image's sun as a Sun lamp] or [] (_check_lamps)
         self.allow_large = allow_large      # bake above settings.probe_limit without asking
@@ -337,9 +338,10 @@ class ProbeBake:
                      f"{self.total - hits} to render{more}")
 
     def _check_light_modes(self):
-        """The lamps marked realtime (``schnee_light_mode``, light_modes.py); refuses a bad value
-        before anything changes."""
-        realtime = []
+        """The lamps marked realtime (``schnee_light_mode``, light_modes.py); the names of those
+        marked mixed go to ``self._mixed_lights`` (their direct light is left out of the probes,
+        direct_light.prepare). Refuses a bad value before anything changes."""
+        realtime, mixed = [], []
         for ob in compat.light_objects(self.scene):
             try:
                 mode = light_modes.light_mode(ob)
@@ -352,6 +354,13 @@ class ProbeBake:
                     self.messages.append(f"Light '{ob.name}' is realtime but an area light, which "
                                          "glTF cannot export: its light reaches neither the probes "
                                          "nor the engine")
+            elif mode == light_modes.MIXED:
+                mixed.append(ob.name)
+                if ob.data.type == 'AREA':
+                    self.messages.append(f"Light '{ob.name}' is mixed but an area light, which glTF "
+                                         "cannot export: only its bounced light reaches the probes "
+                                         "and its direct light nothing")
+        self._mixed_lights = frozenset(mixed)
         return realtime
 
     def _volume_objects(self):

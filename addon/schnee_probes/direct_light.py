@@ -13,7 +13,8 @@ emission is a constant and that the native core models exactly (Sun, Point, Spot
 Lamps with a node-driven emission that is not a constant, and area lamps with a narrower spread,
 stay visible to camera rays (path traced as before); a Sun lamp of that kind, which camera rays
 cannot see, is added analytically with the constant part of its emission and a message. Realtime
-lamps (light_modes.py) are in neither. With ``lights_visible`` off no lamp is seen directly by the
+lamps (light_modes.py) are in neither; mixed lamps light the scene but are hidden from camera rays
+and not added (their bounced light only: the engine adds their direct light, shadowed). With ``lights_visible`` off no lamp is seen directly by the
 probes (the meaning of that setting is unchanged): nothing here runs.
 
 Use from the bake (bake_core.ProbeBake): ``plan = prepare(bake)`` once the render is set up (its
@@ -121,6 +122,8 @@ class DirectLightPlan:
     lamps: List[native.Lamp] = field(default_factory=list)
     analytic: List[str] = field(default_factory=list)      # object names, hidden from camera rays
     path_traced: List[str] = field(default_factory=list)   # object names left to camera rays
+    mixed: List[str] = field(default_factory=list)         # mixed lamps: hidden, not added
+    mixed_lamps: List[native.Lamp] = field(default_factory=list)  # their direct light (the engine's)
     geometry: list = field(default_factory=list)
     messages: List[str] = field(default_factory=list)
     samples: int = SAMPLES_PER_LAMP
@@ -328,6 +331,7 @@ def prepare(bake) -> Optional[DirectLightPlan]:
     if not s.lights_visible:
         return DirectLightPlan(sky=True)
     realtime = {ob.name for ob in bake._realtime_lights}
+    mixed = bake._mixed_lights
     coll = bpy.data.collections.get(s.volume_collection)
     volume_names = frozenset(ob.name for ob in coll.all_objects) if coll is not None else frozenset()
     plan = DirectLightPlan(sky=True)
@@ -344,6 +348,15 @@ def prepare(bake) -> Optional[DirectLightPlan]:
             owner = inst.parent.original if inst.is_instance and inst.parent is not None else original
             if original.name in realtime or owner.hide_render or original.hide_render:
                 continue
+            if original.name in mixed:
+                # Mixed: it lights the scene (its bounced light is path traced into the probes) but
+                # its direct light is the engine's, shadowed: hidden from camera rays, not added.
+                if original.name not in plan.mixed:
+                    plan.mixed.append(original.name)
+                analytic, factor, _ = classify(original.data)
+                if analytic:
+                    plan.mixed_lamps.append(lamp_record(original.data, inst.matrix_world, factor))
+                continue
             light = original.data
             if is_portal(light):
                 continue    # a Cycles sky portal emits nothing: it only guides the world's sampling
@@ -356,7 +369,7 @@ def prepare(bake) -> Optional[DirectLightPlan]:
             analytic, factor, _ = decided[original.name]
             if analytic:
                 plan.lamps.append(lamp_record(light, inst.matrix_world, factor))
-    for name in plan.analytic:
+    for name in plan.analytic + plan.mixed:
         ob = bpy.data.objects.get(name)
         if ob is not None and hasattr(ob, "visible_camera"):
             state.set(ob, "visible_camera", False, f"object[{ob.name}].visible_camera")

@@ -12,7 +12,7 @@ it gathers the scene. Contract: DESIGN.md §5; user documentation: docs/export.m
   exporter cannot see inside a node group.
 - ``gather_tree_filter_tag_hook``: objects of the probe-volume collection are left out.
 - ``gather_node_hook``: each exported punctual light gets ``extensions.VULKAN_SCHNEE_light =
-  {"mode": "baked" | "realtime"}`` from its object's ``schnee_light_mode`` (light_modes.py).
+  {"mode": "baked" | "mixed" | "realtime"}`` from its object's ``schnee_light_mode`` (light_modes.py).
 - The sky the bake captured (``sh_coeffs/sky.exr`` next to the .blend) is copied likewise and
   listed as ``VULKAN_SCHNEE_engine_properties.sky`` with its radiance SH (L2, engine space).
 
@@ -61,6 +61,26 @@ STORAGES = ("float32", "float16")
 
 # --------------------------------------------------------------------------------------------
 # Settings and UI
+
+
+
+# Blender's exporter writes KHR_lights_punctual intensities in the dialog's Lighting Mode:
+# Standard (SPEC) = photometric, W x 683 lm/W (a Sun's W/m2 as lux, a point's W/(4 pi) as cd);
+# Unitless (COMPAT) = the same without the 683; Raw = Blender's numbers (a point's W as they are).
+# The engine works in Blender's radiometric units (the probes' radiance: a Sun's W/m2, a point's
+# W/(4 pi) per sr, Cycles' conventions), so each light carries the factor back (docs/export.md).
+PBR_WATTS_TO_LUMENS = 683.0
+
+
+def light_intensity_scale(kind, export_settings) -> float:
+    """VULKAN_SCHNEE_light.intensityScale of a glTF light of type ``kind`` ("directional", "point",
+    "spot") written in the export's lighting mode: intensity x scale = Blender's radiometric value."""
+    mode = export_settings.get("gltf_lighting_mode", "SPEC")
+    if mode == "SPEC":
+        return 1.0 / PBR_WATTS_TO_LUMENS
+    if mode == "RAW" and kind != "directional":
+        return 1.0 / (4.0 * math.pi)
+    return 1.0
 
 
 class SchneeGltfExportSettings(bpy.types.PropertyGroup):
@@ -472,7 +492,8 @@ class glTF2ExportUserExtension:
         # same ones again when equal). Replacing the member keeps a repeated call harmless.
         light = dict(ref.extension)
         extensions = dict(light.get("extensions") or {})
-        extensions[EXT_LIGHT] = _make_extension(EXT_LIGHT, {"mode": mode})
+        scale = light_intensity_scale(light.get("type"), export_settings)
+        extensions[EXT_LIGHT] = _make_extension(EXT_LIGHT, {"mode": mode, "intensityScale": scale})
         light["extensions"] = extensions
         ref.extension = light
 

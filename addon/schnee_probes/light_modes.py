@@ -1,10 +1,16 @@
-"""Per-lamp light mode: baked into the probes, or realtime in the engine (docs/user-guide.md "Lights").
+"""Per-lamp light mode: baked into the probes, mixed, or realtime in the engine (docs/user-guide.md
+"Lights", docs/export.md "Light modes").
 
 The mode is the custom property ``schnee_light_mode`` on the light **object** (not the light
-datablock): ``"baked"`` (the default when the property is absent) or ``"realtime"``.
+datablock): ``"baked"`` (the default when the property is absent), ``"mixed"`` or ``"realtime"``.
 
 - baked: the bake renders the lamp into the probes (direct and bounced light); the engine adds
   no direct term where a baked probe lights a surface, so the lamp is counted once.
+- mixed: the lamp lights the scene in the probe renders, so its bounced light is in the probes,
+  but its direct light is not (hidden from the probe cameras, not added analytically); the engine
+  adds the direct term everywhere, shadowed (a Sun: shadow maps, docs/engine.md "Shadows"). As
+  Unity's Mixed lights: a hard sunbeam's edge is drawn by the shadow map per pixel instead of being
+  interpolated between probes.
 - realtime: the bake hides the lamp from the probe renders; the engine adds it as direct light.
 
 On the object because render visibility, which the bake switches, is per object, and because a
@@ -14,13 +20,14 @@ glTF node (one per object) is what refers to a light: two objects sharing one li
 """
 PROPERTY = "schnee_light_mode"
 BAKED = "baked"
+MIXED = "mixed"
 REALTIME = "realtime"
-MODES = (BAKED, REALTIME)
+MODES = (BAKED, MIXED, REALTIME)
 DEFAULT = BAKED
 
 
 class LightModeError(ValueError):
-    """A light object's ``schnee_light_mode`` is neither "baked" nor "realtime"."""
+    """A light object's ``schnee_light_mode`` is not "baked", "mixed" or "realtime"."""
 
 
 def light_mode(ob) -> str:
@@ -34,4 +41,4 @@ def light_mode(ob) -> str:
     if isinstance(value, str) and value in MODES:
         return value
     raise LightModeError(f"light '{ob.name}': custom property {PROPERTY} = {value!r} is not "
-                         f"'{BAKED}' or '{REALTIME}'")
+                         f"'{BAKED}', '{MIXED}' or '{REALTIME}'")

@@ -69,8 +69,9 @@ class VIEW3D_PT_schnee_probes_last(bpy.types.Panel):
 
 
 class SCHNEE_OT_set_light_mode(bpy.types.Operator):
-    """Baked: the lamp lights objects only through the probes. Realtime: left out of the probe
-    renders; the engine adds it as direct light"""
+    """Baked: the lamp lights objects only through the probes. Mixed: its bounced light is in the
+    probes, the engine adds its direct light with shadows. Realtime: left out of the probe renders;
+    the engine adds it as direct light"""
     bl_idname = "schnee.set_light_mode"
     bl_label = "Set Light Mode"
     bl_options = {'REGISTER', 'UNDO'}
@@ -78,6 +79,8 @@ class SCHNEE_OT_set_light_mode(bpy.types.Operator):
     mode: bpy.props.EnumProperty(
         name="Mode",
         items=((light_modes.BAKED, "Baked", "Lit through the probes only (the bake renders it)"),
+               (light_modes.MIXED, "Mixed", "Bounced light in the probes; the engine adds its "
+                                            "direct light with shadows (sharp sunbeams)"),
                (light_modes.REALTIME, "Realtime", "Left out of the probe renders; the engine adds "
                                                   "it as direct light")))
 
@@ -124,10 +127,15 @@ class VIEW3D_PT_schnee_light(bpy.types.Panel):
             mode = None
             col.label(text=f"Unknown {light_modes.PROPERTY}: {ob.get(light_modes.PROPERTY)!r}", icon='ERROR')
         row = col.row(align=True)
-        for value, text in ((light_modes.BAKED, "Baked"), (light_modes.REALTIME, "Realtime")):
+        for value, text in ((light_modes.BAKED, "Baked"), (light_modes.MIXED, "Mixed"),
+                            (light_modes.REALTIME, "Realtime")):
             row.operator(SCHNEE_OT_set_light_mode.bl_idname, text=text, depress=mode == value).mode = value
         if mode == light_modes.BAKED:
             col.label(text="In the probes; no direct light where probes light")
+        elif mode == light_modes.MIXED:
+            col.label(text="Bounced light in the probes; engine direct light, shadowed")
+            if ob.data.type == 'AREA':
+                col.label(text="glTF cannot export area lights", icon='ERROR')
         elif mode == light_modes.REALTIME:
             col.label(text="Not in the probes; engine direct light")
             if ob.data.type == 'AREA':

@@ -224,10 +224,11 @@ static bool parse_material(ectx_ *c, uint32_t i, sv_ext_material *m)
 }
 
 /* The message names the light, as a user knows it by name rather than by index. */
-static bool parse_light(ectx_ *c, uint32_t i, sv_light_mode *mode_out)
+static bool parse_light(ectx_ *c, uint32_t i, sv_light_mode *mode_out, float *scale_out)
 {
     const sv_gltf_light *l = &c->g->lights[i];
     *mode_out = SV_LIGHT_MODE_REALTIME;
+    *scale_out = 1.0f;
     char path[160];
     snprintf(path, sizeof path, "KHR_lights_punctual.lights[%u] ('%.24s').extensions", i, l->name);
     cJSON *j = parse_raw(c, l->extensions, l->extension_count, "VULKAN_SCHNEE_light", path);
@@ -238,9 +239,14 @@ static bool parse_light(ectx_ *c, uint32_t i, sv_light_mode *mode_out)
     if (ok && mode) {
         if (strcmp(mode->valuestring, "baked") == 0)
             *mode_out = SV_LIGHT_MODE_BAKED;
+        else if (strcmp(mode->valuestring, "mixed") == 0)
+            *mode_out = SV_LIGHT_MODE_MIXED;
         else if (strcmp(mode->valuestring, "realtime") != 0)
-            ok = efail(c, SV_GLTF_ERROR_FORMAT, "%s.mode: '%.40s' is not baked or realtime", path, mode->valuestring);
+            ok = efail(c, SV_GLTF_ERROR_FORMAT, "%s.mode: '%.40s' is not baked, mixed or realtime", path,
+                       mode->valuestring);
     }
+    /* intensityScale: the light's intensity x this = the engine's radiometric units (docs/export.md). */
+    ok = ok && get_float(c, j, "intensityScale", path, false, 1.0f, 1e-12, 1e12, scale_out);
     cJSON_Delete(j);
     return ok;
 }
@@ -435,12 +441,13 @@ sv_gltf_result sv_ext_parse(const sv_gltf *g, sv_ext *out, sv_gltf_error *err)
     memset(out, 0, sizeof *out);
     out->materials = calloc(g->material_count + 1, sizeof *out->materials);
     out->light_modes = calloc(g->light_count + 1, sizeof *out->light_modes);
-    bool ok = out->materials && out->light_modes;
+    out->light_scales = calloc(g->light_count + 1, sizeof *out->light_scales);
+    bool ok = out->materials && out->light_modes && out->light_scales;
     if (!ok) efail(&c, SV_GLTF_ERROR_OUT_OF_MEMORY, "out of memory");
     for (uint32_t i = 0; ok && i < g->material_count; i++, out->material_count++)
         ok = parse_material(&c, i, &out->materials[i]);
     for (uint32_t i = 0; ok && i < g->light_count; i++, out->light_count++)
-        ok = parse_light(&c, i, &out->light_modes[i]);
+        ok = parse_light(&c, i, &out->light_modes[i], &out->light_scales[i]);
     ok = ok && parse_engine_properties(&c);
     if (!ok) {
         sv_ext_free(out);
@@ -454,6 +461,7 @@ void sv_ext_free(sv_ext *x)
     if (!x) return;
     free(x->materials);
     free(x->light_modes);
+    free(x->light_scales);
     for (uint32_t i = 0; x->probe_grids && i < x->probe_grid_count; i++) {
         free(x->probe_grids[i].name);
         free(x->probe_grids[i].uri);

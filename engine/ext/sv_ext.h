@@ -2,7 +2,7 @@
  * JSON the generic loader hands over (sv_gltf_extension), outside the loader:
  *   scene   VULKAN_SCHNEE_engine_properties: shProbeGrids[] and sky
  *   material VULKAN_SCHNEE_materials: shScale, ambientTerm, probeMode, probeRepresentation
- *   light   VULKAN_SCHNEE_light: mode
+ *   light   VULKAN_SCHNEE_light: mode, intensityScale
  *
  *   sv_gltf_desc desc = {.app_extensions = sv_ext_names, .app_extension_count = SV_EXT_NAME_COUNT};
  *   sv_gltf_load_file(path, &desc, &g, &err);
@@ -33,6 +33,8 @@ extern const char *const sv_ext_names[SV_EXT_NAME_COUNT];
 typedef enum sv_light_mode {
     SV_LIGHT_MODE_REALTIME = 0, /* "realtime": left out of the bake; always direct light */
     SV_LIGHT_MODE_BAKED,        /* "baked": in the probes; direct light only where no probe lights a surface */
+    SV_LIGHT_MODE_MIXED,        /* "mixed": its bounced light is in the probes, its direct light is not: always
+                                   direct light, shadowed (docs/engine.md "Shadows") */
 } sv_light_mode;
 
 typedef struct sv_ext_material {
@@ -81,6 +83,7 @@ typedef struct sv_ext {
     sv_ext_material *materials; /* one per glTF material */
     uint32_t material_count;
     sv_light_mode *light_modes; /* one per KHR_lights_punctual light */
+    float *light_scales;        /* one per light: VULKAN_SCHNEE_light.intensityScale (default 1) */
     uint32_t light_count;
     sv_ext_probe_grid *probe_grids;
     uint32_t probe_grid_count;

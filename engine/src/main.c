@@ -27,8 +27,9 @@ static void usage(FILE *f)
         "  --exposure E             linear exposure multiplier before tone mapping (default 1)\n"
         "  --tonemap neutral|aces|none  operator (default neutral = Khronos PBR Neutral); --no-tonemap = none\n"
         "  --debug none|probe-color|probe-index|normals  debug view (probe-index writes the index in R)\n"
-        "  --no-direct              skip KHR_lights_punctual direct light, baked or realtime (probe + ambient\n"
-        "                           + emission only; a baked light adds direct light only where no probe lights)\n"
+        "  --no-direct              skip KHR_lights_punctual direct light, baked, mixed or realtime (probe +\n"
+        "                           ambient + emission only; a baked light adds direct light only where no probe\n"
+        "                           lights)\n"
         "  --probe-view             probe view: a small sphere per probe shaded with its SH + grid cell outlines\n"
         "                           (--probe-cells is the same)\n"
         "  --probe-mode %s  probe lighting for every material (default material =\n"
@@ -38,6 +39,8 @@ static void usage(FILE *f)
         "                           itself default sh); ambientCube = the cube fitted to each probe's SH\n"
         "  --probe-storage float|half  GPU storage of the SH coefficients and ambient cubes (default float)\n"
         "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
+        "  --shadow-res N           shadow map size per directional mixed/realtime light (default %u; at most\n"
+        "                           %u; 0 = no shadows)\n"
         "  --no-sky                 ignore the scene's sky (no background, no specular, constant fallback)\n"
         "  --no-specular            no sky reflections (image-based specular)\n"
         "  --no-renorm              do not scale sky reflections by probe / sky irradiance\n"
@@ -55,7 +58,7 @@ static void usage(FILE *f)
         "window keys: WASD/QE move, right mouse drag looks, Shift faster, P probe colours, C probe view,\n"
         "             M probe mode (cycles material, object, pixel, off),\n"
         "             N next object, J/L/I/K/U/O move it (its probe is re-queried), Esc quits\n",
-        modes, SV_FALLBACK_RADIANCE);
+        modes, SV_SHADOW_DEFAULT_RES, SV_SHADOW_MAX_RES, SV_FALLBACK_RADIANCE);
 }
 
 static bool parse_float(const char *s, float *out)
@@ -91,6 +94,7 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
     o->fallback_radiance = SV_FALLBACK_RADIANCE;
     o->probe_mode = SV_PROBE_MODE_MATERIAL;
     o->probe_representation = SV_PROBE_REP_MATERIAL;
+    o->shadow_res = SV_SHADOW_DEFAULT_RES;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *next = i + 1 < argc ? argv[i + 1] : NULL;
@@ -181,6 +185,17 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
         } else if (strcmp(a, "--normal-bias") == 0) {
             NEED(1);
             if (!parse_float(next, &o->normal_bias) || o->normal_bias < 0 || o->normal_bias > 1) BAD_VALUE(next);
+            ++i;
+        } else if (strcmp(a, "--shadow-res") == 0) {
+            NEED(1);
+            if (!parse_u32(next, 0, SV_SHADOW_MAX_RES, &o->shadow_res)) {
+                fprintf(
+                    stderr,
+                    "schnee-view: error: bad value '%s' for --shadow-res (shadow map size in texels, 0 = no shadows, "
+                    "at most %u)\n",
+                    next, SV_SHADOW_MAX_RES);
+                return 2;
+            }
             ++i;
         } else if (strcmp(a, "--no-sky") == 0) {
             o->no_sky = true;

@@ -40,6 +40,7 @@ typedef struct sv_options {
     uint32_t probe_representation; /* SV_PROBE_REP_*, default _MATERIAL (each material's probeRepresentation) */
     bool half_probes;              /* --probe-storage half */
     float normal_bias;             /* --normal-bias, grid spacings (default 0) */
+    uint32_t shadow_res;           /* --shadow-res, texels per shadow map side (default 2048, 0 = off) */
     bool no_specular;              /* --no-specular: no sky reflections */
     bool no_renorm;                /* --no-renorm: sky specular not scaled by probe / sky irradiance */
     bool no_sky;                   /* --no-sky: ignore the glTF's sky */

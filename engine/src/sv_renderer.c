@@ -41,6 +41,9 @@ static const uint32_t fullscreen_vert_spv[] =
 static const uint32_t tonemap_frag_spv[] =
 #include "tonemap.frag.inc"
     ;
+static const uint32_t shadow_vert_spv[] =
+#include "shadow.vert.inc"
+    ;
 
 #define SV_VERTEX_FLOATS 8 /* position xyz, normal xyz, uv */
 
@@ -277,7 +280,10 @@ static bool upload_textures(sv_renderer *r, const sv_gltf *g)
     return true;
 }
 
-static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext)
+/* Which lights get a shadow map layer (docs/engine.md "Shadows"): directional lights whose mode is
+ * mixed or realtime (or no extension), the first SV_MAX_SHADOWS of them in light-instance order;
+ * further ones stay unshadowed with one warning. None when shadow_res is 0. */
+static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext, uint32_t shadow_res)
 {
     uint32_t n = g->light_instance_count;
     sv_gpu_light *l = calloc(n ? n : 1, sizeof(*l));
@@ -291,13 +297,32 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext)
         l[i].direction_type[3] = s->type == SV_GLTF_LIGHT_DIRECTIONAL ? 0.0f
                                  : s->type == SV_GLTF_LIGHT_POINT     ? 1.0f
                                                                       : 2.0f;
-        for (int c = 0; c < 3; ++c) l[i].color[c] = s->color[c] * s->intensity;
+        float units = ext->light_scales ? ext->light_scales[li->light] : 1.0f;
+        for (int c = 0; c < 3; ++c) l[i].color[c] = s->color[c] * s->intensity * units;
         /* KHR_lights_punctual: scale = 1 / max(0.001, cos(inner) - cos(outer)), offset = -cos(outer) * scale. */
         float scale = 1.0f / fmaxf(0.001f, cosf(s->inner_cone_angle) - cosf(s->outer_cone_angle));
         l[i].spot[0] = scale;
         l[i].spot[1] = -cosf(s->outer_cone_angle) * scale;
-        l[i].spot[2] = ext->light_modes[li->light] == SV_LIGHT_MODE_BAKED ? 1.0f : 0.0f;
+        sv_light_mode mode = ext->light_modes[li->light];
+        l[i].spot[2] = (float)(mode == SV_LIGHT_MODE_BAKED   ? SV_LIGHT_BAKED
+                               : mode == SV_LIGHT_MODE_MIXED ? SV_LIGHT_MIXED
+                                                             : SV_LIGHT_REALTIME);
+        l[i].spot[3] = -1.0f;
+        if (shadow_res && s->type == SV_GLTF_LIGHT_DIRECTIONAL && mode != SV_LIGHT_MODE_BAKED) {
+            if (r->shadow_count < SV_MAX_SHADOWS) {
+                l[i].spot[3] = (float)r->shadow_count;
+                memcpy(r->shadow_dir[r->shadow_count], li->direction, 3 * sizeof(float));
+                ++r->shadow_count;
+            } else if (r->shadow_count == SV_MAX_SHADOWS) {
+                fprintf(stderr,
+                        "schnee-view: warning: more than %d directional lights cast shadows; light '%s' and any "
+                        "further ones are unshadowed\n",
+                        SV_MAX_SHADOWS, s->name ? s->name : "");
+                ++r->shadow_count; /* warned once; clamped back below */
+            }
+        }
     }
+    if (r->shadow_count > SV_MAX_SHADOWS) r->shadow_count = SV_MAX_SHADOWS;
     r->light_count = n;
     bool ok =
         sv_buffer_create_with_data(r->ctx, l, (n ? n : 1) * sizeof(*l), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->lights);
@@ -464,6 +489,132 @@ static bool upload_sky(sv_renderer *r, const sv_sky *sky)
     return ok;
 }
 
+/* ---- shadow maps ---------------------------------------------------------------------------- */
+
+/* A depth format the device can render to and sample (D32 float preferred), and whether it filters
+ * linearly (the hardware 2x2 bilinear comparison; nearest otherwise). */
+static VkFormat pick_shadow_format(sv_context *ctx, bool *linear)
+{
+    VkFormat candidates[] = {VK_FORMAT_D32_SFLOAT, VK_FORMAT_D16_UNORM};
+    const VkFormatFeatureFlags need =
+        VK_FORMAT_FEATURE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_FORMAT_FEATURE_SAMPLED_IMAGE_BIT;
+    for (int i = 0; i < 2; ++i) {
+        VkFormatProperties p;
+        vkGetPhysicalDeviceFormatProperties(ctx->physical, candidates[i], &p);
+        if ((p.optimalTilingFeatures & need) == need) {
+            *linear = (p.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT) != 0;
+            return candidates[i];
+        }
+    }
+    *linear = false;
+    return VK_FORMAT_D16_UNORM; /* required by the spec for depth attachments and sampling */
+}
+
+/* The shadow map array (shadow_count layers of shadow_res^2, or one 1x1 layer when no light is
+ * shadowed: the binding needs an image), its per-layer views and the comparison sampler. The image is
+ * left in SHADER_READ_ONLY_OPTIMAL, the layout every frame's shadow pass returns it to. */
+static bool create_shadow_maps(sv_renderer *r, uint32_t shadow_res)
+{
+    sv_context *ctx = r->ctx;
+    bool linear = false;
+    r->shadow_format = pick_shadow_format(ctx, &linear);
+    uint32_t max_dim = ctx->properties.limits.maxImageDimension2D;
+    if (r->shadow_count && shadow_res > max_dim) {
+        fprintf(stderr, "schnee-view: warning: --shadow-res %u exceeds the device's limit %u; using %u\n", shadow_res,
+                max_dim, max_dim);
+        shadow_res = max_dim;
+    }
+    r->shadow_res = r->shadow_count ? shadow_res : 1;
+    uint32_t layers = r->shadow_count ? r->shadow_count : 1;
+    if (!sv_image_create_layers(ctx, r->shadow_res, r->shadow_res, 1, layers, r->shadow_format,
+                                VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT,
+                                VK_IMAGE_ASPECT_DEPTH_BIT, &r->shadow))
+        return false;
+    for (uint32_t k = 0; k < r->shadow_count; ++k) {
+        VkImageViewCreateInfo vi = {
+            .sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO,
+            .image = r->shadow.image,
+            .viewType = VK_IMAGE_VIEW_TYPE_2D,
+            .format = r->shadow_format,
+            .subresourceRange = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 1, k, 1},
+        };
+        VK_CHECK(vkCreateImageView(ctx->device, &vi, NULL, &r->shadow_layer_views[k]));
+    }
+    VkSamplerCreateInfo si = {
+        .sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
+        .magFilter = linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST,
+        .minFilter = linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST,
+        .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
+        .addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
+        .addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
+        .addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
+        .compareEnable = VK_TRUE,
+        .compareOp = VK_COMPARE_OP_LESS_OR_EQUAL,
+        .maxLod = 0.0f,
+        .borderColor = VK_BORDER_COLOR_FLOAT_OPAQUE_WHITE,
+    };
+    VK_CHECK(vkCreateSampler(ctx->device, &si, NULL, &r->shadow_sampler));
+    VkCommandBuffer cmd = sv_begin_one_shot(ctx);
+    if (!cmd) return false;
+    sv_image_barrier(cmd, r->shadow.image, VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                     VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, 0,
+                     VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
+    return sv_end_one_shot(ctx, cmd);
+fail:
+    return false;
+}
+
+/* The light-space projection of one shadowed light: an orthographic box along `dir` fitted to the 8
+ * corners of the world bounds [lo, hi] (x, y extents and depth range, each padded by 1 % plus 1 mm
+ * so that surfaces on the bounds stay inside), world -> clip with x, y in [-1, 1] and z in [0, 1]
+ * (Vulkan), and its shadow_params (see sv_gpu_frame). */
+static void shadow_projection(const float dir[3], const float lo[3], const float hi[3], uint32_t res, float m[16],
+                              float params[4])
+{
+    float f[3] = {dir[0], dir[1], dir[2]};
+    float fl = sqrtf(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+    if (fl < 1e-12f) f[0] = 0, f[1] = -1, f[2] = 0, fl = 1;
+    for (int k = 0; k < 3; ++k) f[k] /= fl;
+    float up[3] = {0, 1, 0};
+    if (fabsf(f[1]) > 0.99f) up[0] = 1, up[1] = 0;
+    float x[3] = {f[1] * up[2] - f[2] * up[1], f[2] * up[0] - f[0] * up[2], f[0] * up[1] - f[1] * up[0]};
+    float xl = sqrtf(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+    for (int k = 0; k < 3; ++k) x[k] /= xl;
+    float y[3] = {x[1] * f[2] - x[2] * f[1], x[2] * f[0] - x[0] * f[2], x[0] * f[1] - x[1] * f[0]};
+    const float *axes[3] = {x, y, f};
+    float mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int c = 0; c < 8; ++c) {
+        float p[3] = {(c & 1) ? hi[0] : lo[0], (c & 2) ? hi[1] : lo[1], (c & 4) ? hi[2] : lo[2]};
+        for (int a = 0; a < 3; ++a) {
+            float d = axes[a][0] * p[0] + axes[a][1] * p[1] + axes[a][2] * p[2];
+            mn[a] = fminf(mn[a], d);
+            mx[a] = fmaxf(mx[a], d);
+        }
+    }
+    float centre[3], half[3];
+    for (int a = 0; a < 3; ++a) {
+        float pad = 0.01f * (mx[a] - mn[a]) + 1e-3f;
+        mn[a] -= pad;
+        mx[a] += pad;
+        centre[a] = 0.5f * (mn[a] + mx[a]);
+        half[a] = 0.5f * (mx[a] - mn[a]);
+    }
+    memset(m, 0, 16 * sizeof(float));
+    for (int k = 0; k < 3; ++k) {
+        m[4 * k + 0] = x[k] / half[0];
+        m[4 * k + 1] = y[k] / half[1];
+        m[4 * k + 2] = f[k] / (2.0f * half[2]);
+    }
+    m[12] = -centre[0] / half[0];
+    m[13] = -centre[1] / half[1];
+    m[14] = -mn[2] / (2.0f * half[2]);
+    m[15] = 1.0f;
+    params[0] = 2.0f * fmaxf(half[0], half[1]) / (float)res;
+    params[1] = 1.0f / (2.0f * half[2]);
+    params[2] = 1.0f / (float)res;
+    params[3] = 0.0f;
+}
+
 /* ---- descriptors and pipelines -------------------------------------------------------------- */
 
 static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
@@ -492,7 +643,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
     VK_CHECK(vkCreateSampler(dev, &si, NULL, &r->sky_sampler));
 
     const VkShaderStageFlags vf = VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
-    /* Set 0; the first 10 are buffers (in the order of bufs[] below), the last 2 images. */
+    /* Set 0; the first 10 are buffers (in the order of bufs[] below), the last 3 images. */
     VkDescriptorSetLayoutBinding scene_b[SV_SCENE_BINDING_COUNT] = {
         {SV_BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, vf, NULL},
         {SV_BINDING_MATERIALS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
@@ -506,6 +657,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
         {SV_BINDING_CUBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
         {SV_BINDING_SKY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
         {SV_BINDING_BRDF_LUT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+        {SV_BINDING_SHADOW, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     };
     VkDescriptorSetLayoutCreateInfo li = {
         .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
@@ -531,7 +683,7 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
     VkDescriptorPoolSize sizes[] = {
         {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
         {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 9},
-        {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2 * r->material_count + 3},
+        {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2 * r->material_count + 4},
     };
     VkDescriptorPoolCreateInfo pi = {
         .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
@@ -587,9 +739,10 @@ static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
         {r->cell_index.buffer, 0, VK_WHOLE_SIZE}, {r->probes_half.buffer, 0, VK_WHOLE_SIZE},
         {r->cubes.buffer, 0, VK_WHOLE_SIZE},      {r->cubes_half.buffer, 0, VK_WHOLE_SIZE},
     };
-    VkDescriptorImageInfo imgs[2] = {
+    VkDescriptorImageInfo imgs[3] = {
         {r->sky_sampler, r->sky.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
         {r->lut_sampler, r->brdf_lut.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+        {r->shadow_sampler, r->shadow.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
     };
     VkWriteDescriptorSet w[SV_SCENE_BINDING_COUNT];
     for (uint32_t i = 0; i < SV_SCENE_BINDING_COUNT; ++i)
@@ -611,10 +764,10 @@ fail:
 typedef struct pipeline_desc {
     const uint32_t *vs;
     size_t vs_size;
-    const uint32_t *fs;
+    const uint32_t *fs; /* NULL: no fragment stage (depth only) */
     size_t fs_size;
     VkPipelineLayout layout;
-    VkFormat color_format;
+    VkFormat color_format;            /* VK_FORMAT_UNDEFINED = no colour attachment */
     VkFormat depth_format;            /* VK_FORMAT_UNDEFINED = no depth */
     uint32_t attribute_count;         /* vertex attributes the vertex shader reads (0 = no vertex buffer) */
     VkPrimitiveTopology topology;     /* 0 = triangle list */
@@ -626,8 +779,8 @@ static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d)
 {
     VkPipeline pipe = VK_NULL_HANDLE;
     VkShaderModule vs = sv_shader_module(ctx, d->vs, d->vs_size);
-    VkShaderModule fs = sv_shader_module(ctx, d->fs, d->fs_size);
-    if (!vs || !fs) goto fail;
+    VkShaderModule fs = d->fs ? sv_shader_module(ctx, d->fs, d->fs_size) : VK_NULL_HANDLE;
+    if (!vs || (d->fs && !fs)) goto fail;
     VkPipelineShaderStageCreateInfo stages[2] = {
         {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
          .stage = VK_SHADER_STAGE_VERTEX_BIT,
@@ -682,7 +835,7 @@ static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d)
     VkPipelineColorBlendAttachmentState blend = {.colorWriteMask = 0xF};
     VkPipelineColorBlendStateCreateInfo cb = {
         .sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
-        .attachmentCount = 1,
+        .attachmentCount = d->color_format != VK_FORMAT_UNDEFINED ? 1 : 0,
         .pAttachments = &blend,
     };
     VkDynamicState dyn[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
@@ -690,14 +843,14 @@ static VkPipeline create_pipeline(sv_context *ctx, const pipeline_desc *d)
         .sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO, .dynamicStateCount = 2, .pDynamicStates = dyn};
     VkPipelineRenderingCreateInfo rendering = {
         .sType = VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO,
-        .colorAttachmentCount = 1,
+        .colorAttachmentCount = d->color_format != VK_FORMAT_UNDEFINED ? 1 : 0,
         .pColorAttachmentFormats = &d->color_format,
         .depthAttachmentFormat = d->depth_format,
     };
     VkGraphicsPipelineCreateInfo info = {
         .sType = VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO,
         .pNext = &rendering,
-        .stageCount = 2,
+        .stageCount = d->fs ? 2 : 1,
         .pStages = stages,
         .pVertexInputState = &vi,
         .pInputAssemblyState = &ia,
@@ -783,6 +936,26 @@ static bool create_pipelines(sv_renderer *r)
                        false,
                        NULL};
     r->tonemap_pipeline = create_pipeline(r->ctx, &t);
+    if (r->shadow_count) { /* depth only: positions, the light's matrix in the push constants */
+        VkPushConstantRange shadow_push = {VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(sv_gpu_shadow_draw)};
+        li.setLayoutCount = 0;
+        li.pSetLayouts = NULL;
+        li.pPushConstantRanges = &shadow_push;
+        VK_CHECK(vkCreatePipelineLayout(dev, &li, NULL, &r->shadow_layout));
+        pipeline_desc sd = {shadow_vert_spv,
+                            sizeof(shadow_vert_spv),
+                            NULL,
+                            0,
+                            r->shadow_layout,
+                            VK_FORMAT_UNDEFINED,
+                            r->shadow_format,
+                            1,
+                            VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
+                            false,
+                            NULL};
+        r->shadow_pipeline = create_pipeline(r->ctx, &sd);
+        if (!r->shadow_pipeline) return false;
+    }
     return r->mesh_pipeline && r->cells_pipeline && r->outline_pipeline && r->sky_pipeline && r->tonemap_pipeline;
 fail:
     return false;
@@ -810,7 +983,8 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
     r->encode_srgb = output_format != VK_FORMAT_B8G8R8A8_SRGB && output_format != VK_FORMAT_R8G8B8A8_SRGB;
     const sv_gltf *g = scene->gltf;
     if (!upload_geometry(r, g) || !upload_materials(r, g, &scene->ext) || !upload_textures(r, g) ||
-        !upload_lights(r, g, &scene->ext) || !upload_probes(r, scene, probes, desc) || !upload_sky(r, desc->sky))
+        !upload_lights(r, g, &scene->ext, desc->shadow_res) || !create_shadow_maps(r, desc->shadow_res) ||
+        !upload_probes(r, scene, probes, desc) || !upload_sky(r, desc->sky))
         return false;
     if (!sv_buffer_create(ctx, sizeof(sv_gpu_frame), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true, &r->frame)) return false;
     r->material_count = g->material_count + 1;
@@ -984,6 +1158,64 @@ static void retrace_masks(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *s
     free(cells);
 }
 
+/* The shadow pass (docs/engine.md "Shadows"): every layer cleared to depth 1, then every opaque or
+ * masked primitive of every object drawn depth-only from its light; the array ends in
+ * SHADER_READ_ONLY_OPTIMAL for the scene pass. */
+static void record_shadows(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene, const sv_gpu_frame *frame)
+{
+    const sv_gltf *g = scene->gltf;
+    sv_image_barrier(cmd, r->shadow.image, VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                     VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, 0,
+                     VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT,
+                     VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
+    VkViewport viewport = {0, 0, (float)r->shadow_res, (float)r->shadow_res, 0.0f, 1.0f};
+    VkRect2D scissor = {{0, 0}, {r->shadow_res, r->shadow_res}};
+    VkDeviceSize zero = 0;
+    for (uint32_t k = 0; k < r->shadow_count; ++k) {
+        VkRenderingAttachmentInfo depth = {
+            .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
+            .imageView = r->shadow_layer_views[k],
+            .imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+            .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
+            .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
+            .clearValue.depthStencil = {1.0f, 0},
+        };
+        VkRenderingInfo ri = {
+            .sType = VK_STRUCTURE_TYPE_RENDERING_INFO,
+            .renderArea = scissor,
+            .layerCount = 1,
+            .pDepthAttachment = &depth,
+        };
+        vkCmdBeginRendering(cmd, &ri);
+        vkCmdSetViewport(cmd, 0, 1, &viewport);
+        vkCmdSetScissor(cmd, 0, 1, &scissor);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->shadow_pipeline);
+        vkCmdBindVertexBuffers(cmd, 0, 1, &r->vertices.buffer, &zero);
+        vkCmdBindIndexBuffer(cmd, r->indices.buffer, 0, VK_INDEX_TYPE_UINT32);
+        for (uint32_t o = 0; o < scene->object_count; ++o) {
+            const sv_object *obj = &scene->objects[o];
+            sv_gpu_shadow_draw draw;
+            sv_mat4_mul(frame->shadow_view_proj[k], obj->world, draw.light_mvp);
+            vkCmdPushConstants(cmd, r->shadow_layout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(draw), &draw);
+            const sv_gltf_mesh *mesh = &g->meshes[obj->mesh];
+            for (uint32_t p = 0; p < mesh->primitive_count; ++p) {
+                uint32_t pi = r->mesh_prim_base[obj->mesh] + p;
+                uint32_t mat = r->prim_material[pi];
+                if (!r->prim_index_count[pi] ||
+                    (mat < g->material_count && g->materials[mat].alpha_mode == SV_GLTF_ALPHA_BLEND))
+                    continue;
+                vkCmdDrawIndexed(cmd, r->prim_index_count[pi], 1, r->prim_first_index[pi], r->prim_vertex_offset[pi],
+                                 0);
+            }
+        }
+        vkCmdEndRendering(cmd);
+    }
+    sv_image_barrier(cmd, r->shadow.image, VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+                     VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT,
+                     VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
+                     VK_ACCESS_SHADER_READ_BIT);
+}
+
 void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene, const sv_view *view,
                         VkImage out_image, VkImageView out_view, VkImageLayout out_final)
 {
@@ -1006,9 +1238,15 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
                                      ? SV_PROBE_REP_SH
                                      : view->probe_representation;
     frame.normal_bias = view->normal_bias;
+    /* Shadow maps: fitted to the scene's current bounds (objects move), so recomputed every frame. */
+    bool shadows = r->shadow_count && scene->aabb_min[0] <= scene->aabb_max[0];
+    for (uint32_t k = 0; shadows && k < r->shadow_count; ++k)
+        shadow_projection(r->shadow_dir[k], scene->aabb_min, scene->aabb_max, r->shadow_res, frame.shadow_view_proj[k],
+                          frame.shadow_params[k]);
     memcpy(r->frame.mapped, &frame, sizeof(frame));
     upload_slots(r, cmd);
     retrace_masks(r, cmd, scene);
+    if (shadows) record_shadows(r, cmd, scene, &frame);
 
     sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                      VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
@@ -1155,6 +1393,12 @@ void sv_renderer_destroy(sv_renderer *r)
     if (r->outline_pipeline) vkDestroyPipeline(dev, r->outline_pipeline, NULL);
     if (r->sky_pipeline) vkDestroyPipeline(dev, r->sky_pipeline, NULL);
     if (r->tonemap_pipeline) vkDestroyPipeline(dev, r->tonemap_pipeline, NULL);
+    if (r->shadow_pipeline) vkDestroyPipeline(dev, r->shadow_pipeline, NULL);
+    if (r->shadow_layout) vkDestroyPipelineLayout(dev, r->shadow_layout, NULL);
+    if (r->shadow_sampler) vkDestroySampler(dev, r->shadow_sampler, NULL);
+    for (uint32_t k = 0; k < SV_MAX_SHADOWS; ++k)
+        if (r->shadow_layer_views[k]) vkDestroyImageView(dev, r->shadow_layer_views[k], NULL);
+    sv_image_destroy(ctx, &r->shadow);
     if (r->scene_layout) vkDestroyPipelineLayout(dev, r->scene_layout, NULL);
     if (r->tonemap_layout) vkDestroyPipelineLayout(dev, r->tonemap_layout, NULL);
     if (r->pool) vkDestroyDescriptorPool(dev, r->pool, NULL);

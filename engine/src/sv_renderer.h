@@ -39,10 +39,15 @@ typedef struct sv_renderer_desc {
     const sv_sky *sky;       /* NULL or !present: no background, no specular, constant fallback */
     bool cube_probes;        /* fill the ambient-cube buffer even when no material asks for cubes
                                 (--probe-representation ambientCube); docs/ambient-cube.md §5 */
+    uint32_t shadow_res;     /* directional shadow map size per layer (--shadow-res, default
+                                SV_SHADOW_DEFAULT_RES); 0 = no shadows */
 } sv_renderer_desc;
+#define SV_SHADOW_DEFAULT_RES 2048u
+#define SV_SHADOW_MAX_RES     8192u
 #define SV_RENDERER_DESC_DEFAULT                                                                                       \
     {                                                                                                                  \
-        .fallback_radiance = SV_FALLBACK_RADIANCE, .half_probes = false, .sky = NULL, .cube_probes = false             \
+        .fallback_radiance = SV_FALLBACK_RADIANCE, .half_probes = false, .sky = NULL, .cube_probes = false,            \
+        .shadow_res = SV_SHADOW_DEFAULT_RES                                                                            \
     }
 
 typedef struct sv_renderer {
@@ -84,6 +89,18 @@ typedef struct sv_renderer {
 
     sv_image hdr, depth;
     uint32_t width, height;
+
+    /* Directional shadow maps (docs/engine.md "Shadows"): one depth layer per shadowed light (a 1x1
+     * single layer, never rendered, when none), rendered at the start of every frame. */
+    sv_image shadow;
+    VkImageView shadow_layer_views[SV_MAX_SHADOWS]; /* per layer, the depth attachment of the shadow pass */
+    VkSampler shadow_sampler;                       /* LESS_OR_EQUAL compare, white border (lit outside) */
+    VkPipelineLayout shadow_layout;
+    VkPipeline shadow_pipeline;
+    VkFormat shadow_format;
+    uint32_t shadow_res;                 /* texels per side of a layer */
+    uint32_t shadow_count;               /* shadowed lights (layers rendered), 0..SV_MAX_SHADOWS */
+    float shadow_dir[SV_MAX_SHADOWS][3]; /* world direction each shadowed light points to */
 } sv_renderer;
 
 /* Uploads the scene (geometry, materials, textures, lights) and the probes, builds pipelines for

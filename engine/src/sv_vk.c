@@ -335,6 +335,12 @@ bool sv_image_create(sv_context *ctx, uint32_t width, uint32_t height, VkFormat 
 bool sv_image_create_mips(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, VkFormat format,
                           VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out)
 {
+    return sv_image_create_layers(ctx, width, height, mip_levels, 0, format, usage, aspect, out);
+}
+
+bool sv_image_create_layers(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, uint32_t layers,
+                            VkFormat format, VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out)
+{
     memset(out, 0, sizeof(*out));
     VkImageCreateInfo info = {
         .sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO,
@@ -342,7 +348,7 @@ bool sv_image_create_mips(sv_context *ctx, uint32_t width, uint32_t height, uint
         .format = format,
         .extent = {width, height, 1},
         .mipLevels = mip_levels,
-        .arrayLayers = 1,
+        .arrayLayers = layers ? layers : 1,
         .samples = VK_SAMPLE_COUNT_1_BIT,
         .tiling = VK_IMAGE_TILING_OPTIMAL,
         .usage = usage,
@@ -360,9 +366,9 @@ bool sv_image_create_mips(sv_context *ctx, uint32_t width, uint32_t height, uint
     VkImageViewCreateInfo view = {
         .sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO,
         .image = out->image,
-        .viewType = VK_IMAGE_VIEW_TYPE_2D,
+        .viewType = layers ? VK_IMAGE_VIEW_TYPE_2D_ARRAY : VK_IMAGE_VIEW_TYPE_2D,
         .format = format,
-        .subresourceRange = {aspect, 0, mip_levels, 0, 1},
+        .subresourceRange = {aspect, 0, mip_levels, 0, layers ? layers : 1},
     };
     VK_CHECK(vkCreateImageView(ctx->device, &view, NULL, &out->view));
     out->mip_levels = mip_levels;
@@ -430,7 +436,7 @@ void sv_image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags asp
         .srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
         .dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
         .image = image,
-        .subresourceRange = {aspect, 0, VK_REMAINING_MIP_LEVELS, 0, 1},
+        .subresourceRange = {aspect, 0, VK_REMAINING_MIP_LEVELS, 0, VK_REMAINING_ARRAY_LAYERS},
     };
     vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 0, NULL, 0, NULL, 1, &b);
 }

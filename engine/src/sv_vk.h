@@ -86,13 +86,18 @@ bool sv_image_create(sv_context *ctx, uint32_t width, uint32_t height, VkFormat 
 /* Same with `mip_levels` levels (the view covers all of them). */
 bool sv_image_create_mips(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, VkFormat format,
                           VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out);
+/* Same with `layers` array layers and a 2D-array view over all of them; layers 0 = one layer and a
+ * plain 2D view (sv_image_create_mips). */
+bool sv_image_create_layers(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, uint32_t layers,
+                            VkFormat format, VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out);
 void sv_image_destroy(sv_context *ctx, sv_image *img);
 
 /* One-shot command buffer: begin, (record), end + submit + wait. */
 VkCommandBuffer sv_begin_one_shot(sv_context *ctx);
 bool sv_end_one_shot(sv_context *ctx, VkCommandBuffer cmd);
 
-/* Layout transition with a full-pipeline barrier scoped to the given stages and accesses. */
+/* Layout transition (every mip level and array layer) with a full-pipeline barrier scoped to the
+ * given stages and accesses. */
 void sv_image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect, VkImageLayout from,
                       VkImageLayout to, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
                       VkPipelineStageFlags dst_stage, VkAccessFlags dst_access);

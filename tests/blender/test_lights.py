@@ -1,7 +1,8 @@
-"""Baked vs realtime lamps in the add-on: the bake leaves realtime lamps out of the probes, the glTF
-export writes each punctual light's mode (docs/user-guide.md "Lights", docs/export.md).
+"""Baked, mixed and realtime lamps in the add-on: the bake leaves realtime lamps out of the probes and
+a mixed lamp's direct light (not its bounced light), the glTF export writes each punctual light's
+mode (docs/user-guide.md "Lights", docs/export.md).
 
-Two Blender launches (tests/blender/scripts/lights_bake.py: five tiny bakes of 4 probes at 32x16,
+Two Blender launches (tests/blender/scripts/lights_bake.py: six tiny bakes of 4 probes at 32x16,
 16 spp; lights_export.py: two exports), about 3 s in all, plus the Khronos validator.
 """
 import json
@@ -83,7 +84,48 @@ def test_baked_lamp_adds_clearly_more_light(bakes):
     assert _rel_rms(baked, deleted) > 10 * noise
 
 
-@pytest.mark.parametrize("case", ["realtime", "baked", "deleted", "cancelled", "bad"])
+def test_mixed_lamp_is_the_baked_lamp_less_its_closed_form_direct_light(bakes):
+    baked, mixed = np.asarray(bakes["baked"]["coeffs"]), np.asarray(bakes["mixed"]["coeffs"])
+    info = bakes["mixed_during"]
+    # Same seed, same panoramas (the lamp is hidden from camera rays in both): the difference is
+    # the direct light of TestLamp alone. Closed form (docs/direct-light.md, Cycles' point lamp: a
+    # disc of radius r facing the probe, radiance P/(4 pi^2 r^2), white): over the disc's cap of
+    # half-angle a, L00 = Y00 L 2 pi (1 - cos a) and |L1| = Y1 L pi sin^2 a (the floor is below
+    # every probe and the lamp: nothing shadows it).
+    pos = np.asarray(bakes["mixed"]["positions"])
+    d = np.linalg.norm(pos - np.asarray(info["lamp_engine"]), axis=1)
+    r, power = info["lamp_radius"], info["lamp_power"]
+    radiance = power / (4 * np.pi ** 2 * r * r)
+    cos_a = d / np.sqrt(d * d + r * r)
+    l00 = 0.282094792 * radiance * 2 * np.pi * (1 - cos_a)
+    l1 = 0.488602512 * radiance * np.pi * (1 - cos_a * cos_a)
+    diff = baked - mixed
+    # Quadrature: uniform-cap cells make L0 exact (float rounding only); L1 to 256 cells' midpoint rule.
+    np.testing.assert_allclose(diff[:, 0, :], l00[:, None] * np.ones(3), rtol=1e-4)
+    np.testing.assert_allclose(np.linalg.norm(diff[:, 1:4, :], axis=1), l1[:, None] * np.ones(3), rtol=2e-3)
+
+
+def test_mixed_lamp_keeps_its_bounced_light(bakes):
+    mixed, deleted = np.asarray(bakes["mixed"]["coeffs"]), np.asarray(bakes["deleted"]["coeffs"])
+    noise = _rel_rms(bakes["deleted_seed1"]["coeffs"], bakes["deleted"]["coeffs"])
+    # The lamp still lights the floor in the renders: the probes hold more light than without it,
+    # by far more than the noise (the floor's bounce of a 200 W lamp), and less than baked.
+    assert np.all(mixed[:, 0, :] > deleted[:, 0, :])
+    assert _rel_rms(mixed, deleted) > 10 * noise
+    assert np.all(mixed[:, 0, :] < np.asarray(bakes["baked"]["coeffs"])[:, 0, :])
+
+
+def test_mixed_lamp_hidden_from_camera_rays_only_during_the_bake(bakes):
+    r = bakes["mixed_during"]
+    assert r["flags_before"]["TestLamp"]["visible_camera"] is True
+    assert r["flags_during"]["TestLamp"]["visible_camera"] is False
+    assert r["flags_during"]["TestLamp"]["hide_render"] is False       # it still lights the scene
+    assert r["flags_after"] == r["flags_before"]
+    ops = [tuple(x[2:]) for x in r["panel"] if x[0] == "operator"]
+    assert ops == [("Baked", False, "baked"), ("Mixed", True, "mixed"), ("Realtime", False, "realtime")]
+
+
+@pytest.mark.parametrize("case", ["realtime", "baked", "mixed", "deleted", "cancelled", "bad"])
 def test_lamp_visibility_flags_identical_before_and_after(bakes, case):
     r = bakes[case]
     assert r["flags_after"] == r["flags_before"]
@@ -105,7 +147,7 @@ def test_realtime_lamp_hidden_only_during_the_bake(bakes):
 def test_bad_mode_is_refused_naming_the_lamp(bakes):
     r = bakes["bad"]
     assert r["message"] is not None
-    for words in ("'TestLamp'", "schnee_light_mode", "'Realtime'", "'baked' or 'realtime'"):
+    for words in ("'TestLamp'", "schnee_light_mode", "'Realtime'", "'baked', 'mixed' or 'realtime'"):
         assert words in r["message"], r["message"]
     assert r["wrote"] is False
 
@@ -115,7 +157,7 @@ def test_panel_operator_writes_the_custom_property(bakes):
     # The sidebar's Light Mode sub-panel (drawn into a recording stub): the active lamp's name,
     # one button per mode setting that mode, the current one pressed.
     ops = [tuple(x[2:]) for x in bakes["operator"]["panel"] if x[0] == "operator"]
-    assert ops == [("Baked", False, "baked"), ("Realtime", True, "realtime")]
+    assert ops == [("Baked", False, "baked"), ("Mixed", False, "mixed"), ("Realtime", True, "realtime")]
     assert ["label", "TestLamp"] in bakes["operator"]["panel"]
 
 
@@ -127,7 +169,7 @@ def exported(tmp_path_factory):
     out = tmp_path_factory.mktemp("lights_export")
     proc = run_blender(SCRIPTS / "lights_export.py", out, timeout=300)
     lamps = _results(proc.stdout)[0]["lamps"]
-    docs = {k: json.loads((out / k / "scene.gltf").read_text()) for k in ("on", "off")}
+    docs = {k: json.loads((out / k / "scene.gltf").read_text()) for k in ("on", "off", "raw", "compat")}
     return {"out": out, "lamps": lamps, "docs": docs, "stdout": proc.stdout}
 
 
@@ -144,12 +186,30 @@ def test_each_light_carries_its_mode(exported):
     # warning; area lamps are not glTF punctual lights (the exporter skips them).
     expected = {name: {None: "baked", "Realtime": "baked"}.get(v["mode"], v["mode"])
                 for name, v in exported["lamps"].items() if v["type"] != "AREA"}
-    got = {name: light["extensions"][EXT] for name, light in lights.items()}
-    assert got == {name: {"mode": mode} for name, mode in expected.items()}
+    got = {name: light["extensions"][EXT]["mode"] for name, light in lights.items()}
+    assert got == expected
     # Two objects of one light datablock with different modes: two lights.
     assert lights["TwinBaked"]["name"] == lights["TwinRealtime"]["name"] == "TwinData"
     assert lights["TwinBaked"] is not lights["TwinRealtime"]
-    assert len(exported["docs"]["on"]["extensions"]["KHR_lights_punctual"]["lights"]) == 7
+    assert len(exported["docs"]["on"]["extensions"]["KHR_lights_punctual"]["lights"]) == 8
+
+
+@pytest.mark.parametrize("which", ["on", "raw", "compat"])
+def test_intensity_scale_gives_blenders_radiometric_strength(exported, which):
+    # Whatever the exporter's Lighting Mode (Standard: x 683 lm/W; Unitless; Raw), intensity x
+    # intensityScale is the lamp in Blender's (Cycles') radiometric units, the probes' units: a Sun's
+    # strength in W/m^2, a point or spot lamp's power P as the intensity P / (4 pi) W/sr
+    # (docs/export.md; Cycles' point lamp: irradiance P / (4 pi d^2), docs/direct-light.md).
+    lights = _node_lights(exported["docs"][which])
+    lamps = exported["lamps"]
+    assert len(lights) == 8
+    for name, light in lights.items():
+        e = lamps[name]["energy"]
+        want = e if lamps[name]["type"] == "SUN" else e / (4 * np.pi)
+        ext = light["extensions"][EXT]
+        assert light.get("intensity", 1.0) * ext["intensityScale"] == pytest.approx(want, rel=1e-6), (which, name)
+    if which == "on":   # Standard: photometric, so the scale is 1/683 and not 1 (the check can fail)
+        assert all(light["extensions"][EXT]["intensityScale"] == pytest.approx(1 / 683) for light in lights.values())
 
 
 def test_extension_is_used_never_required(exported):
@@ -167,7 +227,7 @@ def test_checkbox_off_writes_no_mode(exported):
     doc = exported["docs"]["off"]
     assert EXT not in doc.get("extensionsUsed", [])
     assert all(EXT not in (light.get("extensions") or {}) for light in _node_lights(doc).values())
-    assert len(_node_lights(doc)) == 7  # the lights themselves are still exported
+    assert len(_node_lights(doc)) == 8  # the lights themselves are still exported
 
 
 @pytest.mark.parametrize("which", ["on", "off"])

@@ -1,4 +1,4 @@
-"""Baked vs realtime lights (VULKAN_SCHNEE_light.mode, docs/engine.md "Lights: baked or realtime").
+"""Baked vs realtime lights (VULKAN_SCHNEE_light.mode, docs/engine.md "Lights: baked, mixed or realtime").
 
 A unit sphere lit by one known probe and point lights is rendered to EXR on lavapipe. Expected
 values come from numpy, written from the documents (DESIGN.md §3 for the probe term,
@@ -85,13 +85,16 @@ def write_scene(path, modes):
     b.node("Camera", camera=b.camera("cam", YFOV), translation=CAM)
     for name, mode in modes.items():
         pos, color, intensity = LIGHTS[name]
-        b.light_node(name + "Node", b.light(name, "point", color, intensity, schnee_mode=mode), translation=pos)
+        mode, scale = mode if isinstance(mode, tuple) else (mode, None)   # (mode, intensityScale)
+        b.light_node(name + "Node", b.light(name, "point", color, intensity, schnee_mode=mode,
+                                            intensity_scale=scale), translation=pos)
     b.probe_grids([sg.grid_entry("probes", "sh_coeffs/probes.shprobe", 1, (-2, -2, -2), (1, 1, 1), 4.0)])
     return b.write(path)
 
 
 def render(tmp_path, modes, *args):
     tag = "_".join(f"{k}-{v}" for k, v in modes.items()) + "_".join(str(a) for a in args).replace("-", "")
+    tag = "".join(ch for ch in tag if ch.isalnum() or ch in "_.")
     gltf = write_scene(tmp_path / f"{tag}.gltf", modes)
     out = tmp_path / f"{tag}.exr"
     viewer.check(viewer.run(gltf, "--headless", "--output", out, "--width", W, "--height", H, *args))
@@ -178,9 +181,32 @@ def test_no_direct_drops_realtime_lights_too(tmp_path, geometry):
     assert_matches(img, probe_term(p), interior)
 
 
+def test_intensity_scale_multiplies_the_light(tmp_path, geometry):
+    # VULKAN_SCHNEE_light.intensityScale (docs/export.md): intensity x scale is the light's value in
+    # the engine's (Blender's radiometric) units; the exporter writes 1/683 for Standard lighting.
+    p, interior = geometry
+    img = render(tmp_path, {"KeyLamp": ("realtime", 0.25)})
+    assert_matches(img, probe_term(p) + 0.25 * direct(p, "KeyLamp"), interior)
+
+
+@pytest.mark.parametrize("scale,words", [
+    (0, ["intensityScale: 0 out of range"]),
+    (-1, ["intensityScale: -1 out of range"]),
+    ("x", ["intensityScale: expected a finite number, got a string"]),
+])
+def test_bad_intensity_scale_is_a_load_error_naming_the_light(tmp_path, scale, words):
+    gltf = write_scene(tmp_path / "bad.gltf", {"KeyLamp": "realtime", "FillLamp": ("mixed", scale)})
+    proc = viewer.run(gltf, "--headless", "--output", tmp_path / "bad.exr", "--width", 16, "--height", 16)
+    assert proc.returncode == 1, proc.stderr
+    assert "'FillLamp'" in proc.stderr and "lights[1]" in proc.stderr, proc.stderr
+    for w in words:
+        assert w in proc.stderr, proc.stderr
+    assert not (tmp_path / "bad.exr").exists()
+
+
 @pytest.mark.parametrize("mode,words", [
-    ("sometimes", ["'sometimes' is not baked or realtime"]),
-    ("Baked", ["'Baked' is not baked or realtime"]),  # exact lower-case values, as probeMode
+    ("sometimes", ["'sometimes' is not baked, mixed or realtime"]),
+    ("Baked", ["'Baked' is not baked, mixed or realtime"]),  # exact lower-case values, as probeMode
     (3, ["VULKAN_SCHNEE_light.mode: expected a string"]),
 ])
 def test_bad_mode_is_a_load_error_naming_the_light(tmp_path, mode, words):

@@ -6,6 +6,7 @@ cases below. Tiny bakes (4 probes, 32x16 panoramas, 16 spp, 4 bounces, same seed
 
 - realtime: TestLamp marked realtime (through the panel's operator);
 - baked:    TestLamp marked baked;
+- mixed:    TestLamp marked mixed (bounced light only; mixed_during: its flags during a bake);
 - deleted:  TestLamp deleted from the scene (seeds 0 and 1: the second measures the noise);
 - bad:      TestLamp's property set to "Realtime" (wrong case): refused before anything changes;
 - cancelled: TestLamp realtime, one probe rendered, then cancelled.
@@ -23,7 +24,7 @@ import addon_common as common  # noqa: E402
 from addon_common import scene_lib as lib  # noqa: E402
 
 import schnee_probes  # noqa: E402
-from schnee_probes import bake_core  # noqa: E402
+from schnee_probes import bake_core, scene_export  # noqa: E402
 
 FLAGS = ("hide_render", "hide_viewport", "hide_select", "visible_camera", "visible_diffuse",
          "visible_glossy", "visible_transmission", "visible_volume_scatter", "visible_shadow")
@@ -47,6 +48,7 @@ def build_scene():
     test = bpy.data.objects["TestLamp"]
     test.visible_glossy = False
     test.hide_select = True
+    test.visible_camera = True  # (a new lamp object's is off in 3.4): the mixed case must switch it
 
 
 def flags():
@@ -142,6 +144,19 @@ def main():
 
     set_mode_with_operator("baked")
     bake(out, "baked")
+    set_mode_with_operator("mixed")
+    before = flags()
+    job = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings(out, "mixed_during"),
+                              log=lambda *_: None)
+    job.prepare()
+    during = flags()
+    job.cancel()
+    test = bpy.data.objects["TestLamp"]
+    common.emit(case="mixed_during", flags_before=before, flags_during=during, flags_after=flags(),
+                panel=draw_light_panel(), lamp_engine=scene_export.blender_to_engine([test.location])[0].tolist(),
+                lamp_power=float(test.data.energy), lamp_radius=float(test.data.shadow_soft_size))
+    bake(out, "mixed")
+    set_mode_with_operator("baked")
     bpy.data.objects.remove(bpy.data.objects["TestLamp"], do_unlink=True)
     bake(out, "deleted")
     bake(out, "deleted_seed1", seed=1)

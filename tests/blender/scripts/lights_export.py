@@ -3,8 +3,9 @@
 Builds a cube and lamps of every punctual type, with and without ``schnee_light_mode``, two lamp
 objects sharing one light datablock with different modes, one with a bad value, and an area
 lamp (not a glTF punctual light); exports OUT_DIR/on/scene.gltf (checkbox on) and
-OUT_DIR/off/scene.gltf (checkbox off), both with Punctual Lights on. Emits the expected mode
-per lamp object.
+OUT_DIR/off/scene.gltf (checkbox off), both with Punctual Lights on in the exporter's default
+Lighting Mode (Standard), and OUT_DIR/raw, OUT_DIR/compat in the other two. Emits the expected mode
+and Blender's strength per lamp object.
 """
 import os
 import sys
@@ -25,6 +26,7 @@ LAMPS = {
     "BakedPoint": ('POINT', "BakedPointData", "baked", (-2, 0, 2)),
     "RealtimeSpot": ('SPOT', "SpotData", "realtime", (0, 2, 3)),
     "RealtimeSun": ('SUN', "SunData", "realtime", (0, 0, 5)),
+    "MixedSun": ('SUN', "MixedSunData", "mixed", (1, -1, 5)),
     "TwinBaked": ('POINT', "TwinData", "baked", (1, 1, 1)),
     "TwinRealtime": ('POINT', "TwinData", "realtime", (-1, -1, 1)),
     "BadMode": ('POINT', "BadData", "Realtime", (0, -2, 2)),
@@ -51,10 +53,11 @@ def build():
     return scene
 
 
-def export(scene, path, enabled):
+def export(scene, path, enabled, lighting_mode="SPEC"):
     scene.schnee_gltf_export.enabled = enabled
     os.makedirs(os.path.dirname(path), exist_ok=True)
-    bpy.ops.export_scene.gltf(filepath=path, export_format="GLTF_SEPARATE", export_lights=True)
+    bpy.ops.export_scene.gltf(filepath=path, export_format="GLTF_SEPARATE", export_lights=True,
+                              convert_lighting_mode=lighting_mode)
     scene.schnee_gltf_export.enabled = True
 
 
@@ -63,7 +66,10 @@ def main():
     scene = build()
     export(scene, os.path.join(out, "on", "scene.gltf"), True)
     export(scene, os.path.join(out, "off", "scene.gltf"), False)
-    common.emit(lamps={name: {"data": v[1], "mode": v[2], "type": v[0]} for name, v in LAMPS.items()})
+    export(scene, os.path.join(out, "raw", "scene.gltf"), True, "RAW")
+    export(scene, os.path.join(out, "compat", "scene.gltf"), True, "COMPAT")
+    common.emit(lamps={name: {"data": v[1], "mode": v[2], "type": v[0],
+                              "energy": float(bpy.data.objects[name].data.energy)} for name, v in LAMPS.items()})
 
 
 if __name__ == "__main__":

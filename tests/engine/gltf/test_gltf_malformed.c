@@ -207,7 +207,7 @@ static const bad_case CASES[] = {
      "KHR_lights_punctual.lights[0].type: 'area' is not directional, point or spot"},
     {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'point','name':'Fill',"
      "'extensions':{'VULKAN_SCHNEE_light':{'mode':'sometimes'}}}]}}}",
-     SV_GLTF_ERROR_FORMAT, "'sometimes' is not baked or realtime"},
+     SV_GLTF_ERROR_FORMAT, "'sometimes' is not baked, mixed or realtime"},
     {"{" A ",'extensions':{'KHR_lights_punctual':{'lights':[{'type':'point',"
      "'extensions':{'VULKAN_SCHNEE_light':{'mode':1}}}]}}}",
      SV_GLTF_ERROR_FORMAT, "VULKAN_SCHNEE_light.mode"},

@@ -189,15 +189,19 @@ class GltfBuilder:
         self.doc["scenes"][0].setdefault("extensions", {})["VULKAN_SCHNEE_engine_properties"] = props
         self._use("VULKAN_SCHNEE_engine_properties")
 
-    def light(self, name, type_, color=(1, 1, 1), intensity=1.0, schnee_mode=None, range_=None):
-        """A KHR_lights_punctual light; schnee_mode ("baked", "realtime" or any string) adds
-        extensions.VULKAN_SCHNEE_light = {"mode": schnee_mode} (docs/export.md)."""
+    def light(self, name, type_, color=(1, 1, 1), intensity=1.0, schnee_mode=None, range_=None,
+              intensity_scale=None):
+        """A KHR_lights_punctual light; schnee_mode ("baked", "mixed", "realtime" or any value) adds
+        extensions.VULKAN_SCHNEE_light = {"mode": schnee_mode}, with "intensityScale" when
+        intensity_scale is given (docs/export.md)."""
         ext = self.doc.setdefault("extensions", {}).setdefault("KHR_lights_punctual", {"lights": []})
         light = {"name": name, "type": type_, "color": list(color), "intensity": intensity}
         if range_ is not None:
             light["range"] = float(range_)
         if schnee_mode is not None:
             light["extensions"] = {"VULKAN_SCHNEE_light": {"mode": schnee_mode}}
+            if intensity_scale is not None:
+                light["extensions"]["VULKAN_SCHNEE_light"]["intensityScale"] = intensity_scale
             self._use("VULKAN_SCHNEE_light")
         ext["lights"].append(light)
         self._use("KHR_lights_punctual")
