@@ -300,7 +300,8 @@ class AdaptiveGroup:
 
     def __init__(self, name: str, path: str, volumes, geometry, min_cell: float, max_cell: float,
                  tolerance: float, tests: str = "CENTRE_FACES",
-                 direct: Optional[Callable[[np.ndarray], Optional[np.ndarray]]] = None):
+                 direct: Optional[Callable[[np.ndarray], Optional[np.ndarray]]] = None,
+                 engine_direct: Optional[Callable[[np.ndarray], Optional[np.ndarray]]] = None):
         if tests not in TEST_MODES:
             raise ValueError(f"refinement tests {tests!r}: expected one of {', '.join(TEST_MODES)}")
         self.name, self.path = name, path
@@ -332,6 +333,12 @@ class AdaptiveGroup:
         self.direct = direct
         self._direct_of = {}        # cache index -> direct SH at that point's render position
         self._direct_split = None   # per leaf of the current tree: the direct check failed
+        # The mixed lamps' exact direct light at engine-space points ((N, C, 3), or None): not in the
+        # probes, added by the engine (shadow maps), so a moving object sees probe + it. Every
+        # comparison is made on that total (docs/placement.md step 3): the same light change is a
+        # smaller error where the sun also shines.
+        self.engine_direct = engine_direct
+        self._engine_of = {}        # cache index -> the mixed lamps' direct SH there
 
     # -- geometry queries through the placement's rules
     def _classify_boxes(self, leaves: np.ndarray) -> np.ndarray:
@@ -450,11 +457,11 @@ class AdaptiveGroup:
         test_noise = np.zeros(len(tests.positions), dtype=np.float32)
         test_valid = np.ones(len(tests.positions), dtype=bool)
         ti = self.test_index[need]
-        test_coeffs[need] = cache.coeffs[ti]
-        test_noise[need] = cache.noise[ti]
+        probe_coeffs, probe_noise = self.seen(cache, pidx)
+        test_coeffs[need], test_noise[need] = self.seen(cache, ti)
         test_valid[need] = ~cache.solid(ti)
         split, err, thr = self.tree.refine_decide(
-            tests, cache.coeffs[pidx], test_coeffs, probe_noise=cache.noise[pidx], test_noise=test_noise,
+            tests, probe_coeffs, test_coeffs, probe_noise=probe_noise, test_noise=test_noise,
             probe_validity=cache.validity(pidx), test_valid=test_valid, tolerance=self.tolerance,
             noise_k=NOISE_K)
         self.last_errors = (err, thr)
@@ -468,9 +475,30 @@ class AdaptiveGroup:
             self.finished = True
             return []
         if self.predict > 0:
-            self._settle_children(split, thr, cache.coeffs[pidx], cache.validity(pidx), test_coeffs, test_valid)
+            self._settle_children(split, thr, probe_coeffs, cache.validity(pidx), test_coeffs, test_valid)
         self.tests = self.test_index = None
         return self._split(split, cache)
+
+    def seen(self, cache: PointCache, idx) -> Tuple[np.ndarray, np.ndarray]:
+        """(coefficients, relative noise) of cache points ``idx`` as a moving object sees them: the
+        point's value plus the mixed lamps' exact direct light there (engine_direct; nothing without
+        one), its noise rescaled to that total (the noise is absolute: σ‖A·c‖ / ‖A·(c + d)‖)."""
+        idx = np.asarray(idx, dtype=np.int64).reshape(-1)
+        coeffs, noise = cache.coeffs[idx], cache.noise[idx].astype(np.float64)
+        if self.engine_direct is None or len(idx) == 0:
+            return coeffs, noise.astype(np.float32)
+        missing = sorted({int(i) for i in idx if int(i) not in self._engine_of})
+        if missing:
+            vals = self.engine_direct(cache.positions[missing])
+            for i, k in enumerate(missing):
+                self._engine_of[k] = None if vals is None else vals[i]
+        if any(self._engine_of[int(i)] is None for i in idx):
+            return coeffs, noise.astype(np.float32)
+        total = coeffs + np.array([self._engine_of[int(i)] for i in idx])
+        own, den = irradiance_norm(coeffs), irradiance_norm(total)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.where(den > 0, own / np.where(den > 0, den, 1.0), 1.0)
+        return total, (noise * scale).astype(np.float32)
 
     def _split(self, split: np.ndarray, cache: PointCache) -> List[int]:
         """Split the flagged leaves, drop children outside the volumes, request the new probes."""
@@ -528,7 +556,7 @@ class AdaptiveGroup:
         d_probe = np.array([self._direct_of[int(i)] for i in pidx])
         validity = cache.validity(pidx)
         interp = self.tree.interpolate(pos, d_probe, validity)
-        total = self.tree.interpolate(pos, cache.coeffs[pidx], validity)
+        total = self.tree.interpolate(pos, self.seen(cache, pidx)[0], validity)
         num, den = irradiance_norm(interp - exact), irradiance_norm(total)
         with np.errstate(divide="ignore", invalid="ignore"):
             err = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)

@@ -472,7 +472,8 @@ class ProbeBake:
             self._check_cancel()
             try:
                 group = adaptive.AdaptiveGroup(name, path, vols, geometry, s.min_cell_size, s.max_cell_size,
-                                               s.error_tolerance, s.refinement_tests, direct=self._direct_at)
+                                               s.error_tolerance, s.refinement_tests, direct=self._direct_at,
+                                               engine_direct=self._mixed_at)
                 todo = group.start(self._cache)
             except native.SchneeError as exc:
                 raise BakeError(f"Probe placement failed: {exc}") from exc
@@ -512,6 +513,18 @@ class ProbeBake:
         t = time.perf_counter()
         out = self._direct.project(np.asarray(positions, dtype=np.float64).reshape(-1, 3), self.settings.max_band,
                                    lamps)
+        self.timings["direct"] = self.timings.get("direct", 0.0) + time.perf_counter() - t
+        return out
+
+    def _mixed_at(self, positions: np.ndarray) -> Optional[np.ndarray]:
+        """The mixed lamps' exact direct light at engine-space positions (the engine's direct term,
+        which the probes leave out), or None without such lamps: the refinement judges the probes'
+        error against the light a moving object gets, probe + this (adaptive.AdaptiveGroup.seen)."""
+        if self._direct is None or not self._direct.mixed_lamps:
+            return None
+        t = time.perf_counter()
+        out = self._direct.project(np.asarray(positions, dtype=np.float64).reshape(-1, 3), self.settings.max_band,
+                                   self._direct.mixed_lamps)
         self.timings["direct"] = self.timings.get("direct", 0.0) + time.perf_counter() - t
         return out
 

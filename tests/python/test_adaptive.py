@@ -262,6 +262,47 @@ def test_direct_light_draws_refinement_to_a_beam_the_tests_miss():
     assert got[0, 2, 0] >= 1.5
 
 
+@pytest.mark.parametrize("jump,sun,splits", [(0.1, 0.0, True), (0.1, 6.0, False), (3.0, 6.0, True)])
+def test_mixed_sun_errors_are_judged_on_the_light_an_object_gets(jump, sun, splits):
+    # The probes' (indirect) light steps by `jump` at x = 3.3 over a constant 1.0; a mixed sun adds
+    # `sun` (its Y_1,0 coefficient) everywhere, outside the probes (the engine's term). Closed form
+    # at a test point halfway across the step (engine_direct = the sun): error = ||A step/2|| /
+    # ||A total||. A 10 % step alone (5 % at the tests) fails the 3 % tolerance; beside a sun of 6
+    # (the total's norm 4.1x the sky's) it is 1.2 % and passes; a step of 3 still fails (32 %).
+    def field(p):
+        return np.array([sh_of(1.0 + (jump if x > 3.3 else 0.0), 0.0) for x in p[:, 0]])
+
+    def mixed(p):
+        return np.array([sh_of(0.0, sun)] * len(p))
+
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.03, engine_direct=mixed)
+    drive(group, field)
+    assert (group.passes[0].split > 0) == splits
+    if splits:
+        leaves = group.tree.info()["leaves"].astype(float)
+        size, lo = 0.5 * 2 ** leaves[:, 3], leaves[:, 0] * 0.5
+        assert np.all(size[(lo < 3.3) & (lo + size > 3.3)] == 0.5)
+    # The check's arithmetic: the sun's share of the norm really is that large.
+    # ||A c|| of sh_of(1, s) is sqrt(pi^2 + (2 pi s / 3)^2) per channel (A_0 = pi, A_1 = 2 pi / 3).
+    ratio = adaptive.irradiance_norm(sh_of(1.0, sun)) / adaptive.irradiance_norm(sh_of(1.0, 0.0))
+    assert ratio == pytest.approx(math.sqrt(1 + (2 * sun / 3) ** 2), rel=1e-12)
+
+
+def test_mixed_sun_rescales_the_noise_to_the_total():
+    # The noise is measured relative to the probe's own light: beside the sun it is that noise
+    # times ||A c|| / ||A (c + d)||.
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.03,
+                                   engine_direct=lambda p: np.array([sh_of(0.0, 6.0)] * len(p)))
+    cache = adaptive.PointCache(2)
+    todo = group.start(cache)
+    cache.coeffs[todo] = sh_of(1.0, 0.0)
+    cache.noise[todo] = 0.1
+    c, n = group.seen(cache, todo[:3])
+    assert np.allclose(c, sh_of(1.0, 6.0))
+    want = 0.1 * adaptive.irradiance_norm(sh_of(1.0, 0.0)) / adaptive.irradiance_norm(sh_of(1.0, 6.0))
+    assert np.allclose(n, want, rtol=1e-6) and want < 0.025
+
+
 def test_restricting_tests_of_a_tree_without_test_points():
     # Every leaf at Min Cell Size: no test point; removing leaves' tests keeps it empty (no error).
     tree = native.CornerOctree.uniform((0.0, 0.0, 0.0), 0.5, 0, (2, 1, 1))
