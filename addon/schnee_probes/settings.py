@@ -284,8 +284,8 @@ SETTINGS: Tuple[Setting, ...] = (
                 "shadowed by the render geometry, and hidden from the probe cameras so nothing counts "
                 "twice; lamps with node-driven emission or a narrower spread are seen by the probe "
                 "cameras (path traced). Off: lamps still light the scene (their bounced light is in "
-                "the probes) but their direct light is not. Realtime lamps are never in the probes "
-                "(docs/direct-light.md)."),
+                "the probes) but their direct light is not. Realtime lamps are never in the probes, "
+                "mixed lamps only with their bounced light (docs/direct-light.md)."),
     Setting("persistent_data", "bool", True, "Persistent Data",
             "Keep the scene in Cycles between probe renders, so a probe costs path tracing and not "
             "scene sync",
