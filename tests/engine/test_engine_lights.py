@@ -195,7 +195,13 @@ def test_intensity_scale_multiplies_the_light(tmp_path, geometry):
     ("x", ["intensityScale: expected a finite number, got a string"]),
 ])
 def test_bad_intensity_scale_is_a_load_error_naming_the_light(tmp_path, scale, words):
-    gltf = write_scene(tmp_path / "bad.gltf", {"KeyLamp": "realtime", "FillLamp": ("mixed", scale)})
+    assert_load_error_naming_fill_lamp(tmp_path, ("mixed", scale), words)
+
+
+def assert_load_error_naming_fill_lamp(tmp_path, fill, words):
+    """FillLamp (lights[1]) with extension value `fill` beside a good KeyLamp: exit 1, no image,
+    the message names the light and holds `words`."""
+    gltf = write_scene(tmp_path / "bad.gltf", {"KeyLamp": "realtime", "FillLamp": fill})
     proc = viewer.run(gltf, "--headless", "--output", tmp_path / "bad.exr", "--width", 16, "--height", 16)
     assert proc.returncode == 1, proc.stderr
     assert "'FillLamp'" in proc.stderr and "lights[1]" in proc.stderr, proc.stderr
@@ -210,10 +216,4 @@ def test_bad_intensity_scale_is_a_load_error_naming_the_light(tmp_path, scale, w
     (3, ["VULKAN_SCHNEE_light.mode: expected a string"]),
 ])
 def test_bad_mode_is_a_load_error_naming_the_light(tmp_path, mode, words):
-    gltf = write_scene(tmp_path / "bad.gltf", {"KeyLamp": "realtime", "FillLamp": mode})
-    proc = viewer.run(gltf, "--headless", "--output", tmp_path / "bad.exr", "--width", 16, "--height", 16)
-    assert proc.returncode == 1, proc.stderr
-    assert "'FillLamp'" in proc.stderr and "lights[1]" in proc.stderr, proc.stderr
-    for w in words:
-        assert w in proc.stderr, proc.stderr
-    assert not (tmp_path / "bad.exr").exists()
+    assert_load_error_naming_fill_lamp(tmp_path, mode, words)
