@@ -105,8 +105,10 @@ def main():
                 ob["schnee_light_mode"] = "mixed"
         b = bake_core.ProbeBake(scene, layer, settings(), log=lambda s: None)
         b.prepare()
-        direct = b._direct.project(engine_pts, 2, lamps=b._direct.mixed_lamps)
+        direct = b._mixed_at(engine_pts)
         b.cancel()
+        if direct is None:
+            sys.exit("bench_placement: --sun-mode mixed but the scene has no Sun lamp added analytically")
 
     def error(got):
         return adaptive.irradiance_error(got + direct, ref + direct)

@@ -222,7 +222,7 @@ class ProbeBake:
         render_settings.require_cycles(self.scene)
         s = self.settings
         s.validate()
-        self._realtime_lights = self._check_light_modes()
+        self._realtime_lights, self._mixed_lights = self._check_light_modes()
         check_finite_emission(self.scene)
         min_w, min_h = native.min_panorama_size(s.max_band)
         if s.panorama_resolution < min_w or s.panorama_resolution // 2 < min_h:
@@ -338,8 +338,8 @@ class ProbeBake:
                      f"{self.total - hits} to render{more}")
 
     def _check_light_modes(self):
-        """The lamps marked realtime (``schnee_light_mode``, light_modes.py); the names of those
-        marked mixed go to ``self._mixed_lights`` (their direct light is left out of the probes,
+        """(the lamp objects marked realtime, the names of those marked mixed) by their
+        ``schnee_light_mode`` (light_modes.py; a mixed lamp's direct light is left out of the probes,
         direct_light.prepare). Refuses a bad value before anything changes."""
         realtime, mixed = [], []
         for ob in compat.light_objects(self.scene):
@@ -360,8 +360,7 @@ class ProbeBake:
                     self.messages.append(f"Light '{ob.name}' is mixed but an area light, which glTF "
                                          "cannot export: only its bounced light reaches the probes "
                                          "and its direct light nothing")
-        self._mixed_lights = frozenset(mixed)
-        return realtime
+        return realtime, frozenset(mixed)
 
     def _volume_objects(self):
         name = self.settings.volume_collection
@@ -507,24 +506,22 @@ class ProbeBake:
     def _direct_at(self, positions: np.ndarray) -> Optional[np.ndarray]:
         """The check lamps' exact direct light (radiance SH) at engine-space positions, or None when
         there is none: the refinement's direct-light check (adaptive.AdaptiveGroup)."""
-        lamps = self._check_lamps()
-        if not lamps:
-            return None
-        t = time.perf_counter()
-        out = self._direct.project(np.asarray(positions, dtype=np.float64).reshape(-1, 3), self.settings.max_band,
-                                   lamps)
-        self.timings["direct"] = self.timings.get("direct", 0.0) + time.perf_counter() - t
-        return out
+        return self._project_lamps(positions, self._check_lamps())
 
     def _mixed_at(self, positions: np.ndarray) -> Optional[np.ndarray]:
         """The mixed lamps' exact direct light at engine-space positions (the engine's direct term,
         which the probes leave out), or None without such lamps: the refinement judges the probes'
         error against the light a moving object gets, probe + this (adaptive.AdaptiveGroup.seen)."""
-        if self._direct is None or not self._direct.mixed_lamps:
+        return self._project_lamps(positions, self._direct.mixed_lamps if self._direct is not None else [])
+
+    def _project_lamps(self, positions: np.ndarray, lamps: list) -> Optional[np.ndarray]:
+        """``lamps``' exact direct light (radiance SH, shadowed) at engine-space positions, timed as
+        "direct"; None without lamps."""
+        if not lamps:
             return None
         t = time.perf_counter()
         out = self._direct.project(np.asarray(positions, dtype=np.float64).reshape(-1, 3), self.settings.max_band,
-                                   self._direct.mixed_lamps)
+                                   lamps)
         self.timings["direct"] = self.timings.get("direct", 0.0) + time.perf_counter() - t
         return out
 

@@ -14,8 +14,9 @@ Lamps with a node-driven emission that is not a constant, and area lamps with a 
 stay visible to camera rays (path traced as before); a Sun lamp of that kind, which camera rays
 cannot see, is added analytically with the constant part of its emission and a message. Realtime
 lamps (light_modes.py) are in neither; mixed lamps light the scene but are hidden from camera rays
-and not added (their bounced light only: the engine adds their direct light, shadowed). With ``lights_visible`` off no lamp is seen directly by the
-probes (the meaning of that setting is unchanged): nothing here runs.
+and not added (their bounced light only: the engine adds their direct light, shadowed). With
+``lights_visible`` off no lamp is seen directly by the probes (the meaning of that setting is
+unchanged): nothing here runs.
 
 Use from the bake (bake_core.ProbeBake): ``plan = prepare(bake)`` once the render is set up (its
 changes — transparent film, lamps hidden from camera rays — go through the bake's StateGuard),
@@ -348,27 +349,25 @@ def prepare(bake) -> Optional[DirectLightPlan]:
             owner = inst.parent.original if inst.is_instance and inst.parent is not None else original
             if original.name in realtime or owner.hide_render or original.hide_render:
                 continue
-            if original.name in mixed:
-                # Mixed: it lights the scene (its bounced light is path traced into the probes) but
-                # its direct light is the engine's, shadowed: hidden from camera rays, not added.
-                if original.name not in plan.mixed:
-                    plan.mixed.append(original.name)
-                analytic, factor, _ = classify(original.data)
-                if analytic:
-                    plan.mixed_lamps.append(lamp_record(original.data, inst.matrix_world, factor))
-                continue
             light = original.data
             if is_portal(light):
                 continue    # a Cycles sky portal emits nothing: it only guides the world's sampling
+            # Mixed: it lights the scene (its bounced light is path traced into the probes) but its
+            # direct light is the engine's, shadowed: hidden from camera rays, not added (its record
+            # is kept for the refinement, which judges probe + it).
+            is_mixed = original.name in mixed
             if original.name not in decided:
                 decided[original.name] = classify(light)
                 analytic, _, msg = decided[original.name]
-                (plan.analytic if analytic else plan.path_traced).append(original.name)
-                if msg:
-                    plan.messages.append(f"Light '{original.name}' {msg}")
+                if is_mixed:
+                    plan.mixed.append(original.name)
+                else:
+                    (plan.analytic if analytic else plan.path_traced).append(original.name)
+                    if msg:
+                        plan.messages.append(f"Light '{original.name}' {msg}")
             analytic, factor, _ = decided[original.name]
             if analytic:
-                plan.lamps.append(lamp_record(light, inst.matrix_world, factor))
+                (plan.mixed_lamps if is_mixed else plan.lamps).append(lamp_record(light, inst.matrix_world, factor))
     for name in plan.analytic + plan.mixed:
         ob = bpy.data.objects.get(name)
         if ob is not None and hasattr(ob, "visible_camera"):

@@ -134,12 +134,10 @@ class VIEW3D_PT_schnee_light(bpy.types.Panel):
             col.label(text="In the probes; no direct light where probes light")
         elif mode == light_modes.MIXED:
             col.label(text="Bounced light in the probes; engine direct light, shadowed")
-            if ob.data.type == 'AREA':
-                col.label(text="glTF cannot export area lights", icon='ERROR')
         elif mode == light_modes.REALTIME:
             col.label(text="Not in the probes; engine direct light")
-            if ob.data.type == 'AREA':
-                col.label(text="glTF cannot export area lights", icon='ERROR')
+        if mode in (light_modes.MIXED, light_modes.REALTIME) and ob.data.type == 'AREA':
+            col.label(text="glTF cannot export area lights", icon='ERROR')
 
 
 classes = (VIEW3D_PT_schnee_probes, VIEW3D_PT_schnee_probes_last, SCHNEE_OT_set_light_mode,

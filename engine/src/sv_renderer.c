@@ -288,6 +288,7 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext, u
     uint32_t n = g->light_instance_count;
     sv_gpu_light *l = calloc(n ? n : 1, sizeof(*l));
     if (!l) return false;
+    bool warned = false; /* about a directional light past SV_MAX_SHADOWS, once */
     for (uint32_t i = 0; i < n; ++i) {
         const sv_gltf_light_instance *li = &g->light_instances[i];
         const sv_gltf_light *s = &g->lights[li->light];
@@ -313,16 +314,15 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext, u
                 l[i].spot[3] = (float)r->shadow_count;
                 memcpy(r->shadow_dir[r->shadow_count], li->direction, 3 * sizeof(float));
                 ++r->shadow_count;
-            } else if (r->shadow_count == SV_MAX_SHADOWS) {
+            } else if (!warned) {
                 fprintf(stderr,
                         "schnee-view: warning: more than %d directional lights cast shadows; light '%s' and any "
                         "further ones are unshadowed\n",
                         SV_MAX_SHADOWS, s->name ? s->name : "");
-                ++r->shadow_count; /* warned once; clamped back below */
+                warned = true;
             }
         }
     }
-    if (r->shadow_count > SV_MAX_SHADOWS) r->shadow_count = SV_MAX_SHADOWS;
     r->light_count = n;
     bool ok =
         sv_buffer_create_with_data(r->ctx, l, (n ? n : 1) * sizeof(*l), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->lights);

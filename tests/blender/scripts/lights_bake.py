@@ -71,6 +71,20 @@ def bake(out, name, seed=0):
                 flags_before=before, flags_after=flags(), messages=result.messages)
 
 
+def flags_around_cancelled_bake(out, name, steps):
+    """Lamp flags before a bake, after its prepare() (what the probe renders see) and after it is
+    cancelled having rendered ``steps`` probes."""
+    before = flags()
+    job = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings(out, name),
+                              log=lambda *_: None)
+    job.prepare()
+    during = flags()
+    for _ in range(steps):
+        job.step()
+    job.cancel()
+    return dict(flags_before=before, flags_during=during, flags_after=flags())
+
+
 def set_mode_with_operator(mode):
     test = bpy.data.objects["TestLamp"]
     for ob in bpy.context.view_layer.objects:
@@ -120,14 +134,7 @@ def main():
     bake(out, "realtime")
 
     # Cancelled after one probe: flags restored all the same.
-    before = flags()
-    job = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings(out, "cancelled"),
-                              log=lambda *_: None)
-    job.prepare()
-    during = flags()
-    job.step()
-    job.cancel()
-    common.emit(case="cancelled", flags_before=before, flags_during=during, flags_after=flags())
+    common.emit(case="cancelled", **flags_around_cancelled_bake(out, "cancelled", steps=1))
 
     # A bad value is refused before anything changes.
     bpy.data.objects["TestLamp"]["schnee_light_mode"] = "Realtime"
@@ -145,14 +152,8 @@ def main():
     set_mode_with_operator("baked")
     bake(out, "baked")
     set_mode_with_operator("mixed")
-    before = flags()
-    job = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings(out, "mixed_during"),
-                              log=lambda *_: None)
-    job.prepare()
-    during = flags()
-    job.cancel()
     test = bpy.data.objects["TestLamp"]
-    common.emit(case="mixed_during", flags_before=before, flags_during=during, flags_after=flags(),
+    common.emit(case="mixed_during", **flags_around_cancelled_bake(out, "mixed_during", steps=0),
                 panel=draw_light_panel(), lamp_engine=scene_export.blender_to_engine([test.location])[0].tolist(),
                 lamp_power=float(test.data.energy), lamp_radius=float(test.data.shadow_soft_size))
     bake(out, "mixed")
