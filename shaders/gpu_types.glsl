@@ -31,8 +31,9 @@ layout(std430, set = SV_SET_SCENE, binding = SV_BINDING_CUBES_HALF) readonly buf
 // Sky: equirect radiance, mip k = GGX prefiltered at roughness k / (mips - 1); BRDF LUT (NoV, roughness).
 layout(set = SV_SET_SCENE, binding = SV_BINDING_SKY) uniform sampler2D sky_tex;
 layout(set = SV_SET_SCENE, binding = SV_BINDING_BRDF_LUT) uniform sampler2D brdf_lut;
-// Directional shadow maps (docs/engine.md "Shadows"): depth from the light, one layer per shadowed
-// light, sampled with a LESS_OR_EQUAL comparison (1 = lit); a 1x1 layer when no light is shadowed.
+// Shadow maps (docs/engine.md "Shadows"): depth from the light, one layer per shadowed directional or
+// spot light, six per point light (cube faces), sampled with a LESS_OR_EQUAL comparison (1 = lit); a
+// 1x1 layer when no light is shadowed.
 layout(set = SV_SET_SCENE, binding = SV_BINDING_SHADOW) uniform sampler2DArrayShadow shadow_tex;
 // Set 1: the draw's material textures (a 1x1 white texel when the material has none).
 layout(set = SV_SET_MATERIAL, binding = SV_BINDING_BASE_COLOR_TEX) uniform sampler2D base_color_tex;

@@ -300,18 +300,51 @@ vec3 probe_color(uint index) {
     return vec3(float(h & 255u), float((h >> 8) & 255u), float((h >> 16) & 255u)) / 255.0 * 0.8 + 0.2;
 }
 
-// Visibility in [0, 1] of a directional light from p through its shadow map layer (docs/engine.md
-// "Shadows"): the point is moved along n by (0.5 + 3 sin(theta)) shadow texels (theta = angle between
-// n and l), which keeps a plane's own depth behind the sample over the whole filter footprint (at most
-// 2 sqrt(2) texels from the sample: the 3x3 grid of 1-texel steps plus the hardware's 2x2 bilinear
-// compare), then a 3x3 PCF of bilinear LESS_OR_EQUAL comparisons (1 = lit). Outside the map: lit.
-float shadow_visibility(int layer, vec3 p, vec3 n, float nl) {
+// Cube face (SV_SHADOW_CUBE layer offset 0..5 = +X, -X, +Y, -Y, +Z, -Z) whose frustum holds the
+// direction d from a point light: the major axis of d.
+int shadow_cube_face(vec3 d) {
+    vec3 a = abs(d);
+    if (a.x >= a.y && a.x >= a.z) return d.x >= 0.0 ? 0 : 1;
+    if (a.y >= a.z) return d.y >= 0.0 ? 2 : 3;
+    return d.z >= 0.0 ? 4 : 5;
+}
+
+// Visibility in [0, 1] of a shadowed light from p through its shadow map layers (docs/engine.md
+// "Shadows"); l = unit direction towards the light. The point is moved along n by
+// T * (0.5 + 3 sin(phi)) where T is the world size of a shadow texel at p (orthographic: constant;
+// perspective: depth of p along the layer's axis * 2 tan(half fov) / resolution) and phi the angle
+// between n and the layer's axis (orthographic: the light direction, so phi = theta). Over the filter
+// footprint (at most 2 sqrt(2) texels from the sample: the 3x3 grid of 1-texel steps plus the
+// hardware's 2x2 bilinear compare) a plane's stored depth changes by at most 2 sqrt(2) T sin(phi)
+// / cos(theta) relative to the sample's own, which the offset's T (0.5 + 3 sin(phi)) / cos(theta)
+// exceeds: no acne. Then a 3x3 PCF of bilinear LESS_OR_EQUAL comparisons (1 = lit). Outside the map
+// (or behind a spot light): lit. A point light's face is picked from the moved point, whose
+// direction lies inside that face's 90 degrees; the faces are a few texels wider, for the filter.
+float shadow_visibility(sv_gpu_light light, vec3 p, vec3 n, vec3 l) {
+    int layer = int(light.spot.w + 0.5);
     vec4 prm = frame.shadow_params[layer];
-    float sin_t = sqrt(max(1.0 - nl * nl, 0.0));
-    vec3 q = p + n * (prm.x * (0.5 + 3.0 * sin_t));
+    uint kind = uint(prm.w + 0.5);
+    vec3 axis = l;
+    float texel = prm.x;
+    vec3 d = p - light.position_range.xyz;
+    if (kind != SV_SHADOW_ORTHO) {
+        if (kind == SV_SHADOW_SPOT) {
+            axis = light.direction_type.xyz;
+        } else {
+            int f = shadow_cube_face(d);
+            axis = vec3(0.0);
+            axis[f / 2] = (f & 1) == 0 ? 1.0 : -1.0;
+        }
+        texel *= max(dot(axis, d), 0.0);
+    }
+    float cos_a = dot(n, axis);
+    float sin_a = sqrt(max(1.0 - cos_a * cos_a, 0.0));
+    vec3 q = p + n * (texel * (0.5 + 3.0 * sin_a));
+    if (kind == SV_SHADOW_CUBE) layer += shadow_cube_face(q - light.position_range.xyz);
     vec4 c = frame.shadow_view_proj[layer] * vec4(q, 1.0);
-    vec2 uv = c.xy * 0.5 + 0.5;
-    float z = clamp(c.z, 0.0, 1.0);
+    if (c.w <= 0.0) return 1.0;
+    vec2 uv = c.xy / c.w * 0.5 + 0.5;
+    float z = clamp(c.z / c.w, 0.0, 1.0);
     float sum = 0.0;
     for (int j = -1; j <= 1; ++j)
         for (int i = -1; i <= 1; ++i) sum += texture(shadow_tex, vec4(uv + vec2(i, j) * prm.z, float(layer), z));
@@ -324,8 +357,8 @@ float shadow_visibility(int layer, vec3 p, vec3 n, float nl) {
 // rendered a baked light (VULKAN_SCHNEE_light.mode "baked") into those probes, direct and bounced,
 // so adding its direct term there would count it twice: it is skipped. Where the fallback lights
 // the surface (probe mode off, or outside every grid) no probe holds the light and it is added.
-// Realtime and mixed lights (spot.z 0 and 2) always add it; a directional one with a shadow map
-// layer (spot.w >= 0) is multiplied by shadow_visibility().
+// Realtime and mixed lights (spot.z 0 and 2) always add it; one with shadow map layers (spot.w >= 0)
+// is multiplied by shadow_visibility().
 vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, bool probe_lit) {
     vec3 v = normalize(frame.camera_pos.xyz - p);
     vec3 f0 = mix(vec3(0.04), albedo, metallic);
@@ -360,7 +393,7 @@ vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, 
         if (nl <= 0.0) continue;
         vec3 h = normalize(l + v);
         float spec = (s + 8.0) / (8.0 * SH_PI) * pow(max(dot(n, h), 0.0), s);
-        if (type == 0u && light.spot.w > -0.5) atten *= shadow_visibility(int(light.spot.w + 0.5), p, n, nl);
+        if (light.spot.w > -0.5 && atten > 0.0) atten *= shadow_visibility(light, p, n, l);
         vec3 radiance = light.color.rgb * atten;
         sum += ((1.0 - metallic) * albedo / SH_PI + f0 * spec) * radiance * nl;
     }

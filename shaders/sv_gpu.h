@@ -67,7 +67,7 @@
 #define SV_BINDING_SKY         9  /* sampler2D: equirect sky with prefiltered mips */
 #define SV_BINDING_BRDF_LUT    10 /* sampler2D: split-sum BRDF LUT */
 #define SV_BINDING_CUBES_HALF  11 /* SSBO sv_gpu_cube_half[] (ambient cubes, half storage) */
-#define SV_BINDING_SHADOW      12 /* sampler2DArrayShadow: directional shadow maps, one layer per shadowed light */
+#define SV_BINDING_SHADOW      12 /* sampler2DArrayShadow: shadow maps, one layer per sun/spot, six per point */
 #define SV_SCENE_BINDING_COUNT 13 /* bindings in set 0 */
 /* Set 1 (per material). */
 #define SV_SET_MATERIAL           1
@@ -137,9 +137,18 @@
 #define SV_LIGHT_BAKED    1u /* "baked": direct term only where the fallback probe 0 lights the surface */
 #define SV_LIGHT_MIXED    2u /* "mixed": bounced light in the probes, direct term always (shadowed) */
 
-/* Directional shadow maps (docs/engine.md "Shadows"): at most this many directional lights (mixed or
- * realtime) get a layer of the shadow map array; further ones are unshadowed. */
-#define SV_MAX_SHADOWS 4
+/* Shadow maps (docs/engine.md "Shadows"): mixed and realtime lights get layers of one 2D-array depth
+ * image, in light-instance order, while the layer budget lasts: a directional light or a spot light
+ * one layer, a point light (or a spot wider than SV_SPOT_SHADOW_MAX_ANGLE) six, one per cube face.
+ * At most SV_MAX_SHADOWS directional lights and SV_MAX_SHADOW_LAYERS layers in all; a light that
+ * does not fit is unshadowed (one warning naming it). */
+#define SV_MAX_SHADOWS           4
+#define SV_MAX_SHADOW_LAYERS     16
+#define SV_SPOT_SHADOW_MAX_ANGLE 1.0471976f /* 60 degrees: a wider outer cone is shadowed as a cube */
+/* What a layer holds (sv_gpu_frame.shadow_params[k].w, as a float). */
+#define SV_SHADOW_ORTHO 0u /* a directional light: orthographic box fitted to the scene bounds */
+#define SV_SHADOW_SPOT  1u /* a spot light: one perspective frustum around its cone */
+#define SV_SHADOW_CUBE  2u /* one 90-degree face of a point light's cube: +X, -X, +Y, -Y, +Z, -Z from its first layer */
 
 #define SV_TONEMAP_NONE        0u /* clamp only */
 #define SV_TONEMAP_PBR_NEUTRAL 1u /* Khronos PBR Neutral (default) */
@@ -160,15 +169,18 @@ SV_STRUCT(sv_gpu_frame)
     SV_UINT(probe_mode);           /* SV_PROBE_MODE_*: override for every material, or _MATERIAL */
     SV_FLOAT(normal_bias);         /* per-pixel: sample point moved along n by this many grid spacings */
     SV_UINT(probe_representation); /* SV_PROBE_REP_*: override for every material, or _MATERIAL */
-    /* Shadow map layer k (the light whose sv_gpu_light.spot.w is k): world -> light clip space, an
-     * orthographic projection fitted to the scene's world bounds (x, y in [-1, 1], z in [0, 1]). */
-    SV_MAT4_ARRAY(shadow_view_proj, SV_MAX_SHADOWS);
-    /* x = world size of one shadow texel (the larger of the two axes), y = 1 / light-space depth range
-     * (metres), z = 1 / resolution (a texel in uv), w = 0. */
-    SV_VEC4_ARRAY(shadow_params, SV_MAX_SHADOWS);
+    /* Shadow map layer k (a light's layers start at its sv_gpu_light.spot.w): world -> light clip
+     * space (x, y in [-1, 1] and z in [0, 1] after the divide by w). SV_SHADOW_ORTHO: an orthographic
+     * box fitted to the scene's world bounds (w = 1); SV_SHADOW_SPOT / _CUBE: a perspective frustum
+     * from the light's position (w = depth along the layer's axis). */
+    SV_MAT4_ARRAY(shadow_view_proj, SV_MAX_SHADOW_LAYERS);
+    /* x = world size of one shadow texel: ORTHO in metres (the larger of the two axes), SPOT / CUBE
+     * per metre of depth along the layer's axis (2 tan(half fov) / resolution); y = ORTHO: 1 /
+     * light-space depth range (metres), else 0; z = 1 / resolution (a texel in uv); w = SV_SHADOW_*. */
+    SV_VEC4_ARRAY(shadow_params, SV_MAX_SHADOW_LAYERS);
 }
 SV_END(sv_gpu_frame)
-SV_SIZE_CHECK(sv_gpu_frame, 496)
+SV_SIZE_CHECK(sv_gpu_frame, 1456)
 
 /* Per-draw push constants (std430), one draw per mesh primitive of an object. */
 SV_STRUCT(sv_gpu_draw)
@@ -276,7 +288,7 @@ SV_STRUCT(sv_gpu_light)
     SV_VEC4(color);          /* rgb = colour * intensity (lux for directional, candela otherwise) */
     SV_VEC4(spot);           /* x = angle scale, y = angle offset (KHR_lights_punctual spot formula),
                                 z = SV_LIGHT_* mode (VULKAN_SCHNEE_light.mode: 0 realtime, 1 baked, 2 mixed),
-                                w = shadow map layer (directional mixed/realtime lights), -1 = unshadowed */
+                                w = first shadow map layer (mixed/realtime lights), -1 = unshadowed */
 }
 SV_END(sv_gpu_light)
 SV_SIZE_CHECK(sv_gpu_light, 64)

@@ -280,15 +280,55 @@ static bool upload_textures(sv_renderer *r, const sv_gltf *g)
     return true;
 }
 
-/* Which lights get a shadow map layer (docs/engine.md "Shadows"): directional lights whose mode is
- * mixed or realtime (or no extension), the first SV_MAX_SHADOWS of them in light-instance order;
- * further ones stay unshadowed with one warning. None when shadow_res is 0. */
+/* Which lights get shadow map layers (docs/engine.md "Shadows"): lights whose mode is mixed or
+ * realtime (or no extension), in light-instance order, while SV_MAX_SHADOW_LAYERS lasts: a directional
+ * light one layer (at most SV_MAX_SHADOWS of them: one warning for the first one past that), a spot
+ * light one (six, as a cube, when its outer cone is wider than SV_SPOT_SHADOW_MAX_ANGLE), a point
+ * light six. A light that does not fit is unshadowed with a warning naming it. None when shadow_res
+ * is 0. Returns the light's first layer or -1. */
+static int assign_shadow_layers(sv_renderer *r, const sv_gltf_light_instance *li, const sv_gltf_light *s,
+                                uint32_t *suns, bool *warned_suns)
+{
+    const char *name = s->name ? s->name : "";
+    if (s->type == SV_GLTF_LIGHT_DIRECTIONAL && *suns >= SV_MAX_SHADOWS) {
+        if (!*warned_suns)
+            fprintf(stderr,
+                    "schnee-view: warning: more than %d directional lights cast shadows; light '%s' and any "
+                    "further ones are unshadowed\n",
+                    SV_MAX_SHADOWS, name);
+        *warned_suns = true;
+        return -1;
+    }
+    bool cube = s->type == SV_GLTF_LIGHT_POINT ||
+                (s->type == SV_GLTF_LIGHT_SPOT && s->outer_cone_angle > SV_SPOT_SHADOW_MAX_ANGLE);
+    uint32_t need = cube ? 6u : 1u;
+    if (r->shadow_count + need > SV_MAX_SHADOW_LAYERS) {
+        fprintf(stderr,
+                "schnee-view: warning: light '%s' needs %u shadow map layer%s but only %u of %d are left; it is "
+                "unshadowed\n",
+                name, need, need == 1 ? "" : "s", SV_MAX_SHADOW_LAYERS - r->shadow_count, SV_MAX_SHADOW_LAYERS);
+        return -1;
+    }
+    int first = (int)r->shadow_count;
+    static const float faces[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    for (uint32_t f = 0; f < need; ++f) {
+        sv_shadow_layer *layer = &r->shadow_layers[r->shadow_count++];
+        memcpy(layer->pos, li->position, sizeof(layer->pos));
+        memcpy(layer->dir, cube ? faces[f] : li->direction, sizeof(layer->dir));
+        layer->kind = s->type == SV_GLTF_LIGHT_DIRECTIONAL ? SV_SHADOW_ORTHO : cube ? SV_SHADOW_CUBE : SV_SHADOW_SPOT;
+        layer->tan_half = cube ? 1.0f : tanf(fmaxf(s->outer_cone_angle, 1e-3f));
+    }
+    if (s->type == SV_GLTF_LIGHT_DIRECTIONAL) ++*suns;
+    return first;
+}
+
 static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext, uint32_t shadow_res)
 {
     uint32_t n = g->light_instance_count;
     sv_gpu_light *l = calloc(n ? n : 1, sizeof(*l));
     if (!l) return false;
-    bool warned = false; /* about a directional light past SV_MAX_SHADOWS, once */
+    uint32_t suns = 0;        /* shadowed directional lights */
+    bool warned_suns = false; /* about a directional light past SV_MAX_SHADOWS, once */
     for (uint32_t i = 0; i < n; ++i) {
         const sv_gltf_light_instance *li = &g->light_instances[i];
         const sv_gltf_light *s = &g->lights[li->light];
@@ -309,19 +349,8 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext, u
                                : mode == SV_LIGHT_MODE_MIXED ? SV_LIGHT_MIXED
                                                              : SV_LIGHT_REALTIME);
         l[i].spot[3] = -1.0f;
-        if (shadow_res && s->type == SV_GLTF_LIGHT_DIRECTIONAL && mode != SV_LIGHT_MODE_BAKED) {
-            if (r->shadow_count < SV_MAX_SHADOWS) {
-                l[i].spot[3] = (float)r->shadow_count;
-                memcpy(r->shadow_dir[r->shadow_count], li->direction, 3 * sizeof(float));
-                ++r->shadow_count;
-            } else if (!warned) {
-                fprintf(stderr,
-                        "schnee-view: warning: more than %d directional lights cast shadows; light '%s' and any "
-                        "further ones are unshadowed\n",
-                        SV_MAX_SHADOWS, s->name ? s->name : "");
-                warned = true;
-            }
-        }
+        if (shadow_res && mode != SV_LIGHT_MODE_BAKED)
+            l[i].spot[3] = (float)assign_shadow_layers(r, li, s, &suns, &warned_suns);
     }
     r->light_count = n;
     bool ok =
@@ -564,23 +593,31 @@ fail:
     return false;
 }
 
-/* The light-space projection of one shadowed light: an orthographic box along `dir` fitted to the 8
- * corners of the world bounds [lo, hi] (x, y extents and depth range, each padded by 1 % plus 1 mm
- * so that surfaces on the bounds stay inside), world -> clip with x, y in [-1, 1] and z in [0, 1]
- * (Vulkan), and its shadow_params (see sv_gpu_frame). */
-static void shadow_projection(const float dir[3], const float lo[3], const float hi[3], uint32_t res, float m[16],
-                              float params[4])
+/* An orthonormal light basis: f = unit dir (straight down when degenerate), x = normalize(f x up),
+ * y = x x f, with up = +Y, or +X when |f.y| > 0.99. */
+static void shadow_basis(const float dir[3], float x[3], float y[3], float f[3])
 {
-    float f[3] = {dir[0], dir[1], dir[2]};
+    memcpy(f, dir, 3 * sizeof(float));
     float fl = sqrtf(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
     if (fl < 1e-12f) f[0] = 0, f[1] = -1, f[2] = 0, fl = 1;
     for (int k = 0; k < 3; ++k) f[k] /= fl;
     float up[3] = {0, 1, 0};
     if (fabsf(f[1]) > 0.99f) up[0] = 1, up[1] = 0;
-    float x[3] = {f[1] * up[2] - f[2] * up[1], f[2] * up[0] - f[0] * up[2], f[0] * up[1] - f[1] * up[0]};
+    x[0] = f[1] * up[2] - f[2] * up[1], x[1] = f[2] * up[0] - f[0] * up[2], x[2] = f[0] * up[1] - f[1] * up[0];
     float xl = sqrtf(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
     for (int k = 0; k < 3; ++k) x[k] /= xl;
-    float y[3] = {x[1] * f[2] - x[2] * f[1], x[2] * f[0] - x[0] * f[2], x[0] * f[1] - x[1] * f[0]};
+    y[0] = x[1] * f[2] - x[2] * f[1], y[1] = x[2] * f[0] - x[0] * f[2], y[2] = x[0] * f[1] - x[1] * f[0];
+}
+
+/* The light-space projection of a directional light's layer: an orthographic box along `dir` fitted
+ * to the 8 corners of the world bounds [lo, hi] (x, y extents and depth range, each padded by 1 %
+ * plus 1 mm so that surfaces on the bounds stay inside), world -> clip with x, y in [-1, 1] and z in
+ * [0, 1] (Vulkan), and its shadow_params (see sv_gpu_frame). */
+static void shadow_projection_ortho(const float dir[3], const float lo[3], const float hi[3], uint32_t res, float m[16],
+                                    float params[4])
+{
+    float x[3], y[3], f[3];
+    shadow_basis(dir, x, y, f);
     const float *axes[3] = {x, y, f};
     float mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int c = 0; c < 8; ++c) {
@@ -612,7 +649,51 @@ static void shadow_projection(const float dir[3], const float lo[3], const float
     params[0] = 2.0f * fmaxf(half[0], half[1]) / (float)res;
     params[1] = 1.0f / (2.0f * half[2]);
     params[2] = 1.0f / (float)res;
-    params[3] = 0.0f;
+    params[3] = (float)SV_SHADOW_ORTHO;
+}
+
+/* The projection of a spot light's layer or a point light's cube face: a perspective frustum from
+ * the light's position along the layer's axis, tan(half fov) = layer->tan_half * (1 + 8 / res) (the
+ * margin keeps the 3x3 filter of a fragment at the cone's edge, or at a cube face's edge, about 4
+ * texels inside the map), far = the farthest corner of the world bounds [lo, hi] padded by 1 % plus
+ * 1 mm, near = the bounds' distance from the light, at least far / 1000 (a float depth keeps about
+ * 6e-5 of far there). Clip w = depth along the axis; z / w in [0, 1] between near and far. */
+static void shadow_projection_perspective(const sv_shadow_layer *layer, const float lo[3], const float hi[3],
+                                          uint32_t res, float m[16], float params[4])
+{
+    float x[3], y[3], f[3];
+    shadow_basis(layer->dir, x, y, f);
+    const float *pos = layer->pos;
+    float far = 0.0f, near2 = 0.0f;
+    for (int k = 0; k < 3; ++k) {
+        float a = fabsf(lo[k] - pos[k]), b = fabsf(hi[k] - pos[k]), c = fmaxf(a, b);
+        far += c * c;
+        float outside = pos[k] < lo[k] ? lo[k] - pos[k] : pos[k] > hi[k] ? pos[k] - hi[k] : 0.0f;
+        near2 += outside * outside;
+    }
+    far = sqrtf(far);
+    far += 0.01f * far + 1e-3f;
+    float near = fmaxf(0.99f * sqrtf(near2), far * 1e-3f);
+    float t = layer->tan_half * (1.0f + 8.0f / (float)res);
+    float a = far / (far - near), b = -near * far / (far - near);
+    float xp = x[0] * pos[0] + x[1] * pos[1] + x[2] * pos[2];
+    float yp = y[0] * pos[0] + y[1] * pos[1] + y[2] * pos[2];
+    float fp = f[0] * pos[0] + f[1] * pos[1] + f[2] * pos[2];
+    memset(m, 0, 16 * sizeof(float));
+    for (int k = 0; k < 3; ++k) {
+        m[4 * k + 0] = x[k] / t;
+        m[4 * k + 1] = y[k] / t;
+        m[4 * k + 2] = a * f[k];
+        m[4 * k + 3] = f[k];
+    }
+    m[12] = -xp / t;
+    m[13] = -yp / t;
+    m[14] = -a * fp + b;
+    m[15] = -fp;
+    params[0] = 2.0f * t / (float)res;
+    params[1] = 0.0f;
+    params[2] = 1.0f / (float)res;
+    params[3] = (float)layer->kind;
 }
 
 /* ---- descriptors and pipelines -------------------------------------------------------------- */
@@ -1240,9 +1321,15 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     frame.normal_bias = view->normal_bias;
     /* Shadow maps: fitted to the scene's current bounds (objects move), so recomputed every frame. */
     bool shadows = r->shadow_count && scene->aabb_min[0] <= scene->aabb_max[0];
-    for (uint32_t k = 0; shadows && k < r->shadow_count; ++k)
-        shadow_projection(r->shadow_dir[k], scene->aabb_min, scene->aabb_max, r->shadow_res, frame.shadow_view_proj[k],
-                          frame.shadow_params[k]);
+    for (uint32_t k = 0; shadows && k < r->shadow_count; ++k) {
+        const sv_shadow_layer *layer = &r->shadow_layers[k];
+        if (layer->kind == SV_SHADOW_ORTHO)
+            shadow_projection_ortho(layer->dir, scene->aabb_min, scene->aabb_max, r->shadow_res,
+                                    frame.shadow_view_proj[k], frame.shadow_params[k]);
+        else
+            shadow_projection_perspective(layer, scene->aabb_min, scene->aabb_max, r->shadow_res,
+                                          frame.shadow_view_proj[k], frame.shadow_params[k]);
+    }
     memcpy(r->frame.mapped, &frame, sizeof(frame));
     upload_slots(r, cmd);
     retrace_masks(r, cmd, scene);
@@ -1396,7 +1483,7 @@ void sv_renderer_destroy(sv_renderer *r)
     if (r->shadow_pipeline) vkDestroyPipeline(dev, r->shadow_pipeline, NULL);
     if (r->shadow_layout) vkDestroyPipelineLayout(dev, r->shadow_layout, NULL);
     if (r->shadow_sampler) vkDestroySampler(dev, r->shadow_sampler, NULL);
-    for (uint32_t k = 0; k < SV_MAX_SHADOWS; ++k)
+    for (uint32_t k = 0; k < SV_MAX_SHADOW_LAYERS; ++k)
         if (r->shadow_layer_views[k]) vkDestroyImageView(dev, r->shadow_layer_views[k], NULL);
     sv_image_destroy(ctx, &r->shadow);
     if (r->scene_layout) vkDestroyPipelineLayout(dev, r->scene_layout, NULL);

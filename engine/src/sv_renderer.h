@@ -39,7 +39,7 @@ typedef struct sv_renderer_desc {
     const sv_sky *sky;       /* NULL or !present: no background, no specular, constant fallback */
     bool cube_probes;        /* fill the ambient-cube buffer even when no material asks for cubes
                                 (--probe-representation ambientCube); docs/ambient-cube.md §5 */
-    uint32_t shadow_res;     /* directional shadow map size per layer (--shadow-res, default
+    uint32_t shadow_res;     /* shadow map size per layer (--shadow-res, default
                                 SV_SHADOW_DEFAULT_RES); 0 = no shadows */
 } sv_renderer_desc;
 #define SV_SHADOW_DEFAULT_RES 2048u
@@ -49,6 +49,14 @@ typedef struct sv_renderer_desc {
         .fallback_radiance = SV_FALLBACK_RADIANCE, .half_probes = false, .sky = NULL, .cube_probes = false,            \
         .shadow_res = SV_SHADOW_DEFAULT_RES                                                                            \
     }
+
+/* One layer of the shadow map array: what the frame's projection of it is fitted to. */
+typedef struct sv_shadow_layer {
+    uint32_t kind;  /* SV_SHADOW_ORTHO, _SPOT or _CUBE */
+    float pos[3];   /* world position of the light (spot, cube) */
+    float dir[3];   /* world direction of the layer's axis: where the light (sun, spot) or the cube face points */
+    float tan_half; /* spot, cube: tan(half field of view) before the filter's margin */
+} sv_shadow_layer;
 
 typedef struct sv_renderer {
     sv_context *ctx;
@@ -90,17 +98,18 @@ typedef struct sv_renderer {
     sv_image hdr, depth;
     uint32_t width, height;
 
-    /* Directional shadow maps (docs/engine.md "Shadows"): one depth layer per shadowed light (a 1x1
-     * single layer, never rendered, when none), rendered at the start of every frame. */
+    /* Shadow maps (docs/engine.md "Shadows"): one depth layer per shadowed directional or spot light,
+     * six per point light (a 1x1 single layer, never rendered, when none), rendered at the start of
+     * every frame. */
     sv_image shadow;
-    VkImageView shadow_layer_views[SV_MAX_SHADOWS]; /* per layer, the depth attachment of the shadow pass */
-    VkSampler shadow_sampler;                       /* LESS_OR_EQUAL compare, white border (lit outside) */
+    VkImageView shadow_layer_views[SV_MAX_SHADOW_LAYERS]; /* per layer, the depth attachment of the shadow pass */
+    VkSampler shadow_sampler;                             /* LESS_OR_EQUAL compare, white border (lit outside) */
     VkPipelineLayout shadow_layout;
     VkPipeline shadow_pipeline;
     VkFormat shadow_format;
-    uint32_t shadow_res;                 /* texels per side of a layer */
-    uint32_t shadow_count;               /* shadowed lights (layers rendered), 0..SV_MAX_SHADOWS */
-    float shadow_dir[SV_MAX_SHADOWS][3]; /* world direction each shadowed light points to */
+    uint32_t shadow_res;   /* texels per side of a layer */
+    uint32_t shadow_count; /* layers rendered, 0..SV_MAX_SHADOW_LAYERS */
+    sv_shadow_layer shadow_layers[SV_MAX_SHADOW_LAYERS];
 } sv_renderer;
 
 /* Uploads the scene (geometry, materials, textures, lights) and the probes, builds pipelines for

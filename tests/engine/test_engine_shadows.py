@@ -1,5 +1,5 @@
-"""Directional shadow maps and the "mixed" light mode (docs/engine.md "Shadows" and "Lights: baked,
-mixed or realtime").
+"""Shadow maps (directional, spot and point lights) and the "mixed" light mode (docs/engine.md
+"Shadows" and "Lights: baked, mixed or realtime").
 
 A ground plane (10 m square at y = 0, diffuse: metallic 0, roughness 1) and a 1 m box floating above
 it (bottom at y = 1.5) are lit by one known probe (a 1-cell grid holding both objects, so every
@@ -13,10 +13,19 @@ independently of the shaders:
 - the shadow: a plane point is in shadow exactly when the ray from it towards the light (−d) hits
   the box (slab test), which is the box's shadow polygon projected along d.
 
+Spot and point lights (perspective maps, the second half of this file) use the same plane, box and
+probe with the lamp above the box: the expected direct term is probe_ref.point_light_direct (the
+"Shading" formula with 1/d² and the spot cone), the shadow is the segment test from the plane point
+to the lamp's position against the box, i.e. the box's silhouette projected from the lamp onto the
+plane. A closed room of six walls around a point lamp, each wall seen by its own orthographic camera,
+puts a shadow on every cube face.
+
 Pixels within EDGE px of the analytic shadow boundary, or of the box's footprint on the screen, are
 not compared (the normal offset, the 3x3 PCF and the texel size blur the edge by < 1 px here).
 """
+import json
 import sys
+from collections import namedtuple
 from pathlib import Path
 
 import numpy as np
@@ -50,10 +59,19 @@ def unit(v):
 
 
 def rotation_to(d):
-    """Quaternion (x, y, z, w) turning the node's -Z (a glTF light's direction) into unit d."""
+    """Quaternion (x, y, z, w) turning the node's -Z (a glTF light's or camera's direction) into unit d
+    (the shortest arc; half a turn about +Y for d = +Z)."""
     a, d = np.array([0.0, 0.0, -1.0]), unit(d)
+    if 1.0 + a @ d < 1e-9:
+        return np.array([0.0, 1.0, 0.0, 0.0])
     q = np.append(np.cross(a, d), 1.0 + a @ d)
     return q / np.linalg.norm(q)
+
+
+def rotate(q, v):
+    """v rotated by the unit quaternion q = (x, y, z, w)."""
+    u, w = np.asarray(q[:3], float), q[3]
+    return v + 2.0 * np.cross(u, np.cross(u, v) + w * np.asarray(v, float))
 
 
 def plane_points():
@@ -65,15 +83,17 @@ def plane_points():
     return np.stack([x, np.zeros_like(x), z], axis=-1)
 
 
-def box_hit(p, toward_light):
-    """Whether the ray p + t·toward_light (t > 0) hits the box (slab test), per point."""
-    lo, hi = BOX_CENTER - BOX_HALF, BOX_CENTER + BOX_HALF
+def box_hit(p, toward_light, lo=BOX_CENTER - BOX_HALF, hi=BOX_CENTER + BOX_HALF, t_end=np.inf):
+    """Whether the ray p + t·toward_light (0 < t <= t_end) hits the box [lo, hi] (slab test), per
+    point. A box may be flat (a wall: lo = hi on one axis)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = 1.0 / toward_light
         t0, t1 = (lo - p) * inv, (hi - p) * inv
+    # a ray parallel to a slab: inside it (NaN from 0·inf) -> no limit; outside -> +-inf, a miss
+    t0, t1 = np.where(np.isnan(t0), -np.inf, t0), np.where(np.isnan(t1), np.inf, t1)
     tmin = np.minimum(t0, t1).max(-1)
     tmax = np.maximum(t0, t1).min(-1)
-    return (tmax >= np.maximum(tmin, 0.0))
+    return (tmax >= np.maximum(tmin, 0.0)) & (tmin <= t_end)
 
 
 def dilate(mask, r):
@@ -108,9 +128,11 @@ def sun_direct(p, n, d, lux=SUN_LUX):
     return (ALBEDO / np.pi + spec[..., None]) * lux * nl[..., None]
 
 
-def write_scene(path, suns, box=True):
+def write_scene(path, suns, box=True, lamps=(), walls=(), builder=None):
     """Plane (+ box), the probe grid, the camera and one directional light per entry of `suns`:
-    (direction, mode), mode None = no VULKAN_SCHNEE_light extension."""
+    (direction, mode), mode None = no VULKAN_SCHNEE_light extension; then one light per Lamp of
+    `lamps` and one quad per (name, size_u, size_v, normal_axis, translation) of `walls`.
+    `builder(b, material)` adds further nodes."""
     d = Path(path).parent
     (d / "sh_coeffs").mkdir(exist_ok=True)
     sg.write_shprobe_v1(d / "sh_coeffs" / "probes.shprobe", COEFFS[None], np.zeros((1, 1, 1), np.int32),
@@ -125,23 +147,38 @@ def write_scene(path, suns, box=True):
     for k, (direction, mode) in enumerate(suns):
         light = b.light(f"Sun{k}", "directional", (1, 1, 1), SUN_LUX, schnee_mode=mode)
         b.light_node(f"Sun{k}Node", light, translation=(0, 8, 0), rotation=rotation_to(direction))
+    for lamp in lamps:
+        light = b.light(lamp.name, lamp.type, (1, 1, 1), lamp.intensity, schnee_mode=lamp.mode,
+                        cone=lamp.cone if lamp.type == "spot" else None)
+        b.light_node(f"{lamp.name}Node", light, translation=lamp.pos, rotation=rotation_to(lamp.axis))
+    for name, su, sv, axis, translation in walls:
+        b.node(name, mesh=b.mesh(name, sg.quad(su, sv, normal_axis=axis), m), translation=translation)
+    if builder is not None:
+        builder(b, m)
     b.probe_grids([sg.grid_entry("probes", "sh_coeffs/probes.shprobe", 1, (-6, -1, -6), (1, 1, 1), 12.0)])
     return b.write(path)
 
 
-def render(tmp_path, tag, suns, *args, box=True):
-    gltf = write_scene(tmp_path / f"{tag}.gltf", suns, box=box)
-    out = tmp_path / f"{tag}.exr"
-    viewer.check(viewer.run(gltf, "--headless", "--output", out, "--width", W, "--height", H, *args))
-    return viewer.read_image(out)[..., :3]
+def render(tmp_path, tag, suns, *args, box=True, lamps=(), walls=()):
+    gltf = write_scene(tmp_path / f"{tag}.gltf", suns, box=box, lamps=lamps, walls=walls)
+    return render_file(gltf, tmp_path / f"{tag}.exr", *args)[0]
+
+
+def render_file(gltf, out, *args, size=(W, H)):
+    """Renders gltf headless to the EXR `out` (validation on); returns (image RGB, stderr)."""
+    proc = viewer.check(viewer.run(gltf, "--headless", "--output", out, "--width", size[0], "--height", size[1],
+                                   *args))
+    return viewer.read_image(out)[..., :3], proc.stderr
 
 
 def assert_close(img, expected, mask, what):
     # The plane's normal is exact and its positions are interpolated on a 2-triangle quad: the
     # measured error on lavapipe is float rounding (max 1.9e-7 absolute, lit or shadowed, at every
-    # sun direction tested). Bound: 2e-5 absolute + 1e-4 relative; the smallest effect checked (the
-    # sun's direct term, or a fifth of it) is > 0.08 here: a shadow wrongly cast or missed, acne or
-    # a direct term wrongly added is off by that much.
+    # sun direction tested; 3.4e-6 under the lamps, whose 1/d² and cone terms are evaluated in
+    # float). Bound: 2e-5 absolute + 1e-4 relative; the smallest effect checked (the sun's direct
+    # term, or a fifth of it) is > 0.08 here: a shadow wrongly cast or missed, acne or a direct term
+    # wrongly added is off by that much (under a lamp, where the direct term fades, one ninth of it
+    # still exceeds the bound wherever it is above 2e-4).
     err = np.abs(img[mask] - expected[mask])
     tol = 2e-5 + 1e-4 * np.abs(expected[mask])
     bad = (err > tol).any(-1)
@@ -175,31 +212,40 @@ def test_reference_closed_form():
     assert analytic_shadow(np.array([2.0, 0.0, 0.8]), SUN_DIR)
 
 
+def assert_shadowed(img, base, lit, shadow, plane, what, edge=EDGE):
+    """The analytic shadow `shadow` (a mask) on the `plane` pixels: inside it the image equals `base`,
+    outside `lit` (pixels within `edge` px of its boundary excluded); the rendered shadow (pixels
+    darker than halfway between the two, where the light adds > 0.05 in green) differs from the
+    analytic one only within 1 px of the edge (`edge` px for a coarse map), by at most half that
+    band's count."""
+    band = edge_band(shadow, edge)
+    inside, outside = plane & shadow & ~band, plane & ~shadow & ~band
+    assert_close(img, base, inside, f"{what}: shadowed pixels (probe term only)")
+    assert_close(img, lit, outside, f"{what}: lit pixels (probe + direct)")
+    strong = plane & (lit[..., 1] - base[..., 1] > 0.05)
+    rendered_shadow = strong & (img[..., 1] < 0.5 * (base[..., 1] + lit[..., 1]))
+    analytic = strong & shadow
+    near = edge_band(shadow, 1 if edge <= EDGE else edge)
+    tolerance = (strong & near).sum() / 2
+    assert abs(int(rendered_shadow.sum()) - int(analytic.sum())) <= tolerance, (
+        what, rendered_shadow.sum(), analytic.sum(), tolerance)
+    assert not ((rendered_shadow != analytic) & strong & ~near).any(), what
+    return inside, outside
+
+
 def test_mixed_sun_is_shadowed_by_the_box(tmp_path, geometry):
     p, n, plane = geometry
     img = render(tmp_path, "mixed", [(SUN_DIR, "mixed")])
     shadow = analytic_shadow(p, SUN_DIR)
-    band = edge_band(shadow, EDGE)
-    inside, outside = plane & shadow & ~band, plane & ~shadow & ~band
-    assert inside.sum() > 400 and outside.sum() > 10000  # the shadow is well inside the view
     base = probe_term(n)
-    assert_close(img, base, inside, "shadowed pixels (probe term only)")
-    assert_close(img, base + sun_direct(p, n, SUN_DIR), outside, "lit pixels (probe + direct)")
+    # Shadowed pixel count: the rendered pixels darker than halfway between lit and shadowed, against
+    # the analytic count; they may differ only within 1 px of the edge.
+    inside, outside = assert_shadowed(img, base, base + sun_direct(p, n, SUN_DIR), shadow, plane, "mixed sun")
+    assert inside.sum() > 400 and outside.sum() > 10000  # the shadow is well inside the view
     # The same image without the light (--no-direct) is the probe term everywhere on the plane.
     dark = render(tmp_path, "mixed_nodirect", [(SUN_DIR, "mixed")], "--no-direct")
     assert_close(dark, base, plane, "--no-direct")
     assert np.allclose(img[inside], dark[inside], atol=1e-5)
-
-    # Shadowed pixel count: the rendered pixels darker than halfway between lit and shadowed, against
-    # the analytic count; they may differ only within 1 px of the edge.
-    lit = base + sun_direct(p, n, SUN_DIR)
-    rendered_shadow = plane & (img[..., 1] < 0.5 * (base[..., 1] + lit[..., 1]))
-    analytic = plane & shadow
-    tolerance = (plane & edge_band(shadow, 1)).sum() / 2
-    assert abs(int(rendered_shadow.sum()) - int(analytic.sum())) <= tolerance, (
-        rendered_shadow.sum(), analytic.sum(), tolerance)
-    # ... and every disagreement lies in that band.
-    assert not ((rendered_shadow != analytic) & plane & ~edge_band(shadow, 1)).any()
 
 
 @pytest.mark.parametrize("direction", [(1.0, -1.0, 0.4), (0.3, -0.25, -1.0), (0.05, -0.08, 1.0), (0.0, -1.0, 0.0)],
@@ -247,10 +293,10 @@ def test_more_than_four_suns_warn_once(tmp_path, geometry):
     p, n, plane = geometry
     suns = [(SUN_DIR, "mixed")] * 5
     gltf = write_scene(tmp_path / "five.gltf", suns)
-    doc = __import__("json").loads(gltf.read_text())
+    doc = json.loads(gltf.read_text())
     for light in doc["extensions"]["KHR_lights_punctual"]["lights"]:
         light["intensity"] = SUN_LUX / 5
-    gltf.write_text(__import__("json").dumps(doc))
+    gltf.write_text(json.dumps(doc))
     out = tmp_path / "five.exr"
     proc = viewer.check(viewer.run(gltf, "--headless", "--output", out, "--width", W, "--height", H))
     assert proc.stderr.count("directional lights cast shadows") == 1, proc.stderr
@@ -269,3 +315,189 @@ def test_bad_shadow_res_is_a_usage_error(tmp_path, value):
     assert proc.returncode == 2, proc.stderr
     assert "--shadow-res" in proc.stderr, proc.stderr
     assert not out.exists()
+
+
+# ---- spot and point lights: perspective shadow maps ---------------------------------------------
+
+Lamp = namedtuple("Lamp", "name type pos axis intensity mode cone", defaults=((0, -1, 0), 60.0, "mixed", None))
+LAMP_POS = np.array([-1.2, 4.5, 0.4])  # above the box: its shadow lies on the plane beside it, in view
+SPOT_AXIS = unit([0.35, -1.0, -0.12])  # the box's whole shadow lies within 25° of it
+SPOT_CONE = (np.radians(30.0), np.radians(45.0))  # the cone's edge crosses the view
+POINT = Lamp("Lamp", "point", LAMP_POS)
+SPOT = Lamp("Spot", "spot", LAMP_POS, SPOT_AXIS, cone=SPOT_CONE)
+
+
+def lamp_direct(p, n, lamp, cam=CAM):
+    """docs/engine.md "Shading" for a point or spot lamp (probe_ref.point_light_direct)."""
+    spot = (unit(lamp.axis), *lamp.cone) if lamp.type == "spot" else None
+    return probe_ref.point_light_direct(p, n, cam, ALBEDO, lamp.pos, np.full(3, lamp.intensity), spot=spot)
+
+
+def lamp_shadow(p, pos, boxes=((BOX_CENTER - BOX_HALF, BOX_CENTER + BOX_HALF),)):
+    """Whether the segment from p to the lamp at pos crosses one of the boxes (lo, hi)."""
+    hit = np.zeros(p.shape[:-1], bool)
+    for lo, hi in boxes:
+        hit |= box_hit(p, np.asarray(pos, float) - p, np.asarray(lo, float), np.asarray(hi, float), t_end=1.0)
+    return hit
+
+
+def test_lamp_reference_closed_form():
+    # Straight below a point lamp 2 m up: n·l = n·h = 1, E = I/4 -> (albedo/π + 0.04·9/(8π))·I/4;
+    # a spot pointing down adds the cone factor 1 on its axis and 0 beyond the outer angle.
+    p, n = np.array([[0.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
+    lamp = Lamp("L", "point", (0.0, 2.0, 0.0), intensity=8.0)
+    want = (ALBEDO / np.pi + 0.04 * 9 / (8 * np.pi)) * 2.0
+    assert np.allclose(lamp_direct(p, n, lamp, cam=(0, 2, 0)), want, rtol=1e-12)
+    spot = lamp._replace(type="spot", cone=(0.2, 0.4))
+    assert np.allclose(lamp_direct(p, n, spot, cam=(0, 2, 0)), want, rtol=1e-12)
+    assert np.allclose(lamp_direct(np.array([[1.0, 0.0, 0.0]]), n, spot), 0.0)  # atan(1/2) > 0.4
+    # The segment test: below the box seen from a lamp above it is shadowed, beside it is not, and a
+    # box beyond the lamp casts nothing.
+    assert lamp_shadow(np.array([0.0, 0.0, 0.0]), (0, 4, 0))
+    assert not lamp_shadow(np.array([3.0, 0.0, 0.0]), (0, 4, 0))
+    assert not lamp_shadow(np.array([0.0, 0.0, 0.0]), (0, 1.2, 0))
+
+
+@pytest.mark.parametrize("lamp", [SPOT, POINT], ids=["spot", "point"])
+def test_lamp_is_shadowed_by_the_box(tmp_path, geometry, lamp):
+    # The box's silhouette projected from the lamp onto the plane gets the probe term only; the
+    # plane elsewhere the probe term plus the lamp's direct term (for the spot: zero beyond its cone).
+    p, n, plane = geometry
+    img = render(tmp_path, lamp.name, [], lamps=[lamp])
+    shadow = lamp_shadow(p, lamp.pos)
+    base = probe_term(n)
+    lit = base + lamp_direct(p, n, lamp)
+    inside, outside = assert_shadowed(img, base, lit, shadow, plane, lamp.name)
+    assert inside.sum() > 1500 and outside.sum() > 10000  # a large shadow, well inside the view
+    if lamp.type == "spot":  # the cone's edge is in view: some plane pixels get no direct term
+        assert (plane & (lit[..., 1] - base[..., 1] < 1e-6)).sum() > 1000
+
+
+@pytest.mark.parametrize("lamp", [
+    Lamp("Low", "point", (0.3, 1.0, -0.2), intensity=4.0),
+    Lamp("Oblique", "spot", (-3.5, 1.2, 0.5), (1.0, -0.35, 0.1), 30.0, cone=(0.5, 0.95)),
+    Lamp("Wide", "spot", (-2.0, 1.0, 0.2), (0.5, -1.0, 0.1), 10.0, cone=(0.9, 1.3)),
+], ids=["point-low", "spot-grazing", "spot-wide-as-cube"])
+def test_no_acne_under_a_lamp(tmp_path, geometry, lamp):
+    # Without the box every plane pixel is lit. The low point lamp (1 m up) sees the plane through
+    # five cube faces at up to 80° from the normal, the grazing spot at up to 81°; the 74° spot is
+    # wider than 60° and shadowed as a cube (docs/engine.md "Shadows").
+    p, n, _ = geometry
+    img = render(tmp_path, "acne_" + lamp.name, [], box=False, lamps=[lamp])
+    lit = probe_term(n) + lamp_direct(p, n, lamp)
+    assert_close(img, lit, np.ones((H, W), bool), f"lit plane under {lamp.name}")
+    l = np.asarray(lamp.pos) - p
+    l /= np.linalg.norm(l, axis=-1, keepdims=True)
+    reached = lamp_direct(p, n, lamp)[..., 1] > 1e-3
+    steepest = np.degrees(np.arccos(l[reached][:, 1].min()))
+    assert steepest > 77, steepest  # grazing angles are checked
+
+
+def test_mixed_point_lamp_does_not_light_through_a_wall(tmp_path, geometry):
+    # A 3 m wall at x = 0.5 across the whole plane, the lamp 2 m on the other side at 1.5 m: every
+    # plane pixel beyond the wall is in its shadow (the probe term only); without shadow maps
+    # (--shadow-res 0) the lamp leaks through the wall.
+    p, n, plane = geometry
+    lamp = Lamp("Lamp", "point", (-1.5, 1.5, 0.3), intensity=20.0)
+    wall = [("Wall", 3.0, PLANE_SIZE, 0, (0.5, 1.5, 0.0))]  # normal +X, 3 m along y, 10 m along z
+    img = render(tmp_path, "wall", [], box=False, lamps=[lamp], walls=wall)
+    shadow = lamp_shadow(p, lamp.pos, [((0.5, 0.0, -5.0), (0.5, 3.0, 5.0))])
+    beyond = p[..., 0] > 0.5
+    assert np.array_equal(shadow, beyond)  # the analytic shadow is the far side
+    base = probe_term(n)
+    lit = base + lamp_direct(p, n, lamp)
+    inside, outside = assert_shadowed(img, base, lit, shadow, np.ones((H, W), bool), "lamp behind a wall")
+    assert inside.sum() > 8000 and outside.sum() > 8000
+    leak = render(tmp_path, "wall_off", [], "--shadow-res", 0, box=False, lamps=[lamp], walls=wall)
+    assert_close(leak, lit, inside | outside, "--shadow-res 0: the lamp lights both sides")
+    added = leak[inside][:, 1] - base[inside][:, 1]
+    assert added.min() > 0.01 and added.mean() > 0.05, (added.min(), added.mean())
+
+
+ROOM_C, ROOM_HALF = np.array([0.0, 3.0, 0.0]), 3.0  # a closed 6 m cube inside the probe grid
+ROOM_LAMP = Lamp("RoomLamp", "point", ROOM_C + (0.2, -0.1, 0.15), intensity=20.0)
+ROOM_MAG = 1.4  # each wall camera sees 2.8 m x 2.8 m of its wall
+ROOM_W = 96
+
+
+def room_faces():
+    """(axis, sign, unit axis, a lateral offset) per cube face +X, -X, +Y, -Y, +Z, -Z."""
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            e = np.zeros(3)
+            e[axis] = sign
+            u, v = np.roll(np.abs(e), 1), np.roll(np.abs(e), 2)
+            yield axis, sign, e, 0.3 * u - 0.2 * sign * v
+
+
+def room_occluder(e, lateral):
+    """The 0.5 m cube between the lamp and the wall along e: 1.5 m from the lamp, shifted sideways."""
+    c = ROOM_LAMP.pos + 1.5 * e + lateral
+    return c - 0.25, c + 0.25
+
+
+def test_point_lamp_shadows_on_every_wall_of_a_room(tmp_path):
+    # Six walls around a point lamp, a small cube between the lamp and each wall: each wall (in a
+    # different cube face of the lamp's map) shows the cube's silhouette projected from the lamp, and
+    # is lit by the "Shading" formula elsewhere. Each wall is seen by an orthographic camera 0.8 m in
+    # front of it, looking at it, behind the cubes (so no cube is in view).
+    occluders, walls = [], []
+    for axis, sign, e, lateral in room_faces():
+        occluders.append(room_occluder(e, lateral))
+        if (axis, sign) == (1, -1.0):
+            continue  # the floor is write_scene's ground plane (y = 0)
+        walls.append((f"Wall{axis}{'+' if sign > 0 else '-'}", 2 * ROOM_HALF, 2 * ROOM_HALF, axis,
+                      ROOM_C + ROOM_HALF * e))
+
+    def builder(b, m):
+        for k, (lo, hi) in enumerate(occluders):
+            b.node(f"Occluder{k}", mesh=b.mesh(f"occ{k}", sg.cube(0.25), m), translation=(lo + hi) / 2)
+        for axis, sign, e, _ in room_faces():
+            b.node(f"Cam{axis}{'+' if sign > 0 else '-'}", camera=b.ortho_camera(f"cam{axis}{sign}", ROOM_MAG),
+                   translation=ROOM_C + 2.2 * e, rotation=rotation_to(e))
+
+    gltf = write_scene(tmp_path / "room.gltf", [], box=False, lamps=[ROOM_LAMP], walls=walls, builder=builder)
+    i, j = np.meshgrid(np.arange(ROOM_W) + 0.5, np.arange(ROOM_W) + 0.5)
+    xc, yc = (2 * i / ROOM_W - 1) * ROOM_MAG, (1 - 2 * j / ROOM_W) * ROOM_MAG
+    for axis, sign, e, lateral in room_faces():
+        tag = f"{axis}{'+' if sign > 0 else '-'}"
+        img, _ = render_file(gltf, tmp_path / f"room{tag}.exr", "--camera", f"Cam{tag}", size=(ROOM_W, ROOM_W))
+        q = rotation_to(e)
+        cam = ROOM_C + 2.2 * e
+        right, up = rotate(q, np.array([1.0, 0, 0])), rotate(q, np.array([0, 1.0, 0]))
+        p = cam + xc[..., None] * right + yc[..., None] * up + 0.8 * e  # on the wall
+        n = np.broadcast_to(-e, p.shape).copy()
+        shadow = lamp_shadow(p, ROOM_LAMP.pos, occluders)
+        base = probe_term(n)
+        lit = base + lamp_direct(p, n, ROOM_LAMP, cam=cam)
+        d = p - ROOM_LAMP.pos
+        assert (np.argmax(np.abs(d), -1) == axis).all()  # the whole view lies in this cube face
+        inside, outside = assert_shadowed(img, base, lit, shadow, np.ones(p.shape[:-1], bool), f"wall {tag}")
+        assert inside.sum() > 300 and outside.sum() > 3000, (tag, inside.sum(), outside.sum())
+
+
+def test_layer_budget_overflow_warns_and_leaves_that_lamp_unshadowed(tmp_path, geometry):
+    # Three point lamps (6 layers each) and a spot at the same place: the first two take 12 of the 16
+    # layers, the third does not fit (one warning naming it) and stays unshadowed, the spot after it
+    # still gets its layer. In the box's shadow only the third lamp's direct term remains.
+    p, n, plane = geometry
+    lamps = [POINT._replace(name=f"Lamp{k}", intensity=20.0) for k in range(3)]
+    lamps.append(SPOT._replace(name="Spot3", intensity=20.0))
+    gltf = write_scene(tmp_path / "budget.gltf", [], lamps=lamps)
+    img, stderr = render_file(gltf, tmp_path / "budget.exr", "--shadow-res", 512)
+    assert stderr.count("shadow map layer") == 1, stderr
+    assert "'Lamp2'" in stderr and "unshadowed" in stderr, stderr
+    base = probe_term(n)
+    each = [lamp_direct(p, n, lamp) for lamp in lamps]
+    shadow = lamp_shadow(p, LAMP_POS)
+    band = edge_band(shadow, EDGE + 1)  # 512 texels: a texel is 2 cm at 5 m, the edge blurs more
+    assert_close(img, base + each[2], plane & shadow & ~band, "in the shadow: the third lamp only")
+    assert_close(img, base + sum(each), plane & ~shadow & ~band, "outside: all four lamps")
+
+
+def test_shadow_res_0_leaves_lamps_unshadowed(tmp_path, geometry):
+    p, n, plane = geometry
+    img = render(tmp_path, "lamps_off", [], "--shadow-res", 0, lamps=[POINT, SPOT])
+    lit = probe_term(n) + lamp_direct(p, n, POINT) + lamp_direct(p, n, SPOT)
+    assert_close(img, lit, plane, "--shadow-res 0 with a point and a spot lamp")
+    assert lamp_shadow(p, LAMP_POS)[plane].sum() > 1500  # the shadow region is checked too

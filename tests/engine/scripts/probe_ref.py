@@ -150,11 +150,15 @@ def project_l2(img):
     return np.einsum("hwi,hw,hwc->ic", sh_basis_l2(d), dw, img)
 
 
-def point_light_direct(p, n, cam, albedo, light_pos, radiance, metallic=0.0, roughness=1.0, range_=0.0):
+def point_light_direct(p, n, cam, albedo, light_pos, radiance, metallic=0.0, roughness=1.0, range_=0.0,
+                       spot=None):
     """docs/engine.md "Shading": [(1 - metallic) base/pi + F0 (s+8)/(8 pi) (n.h)^s] * radiance * atten * (n.l)
     for a point light of intensity*colour `radiance` (candela) at light_pos; atten = 1/d^2 times the
     range window clamp(1 - (d/range)^4, 0, 1); s = max(2/r^4 - 2, 1), r = max(roughness, 0.05);
-    F0 = mix(0.04, base, metallic). p, n: (..., 3) positions and unit normals; cam: eye position."""
+    F0 = mix(0.04, base, metallic). p, n: (..., 3) positions and unit normals; cam: eye position.
+    spot = (unit direction the light points to, inner, outer cone angles): a spot light, atten times
+    clamp(cos·scale + offset, 0, 1)² with KHR_lights_punctual's scale = 1 / max(0.001, cos(inner) -
+    cos(outer)), offset = -cos(outer)·scale."""
     p, n = np.asarray(p, float), np.asarray(n, float)
     albedo, radiance = np.asarray(albedo, float), np.asarray(radiance, float)
     d = np.asarray(light_pos, float) - p
@@ -163,6 +167,11 @@ def point_light_direct(p, n, cam, albedo, light_pos, radiance, metallic=0.0, rou
     atten = 1.0 / dist2
     if range_ > 0:
         atten = atten * np.clip(1.0 - (dist2 / range_ ** 2) ** 2, 0.0, 1.0)
+    if spot is not None:
+        axis, inner, outer = spot
+        scale = 1.0 / max(0.001, np.cos(inner) - np.cos(outer))
+        cone = np.clip(-(l @ np.asarray(axis, float)) * scale - np.cos(outer) * scale, 0.0, 1.0)
+        atten = atten * cone * cone
     v = np.asarray(cam, float) - p
     v /= np.linalg.norm(v, axis=-1, keepdims=True)
     h = l + v

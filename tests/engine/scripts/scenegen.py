@@ -190,14 +190,16 @@ class GltfBuilder:
         self._use("VULKAN_SCHNEE_engine_properties")
 
     def light(self, name, type_, color=(1, 1, 1), intensity=1.0, schnee_mode=None, range_=None,
-              intensity_scale=None):
+              intensity_scale=None, cone=None):
         """A KHR_lights_punctual light; schnee_mode ("baked", "mixed", "realtime" or any value) adds
         extensions.VULKAN_SCHNEE_light = {"mode": schnee_mode}, with "intensityScale" when
-        intensity_scale is given (docs/export.md)."""
+        intensity_scale is given (docs/export.md). cone = (inner, outer) radians: a spot's angles."""
         ext = self.doc.setdefault("extensions", {}).setdefault("KHR_lights_punctual", {"lights": []})
         light = {"name": name, "type": type_, "color": list(color), "intensity": intensity}
         if range_ is not None:
             light["range"] = float(range_)
+        if cone is not None:
+            light["spot"] = {"innerConeAngle": float(cone[0]), "outerConeAngle": float(cone[1])}
         if schnee_mode is not None:
             light["extensions"] = {"VULKAN_SCHNEE_light": {"mode": schnee_mode}}
             if intensity_scale is not None:
