@@ -8,7 +8,7 @@ datablock): ``"baked"`` (the default when the property is absent), ``"mixed"`` o
   no direct term where a baked probe lights a surface, so the lamp is counted once.
 - mixed: the lamp lights the scene in the probe renders, so its bounced light is in the probes,
   but its direct light is not (hidden from the probe cameras, not added analytically); the engine
-  adds the direct term everywhere, shadowed (a Sun: shadow maps, docs/engine.md "Shadows"). As
+  adds the direct term everywhere, shadowed (shadow maps, docs/engine.md "Shadows"). As
   Unity's Mixed lights: a hard sunbeam's edge is drawn by the shadow map per pixel instead of being
   interpolated between probes.
 - realtime: the bake hides the lamp from the probe renders; the engine adds it as direct light.
