@@ -140,9 +140,8 @@
 /* Shadow maps (docs/engine.md "Shadows"): mixed and realtime lights get layers of one 2D-array depth
  * image, in light-instance order, while the layer budget lasts: a directional light or a spot light
  * one layer, a point light (or a spot wider than SV_SPOT_SHADOW_MAX_ANGLE) six, one per cube face.
- * At most SV_MAX_SHADOWS directional lights and SV_MAX_SHADOW_LAYERS layers in all; a light that
- * does not fit is unshadowed (one warning naming it). */
-#define SV_MAX_SHADOWS           4
+ * SV_MAX_SHADOW_LAYERS layers in all, shared by every kind of light; a light that does not fit is
+ * unshadowed (one warning naming it). */
 #define SV_MAX_SHADOW_LAYERS     16
 #define SV_SPOT_SHADOW_MAX_ANGLE 1.0471976f /* 60 degrees: a wider outer cone is shadowed as a cube */
 /* What a layer holds (sv_gpu_frame.shadow_params[k].w, as a float). */

@@ -49,6 +49,22 @@ static const uint32_t shadow_vert_spv[] =
 
 static void fail_msg(const char *what) { fprintf(stderr, "schnee-view: error: %s\n", what); }
 
+/* The create-info every sampler here starts from: `filter` for magnification and minification,
+ * `address` on all three axes, one mip level, no comparison; callers set what differs. */
+static VkSamplerCreateInfo sampler_info(VkFilter filter, VkSamplerAddressMode address)
+{
+    return (VkSamplerCreateInfo){
+        .sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
+        .magFilter = filter,
+        .minFilter = filter,
+        .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
+        .addressModeU = address,
+        .addressModeV = address,
+        .addressModeW = address,
+        .maxLod = 0.0f,
+    };
+}
+
 /* ---- geometry ------------------------------------------------------------------------------- */
 
 /* Appends a UV sphere of radius 1 (for the probe-cell view) to the vertex/index arrays. */
@@ -282,23 +298,12 @@ static bool upload_textures(sv_renderer *r, const sv_gltf *g)
 
 /* Which lights get shadow map layers (docs/engine.md "Shadows"): lights whose mode is mixed or
  * realtime (or no extension), in light-instance order, while SV_MAX_SHADOW_LAYERS lasts: a directional
- * light one layer (at most SV_MAX_SHADOWS of them: one warning for the first one past that), a spot
- * light one (six, as a cube, when its outer cone is wider than SV_SPOT_SHADOW_MAX_ANGLE), a point
- * light six. A light that does not fit is unshadowed with a warning naming it. None when shadow_res
- * is 0. Returns the light's first layer or -1. */
-static int assign_shadow_layers(sv_renderer *r, const sv_gltf_light_instance *li, const sv_gltf_light *s,
-                                uint32_t *suns, bool *warned_suns)
+ * light one layer, a spot light one (six, as a cube, when its outer cone is wider than
+ * SV_SPOT_SHADOW_MAX_ANGLE), a point light six. A light that does not fit is unshadowed with a warning
+ * naming it. None when shadow_res is 0. Returns the light's first layer or -1. */
+static int assign_shadow_layers(sv_renderer *r, const sv_gltf_light_instance *li, const sv_gltf_light *s)
 {
     const char *name = s->name ? s->name : "";
-    if (s->type == SV_GLTF_LIGHT_DIRECTIONAL && *suns >= SV_MAX_SHADOWS) {
-        if (!*warned_suns)
-            fprintf(stderr,
-                    "schnee-view: warning: more than %d directional lights cast shadows; light '%s' and any "
-                    "further ones are unshadowed\n",
-                    SV_MAX_SHADOWS, name);
-        *warned_suns = true;
-        return -1;
-    }
     bool cube = s->type == SV_GLTF_LIGHT_POINT ||
                 (s->type == SV_GLTF_LIGHT_SPOT && s->outer_cone_angle > SV_SPOT_SHADOW_MAX_ANGLE);
     uint32_t need = cube ? 6u : 1u;
@@ -318,7 +323,6 @@ static int assign_shadow_layers(sv_renderer *r, const sv_gltf_light_instance *li
         layer->kind = s->type == SV_GLTF_LIGHT_DIRECTIONAL ? SV_SHADOW_ORTHO : cube ? SV_SHADOW_CUBE : SV_SHADOW_SPOT;
         layer->tan_half = cube ? 1.0f : tanf(fmaxf(s->outer_cone_angle, 1e-3f));
     }
-    if (s->type == SV_GLTF_LIGHT_DIRECTIONAL) ++*suns;
     return first;
 }
 
@@ -327,8 +331,6 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext, u
     uint32_t n = g->light_instance_count;
     sv_gpu_light *l = calloc(n ? n : 1, sizeof(*l));
     if (!l) return false;
-    uint32_t suns = 0;        /* shadowed directional lights */
-    bool warned_suns = false; /* about a directional light past SV_MAX_SHADOWS, once */
     for (uint32_t i = 0; i < n; ++i) {
         const sv_gltf_light_instance *li = &g->light_instances[i];
         const sv_gltf_light *s = &g->lights[li->light];
@@ -349,8 +351,7 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext, u
                                : mode == SV_LIGHT_MODE_MIXED ? SV_LIGHT_MIXED
                                                              : SV_LIGHT_REALTIME);
         l[i].spot[3] = -1.0f;
-        if (shadow_res && mode != SV_LIGHT_MODE_BAKED)
-            l[i].spot[3] = (float)assign_shadow_layers(r, li, s, &suns, &warned_suns);
+        if (shadow_res && mode != SV_LIGHT_MODE_BAKED) l[i].spot[3] = (float)assign_shadow_layers(r, li, s);
     }
     r->light_count = n;
     bool ok =
@@ -569,19 +570,11 @@ static bool create_shadow_maps(sv_renderer *r, uint32_t shadow_res)
         };
         VK_CHECK(vkCreateImageView(ctx->device, &vi, NULL, &r->shadow_layer_views[k]));
     }
-    VkSamplerCreateInfo si = {
-        .sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
-        .magFilter = linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST,
-        .minFilter = linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST,
-        .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
-        .addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
-        .addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
-        .addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER,
-        .compareEnable = VK_TRUE,
-        .compareOp = VK_COMPARE_OP_LESS_OR_EQUAL,
-        .maxLod = 0.0f,
-        .borderColor = VK_BORDER_COLOR_FLOAT_OPAQUE_WHITE,
-    };
+    VkSamplerCreateInfo si =
+        sampler_info(linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST, VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_BORDER);
+    si.compareEnable = VK_TRUE;
+    si.compareOp = VK_COMPARE_OP_LESS_OR_EQUAL;
+    si.borderColor = VK_BORDER_COLOR_FLOAT_OPAQUE_WHITE;
     VK_CHECK(vkCreateSampler(ctx->device, &si, NULL, &r->shadow_sampler));
     VkCommandBuffer cmd = sv_begin_one_shot(ctx);
     if (!cmd) return false;
@@ -701,16 +694,7 @@ static void shadow_projection_perspective(const sv_shadow_layer *layer, const fl
 static bool create_descriptors(sv_renderer *r, const sv_gltf *g)
 {
     VkDevice dev = r->ctx->device;
-    VkSamplerCreateInfo si = {
-        .sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
-        .magFilter = VK_FILTER_LINEAR,
-        .minFilter = VK_FILTER_LINEAR,
-        .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
-        .addressModeU = VK_SAMPLER_ADDRESS_MODE_REPEAT,
-        .addressModeV = VK_SAMPLER_ADDRESS_MODE_REPEAT,
-        .addressModeW = VK_SAMPLER_ADDRESS_MODE_REPEAT,
-        .maxLod = 0.0f,
-    };
+    VkSamplerCreateInfo si = sampler_info(VK_FILTER_LINEAR, VK_SAMPLER_ADDRESS_MODE_REPEAT);
     VK_CHECK(vkCreateSampler(dev, &si, NULL, &r->sampler));
     si.magFilter = si.minFilter = VK_FILTER_NEAREST;
     si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;

@@ -287,24 +287,61 @@ def test_shadow_res_0_gives_the_unshadowed_image(tmp_path, geometry):
     assert analytic_shadow(p, SUN_DIR)[plane].sum() > 400  # the shadow region is checked too
 
 
-def test_more_than_four_suns_warn_once(tmp_path, geometry):
-    # Five shadow-casting suns (each a fifth as bright): the first four are shadowed, the fifth is
-    # not, with one warning. In the box's shadow 4/5 of the direct term is missing.
-    p, n, plane = geometry
-    suns = [(SUN_DIR, "mixed")] * 5
-    gltf = write_scene(tmp_path / "five.gltf", suns)
+def azimuth(d, degrees):
+    """d turned about +Y by `degrees`."""
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    return np.array([c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]])
+
+
+def render_suns(tmp_path, tag, suns, *args):
+    """Renders write_scene's plane and box under the directional lights `suns`, (direction, lux) each,
+    all mixed; returns (image RGB, stderr)."""
+    gltf = write_scene(tmp_path / f"{tag}.gltf", [(d, "mixed") for d, _ in suns])
     doc = json.loads(gltf.read_text())
-    for light in doc["extensions"]["KHR_lights_punctual"]["lights"]:
-        light["intensity"] = SUN_LUX / 5
+    for light, (_, lux) in zip(doc["extensions"]["KHR_lights_punctual"]["lights"], suns):
+        light["intensity"] = lux
     gltf.write_text(json.dumps(doc))
-    out = tmp_path / "five.exr"
-    proc = viewer.check(viewer.run(gltf, "--headless", "--output", out, "--width", W, "--height", H))
-    assert proc.stderr.count("directional lights cast shadows") == 1, proc.stderr
-    assert "'Sun4'" in proc.stderr, proc.stderr
-    img = viewer.read_image(out)[..., :3]
-    shadow = analytic_shadow(p, SUN_DIR)
-    inside = plane & shadow & ~edge_band(shadow, EDGE)
-    assert_close(img, probe_term(n) + sun_direct(p, n, SUN_DIR) / 5, inside, "fifth sun unshadowed")
+    return render_file(gltf, tmp_path / f"{tag}.exr", *args)
+
+
+def assert_suns(img, p, n, plane, suns, shadowed, what, edge=EDGE):
+    """Every `plane` pixel away from any sun's shadow edge equals the probe term plus each sun's
+    direct term, left out where that sun is in `shadowed` and the box shades the pixel from it.
+    Returns each sun's analytic shadow (masks)."""
+    shadows = [analytic_shadow(p, d) for d, _ in suns]
+    band = np.zeros_like(plane)
+    expected = probe_term(n)
+    for (d, lux), shadow, cast in zip(suns, shadows, shadowed):
+        band |= edge_band(shadow, edge)
+        expected = expected + sun_direct(p, n, d, lux) * (~(shadow & cast))[..., None]
+    assert_close(img, expected, plane & ~band, what)
+    return [plane & shadow & ~band for shadow in shadows]
+
+
+def test_five_suns_are_all_shadowed(tmp_path, geometry):
+    # Directional lights take layers from the same 16-layer pool as the lamps (docs/engine.md
+    # "Shadows"): five suns, 72° apart in azimuth (each a fifth as bright), get five layers, and each
+    # box shadow lacks exactly that sun's direct term; no warning.
+    p, n, plane = geometry
+    suns = [(azimuth(SUN_DIR, 72 * k), SUN_LUX / 5) for k in range(5)]
+    img, stderr = render_suns(tmp_path, "five", suns)
+    assert "unshadowed" not in stderr, stderr
+    inside = assert_suns(img, p, n, plane, suns, [True] * 5, "five shadowed suns")
+    assert all(m.sum() > 300 for m in inside), [m.sum() for m in inside]  # every shadow is in view
+
+
+def test_sun_beyond_the_layer_pool_is_unshadowed(tmp_path, geometry):
+    # Seventeen suns: the first 16 fill the 16 layers, the 17th does not fit (one warning naming it,
+    # the format of a lamp's) and adds its full direct term inside the box's shadow from it.
+    p, n, plane = geometry
+    suns = [(SUN_DIR, SUN_LUX / 16)] * 16 + [(azimuth(SUN_DIR, 150), SUN_LUX)]
+    img, stderr = render_suns(tmp_path, "seventeen", suns, "--shadow-res", 512)
+    assert stderr.count("shadow map layer") == 1, stderr
+    assert "light 'Sun16' needs 1 shadow map layer but only 0 of 16 are left; it is unshadowed" in stderr, stderr
+    # 512 texels over the scene: a texel is about 2.8 cm, the edge blurs more than at 2048
+    inside = assert_suns(img, p, n, plane, suns, [True] * 16 + [False], "16 shadowed suns + one unshadowed",
+                         edge=EDGE + 1)
+    assert inside[0].sum() > 300 and inside[16].sum() > 300, (inside[0].sum(), inside[16].sum())
 
 
 @pytest.mark.parametrize("value", ["-1", "abc", "1.5", "100000", ""])
