@@ -51,6 +51,12 @@ NOISE_K = 2.0               # refine only where error > sqrt(tolerance² + (NOIS
 # is far from the h² regime). 0 = every child tested. Module-level so the benchmark can
 # compare factors (bench/bench_placement.py --predict); measured in bench/results/placement.md.
 PREDICT = 4.0
+# A rate is measured only where the leaf's threshold is at most PREDICT_NOISE × Error Tolerance:
+# above it the probes' noise dominates the threshold (2σ > 1.12 × tolerance), the measured errors
+# are mostly noise and their fall says nothing about h² convergence (in the hall at 16 spp, σ ≈ 2 %,
+# such rates settled children 3–5 % off; bench/results/placement.md). There a child passes
+# untested only where its parent passed next to it, as before a rate is known.
+PREDICT_NOISE = 1.5
 # The direct-light check of a leaf (AdaptiveGroup.direct_check) samples the lamps' exact direct term
 # on this many steps per axis of the leaf (5³ − 8 points; fewer where that is finer than Min Cell).
 DIRECT_DIVISIONS = 4
@@ -597,6 +603,8 @@ class AdaptiveGroup:
             # bench/results/placement.md.)
             before = self.parent_ratio.get((x, y, z, lv))
             measured = None if before is None or not whole > 0 else min(self.predict, max(1.0, before / whole))
+            if float(thr[i]) > PREDICT_NOISE * self.tolerance:
+                measured = None     # the threshold is the noise's: no rate (PREDICT_NOISE)
             rate = 1.0 if measured is None or (x, y, z, lv) not in self.parent_rate else measured
             half = 1 << (lv - 1)
             for octant in range(8):

@@ -214,6 +214,27 @@ def test_prediction_needs_the_rate_measured_at_two_levels(monkeypatch):
     assert size[holds].max() <= 0.25
 
 
+def test_prediction_measures_no_rate_where_the_noise_sets_the_threshold(monkeypatch):
+    # The threshold is sqrt(tol² + (2σ)²). Where the noise term dominates it (threshold above
+    # PREDICT_NOISE × tol) the measured errors are mostly noise and their fall is no h² rate (in the
+    # hall at 16 spp such rates settled children 3–5 % off): no rate is measured there, and a child
+    # passes untested only where its parent passed next to it. The quadratic field at tol 0.05:
+    # σ = 0.02 gives a threshold of 0.064 (< 0.075, rates measured), σ = 0.03 one of 0.078 (none).
+    monkeypatch.setattr(adaptive, "PREDICT", 4.0)
+    assert adaptive.PREDICT_NOISE == 1.5
+
+    def run(noise):
+        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05)
+        drive(group, lambda p: np.array([sh_of(1.0 + x * x, 0.5) for x in p[:, 0]]), noise=noise)
+        return group
+    assert len(run(0.02).parent_rate) > 0
+    noisy = run(0.03)
+    assert noisy.parent_rate == {}
+    assert all(noisy.parent_ratio[c] < 1.0 for c in noisy.settled)
+    monkeypatch.setattr(adaptive, "PREDICT_NOISE", math.inf)   # the rule off: rates from noise
+    assert len(run(0.03).parent_rate) > 0
+
+
 def test_prediction_still_refines_a_shadow_edge_to_min_cell(monkeypatch):
     # A step is not smooth: the parent crossed by it errs by far more than 4× its threshold next to
     # the children that hold the edge, so they are tested and the edge refines to Min Cell Size.
