@@ -13,7 +13,8 @@ decides where. The algorithm is docs/placement.md, "Error-driven refinement"; th
    split; children entirely outside the volumes are dropped; the new corners (test points: already
    baked, edge midpoints: new) are baked; back to 2 until nothing splits or every leaf is at Min Cell
    Size. Children predicted to pass (PREDICT: their parent's error next to them, over the rate the
-   error was measured falling per halving) are never tested (docs/placement.md, step 4a).
+   error was measured falling per halving; no rate where the noise sets the threshold,
+   PREDICT_NOISE) are never tested (docs/placement.md, step 4a).
 
 Points inside solid geometry (the placement's solid test: more than ``SOLID_RATIO`` of 64 rays hit
 back faces) are never rendered: as probes they get validity 0 (left out of the interpolation), as
