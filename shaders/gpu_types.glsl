@@ -31,8 +31,8 @@ layout(std430, set = SV_SET_SCENE, binding = SV_BINDING_CUBES_HALF) readonly buf
 // Sky: equirect radiance, mip k = GGX prefiltered at roughness k / (mips - 1); BRDF LUT (NoV, roughness).
 layout(set = SV_SET_SCENE, binding = SV_BINDING_SKY) uniform sampler2D sky_tex;
 layout(set = SV_SET_SCENE, binding = SV_BINDING_BRDF_LUT) uniform sampler2D brdf_lut;
-// Shadow maps (docs/engine.md "Shadows"): depth from the light, one layer per shadowed directional or
-// spot light, six per point light (cube faces), sampled with a LESS_OR_EQUAL comparison (1 = lit); a
+// Shadow maps (docs/engine.md "Shadows"): depth from the light, one layer per cascade of a shadowed
+// directional light, one per spot light, six per point light (cube faces), sampled with a LESS_OR_EQUAL comparison (1 = lit); a
 // 1x1 layer when no light is shadowed.
 layout(set = SV_SET_SCENE, binding = SV_BINDING_SHADOW) uniform sampler2DArrayShadow shadow_tex;
 // Set 1: the draw's material textures (a 1x1 white texel when the material has none).

@@ -320,10 +320,21 @@ int shadow_cube_face(vec3 d) {
 // exceeds: no acne. Then a 3x3 PCF of bilinear LESS_OR_EQUAL comparisons (1 = lit). Outside the map
 // (or behind a spot light): lit. A point light's face is picked from the moved point, whose
 // direction lies inside that face's 90 degrees; the faces are a few texels wider, for the filter.
+// A sun's cascades (color.w layers from its first): the first whose box holds p at least
+// SV_SHADOW_CASCADE_MARGIN of its texels inside the edge in light x, y (the normal offset and the
+// filter footprint then stay in that map), else the last. Its texel size sets the offset and the PCF.
 float shadow_visibility(sv_gpu_light light, vec3 p, vec3 n, vec3 l) {
     int layer = int(light.spot.w + 0.5);
     vec4 prm = frame.shadow_params[layer];
     uint kind = uint(prm.w + 0.5);
+    if (kind == SV_SHADOW_ORTHO) {
+        int last = layer + max(int(light.color.w + 0.5), 1) - 1;
+        for (; layer < last; ++layer) {
+            vec2 c = (frame.shadow_view_proj[layer] * vec4(p, 1.0)).xy;
+            if (max(abs(c.x), abs(c.y)) <= 1.0 - 2.0 * SV_SHADOW_CASCADE_MARGIN * frame.shadow_params[layer].z) break;
+        }
+        prm = frame.shadow_params[layer];
+    }
     vec3 axis = l;
     float texel = prm.x;
     vec3 d = p - light.position_range.xyz;

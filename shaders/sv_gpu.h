@@ -138,14 +138,23 @@
 #define SV_LIGHT_MIXED    2u /* "mixed": bounced light in the probes, direct term always (shadowed) */
 
 /* Shadow maps (docs/engine.md "Shadows"): mixed and realtime lights get layers of one 2D-array depth
- * image, in light-instance order, while the layer budget lasts: a directional light or a spot light
- * one layer, a point light (or a spot wider than SV_SPOT_SHADOW_MAX_ANGLE) six, one per cube face.
- * SV_MAX_SHADOW_LAYERS layers in all, shared by every kind of light; a light that does not fit is
- * unshadowed (one warning naming it). */
-#define SV_MAX_SHADOW_LAYERS     16
-#define SV_SPOT_SHADOW_MAX_ANGLE 1.0471976f /* 60 degrees: a wider outer cone is shadowed as a cube */
+ * image, in light-instance order, while the layer budget lasts: a directional light one per cascade, a
+ * spot light one layer, a point light (or a spot wider than SV_SPOT_SHADOW_MAX_ANGLE) six, one per cube
+ * face. SV_MAX_SHADOW_LAYERS layers in all, shared by every kind of light; a sun gets the layers left
+ * when fewer than its cascades are, a light that does not fit otherwise is unshadowed (one warning
+ * naming it). */
+#define SV_MAX_SHADOW_LAYERS 16
+/* A directional light takes up to SV_MAX_SHADOW_CASCADES layers, one cascade each (--shadow-cascades,
+ * default SV_SHADOW_DEFAULT_CASCADES): orthographic boxes around consecutive slices of the view's
+ * depth range, near to far. The shader picks the first cascade whose box holds the point at least
+ * SV_SHADOW_CASCADE_MARGIN texels inside its edge (room for the normal offset, <= 3.5 texels, and the
+ * 3x3 PCF footprint, <= 2.5 texels); the last cascade takes what no earlier one holds. */
+#define SV_MAX_SHADOW_CASCADES     4
+#define SV_SHADOW_DEFAULT_CASCADES 4
+#define SV_SHADOW_CASCADE_MARGIN   8.0f
+#define SV_SPOT_SHADOW_MAX_ANGLE   1.0471976f /* 60 degrees: a wider outer cone is shadowed as a cube */
 /* What a layer holds (sv_gpu_frame.shadow_params[k].w, as a float). */
-#define SV_SHADOW_ORTHO 0u /* a directional light: orthographic box fitted to the scene bounds */
+#define SV_SHADOW_ORTHO 0u /* a directional light's cascade: orthographic box (the scene bounds when 1 cascade) */
 #define SV_SHADOW_SPOT  1u /* a spot light: one perspective frustum around its cone */
 #define SV_SHADOW_CUBE  2u /* one 90-degree face of a point light's cube: +X, -X, +Y, -Y, +Z, -Z from its first layer */
 
@@ -170,7 +179,8 @@ SV_STRUCT(sv_gpu_frame)
     SV_UINT(probe_representation); /* SV_PROBE_REP_*: override for every material, or _MATERIAL */
     /* Shadow map layer k (a light's layers start at its sv_gpu_light.spot.w): world -> light clip
      * space (x, y in [-1, 1] and z in [0, 1] after the divide by w). SV_SHADOW_ORTHO: an orthographic
-     * box fitted to the scene's world bounds (w = 1); SV_SHADOW_SPOT / _CUBE: a perspective frustum
+     * box along the light, x, y around one cascade's slice of the view (the scene's world bounds with
+     * one cascade), depth over the whole scene (w = 1); SV_SHADOW_SPOT / _CUBE: a perspective frustum
      * from the light's position (w = depth along the layer's axis). */
     SV_MAT4_ARRAY(shadow_view_proj, SV_MAX_SHADOW_LAYERS);
     /* x = world size of one shadow texel: ORTHO in metres (the larger of the two axes), SPOT / CUBE
@@ -284,7 +294,8 @@ SV_STRUCT(sv_gpu_light)
 {
     SV_VEC4(position_range); /* xyz world position, w = range (0 = infinite) */
     SV_VEC4(direction_type); /* xyz unit direction the light points to, w = type (0 dir, 1 point, 2 spot) */
-    SV_VEC4(color);          /* rgb = colour * intensity (lux for directional, candela otherwise) */
+    SV_VEC4(color);          /* rgb = colour * intensity (lux for directional, candela otherwise),
+                                w = a shadowed directional light's cascade count (its layers from spot.w) */
     SV_VEC4(spot);           /* x = angle scale, y = angle offset (KHR_lights_punctual spot formula),
                                 z = SV_LIGHT_* mode (VULKAN_SCHNEE_light.mode: 0 realtime, 1 baked, 2 mixed),
                                 w = first shadow map layer (mixed/realtime lights), -1 = unshadowed */

@@ -39,9 +39,11 @@ static void usage(FILE *f)
         "                           itself default sh); ambientCube = the cube fitted to each probe's SH\n"
         "  --probe-storage float|half  GPU storage of the SH coefficients and ambient cubes (default float)\n"
         "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
-        "  --shadow-res N           texels per side of each shadow map layer of a mixed/realtime light (a sun\n"
-        "                           or spot: one layer, a point light: six; default %u; at most %u; 0 = no\n"
-        "                           shadows)\n"
+        "  --shadow-res N           texels per side of each shadow map layer of a mixed/realtime light (a sun:\n"
+        "                           one per cascade, a spot: one, a point light: six; default %u; at most %u;\n"
+        "                           0 = no shadows)\n"
+        "  --shadow-cascades N      shadow map layers (cascades) per mixed/realtime sun, each around a slice of\n"
+        "                           the view's depth (1..%u, default %u; 1 = one map over the whole scene)\n"
         "  --no-sky                 ignore the scene's sky (no background, no specular, constant fallback)\n"
         "  --no-specular            no sky reflections (image-based specular)\n"
         "  --no-renorm              do not scale sky reflections by probe / sky irradiance\n"
@@ -59,7 +61,8 @@ static void usage(FILE *f)
         "window keys: WASD/QE move, right mouse drag looks, Shift faster, P probe colours, C probe view,\n"
         "             M probe mode (cycles material, object, pixel, off),\n"
         "             N next object, J/L/I/K/U/O move it (its probe is re-queried), Esc quits\n",
-        modes, SV_SHADOW_DEFAULT_RES, SV_SHADOW_MAX_RES, SV_FALLBACK_RADIANCE);
+        modes, SV_SHADOW_DEFAULT_RES, SV_SHADOW_MAX_RES, SV_MAX_SHADOW_CASCADES, SV_SHADOW_DEFAULT_CASCADES,
+        SV_FALLBACK_RADIANCE);
 }
 
 static bool parse_float(const char *s, float *out)
@@ -96,6 +99,7 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
     o->probe_mode = SV_PROBE_MODE_MATERIAL;
     o->probe_representation = SV_PROBE_REP_MATERIAL;
     o->shadow_res = SV_SHADOW_DEFAULT_RES;
+    o->shadow_cascades = SV_SHADOW_DEFAULT_CASCADES;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *next = i + 1 < argc ? argv[i + 1] : NULL;
@@ -195,6 +199,15 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
                     "schnee-view: error: bad value '%s' for --shadow-res (shadow map size in texels, 0 = no shadows, "
                     "at most %u)\n",
                     next, SV_SHADOW_MAX_RES);
+                return 2;
+            }
+            ++i;
+        } else if (strcmp(a, "--shadow-cascades") == 0) {
+            NEED(1);
+            if (!parse_u32(next, 1, SV_MAX_SHADOW_CASCADES, &o->shadow_cascades)) {
+                fprintf(stderr,
+                        "schnee-view: error: bad value '%s' for --shadow-cascades (shadow map layers per sun, 1..%u)\n",
+                        next, SV_MAX_SHADOW_CASCADES);
                 return 2;
             }
             ++i;

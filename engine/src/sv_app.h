@@ -41,6 +41,7 @@ typedef struct sv_options {
     bool half_probes;              /* --probe-storage half */
     float normal_bias;             /* --normal-bias, grid spacings (default 0) */
     uint32_t shadow_res;           /* --shadow-res, texels per shadow map side (default 2048, 0 = off) */
+    uint32_t shadow_cascades;      /* --shadow-cascades, layers per shadowed sun (1..4, default 4) */
     bool no_specular;              /* --no-specular: no sky reflections */
     bool no_renorm;                /* --no-renorm: sky specular not scaled by probe / sky irradiance */
     bool no_sky;                   /* --no-sky: ignore the glTF's sky */

@@ -298,21 +298,32 @@ static bool upload_textures(sv_renderer *r, const sv_gltf *g)
 
 /* Which lights get shadow map layers (docs/engine.md "Shadows"): lights whose mode is mixed or
  * realtime (or no extension), in light-instance order, while SV_MAX_SHADOW_LAYERS lasts: a directional
- * light one layer, a spot light one (six, as a cube, when its outer cone is wider than
- * SV_SPOT_SHADOW_MAX_ANGLE), a point light six. A light that does not fit is unshadowed with a warning
- * naming it. None when shadow_res is 0. Returns the light's first layer or -1. */
-static int assign_shadow_layers(sv_renderer *r, const sv_gltf_light_instance *li, const sv_gltf_light *s)
+ * light r->shadow_cascades layers (its cascades; as many as are left when fewer are, with a warning),
+ * a spot light one (six, as a cube, when its outer cone is wider than SV_SPOT_SHADOW_MAX_ANGLE), a point
+ * light six. A light that does not fit (a sun: no layer left) is unshadowed with a warning naming it.
+ * None when shadow_res is 0. Returns the light's first layer or -1; *cascades = the layers a sun got. */
+static int assign_shadow_layers(sv_renderer *r, const sv_gltf_light_instance *li, const sv_gltf_light *s,
+                                uint32_t *cascades)
 {
     const char *name = s->name ? s->name : "";
+    bool sun = s->type == SV_GLTF_LIGHT_DIRECTIONAL;
     bool cube = s->type == SV_GLTF_LIGHT_POINT ||
                 (s->type == SV_GLTF_LIGHT_SPOT && s->outer_cone_angle > SV_SPOT_SHADOW_MAX_ANGLE);
-    uint32_t need = cube ? 6u : 1u;
-    if (r->shadow_count + need > SV_MAX_SHADOW_LAYERS) {
+    uint32_t need = sun ? r->shadow_cascades : cube ? 6u : 1u;
+    uint32_t left = SV_MAX_SHADOW_LAYERS - r->shadow_count;
+    if (need > left && !(sun && left > 0)) {
         fprintf(stderr,
                 "schnee-view: warning: light '%s' needs %u shadow map layer%s but only %u of %d are left; it is "
                 "unshadowed\n",
-                name, need, need == 1 ? "" : "s", SV_MAX_SHADOW_LAYERS - r->shadow_count, SV_MAX_SHADOW_LAYERS);
+                name, need, need == 1 ? "" : "s", left, SV_MAX_SHADOW_LAYERS);
         return -1;
+    }
+    if (need > left) { /* a sun: fewer, wider cascades rather than none */
+        fprintf(stderr,
+                "schnee-view: warning: light '%s' needs %u shadow map layers (cascades) but only %u of %d are left; "
+                "it gets %u cascade%s\n",
+                name, need, left, SV_MAX_SHADOW_LAYERS, left, left == 1 ? "" : "s");
+        need = left;
     }
     int first = (int)r->shadow_count;
     static const float faces[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
@@ -320,9 +331,12 @@ static int assign_shadow_layers(sv_renderer *r, const sv_gltf_light_instance *li
         sv_shadow_layer *layer = &r->shadow_layers[r->shadow_count++];
         memcpy(layer->pos, li->position, sizeof(layer->pos));
         memcpy(layer->dir, cube ? faces[f] : li->direction, sizeof(layer->dir));
-        layer->kind = s->type == SV_GLTF_LIGHT_DIRECTIONAL ? SV_SHADOW_ORTHO : cube ? SV_SHADOW_CUBE : SV_SHADOW_SPOT;
+        layer->kind = sun ? SV_SHADOW_ORTHO : cube ? SV_SHADOW_CUBE : SV_SHADOW_SPOT;
         layer->tan_half = cube ? 1.0f : tanf(fmaxf(s->outer_cone_angle, 1e-3f));
+        layer->cascade = sun ? f : 0;
+        layer->cascades = sun ? need : 1;
     }
+    *cascades = sun ? need : 0;
     return first;
 }
 
@@ -351,7 +365,9 @@ static bool upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext, u
                                : mode == SV_LIGHT_MODE_MIXED ? SV_LIGHT_MIXED
                                                              : SV_LIGHT_REALTIME);
         l[i].spot[3] = -1.0f;
-        if (shadow_res && mode != SV_LIGHT_MODE_BAKED) l[i].spot[3] = (float)assign_shadow_layers(r, li, s);
+        uint32_t cascades = 0;
+        if (shadow_res && mode != SV_LIGHT_MODE_BAKED) l[i].spot[3] = (float)assign_shadow_layers(r, li, s, &cascades);
+        l[i].color[3] = (float)cascades;
     }
     r->light_count = n;
     bool ok =
@@ -602,6 +618,21 @@ static void shadow_basis(const float dir[3], float x[3], float y[3], float f[3])
     y[0] = x[1] * f[2] - x[2] * f[1], y[1] = x[2] * f[0] - x[0] * f[2], y[2] = x[0] * f[1] - x[1] * f[0];
 }
 
+/* The extent [mn, mx] of the world bounds [lo, hi] along each of the three light-space axes (the 8
+ * corners projected). */
+static void light_space_bounds(const float *axes[3], const float lo[3], const float hi[3], float mn[3], float mx[3])
+{
+    for (int a = 0; a < 3; ++a) mn[a] = INFINITY, mx[a] = -INFINITY;
+    for (int c = 0; c < 8; ++c) {
+        float p[3] = {(c & 1) ? hi[0] : lo[0], (c & 2) ? hi[1] : lo[1], (c & 4) ? hi[2] : lo[2]};
+        for (int a = 0; a < 3; ++a) {
+            float d = axes[a][0] * p[0] + axes[a][1] * p[1] + axes[a][2] * p[2];
+            mn[a] = fminf(mn[a], d);
+            mx[a] = fmaxf(mx[a], d);
+        }
+    }
+}
+
 /* The light-space projection of a directional light's layer: an orthographic box along `dir` fitted
  * to the 8 corners of the world bounds [lo, hi] (x, y extents and depth range, each padded by 1 %
  * plus 1 mm so that surfaces on the bounds stay inside), world -> clip with x, y in [-1, 1] and z in
@@ -612,15 +643,8 @@ static void shadow_projection_ortho(const float dir[3], const float lo[3], const
     float x[3], y[3], f[3];
     shadow_basis(dir, x, y, f);
     const float *axes[3] = {x, y, f};
-    float mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (int c = 0; c < 8; ++c) {
-        float p[3] = {(c & 1) ? hi[0] : lo[0], (c & 2) ? hi[1] : lo[1], (c & 4) ? hi[2] : lo[2]};
-        for (int a = 0; a < 3; ++a) {
-            float d = axes[a][0] * p[0] + axes[a][1] * p[1] + axes[a][2] * p[2];
-            mn[a] = fminf(mn[a], d);
-            mx[a] = fmaxf(mx[a], d);
-        }
-    }
+    float mn[3], mx[3];
+    light_space_bounds(axes, lo, hi, mn, mx);
     float centre[3], half[3];
     for (int a = 0; a < 3; ++a) {
         float pad = 0.01f * (mx[a] - mn[a]) + 1e-3f;
@@ -641,6 +665,127 @@ static void shadow_projection_ortho(const float dir[3], const float lo[3], const
     m[15] = 1.0f;
     params[0] = 2.0f * fmaxf(half[0], half[1]) / (float)res;
     params[1] = 1.0f / (2.0f * half[2]);
+    params[2] = 1.0f / (float)res;
+    params[3] = (float)SV_SHADOW_ORTHO;
+}
+
+/* Cascades (docs/engine.md "Shadows"): the practical split's weight of the logarithmic split against
+ * the uniform one. 0.9 keeps the near cascade a few metres deep when the view spans hundreds. */
+#define SV_CASCADE_LAMBDA 0.9f
+
+/* The camera seen by the cascades: its basis (from the view matrix's rows), the half extents of its
+ * cross-section (per metre of depth for a perspective camera, metres for an orthographic one) and
+ * its depth range [near, far] along the view direction clamped to the scene bounds. */
+typedef struct cascade_view {
+    float eye[3], right[3], up[3], fwd[3];
+    float hx, hy;
+    bool perspective;
+    float near, far;
+} cascade_view;
+
+/* near = max(znear, the nearest corner of [lo, hi] along the view), far = min(zfar, the farthest).
+ * False when the scene lies wholly outside the camera's depth range (the cascades then all fall back
+ * to the whole scene's fit). */
+static bool cascade_view_fit(const sv_view *v, float aspect, const float lo[3], const float hi[3], cascade_view *cv)
+{
+    for (int k = 0; k < 3; ++k) {
+        cv->right[k] = v->view[4 * k + 0];
+        cv->up[k] = v->view[4 * k + 1];
+        cv->fwd[k] = -v->view[4 * k + 2];
+        cv->eye[k] = v->camera_pos[k];
+    }
+    cv->perspective = v->yfov > 0.0f;
+    cv->hy = cv->perspective ? tanf(0.5f * v->yfov) : v->ymag > 0 ? v->ymag : 1.0f;
+    cv->hx = cv->hy * aspect;
+    float dmin = INFINITY, dmax = -INFINITY;
+    for (int c = 0; c < 8; ++c) {
+        float p[3] = {(c & 1) ? hi[0] : lo[0], (c & 2) ? hi[1] : lo[1], (c & 4) ? hi[2] : lo[2]};
+        float d = 0.0f;
+        for (int k = 0; k < 3; ++k) d += (p[k] - cv->eye[k]) * cv->fwd[k];
+        dmin = fminf(dmin, d);
+        dmax = fmaxf(dmax, d);
+    }
+    /* the camera's own far plane, as sv_view_projection sets it */
+    float zfar =
+        cv->perspective ? (v->zfar > 0.0f ? v->zfar : INFINITY) : (v->zfar > v->znear ? v->zfar : v->znear + 1000.0f);
+    cv->near = fmaxf(dmin, v->znear);
+    cv->far = fminf(dmax, zfar);
+    return cv->far > cv->near;
+}
+
+/* Depth of split i of `count` (0 = near, count = far): the practical scheme
+ * d_i = lambda * n * (f / n)^(i / C) + (1 - lambda) * (n + (f - n) * i / C) (uniform only when n <= 0,
+ * an orthographic camera whose near plane is behind it). */
+static float cascade_split(const cascade_view *cv, uint32_t i, uint32_t count)
+{
+    if (i == 0) return cv->near;
+    if (i >= count) return cv->far;
+    float t = (float)i / (float)count, n = cv->near, f = cv->far;
+    float uniform = n + (f - n) * t;
+    if (n <= 0.0f) return uniform;
+    return SV_CASCADE_LAMBDA * n * powf(f / n, t) + (1.0f - SV_CASCADE_LAMBDA) * uniform;
+}
+
+/* The light-space projection of cascade `cascade` of a directional light's `count`: an orthographic
+ * box along `dir` whose depth range is the whole scene's (as shadow_projection_ortho: casters outside
+ * the view still cast) and whose x, y square encloses the bounding sphere of the view slice's 8
+ * corners (centre = their mean, on the view axis; radius = the farthest corner: it does not change as
+ * the camera turns), its radius rounded up to a power of 2^(1/4) (the texel size does not change as
+ * the split depths drift a little) plus room for SV_SHADOW_CASCADE_MARGIN + 1 texels, at most the
+ * scene's own square, kept inside the scene's box where it fits, and its centre snapped to whole
+ * texels (the texel grid stays put in light space as the camera moves: no shimmering). */
+static void shadow_projection_cascade(const float dir[3], const float lo[3], const float hi[3], const cascade_view *cv,
+                                      uint32_t cascade, uint32_t count, uint32_t res, float m[16], float params[4])
+{
+    float x[3], y[3], f[3];
+    shadow_basis(dir, x, y, f);
+    const float *axes[3] = {x, y, f};
+    float mn[3], mx[3];
+    light_space_bounds(axes, lo, hi, mn, mx);
+    for (int a = 0; a < 3; ++a) {
+        float pad = 0.01f * (mx[a] - mn[a]) + 1e-3f;
+        mn[a] -= pad;
+        mx[a] += pad;
+    }
+    /* the slice's corners, their mean and the bounding radius */
+    float corner[8][3], centre[3] = {0, 0, 0};
+    for (int c = 0; c < 8; ++c) {
+        float d = cascade_split(cv, cascade + (uint32_t)(c >> 2), count);
+        float sx = (c & 1 ? 1.0f : -1.0f) * cv->hx * (cv->perspective ? d : 1.0f);
+        float sy = (c & 2 ? 1.0f : -1.0f) * cv->hy * (cv->perspective ? d : 1.0f);
+        for (int k = 0; k < 3; ++k) {
+            corner[c][k] = cv->eye[k] + d * cv->fwd[k] + sx * cv->right[k] + sy * cv->up[k];
+            centre[k] += corner[c][k] / 8.0f;
+        }
+    }
+    float radius2 = 0.0f;
+    for (int c = 0; c < 8; ++c) {
+        float d2 = 0.0f;
+        for (int k = 0; k < 3; ++k) d2 += (corner[c][k] - centre[k]) * (corner[c][k] - centre[k]);
+        radius2 = fmaxf(radius2, d2);
+    }
+    float radius = exp2f(ceilf(4.0f * log2f(fmaxf(sqrtf(radius2), 1e-4f))) / 4.0f);
+    float h = radius * (1.0f + 4.0f * (SV_SHADOW_CASCADE_MARGIN + 1.0f) / (float)res);
+    h = fminf(h, 0.5f * fmaxf(mx[0] - mn[0], mx[1] - mn[1]));
+    float texel = 2.0f * h / (float)res, c2[2];
+    for (int a = 0; a < 2; ++a) {
+        float c = axes[a][0] * centre[0] + axes[a][1] * centre[1] + axes[a][2] * centre[2];
+        c = mn[a] + h <= mx[a] - h ? fminf(fmaxf(c, mn[a] + h), mx[a] - h) : 0.5f * (mn[a] + mx[a]);
+        c2[a] = roundf(c / texel) * texel;
+    }
+    float half_z = 0.5f * (mx[2] - mn[2]);
+    memset(m, 0, 16 * sizeof(float));
+    for (int k = 0; k < 3; ++k) {
+        m[4 * k + 0] = x[k] / h;
+        m[4 * k + 1] = y[k] / h;
+        m[4 * k + 2] = f[k] / (2.0f * half_z);
+    }
+    m[12] = -c2[0] / h;
+    m[13] = -c2[1] / h;
+    m[14] = -mn[2] / (2.0f * half_z);
+    m[15] = 1.0f;
+    params[0] = texel;
+    params[1] = 1.0f / (2.0f * half_z);
     params[2] = 1.0f / (float)res;
     params[3] = (float)SV_SHADOW_ORTHO;
 }
@@ -1046,6 +1191,8 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
     r->depth_format = pick_depth_format(ctx);
     r->output_format = output_format;
     r->encode_srgb = output_format != VK_FORMAT_B8G8R8A8_SRGB && output_format != VK_FORMAT_R8G8B8A8_SRGB;
+    r->shadow_cascades = desc->shadow_cascades ? desc->shadow_cascades : SV_SHADOW_DEFAULT_CASCADES;
+    if (r->shadow_cascades > SV_MAX_SHADOW_CASCADES) r->shadow_cascades = SV_MAX_SHADOW_CASCADES;
     const sv_gltf *g = scene->gltf;
     if (!upload_geometry(r, g) || !upload_materials(r, g, &scene->ext) || !upload_textures(r, g) ||
         !upload_lights(r, g, &scene->ext, desc->shadow_res) || !create_shadow_maps(r, desc->shadow_res) ||
@@ -1303,11 +1450,20 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
                                      ? SV_PROBE_REP_SH
                                      : view->probe_representation;
     frame.normal_bias = view->normal_bias;
-    /* Shadow maps: fitted to the scene's current bounds (objects move), so recomputed every frame. */
+    /* Shadow maps: fitted to the scene's current bounds (objects move) and, for a sun's cascades, to
+     * the view, so recomputed every frame. */
     bool shadows = r->shadow_count && scene->aabb_min[0] <= scene->aabb_max[0];
+    cascade_view cv;
+    memset(&cv, 0, sizeof(cv));
+    bool sliced = shadows && r->shadow_cascades > 1 &&
+                  cascade_view_fit(view, (float)r->width / (float)r->height, scene->aabb_min, scene->aabb_max, &cv);
     for (uint32_t k = 0; shadows && k < r->shadow_count; ++k) {
         const sv_shadow_layer *layer = &r->shadow_layers[k];
-        if (layer->kind == SV_SHADOW_ORTHO)
+        if (layer->kind == SV_SHADOW_ORTHO && layer->cascades > 1 && sliced)
+            shadow_projection_cascade(layer->dir, scene->aabb_min, scene->aabb_max, &cv, layer->cascade,
+                                      layer->cascades, r->shadow_res, frame.shadow_view_proj[k],
+                                      frame.shadow_params[k]);
+        else if (layer->kind == SV_SHADOW_ORTHO)
             shadow_projection_ortho(layer->dir, scene->aabb_min, scene->aabb_max, r->shadow_res,
                                     frame.shadow_view_proj[k], frame.shadow_params[k]);
         else

@@ -33,21 +33,24 @@ typedef struct sv_view {
  * and a BLACK fallback probe (fallback_radiance 0 is a valid value, e.g. --fallback-radiance 0);
  * start from SV_RENDERER_DESC_DEFAULT for the documented defaults. */
 typedef struct sv_renderer_desc {
-    float fallback_radiance; /* uniform radiance of probe 0 when there is no sky (default
-                                SV_FALLBACK_RADIANCE; 0 = black) */
-    bool half_probes;        /* half-float probe storage (sv_gpu_probe_half) instead of float */
-    const sv_sky *sky;       /* NULL or !present: no background, no specular, constant fallback */
-    bool cube_probes;        /* fill the ambient-cube buffer even when no material asks for cubes
-                                (--probe-representation ambientCube); docs/ambient-cube.md §5 */
-    uint32_t shadow_res;     /* shadow map size per layer (--shadow-res, default
-                                SV_SHADOW_DEFAULT_RES); 0 = no shadows */
+    float fallback_radiance;  /* uniform radiance of probe 0 when there is no sky (default
+                                 SV_FALLBACK_RADIANCE; 0 = black) */
+    bool half_probes;         /* half-float probe storage (sv_gpu_probe_half) instead of float */
+    const sv_sky *sky;        /* NULL or !present: no background, no specular, constant fallback */
+    bool cube_probes;         /* fill the ambient-cube buffer even when no material asks for cubes
+                                 (--probe-representation ambientCube); docs/ambient-cube.md §5 */
+    uint32_t shadow_res;      /* shadow map size per layer (--shadow-res, default
+                                 SV_SHADOW_DEFAULT_RES); 0 = no shadows */
+    uint32_t shadow_cascades; /* layers (cascades) per shadowed directional light, 1..SV_MAX_SHADOW_CASCADES
+                                 (--shadow-cascades, default SV_SHADOW_DEFAULT_CASCADES; 0 selects it); 1 = one
+                                 map over the whole scene bounds */
 } sv_renderer_desc;
 #define SV_SHADOW_DEFAULT_RES 2048u
 #define SV_SHADOW_MAX_RES     8192u
 #define SV_RENDERER_DESC_DEFAULT                                                                                       \
     {                                                                                                                  \
         .fallback_radiance = SV_FALLBACK_RADIANCE, .half_probes = false, .sky = NULL, .cube_probes = false,            \
-        .shadow_res = SV_SHADOW_DEFAULT_RES                                                                            \
+        .shadow_res = SV_SHADOW_DEFAULT_RES, .shadow_cascades = SV_SHADOW_DEFAULT_CASCADES                             \
     }
 
 /* One layer of the shadow map array: what the frame's projection of it is fitted to. */
@@ -56,6 +59,7 @@ typedef struct sv_shadow_layer {
     float pos[3];   /* world position of the light (spot, cube) */
     float dir[3];   /* world direction of the layer's axis: where the light (sun, spot) or the cube face points */
     float tan_half; /* spot, cube: tan(half field of view) before the filter's margin */
+    uint32_t cascade, cascades; /* ortho: this layer's cascade (0 = nearest) of the light's `cascades` */
 } sv_shadow_layer;
 
 typedef struct sv_renderer {
@@ -98,17 +102,18 @@ typedef struct sv_renderer {
     sv_image hdr, depth;
     uint32_t width, height;
 
-    /* Shadow maps (docs/engine.md "Shadows"): one depth layer per shadowed directional or spot light,
-     * six per point light (a 1x1 single layer, never rendered, when none), rendered at the start of
-     * every frame. */
+    /* Shadow maps (docs/engine.md "Shadows"): one depth layer per cascade of a shadowed directional
+     * light and per spot light, six per point light (a 1x1 single layer, never rendered, when none),
+     * rendered at the start of every frame. */
     sv_image shadow;
     VkImageView shadow_layer_views[SV_MAX_SHADOW_LAYERS]; /* per layer, the depth attachment of the shadow pass */
     VkSampler shadow_sampler;                             /* LESS_OR_EQUAL compare, white border (lit outside) */
     VkPipelineLayout shadow_layout;
     VkPipeline shadow_pipeline;
     VkFormat shadow_format;
-    uint32_t shadow_res;   /* texels per side of a layer */
-    uint32_t shadow_count; /* layers rendered, 0..SV_MAX_SHADOW_LAYERS */
+    uint32_t shadow_res;      /* texels per side of a layer */
+    uint32_t shadow_count;    /* layers rendered, 0..SV_MAX_SHADOW_LAYERS */
+    uint32_t shadow_cascades; /* layers asked for per shadowed directional light (desc.shadow_cascades) */
     sv_shadow_layer shadow_layers[SV_MAX_SHADOW_LAYERS];
 } sv_renderer;
 

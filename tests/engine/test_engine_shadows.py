@@ -115,11 +115,11 @@ def probe_term(n):
     return ALBEDO * (SH_SCALE * np.maximum(probe_ref.irradiance(COEFFS, n), 0.0) / np.pi + AMBIENT)
 
 
-def sun_direct(p, n, d, lux=SUN_LUX):
+def sun_direct(p, n, d, lux=SUN_LUX, cam=CAM):
     """docs/engine.md "Shading", a directional light of illuminance `lux` pointing along d on a
-    metallic 0, roughness 1 surface: (base/π + 0.04·9/(8π)·(n·h))·E·(n·l)."""
+    metallic 0, roughness 1 surface seen from `cam`: (base/π + 0.04·9/(8π)·(n·h))·E·(n·l)."""
     l = -unit(d)
-    v = CAM - p
+    v = np.asarray(cam, float) - p
     v /= np.linalg.norm(v, axis=-1, keepdims=True)
     h = l + v
     h /= np.linalg.norm(h, axis=-1, keepdims=True)
@@ -323,19 +323,22 @@ def test_five_suns_are_all_shadowed(tmp_path, geometry):
     # "Shadows"): five suns, 72° apart in azimuth (each a fifth as bright), get five layers, and each
     # box shadow lacks exactly that sun's direct term; no warning.
     p, n, plane = geometry
+    # Three cascades each: 15 of the 16 layers (four would need 20, see
+    # test_five_suns_with_four_cascades_overflow_the_pool).
     suns = [(azimuth(SUN_DIR, 72 * k), SUN_LUX / 5) for k in range(5)]
-    img, stderr = render_suns(tmp_path, "five", suns)
+    img, stderr = render_suns(tmp_path, "five", suns, "--shadow-cascades", 3)
     assert "unshadowed" not in stderr, stderr
     inside = assert_suns(img, p, n, plane, suns, [True] * 5, "five shadowed suns")
     assert all(m.sum() > 300 for m in inside), [m.sum() for m in inside]  # every shadow is in view
 
 
 def test_sun_beyond_the_layer_pool_is_unshadowed(tmp_path, geometry):
-    # Seventeen suns: the first 16 fill the 16 layers, the 17th does not fit (one warning naming it,
-    # the format of a lamp's) and adds its full direct term inside the box's shadow from it.
+    # Seventeen suns of one cascade each: the first 16 fill the 16 layers, the 17th does not fit (one
+    # warning naming it, the format of a lamp's) and adds its full direct term inside the box's shadow
+    # from it.
     p, n, plane = geometry
     suns = [(SUN_DIR, SUN_LUX / 16)] * 16 + [(azimuth(SUN_DIR, 150), SUN_LUX)]
-    img, stderr = render_suns(tmp_path, "seventeen", suns, "--shadow-res", 512)
+    img, stderr = render_suns(tmp_path, "seventeen", suns, "--shadow-res", 512, "--shadow-cascades", 1)
     assert stderr.count("shadow map layer") == 1, stderr
     assert "light 'Sun16' needs 1 shadow map layer but only 0 of 16 are left; it is unshadowed" in stderr, stderr
     # 512 texels over the scene: a texel is about 2.8 cm, the edge blurs more than at 2048
@@ -344,14 +347,281 @@ def test_sun_beyond_the_layer_pool_is_unshadowed(tmp_path, geometry):
     assert inside[0].sum() > 300 and inside[16].sum() > 300, (inside[0].sum(), inside[16].sum())
 
 
-@pytest.mark.parametrize("value", ["-1", "abc", "1.5", "100000", ""])
-def test_bad_shadow_res_is_a_usage_error(tmp_path, value):
+@pytest.mark.parametrize("option,value", [("--shadow-res", v) for v in ("-1", "abc", "1.5", "100000", "")]
+                         + [("--shadow-cascades", v) for v in ("0", "5", "-1", "abc", "1.5", "")])
+def test_bad_shadow_option_is_a_usage_error(tmp_path, option, value):
     gltf = write_scene(tmp_path / "bad.gltf", [(SUN_DIR, "mixed")])
     out = tmp_path / "bad.exr"
-    proc = viewer.run(gltf, "--headless", "--output", out, "--width", 16, "--height", 16, "--shadow-res", value)
+    proc = viewer.run(gltf, "--headless", "--output", out, "--width", 16, "--height", 16, option, value)
     assert proc.returncode == 2, proc.stderr
-    assert "--shadow-res" in proc.stderr, proc.stderr
+    assert option in proc.stderr, proc.stderr
     assert not out.exists()
+
+
+def test_five_suns_with_four_cascades_overflow_the_pool(tmp_path, geometry):
+    # Four cascades each (the default): the first four suns take all 16 layers, the fifth has none
+    # left (one warning naming it) and adds its full direct term inside the box's shadow from it.
+    p, n, plane = geometry
+    suns = [(azimuth(SUN_DIR, 72 * k), SUN_LUX / 5) for k in range(5)]
+    img, stderr = render_suns(tmp_path, "five4", suns)
+    assert stderr.count("shadow map layer") == 1, stderr
+    assert "light 'Sun4' needs 4 shadow map layers but only 0 of 16 are left; it is unshadowed" in stderr, stderr
+    inside = assert_suns(img, p, n, plane, suns, [True] * 4 + [False], "four shadowed suns + one unshadowed")
+    assert all(m.sum() > 300 for m in inside), [m.sum() for m in inside]
+
+
+def test_sun_gets_the_cascades_left_in_the_pool(tmp_path, geometry):
+    # Six suns of three cascades: the first five take 15 layers, the sixth gets the one left (a
+    # warning naming it: a single map over the whole scene) and is still shadowed. Every shadow is
+    # right.
+    p, n, plane = geometry
+    suns = [(azimuth(SUN_DIR, 60 * k), SUN_LUX / 6) for k in range(6)]
+    img, stderr = render_suns(tmp_path, "six", suns, "--shadow-cascades", 3)
+    assert stderr.count("shadow map layer") == 1, stderr
+    assert ("light 'Sun5' needs 3 shadow map layers (cascades) but only 1 of 16 are left; it gets 1 cascade\n"
+            in stderr), stderr
+    assert "unshadowed" not in stderr, stderr
+    inside = assert_suns(img, p, n, plane, suns, [True] * 6, "six shadowed suns, the last with one cascade")
+    assert all(m.sum() > 300 for m in inside), [m.sum() for m in inside]
+
+
+# ---- cascades over a long view (perspective camera, --look) ---------------------------------------
+
+LONG_W, LONG_H = 360, 240
+LONG_EYE, LONG_AT = np.array([0.0, 8.0, 6.0]), np.array([0.0, 0.0, -24.0])
+LONG_FOV = 0.8  # --look's vertical field of view
+LONG_PLANE_X, LONG_PLANE_Z = (-10.0, 10.0), (-195.0, 5.0)  # a 20 m x 200 m plane at y = 0
+LONG_SUN = unit([1.0, -1.0, 0.25])  # shadows fall beside the boxes (+x), a little towards the camera
+# (lo, hi) of the boxes floating above the plane, larger with distance (each shadow stays many
+# pixels across in its cascade); the first is the near box.
+LONG_BOXES = [((-2.0, 0.6, -7.0), (0.0, 1.6, -5.0)),
+              ((-3.5, 1.0, -19.0), (-0.5, 3.5, -15.0)),
+              ((-5.0, 2.0, -48.0), (-1.0, 6.0, -40.0)),
+              ((-7.0, 3.0, -110.0), (-1.0, 12.0, -80.0))]
+CASCADE_LAMBDA = 0.9  # docs/engine.md "Shadows": the practical split's weight of the logarithmic split
+LONG_RES = 1024
+
+
+def write_long_scene(path, boxes=LONG_BOXES, sun=LONG_SUN):
+    """The long plane, `boxes` (lo, hi) and one mixed sun; a one-cell probe grid holding everything."""
+    d = Path(path).parent
+    (d / "sh_coeffs").mkdir(exist_ok=True)
+    origin, spacing = (-110.0, -10.0, -210.0), 220.0
+    sg.write_shprobe_v1(d / "sh_coeffs" / "long.shprobe", COEFFS[None], np.zeros((1, 1, 1), np.int32), origin,
+                        spacing)
+    b = sg.GltfBuilder()
+    m = b.material("ground", base_color=(*ALBEDO, 1), sh_scale=SH_SCALE, ambient_term=AMBIENT,
+                   metallic=0.0, roughness=1.0)
+    size = (LONG_PLANE_Z[1] - LONG_PLANE_Z[0], LONG_PLANE_X[1] - LONG_PLANE_X[0])  # quad: u along z, v along x
+    b.node("Ground", mesh=b.mesh("ground", sg.quad(*size, normal_axis=1), m),
+           translation=(np.mean(LONG_PLANE_X), 0.0, np.mean(LONG_PLANE_Z)))
+    for k, (lo, hi) in enumerate(boxes):
+        lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+        b.node(f"Box{k}", mesh=b.mesh(f"box{k}", sg.cube(0.5), m), translation=(lo + hi) / 2,
+               scale=[float(x) for x in hi - lo])
+    light = b.light("Sun", "directional", (1, 1, 1), SUN_LUX, schnee_mode="mixed")
+    b.light_node("SunNode", light, translation=(0, 30, 0), rotation=rotation_to(sun))
+    b.probe_grids([sg.grid_entry("long", "sh_coeffs/long.shprobe", 1, origin, (1, 1, 1), spacing)])
+    return b.write(path)
+
+
+def long_camera():
+    """--look's camera: (forward, right, up) and the ray through each pixel centre (Vulkan: row 0 at
+    the top)."""
+    f = unit(LONG_AT - LONG_EYE)
+    r = unit(np.cross(f, [0.0, 1.0, 0.0]))
+    u = np.cross(r, f)
+    t, aspect = np.tan(LONG_FOV / 2), LONG_W / LONG_H
+    i, j = np.meshgrid(np.arange(LONG_W) + 0.5, np.arange(LONG_H) + 0.5)
+    x, y = (2 * i / LONG_W - 1) * t * aspect, (1 - 2 * j / LONG_H) * t
+    return f, r, u, f + x[..., None] * r + y[..., None] * u
+
+
+def long_geometry(boxes=LONG_BOXES):
+    """Plane point under each pixel (the plane's centre where the pixel misses it), its normal, and
+    the pixels that see the plane (not a box, not beyond its edges), EDGE + 1 px away from any of
+    those outlines."""
+    _, _, _, ray = long_camera()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -LONG_EYE[1] / ray[..., 1]
+    down = ray[..., 1] < 0
+    p = np.where(down[..., None], LONG_EYE + np.where(down, t, 0.0)[..., None] * ray, [0.0, 0.0, -95.0])
+    on = (down & (p[..., 0] > LONG_PLANE_X[0]) & (p[..., 0] < LONG_PLANE_X[1]) & (p[..., 2] > LONG_PLANE_Z[0])
+          & (p[..., 2] < LONG_PLANE_Z[1]))
+    eye = np.broadcast_to(LONG_EYE, ray.shape)
+    for lo, hi in boxes:
+        on &= ~box_hit(eye, ray, np.asarray(lo, float), np.asarray(hi, float))
+    n = np.broadcast_to([0.0, 1.0, 0.0], p.shape).copy()
+    return p, n, ~dilate(~on, EDGE + 1)
+
+
+def long_shadow(p, boxes=LONG_BOXES, sun=LONG_SUN):
+    hit = np.zeros(p.shape[:-1], bool)
+    for lo, hi in boxes:
+        hit |= box_hit(p, -unit(sun), np.asarray(lo, float), np.asarray(hi, float))
+    return hit
+
+
+def render_long(tmp_path, tag, *args, boxes=LONG_BOXES, sun=LONG_SUN, res=LONG_RES):
+    gltf = write_long_scene(tmp_path / f"{tag}.gltf", boxes, sun)
+    return render_file(gltf, tmp_path / f"{tag}.exr", "--look", *LONG_EYE, *LONG_AT, "--shadow-res", res, *args,
+                       size=(LONG_W, LONG_H))[0]
+
+
+def cascade_fit(count, res=LONG_RES, boxes=LONG_BOXES, sun=LONG_SUN):
+    """The cascades of this view recomputed from docs/engine.md "Shadows": (split depths, light basis
+    (x, y), per cascade (light-space centre (2,), half extent, texel)). The view's depth range over
+    the scene bounds split by the practical scheme; the bounding sphere of each slice's 8 corners
+    (centre = their mean), its radius rounded up to a power of 2^(1/4) plus room for 9 texels, at
+    most the scene's own square (padded 1 % + 1 mm), kept inside it, centre snapped to texels. Count
+    1: the single map over the scene."""
+    lo = np.array([LONG_PLANE_X[0], 0.0, LONG_PLANE_Z[0]])
+    hi = np.array([LONG_PLANE_X[1], 0.0, LONG_PLANE_Z[1]])
+    for blo, bhi in boxes:
+        lo, hi = np.minimum(lo, blo), np.maximum(hi, bhi)
+    corners = np.array([[(lo, hi)[a][0], (lo, hi)[b][1], (lo, hi)[c][2]] for a in (0, 1) for b in (0, 1)
+                        for c in (0, 1)])
+    f = unit(sun)
+    x = unit(np.cross(f, [1.0, 0, 0] if abs(f[1]) > 0.99 else [0, 1.0, 0]))
+    y = np.cross(x, f)
+    mn = np.array([(corners @ x).min(), (corners @ y).min()])
+    mx = np.array([(corners @ x).max(), (corners @ y).max()])
+    pad = 0.01 * (mx - mn) + 1e-3
+    mn, mx = mn - pad, mx + pad
+    scene_half = 0.5 * (mx - mn).max()
+    fwd, r, u, _ = long_camera()
+    d = (corners - LONG_EYE) @ fwd
+    near, far = max(d.min(), 0.05), d.max()
+    i = np.arange(count + 1) / count
+    split = CASCADE_LAMBDA * near * (far / near) ** i + (1 - CASCADE_LAMBDA) * (near + (far - near) * i)
+    if count == 1:
+        return split, (x, y), [(0.5 * (mn + mx), scene_half, 2 * scene_half / res)]
+    t, aspect = np.tan(LONG_FOV / 2), LONG_W / LONG_H
+    cascades = []
+    for k in range(count):
+        cs = np.array([LONG_EYE + s * fwd + sx * s * t * aspect * r + sy * s * t * u
+                       for s in split[k:k + 2] for sx in (-1, 1) for sy in (-1, 1)])
+        centre = cs.mean(0)
+        rad = np.linalg.norm(cs - centre, axis=1).max()
+        h = min(2 ** (np.ceil(4 * np.log2(rad)) / 4) * (1 + 4 * 9 / res), scene_half)
+        texel = 2 * h / res
+        c = np.array([centre @ x, centre @ y])
+        c = np.where(mn + h <= mx - h, np.clip(c, mn + h, mx - h), 0.5 * (mn + mx))
+        cascades.append((np.round(c / texel) * texel, h, texel))
+    return split, (x, y), cascades
+
+
+def cascade_texel(p, count=4, res=LONG_RES, **kw):
+    """Per point, the texel size of the cascade the shader picks: the first whose box holds the point
+    SV_SHADOW_CASCADE_MARGIN = 8 texels inside its edge, else the last; here with 10 texels, so that
+    float rounding can only make the test's choice coarser than the shader's."""
+    _, (x, y), cascades = cascade_fit(count, res, **kw)
+    xy = np.stack([p @ x, p @ y], -1)
+    out = np.full(p.shape[:-1], cascades[-1][2])
+    for c, h, texel in reversed(cascades[:-1]):
+        inside = (np.abs(xy - c) <= h - 10 * texel).all(-1)
+        out = np.where(inside, texel, out)
+    return out
+
+
+def world_edge_band(p, shadow_of, width):
+    """Plane pixels whose point p lies within `width` (metres, per pixel) of the boundary of the
+    analytic shadow `shadow_of(points)`: a point `width` away in one of 16 directions on the plane
+    has the other state."""
+    here = shadow_of(p)
+    band = np.zeros_like(here)
+    for a in np.linspace(0, 2 * np.pi, 16, endpoint=False):
+        q = p + width[..., None] * np.array([np.cos(a), 0.0, np.sin(a)])
+        band |= shadow_of(q) != here
+    return band
+
+
+def long_expected(p, n, sun=LONG_SUN):
+    base = probe_term(n)
+    return base, base + sun_direct(p, n, sun, cam=LONG_EYE)
+
+
+def cascade_band_width(p, count=4, res=LONG_RES):
+    """Per pixel, 8 texels of the cascade the shader picks there: the shadow edge moves by the normal
+    offset along the plane (T (0.5 + 3 sin θ) tan θ = 2.7 T at θ = 45.9° here) and blurs over the
+    PCF footprint (2 T / cos θ = 2.9 T either side): 5.6 T at most."""
+    return 8.0 * cascade_texel(p, count, res)
+
+
+def test_cascade_fit_reference():
+    # The recomputed fit of this view: four slices of increasing depth from the camera's znear (the
+    # tall far box's top corner of the scene bounds lies beside the camera) to the farthest corner,
+    # texels growing with depth, the last no coarser than the single map's.
+    split, _, cascades = cascade_fit(4)
+    texels = [c[2] for c in cascades]
+    single = cascade_fit(1)[2][0][2]
+    assert split[0] == 0.05 and split[0] < split[1] < split[2] < split[3] < split[4] < 200, split
+    assert all(a < b for a, b in zip(texels, texels[1:])), texels
+    assert texels[0] < single / 5 and texels[-1] <= single * (1 + 1e-9), (texels, single)
+
+
+def test_cascades_sharpen_the_near_shadow_and_keep_every_shadow_right(tmp_path):
+    # A 200 m plane and four boxes at 6 to 100 m from the camera, one oblique sun. With the default 4
+    # cascades every box's analytic shadow is right (probe term inside, probe + direct outside,
+    # pixels within 8 of their cascade's texels of the boundary excluded); the near box's edge band
+    # (pixels neither fully lit nor fully shadowed) is narrower than the single map's by the ratio of
+    # their texels (the band's width is a fixed number of texels: offset + PCF), within a factor 2.5
+    # for the pixel grid (the cascades' band is 1-2 px wide; measured 1.6: 123 against 670 pixels at
+    # a texel ratio of 0.115).
+    p, n, plane = long_geometry()
+    base, lit = long_expected(p, n)
+    shadows = [long_shadow(p, [box]) for box in LONG_BOXES]
+    shadow = np.any(shadows, axis=0)
+    img = render_long(tmp_path, "long4")
+    band = world_edge_band(p, long_shadow, cascade_band_width(p))
+    inside, outside = plane & shadow & ~band, plane & ~shadow & ~band
+    assert_close(img, base, inside, "4 cascades: shadowed pixels (probe term only)")
+    assert_close(img, lit, outside, "4 cascades: lit pixels (probe + direct)")
+    for k, s in enumerate(shadows):  # every box's shadow is in view and checked
+        assert (inside & s).sum() > 40, (k, (inside & s).sum())
+    assert outside.sum() > 20000, outside.sum()
+
+    one = render_long(tmp_path, "long1", "--shadow-cascades", 1)
+    near = plane & dilate(shadows[0], 30) & ~dilate(np.any(shadows[1:], axis=0), 30)
+    band4 = partial_pixels(img, base, lit, near).sum()
+    band1 = partial_pixels(one, base, lit, near).sum()
+    coarsest = cascade_texel(p[near]).max()  # the near box's shadow lies in cascades this fine or finer
+    single = cascade_fit(1)[2][0][2]
+    assert band1 > 400, band1  # a single map over 200 m: a wide, blurry edge
+    assert coarsest / single < 0.12, (coarsest, single)
+    assert band4 <= 2.5 * coarsest / single * band1, (band4, band1, coarsest, single)
+
+
+def partial_pixels(img, base, lit, region):
+    """Pixels of `region` that are neither fully lit nor fully shadowed: lit fraction in (0.02, 0.98)."""
+    frac = (img[..., 1] - base[..., 1]) / (lit[..., 1] - base[..., 1])
+    return region & (frac > 0.02) & (frac < 0.98)
+
+
+def test_cascades_change_the_long_scene_and_one_cascade_is_the_whole_scene_map(tmp_path):
+    # At a coarse --shadow-res 256 the long scene's shadow edges depend on every texel of the map: the
+    # default 4 cascades give a different image from one map over the scene bounds. Both keep every
+    # box's analytic shadow (test_cascades_sharpen_the_near_shadow_and_keep_every_shadow_right);
+    # exactly one map, the pre-cascade behaviour, is checked against the analytic polygon with that
+    # map's texel band by the sun tests above (--shadow-cascades 1).
+    gltf = write_long_scene(tmp_path / "ref.gltf")
+    args = ["--look", *LONG_EYE, *LONG_AT, "--shadow-res", 256]
+    one = render_file(gltf, tmp_path / "one.exr", *args, "--shadow-cascades", 1, size=(96, 64))[0]
+    four = render_file(gltf, tmp_path / "four.exr", *args, size=(96, 64))[0]
+    assert (np.abs(four - one).max(-1) > 0.01).sum() > 20
+
+
+@pytest.mark.parametrize("sun", [LONG_SUN, unit([0.3, -0.12, -1.0]), unit([-0.2, -1.0, 0.05])],
+                         ids=["oblique", "grazing", "steep"])
+def test_cascade_boundaries_leave_a_lit_plane_lit(tmp_path, sun):
+    # No box: every plane pixel, across all four cascades and their boundaries, equals the unshadowed
+    # formula (no seam, no acne where the shader switches cascades), also at 83° from the normal.
+    p, n, plane = long_geometry(boxes=[])
+    _, lit = long_expected(p, n, sun)
+    img = render_long(tmp_path, "lit", boxes=[], sun=sun)
+    assert_close(img, lit, plane, f"lit long plane, sun {sun}")
+    used = np.unique(cascade_texel(p[plane], boxes=[], sun=sun))
+    assert len(used) >= 3, used  # the plane in view spans three cascades or more
 
 
 # ---- spot and point lights: perspective shadow maps ---------------------------------------------
