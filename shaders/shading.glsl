@@ -103,6 +103,25 @@ int octree_locate(sv_gpu_grid gr, uvec3 q) {
     return all(greaterThanEqual(q, l)) && all(lessThan(q - l, uvec3(size))) ? int(lo - 1u) : -1;
 }
 
+// The leaf holding lattice point u in unit cell q; on a face between a leaf and a cell no leaf covers
+// (within 0.01 units of the cell's lower face) the cells below are tried too, in the bit-mask order of
+// locate_point_cell() in native/src/pb_interp.c, which this mirrors: a wall's surface on the volume's
+// max face belongs to the leaf inside, not to nothing by its coordinates' rounding.
+int octree_locate_point(sv_gpu_grid gr, vec3 u, uvec3 q) {
+    int li = octree_locate(gr, q);
+    for (uint m = 1u; li < 0 && m < 8u; ++m) {
+        uvec3 r = q;
+        bool ok = true;
+        for (int k = 0; k < 3; ++k) {
+            if (((m >> uint(k)) & 1u) == 0u) continue;
+            if (!(q[k] > 0u && u[k] - float(q[k]) < 0.01)) ok = false;
+            r[k] = q[k] - 1u;
+        }
+        if (ok) li = octree_locate(gr, r);
+    }
+    return li;
+}
+
 // E(n) of a corner octree at p: mirrors leaf_weights() of native/src/pb_interp.c line by line (leaf
 // of the point, t = clamp((u - corner0) / 2^level, 0, 1), trilinear weights of the 8 corners, zero
 // weights skipped, probes of validity 0 dropped, renormalised). The hanging corners were resolved at
@@ -124,7 +143,7 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, bool m
     if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, dims + 0.01))) return false;
     u = clamp(u, vec3(0.0), dims);
     uvec3 q = uvec3(min(floor(u), dims - 1.0));
-    int li = octree_locate(gr, q);
+    int li = octree_locate_point(gr, u, q);
     if (li < 0) return false;
     uint lb = gr.dims.w + SV_LEAF_INTS * uint(li);
     vec3 l = vec3(float(cell_probe[lb]), float(cell_probe[lb + 1u]), float(cell_probe[lb + 2u]));

@@ -594,13 +594,36 @@ static bool point_cell(const pb_cotree *t, const double point[3], double u[3], u
     return true;
 }
 
+/* The leaf holding lattice point u in unit cell q. A point on a face between a leaf and a lattice
+ * cell no leaf covers (the sparse tree's outer faces, e.g. a wall's surface on a volume's max face)
+ * belongs to the leaf: within PB_COTREE_FACE_EPS units of a cell's lower face the cells below are
+ * tried too (x first, then y, then z and their combinations, in the order of the bit mask), so such a
+ * surface does not flicker between the leaf and nothing with its coordinates' rounding. Mirrored by
+ * octree_locate_point() in shaders/shading.glsl. */
+#define PB_COTREE_FACE_EPS 0.01
+static int32_t locate_point_cell(const pb_cotree *t, const double u[3], const uint32_t q[3])
+{
+    int32_t li = locate_cell(t, q);
+    for (uint32_t m = 1; li < 0 && m < 8; m++) {
+        uint32_t r[3];
+        bool ok = true;
+        for (int k = 0; k < 3; k++) {
+            bool down = (m >> k) & 1u;
+            if (down && !(q[k] > 0 && u[k] - (double)q[k] < PB_COTREE_FACE_EPS)) ok = false;
+            r[k] = down ? q[k] - 1 : q[k];
+        }
+        if (ok) li = locate_cell(t, r);
+    }
+    return li;
+}
+
 int32_t pb_cotree_locate(const pb_cotree *t, const double point[3])
 {
     if (!t || !point) return -1;
     double u[3];
     uint32_t q[3];
     if (!point_cell(t, point, u, q)) return -1;
-    return locate_cell(t, q);
+    return locate_point_cell(t, u, q);
 }
 
 /* Drops invisible / invalid probes and zero weights, renormalises. */
@@ -636,7 +659,7 @@ pb_result pb_interp_query_cotree(const pb_cotree *t, const double point[3], cons
     double u[3];
     uint32_t q[3];
     if (!point_cell(t, point, u, q)) return PB_SUCCESS;
-    int32_t li = locate_cell(t, q);
+    int32_t li = locate_point_cell(t, u, q);
     if (li < 0) return PB_SUCCESS;
     leaf_weights(t, li, u, point, opt, out);
     return PB_SUCCESS;

@@ -515,3 +515,27 @@ def test_half_slot_beyond_the_half_range_is_clamped(tmp_path):
     assert np.allclose(centre, Y0 * 65504.0, rtol=1e-3), centre
     img, proc = render(scene, tmp_path / "f.exr")  # float storage: the exact value
     assert np.allclose(img[N // 2, N // 2], Y0 * 80000.0, rtol=1e-5)
+
+
+def test_wall_on_the_trees_max_face_is_lit_by_its_leaves(tmp_path):
+    # Leaves only for x in [0, 2] m of a 4 m lattice (the roots beyond dropped, as the bake drops
+    # cells outside the volumes): a per-pixel wall at x = 2 m facing -x lies on the face between
+    # leaves and no leaf. Every pixel belongs to the leaves inside (docs/engine.md, locate_point_cell
+    # in pb_interp.c), whichever side of 2.0 its interpolated position rounds to; before, about half
+    # of them fell back to probe 0 (stripes on the bundled room's +X wall). L00 = 1 + 0.5 x (linear:
+    # reproduced exactly) gives the closed form Y0 * 2 on the whole wall.
+    t = native.CornerOctree.uniform((0.0, 0.0, 0.0), 0.5, 2, (2, 1, 2))
+    t.drop(t.info()["leaves"][:, 0] >= 4)
+    t.finalize()
+    pos = t.positions()
+    c = np.zeros((len(pos), 9, 3))
+    c[:, 0, :] = (1.0 + 0.5 * pos[:, 0])[:, None]
+    entry = write_grid(tmp_path, t, c)
+    b = sg.GltfBuilder()
+    m = b.material("Wall", sh_scale=1.0, ambient_term=0.0, probe_mode="pixel")
+    b.node("Wall", mesh=b.mesh("wall", sg.quad(4.0, 4.0, 0, -1.0), m), translation=(2.0, 1.0, 2.0))
+    b.node("Camera", camera=b.ortho_camera("side", 0.9), translation=(0.5, 1.0, 2.0), rotation=sg.ROT_LOOK_POS_X)
+    b.probe_grids([entry])
+    img, _ = render(b.write(tmp_path / "wall.gltf"), tmp_path / "wall.exr", "--no-sky", "--no-direct")
+    want = Y0 * 2.0
+    assert np.abs(img - want).max() < 2e-6 * want, (img.min(), img.max(), want)

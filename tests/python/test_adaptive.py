@@ -404,3 +404,31 @@ def test_sky_sun_stands_in_for_the_sun_of_a_world_image():
     assert adaptive.sky_sun(wide) is None
     with pytest.raises(ValueError):
         adaptive.sky_sun(np.ones((4, 8)))
+
+
+def test_a_surface_on_the_volumes_max_face_belongs_to_the_leaf_inside():
+    # The volume ends at x = 3 m, inside the lattice (8 cells of 0.5 m): the leaves beyond are dropped,
+    # so a wall's surface at x = 3 lies on a face between a leaf and no leaf. Its rasterised or rounded
+    # coordinates fall either side of 3.0; both belong to the leaf inside (within 0.01 lattice units
+    # of the face), so the wall's light does not flicker between the probes and nothing (the bundled
+    # room's +X wall was striped with the engine's fallback). Expected: the leaf's own trilinear
+    # value at its max face, the same on both sides; 0.01 units (5 mm) beyond the face: uncovered.
+    vol = box_mesh("v", (0.0, 0.0, 0.0), (3.0, 2.0, 2.0))
+    group = adaptive.AdaptiveGroup("v", "", [vol], [], 0.5, 2.0, 0.01)
+
+    def field(p):
+        return np.array([sh_of(1.0 + 3.0 * x * x, 0.0) for x in p[:, 0]])
+    cache = drive(group, field)
+    assert group.tree.info()["dims"][0] == 8 and np.all(group.tree.info()["leaves"][:, 3] == 0)
+    xs = [3.0 - 1e-9, 3.0, 3.0 + 1e-7, 3.004, 3.006]
+    pts = np.array([[x, 1.1, 0.9] for x in xs])
+    got = group.tree.interpolate(pts, cache.coeffs[group.probe_index], cache.validity(group.probe_index))
+    inside = group.tree.interpolate(np.array([[2.75, 1.1, 0.9]]), cache.coeffs[group.probe_index],
+                                    cache.validity(group.probe_index))
+    assert np.all(np.isfinite(got[:4])), got[:, 0, 0]
+    # the same as just inside the face (the leaf's corner probes there, rendered ≤ 5 cm inside the
+    # volume: f = 1 + 3x² at 3 m is 28, 1 % more)
+    np.testing.assert_allclose(got[1:4], np.broadcast_to(got[0], got[1:4].shape), rtol=1e-6)
+    assert got[0, 0, 0] == pytest.approx(28.0, rel=0.01)
+    assert inside[0, 0, 0] < got[0, 0, 0]
+    assert np.all(np.isnan(got[4]))
