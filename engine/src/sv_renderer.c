@@ -618,19 +618,52 @@ static void shadow_basis(const float dir[3], float x[3], float y[3], float f[3])
     y[0] = x[1] * f[2] - x[2] * f[1], y[1] = x[2] * f[0] - x[0] * f[2], y[2] = x[0] * f[1] - x[1] * f[0];
 }
 
+/* Corner c (bit 0: x, bit 1: y, bit 2: z at hi) of the box [lo, hi]. */
+static void box_corner(const float lo[3], const float hi[3], int c, float p[3])
+{
+    for (int k = 0; k < 3; ++k) p[k] = (c >> k) & 1 ? hi[k] : lo[k];
+}
+
 /* The extent [mn, mx] of the world bounds [lo, hi] along each of the three light-space axes (the 8
- * corners projected). */
+ * corners projected), each padded by 1 % plus 1 mm so that surfaces on the bounds stay inside. */
 static void light_space_bounds(const float *axes[3], const float lo[3], const float hi[3], float mn[3], float mx[3])
 {
     for (int a = 0; a < 3; ++a) mn[a] = INFINITY, mx[a] = -INFINITY;
     for (int c = 0; c < 8; ++c) {
-        float p[3] = {(c & 1) ? hi[0] : lo[0], (c & 2) ? hi[1] : lo[1], (c & 4) ? hi[2] : lo[2]};
+        float p[3];
+        box_corner(lo, hi, c, p);
         for (int a = 0; a < 3; ++a) {
             float d = axes[a][0] * p[0] + axes[a][1] * p[1] + axes[a][2] * p[2];
             mn[a] = fminf(mn[a], d);
             mx[a] = fmaxf(mx[a], d);
         }
     }
+    for (int a = 0; a < 3; ++a) {
+        float pad = 0.01f * (mx[a] - mn[a]) + 1e-3f;
+        mn[a] -= pad;
+        mx[a] += pad;
+    }
+}
+
+/* World -> light clip of an orthographic box along the basis `axes` (x, y, f): x, y in [-1, 1] over
+ * centre c ± half extent h, z in [0, 1] over [zmin, zmax] along f (Vulkan); params[1..3] of
+ * sv_gpu_frame.shadow_params (params[0], the texel size, is the caller's). */
+static void ortho_light_projection(const float *axes[3], const float c[2], const float h[2], float zmin, float zmax,
+                                   uint32_t res, float m[16], float params[4])
+{
+    memset(m, 0, 16 * sizeof(float));
+    for (int k = 0; k < 3; ++k) {
+        m[4 * k + 0] = axes[0][k] / h[0];
+        m[4 * k + 1] = axes[1][k] / h[1];
+        m[4 * k + 2] = axes[2][k] / (zmax - zmin);
+    }
+    m[12] = -c[0] / h[0];
+    m[13] = -c[1] / h[1];
+    m[14] = -zmin / (zmax - zmin);
+    m[15] = 1.0f;
+    params[1] = 1.0f / (zmax - zmin);
+    params[2] = 1.0f / (float)res;
+    params[3] = (float)SV_SHADOW_ORTHO;
 }
 
 /* The light-space projection of a directional light's layer: an orthographic box along `dir` fitted
@@ -645,28 +678,13 @@ static void shadow_projection_ortho(const float dir[3], const float lo[3], const
     const float *axes[3] = {x, y, f};
     float mn[3], mx[3];
     light_space_bounds(axes, lo, hi, mn, mx);
-    float centre[3], half[3];
-    for (int a = 0; a < 3; ++a) {
-        float pad = 0.01f * (mx[a] - mn[a]) + 1e-3f;
-        mn[a] -= pad;
-        mx[a] += pad;
+    float centre[2], half[2];
+    for (int a = 0; a < 2; ++a) {
         centre[a] = 0.5f * (mn[a] + mx[a]);
         half[a] = 0.5f * (mx[a] - mn[a]);
     }
-    memset(m, 0, 16 * sizeof(float));
-    for (int k = 0; k < 3; ++k) {
-        m[4 * k + 0] = x[k] / half[0];
-        m[4 * k + 1] = y[k] / half[1];
-        m[4 * k + 2] = f[k] / (2.0f * half[2]);
-    }
-    m[12] = -centre[0] / half[0];
-    m[13] = -centre[1] / half[1];
-    m[14] = -mn[2] / (2.0f * half[2]);
-    m[15] = 1.0f;
+    ortho_light_projection(axes, centre, half, mn[2], mx[2], res, m, params);
     params[0] = 2.0f * fmaxf(half[0], half[1]) / (float)res;
-    params[1] = 1.0f / (2.0f * half[2]);
-    params[2] = 1.0f / (float)res;
-    params[3] = (float)SV_SHADOW_ORTHO;
 }
 
 /* Cascades (docs/engine.md "Shadows"): the practical split's weight of the logarithmic split against
@@ -699,7 +717,8 @@ static bool cascade_view_fit(const sv_view *v, float aspect, const float lo[3], 
     cv->hx = cv->hy * aspect;
     float dmin = INFINITY, dmax = -INFINITY;
     for (int c = 0; c < 8; ++c) {
-        float p[3] = {(c & 1) ? hi[0] : lo[0], (c & 2) ? hi[1] : lo[1], (c & 4) ? hi[2] : lo[2]};
+        float p[3];
+        box_corner(lo, hi, c, p);
         float d = 0.0f;
         for (int k = 0; k < 3; ++k) d += (p[k] - cv->eye[k]) * cv->fwd[k];
         dmin = fminf(dmin, d);
@@ -742,11 +761,6 @@ static void shadow_projection_cascade(const float dir[3], const float lo[3], con
     const float *axes[3] = {x, y, f};
     float mn[3], mx[3];
     light_space_bounds(axes, lo, hi, mn, mx);
-    for (int a = 0; a < 3; ++a) {
-        float pad = 0.01f * (mx[a] - mn[a]) + 1e-3f;
-        mn[a] -= pad;
-        mx[a] += pad;
-    }
     /* the slice's corners, their mean and the bounding radius */
     float corner[8][3], centre[3] = {0, 0, 0};
     for (int c = 0; c < 8; ++c) {
@@ -773,21 +787,8 @@ static void shadow_projection_cascade(const float dir[3], const float lo[3], con
         c = mn[a] + h <= mx[a] - h ? fminf(fmaxf(c, mn[a] + h), mx[a] - h) : 0.5f * (mn[a] + mx[a]);
         c2[a] = roundf(c / texel) * texel;
     }
-    float half_z = 0.5f * (mx[2] - mn[2]);
-    memset(m, 0, 16 * sizeof(float));
-    for (int k = 0; k < 3; ++k) {
-        m[4 * k + 0] = x[k] / h;
-        m[4 * k + 1] = y[k] / h;
-        m[4 * k + 2] = f[k] / (2.0f * half_z);
-    }
-    m[12] = -c2[0] / h;
-    m[13] = -c2[1] / h;
-    m[14] = -mn[2] / (2.0f * half_z);
-    m[15] = 1.0f;
+    ortho_light_projection(axes, c2, (const float[2]){h, h}, mn[2], mx[2], res, m, params);
     params[0] = texel;
-    params[1] = 1.0f / (2.0f * half_z);
-    params[2] = 1.0f / (float)res;
-    params[3] = (float)SV_SHADOW_ORTHO;
 }
 
 /* The projection of a spot light's layer or a point light's cube face: a perspective frustum from
