@@ -62,6 +62,18 @@ vec3 sh_irradiance_basis(uint max_band, float Y[25], vec3 coeffs[25]) {
     return e;
 }
 
+// A_l Y_i(d) for i < (max_band+1)^2, 0 past it: E(n) of any probe is then sum_i AY[i] c_i, which the
+// probe lookups of shading.glsl sum straight from the probe buffer (no array of coefficients: a
+// dynamically indexed local array lives in slow local memory on GPUs). The same products
+// sh_irradiance_basis forms, in the same order of bands.
+void sh_lambert_basis(uint max_band, vec3 d, out float AY[25]) {
+    sh_eval_basis(max_band, d, AY);
+    for (uint i = 0u; i < 25u; ++i) {
+        uint l = i < 1u ? 0u : i < 4u ? 1u : i < 9u ? 2u : i < 16u ? 3u : 4u;
+        AY[i] = l <= max_band ? sh_lambert_band(l) * AY[i] : 0.0;
+    }
+}
+
 // Irradiance E(n) = sum_l A_l sum_m L_lm Y_lm(n), RGB, for coefficients coeffs[0..(L+1)^2).
 vec3 sh_irradiance(uint max_band, vec3 coeffs[25], vec3 n) {
     float Y[25];

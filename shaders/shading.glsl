@@ -23,26 +23,26 @@ vec3 probe_coeff(uint index, uint i) {
     return probes[index].sh[i].xyz;
 }
 
-// The first (band+1)^2 coefficients of probe `index` (the rest 0).
-void probe_coeffs(uint index, uint band, out vec3 c[25]) {
-    for (uint i = 0u; i < 25u; ++i) c[i] = i < (band + 1u) * (band + 1u) ? probe_coeff(index, i) : vec3(0.0);
-}
-
-// sum_i A_l(i) Y_i L_i of probe `index` for a precomputed basis Y (bands <= band):
-// sh_irradiance_basis() of sh.glsl on the probe's coefficients.
-vec3 probe_irradiance_basis(uint index, uint band, float Y[25]) {
-    vec3 c[25];
-    probe_coeffs(index, band, c);
-    return sh_irradiance_basis(band, Y, c);
+// sum_i AY[i] c_i over the first (band+1)^2 coefficients of probe `index`, read one by one from the
+// probe buffer, for a basis from sh_lambert_basis() of sh.glsl: sh_irradiance_basis() on the probe's
+// coefficients, without copying them into a local array.
+vec3 probe_irradiance_basis(uint index, uint band, float AY[25]) {
+    uint count = (band + 1u) * (band + 1u);
+    vec3 e = vec3(0.0);
+    for (uint i = 0u; i < 25u; ++i) {
+        if (i >= count) break;
+        e += AY[i] * probe_coeff(index, i);
+    }
+    return e;
 }
 
 // Irradiance E(n) of probe `index` (DESIGN.md §3), not clamped: sh_irradiance() of sh.glsl on
 // the probe's coefficients, only the bands the probe has.
 vec3 probe_irradiance(uint index, vec3 n) {
     uint band = probe_band(index);
-    vec3 c[25];
-    probe_coeffs(index, band, c);
-    return sh_irradiance(band, c, n);
+    float AY[25];
+    sh_lambert_basis(band, n, AY);
+    return probe_irradiance_basis(index, band, AY);
 }
 
 // Ambient-cube buffer access (docs/ambient-cube.md §5), either storage: the cube of probe `index`,
@@ -151,7 +151,7 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, bool m
     vec3 tt = clamp((u - l) / s, vec3(0.0), vec3(1.0));
     uint vis = uint(cell_probe[gr.base.y + uint(li)]);
     uint band = 0u;
-    float Y[25];
+    float AY[25]; // A_l Y_i(n) (sh_lambert_basis)
     bool have_basis = false;
     for (int pass = 0; pass < 2; ++pass) { // 0: with back-face weights and the mask; 1: without
         vec3 e = vec3(0.0);
@@ -174,10 +174,10 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, bool m
             } else {
                 if (!have_basis) {
                     band = probe_band(pi);
-                    sh_eval_basis(band, n, Y);
+                    sh_lambert_basis(band, n, AY);
                     have_basis = true;
                 }
-                e += w * probe_scale(pi) * probe_irradiance_basis(pi, band, Y);
+                e += w * probe_scale(pi) * probe_irradiance_basis(pi, band, AY);
             }
             wsum += w;
         }
@@ -230,7 +230,7 @@ bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, bool movable, out 
                                               dot(rel_h, gr.axes[2].xyz)) / h)), ivec3(0), dims - 1);
         uint vis = uint(cell_probe[gr.base.y + uint(home.x + home.y * dims.x + home.z * dims.x * dims.y)]);
         uint band = 0u;
-        float Y[25];
+        float AY[25];
         // Probes of one grid share the band: evaluate the basis once.
         bool have_basis = false;
         vec3 e = vec3(0.0);
@@ -255,10 +255,10 @@ bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, bool movable, out 
             } else {
                 if (!have_basis) {
                     band = probe_band(pi);
-                    sh_eval_basis(band, n, Y);
+                    sh_lambert_basis(band, n, AY);
                     have_basis = true;
                 }
-                e += w * probe_scale(pi) * probe_irradiance_basis(pi, band, Y);
+                e += w * probe_scale(pi) * probe_irradiance_basis(pi, band, AY);
             }
             wsum += w;
         }

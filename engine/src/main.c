@@ -21,7 +21,7 @@ static void usage(FILE *f)
         f,
         "usage: schnee-view SCENE.gltf|.glb [options]\n"
         "  --headless               render offscreen and write --output (no window)\n"
-        "  --output PATH            headless output: .png/.jpg (tone mapped, sRGB) or .exr (linear, before tone mapping)\n"
+        "  --output PATH            headless output: .png/.jpg (tone mapped, sRGB) or .exr/.pfm (linear, before tone mapping)\n"
         "  --width W --height H     frame size (default 960x540)\n"
         "  --camera NAME            camera node or camera name (default: first camera, else frame the scene)\n"
         "  --exposure E             linear exposure multiplier before tone mapping (default 1)\n"

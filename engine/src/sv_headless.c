@@ -8,10 +8,11 @@
 #include "sv_app.h"
 #include "sv_clock.h"
 
-static bool ends_with_exr(const char *path)
+/* .exr and .pfm hold the linear HDR values (float readback); other formats the tone-mapped sRGB bytes. */
+static bool float_output(const char *path)
 {
     size_t n = strlen(path);
-    return n >= 4 && strcasecmp(path + n - 4, ".exr") == 0;
+    return n >= 4 && (strcasecmp(path + n - 4, ".exr") == 0 || strcasecmp(path + n - 4, ".pfm") == 0);
 }
 
 /* Records a copy of `image` (in `layout`) into `buffer`, then returns the image to `layout`. */
@@ -60,9 +61,10 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
     sv_image out = {0};
     sv_buffer readback = {0};
     float *pixels = NULL;
+    double *frame_ms = NULL, *gpu_ms = NULL; /* per frame: wall time; the GPU's per stage, stage-major */
     int rc = 1;
     const uint32_t w = opt->width, h = opt->height;
-    const bool exr = ends_with_exr(opt->output);
+    const bool linear = float_output(opt->output);
 
     if (!sv_app_gpu_init(&gpu, opt, NULL, 0, NULL, NULL, false) ||
         !sv_app_gpu_renderer(&gpu, opt, scene, probes, sky, VK_FORMAT_R8G8B8A8_SRGB, w, h))
@@ -70,7 +72,8 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
     if (!sv_image_create(ctx, w, h, VK_FORMAT_R8G8B8A8_SRGB,
                          VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
                          VK_IMAGE_ASPECT_COLOR_BIT, &out) ||
-        !sv_buffer_create(ctx, (VkDeviceSize)w * h * (exr ? 16 : 4), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true, &readback))
+        !sv_buffer_create(ctx, (VkDeviceSize)w * h * (linear ? 16 : 4), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true,
+                          &readback))
         goto done;
     fprintf(stderr, "schnee-view: device %s; Vulkan setup %.1f ms, scene upload %.1f ms\n", ctx->properties.deviceName,
             gpu.setup_ms, gpu.upload_ms);
@@ -78,7 +81,9 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
     VkCommandBuffer cmd = gpu.cmd;
     uint32_t frames = opt->frames ? opt->frames : 1;
     double frame_total = 0.0, frame_min = 1e30;
-    double *frame_ms = calloc(frames, sizeof *frame_ms); /* for the median (benchmarks); NULL: none */
+    frame_ms = calloc(frames, sizeof *frame_ms); /* for the medians (benchmarks); NULL: none */
+    gpu_ms = calloc((size_t)frames * 3, sizeof *gpu_ms);
+    bool gpu_times = gpu_ms != NULL;
     for (uint32_t f = 0; f < frames; ++f) {
         bool last = f + 1 == frames;
         double fs = sv_now_ms();
@@ -89,7 +94,7 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
         sv_renderer_record(&gpu.renderer, cmd, scene, &gpu.view, out.image, out.view,
                            VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
         if (last) {
-            if (exr)
+            if (linear)
                 record_readback(cmd, gpu.renderer.hdr.image, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, w, h,
                                 readback.buffer);
             else
@@ -101,25 +106,39 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
         frame_total += ms;
         if (ms < frame_min) frame_min = ms;
         if (frame_ms) frame_ms[f] = ms;
+        double stage[3];
+        gpu_times = gpu_times && sv_renderer_gpu_times(&gpu.renderer, stage);
+        for (int k = 0; gpu_times && k < 3; ++k) gpu_ms[(size_t)k * frames + f] = stage[k];
     }
     double median = 0.0;
     if (frame_ms) {
         qsort(frame_ms, frames, sizeof *frame_ms, cmp_double);
         median = frames % 2 ? frame_ms[frames / 2] : 0.5 * (frame_ms[frames / 2 - 1] + frame_ms[frames / 2]);
-        free(frame_ms);
     }
     fprintf(stderr,
             "schnee-view: %u frame(s) at %ux%u: mean %.2f ms, median %.2f ms, min %.2f ms (submit to fence, incl. "
             "readback on the last)\n",
             frames, w, h, frame_total / frames, median, frame_min);
+    if (gpu_times) { /* the GPU's own time per stage, the median over the frames (timestamps) */
+        double med[3];
+        for (int k = 0; k < 3; ++k) {
+            double *v = gpu_ms + (size_t)k * frames;
+            qsort(v, frames, sizeof *v, cmp_double);
+            med[k] = frames % 2 ? v[frames / 2] : 0.5 * (v[frames / 2 - 1] + v[frames / 2]);
+        }
+        fprintf(stderr,
+                "schnee-view: GPU time per frame (timestamps, median): shadows %.3f ms, scene %.3f ms, tone map "
+                "%.3f ms, total %.3f ms\n",
+                med[0], med[1], med[2], med[0] + med[1] + med[2]);
+    }
 
     /* Drop alpha: PNG/EXR outputs are RGB. 8-bit readback holds sRGB-encoded bytes already. */
     pixels = malloc((size_t)w * h * 3 * sizeof(float));
     if (!pixels) goto done;
     for (size_t i = 0; i < (size_t)w * h; ++i)
         for (int c = 0; c < 3; ++c)
-            pixels[i * 3 + c] = exr ? ((const float *)readback.mapped)[i * 4 + c]
-                                    : ((const uint8_t *)readback.mapped)[i * 4 + c] / 255.0f;
+            pixels[i * 3 + c] = linear ? ((const float *)readback.mapped)[i * 4 + c]
+                                       : ((const uint8_t *)readback.mapped)[i * 4 + c] / 255.0f;
     pb_error err = {0};
     if (pb_image_write(opt->output, w, h, 3, pixels, &err) != PB_SUCCESS) {
         fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", opt->output, err.message);
@@ -130,6 +149,8 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
 done:
 fail:
     free(pixels);
+    free(frame_ms);
+    free(gpu_ms);
     if (ctx->device) {
         vkDeviceWaitIdle(ctx->device);
         sv_buffer_destroy(ctx, &readback);

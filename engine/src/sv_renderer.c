@@ -1183,6 +1183,28 @@ static VkFormat pick_depth_format(sv_context *ctx)
     return VK_FORMAT_D16_UNORM;
 }
 
+/* The timestamp query pool where the queue family writes timestamps (lavapipe and GPUs do). */
+static bool create_timestamps(sv_renderer *r)
+{
+    sv_context *ctx = r->ctx;
+    uint32_t n = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(ctx->physical, &n, NULL);
+    VkQueueFamilyProperties *q = calloc(n ? n : 1, sizeof *q);
+    if (!q) return false;
+    vkGetPhysicalDeviceQueueFamilyProperties(ctx->physical, &n, q);
+    uint32_t bits = ctx->queue_family < n ? q[ctx->queue_family].timestampValidBits : 0;
+    free(q);
+    if (!bits || ctx->properties.limits.timestampPeriod <= 0.0f) return true; /* no timestamps: none reported */
+    r->timestamp_mask = bits >= 64 ? ~UINT64_C(0) : (UINT64_C(1) << bits) - 1;
+    VkQueryPoolCreateInfo qi = {.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO,
+                                .queryType = VK_QUERY_TYPE_TIMESTAMP,
+                                .queryCount = SV_TIMESTAMPS};
+    VK_CHECK(vkCreateQueryPool(ctx->device, &qi, NULL, &r->timestamps));
+    return true;
+fail:
+    return false;
+}
+
 bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, const sv_probes *probes,
                         VkFormat output_format, const sv_renderer_desc *desc)
 {
@@ -1201,7 +1223,18 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
         return false;
     if (!sv_buffer_create(ctx, sizeof(sv_gpu_frame), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true, &r->frame)) return false;
     r->material_count = g->material_count + 1;
-    return create_descriptors(r, g) && create_pipelines(r);
+    return create_descriptors(r, g) && create_pipelines(r) && create_timestamps(r);
+}
+
+bool sv_renderer_gpu_times(sv_renderer *r, double ms[3])
+{
+    uint64_t t[SV_TIMESTAMPS];
+    if (!r->timestamps || vkGetQueryPoolResults(r->ctx->device, r->timestamps, 0, SV_TIMESTAMPS, sizeof t, t,
+                                                sizeof t[0], VK_QUERY_RESULT_64_BIT) != VK_SUCCESS)
+        return false;
+    double period_ms = r->ctx->properties.limits.timestampPeriod * 1e-6;
+    for (int k = 0; k < 3; ++k) ms[k] = (double)((t[k + 1] - t[k]) & r->timestamp_mask) * period_ms;
+    return true;
 }
 
 bool sv_renderer_resize(sv_renderer *r, uint32_t width, uint32_t height)
@@ -1472,9 +1505,14 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
                                           frame.shadow_view_proj[k], frame.shadow_params[k]);
     }
     memcpy(r->frame.mapped, &frame, sizeof(frame));
+    if (r->timestamps) {
+        vkCmdResetQueryPool(cmd, r->timestamps, 0, SV_TIMESTAMPS);
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, r->timestamps, 0);
+    }
     upload_slots(r, cmd);
     retrace_masks(r, cmd, scene);
     if (shadows) record_shadows(r, cmd, scene, &frame);
+    if (r->timestamps) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, r->timestamps, 1);
 
     sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                      VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
@@ -1575,6 +1613,7 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
         }
     }
     vkCmdEndRendering(cmd);
+    if (r->timestamps) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, r->timestamps, 2);
 
     sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
                      VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT,
@@ -1601,6 +1640,7 @@ void sv_renderer_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *sce
     vkCmdPushConstants(cmd, r->tonemap_layout, VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(tm), &tm);
     vkCmdDraw(cmd, 3, 1, 0, 0);
     vkCmdEndRendering(cmd);
+    if (r->timestamps) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, r->timestamps, 3);
     VkPipelineStageFlags dst_stage = out_final == VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL
                                          ? VK_PIPELINE_STAGE_TRANSFER_BIT
                                          : VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT;
@@ -1616,6 +1656,7 @@ void sv_renderer_destroy(sv_renderer *r)
     if (!ctx || !ctx->device) return;
     VkDevice dev = ctx->device;
     vkDeviceWaitIdle(dev);
+    if (r->timestamps) vkDestroyQueryPool(dev, r->timestamps, NULL);
     if (r->mesh_pipeline) vkDestroyPipeline(dev, r->mesh_pipeline, NULL);
     if (r->cells_pipeline) vkDestroyPipeline(dev, r->cells_pipeline, NULL);
     if (r->outline_pipeline) vkDestroyPipeline(dev, r->outline_pipeline, NULL);

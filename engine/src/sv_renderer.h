@@ -115,7 +115,19 @@ typedef struct sv_renderer {
     uint32_t shadow_count;    /* layers rendered, 0..SV_MAX_SHADOW_LAYERS */
     uint32_t shadow_cascades; /* layers asked for per shadowed directional light (desc.shadow_cascades) */
     sv_shadow_layer shadow_layers[SV_MAX_SHADOW_LAYERS];
+
+    /* GPU timestamps of the last recorded frame (SV_TIMESTAMPS queries: its start, after the shadow
+     * maps, after the scene pass, after tone mapping); VK_NULL_HANDLE where the queue has none. */
+    VkQueryPool timestamps;
+    uint64_t timestamp_mask; /* the queue's timestampValidBits as a mask */
 } sv_renderer;
+
+#define SV_TIMESTAMPS 4
+
+/* The GPU time of the last frame's stages in ms (timestamps; wait for the frame's fence first):
+ * ms[0] shadow maps (with the probes' slot upload and mask retrace before them), ms[1] the scene pass
+ * (sky, meshes, cells), ms[2] tone mapping to the output. False where the queue has no timestamps. */
+bool sv_renderer_gpu_times(sv_renderer *r, double ms[3]);
 
 /* Uploads the scene (geometry, materials, textures, lights) and the probes, builds pipelines for
  * `output_format`. Prints a clear message and returns false on failure (call destroy anyway). */

@@ -1,10 +1,21 @@
 /* Schnee probes — the image I/O of pb_image.h for builds without OpenImageIO (the Python module that
- * runs inside Blender). Every call reports that this build reads and writes no image files; callers
- * hand pixels in memory instead (pb_sh_project_equirect), read through Blender or the add-on's EXR
- * reader. */
+ * runs inside Blender, schnee-view-noimage). Reading reports that this build reads no image files;
+ * callers hand pixels in memory instead (pb_sh_project_equirect), read through Blender or the
+ * add-on's EXR reader. Writing knows one format, PFM (Portable Float Map: 1 or 3 float channels,
+ * little-endian, rows bottom to top), so a viewer without OpenImageIO can still hand back its frames
+ * losslessly; any other extension is refused. */
 #include "schnee/pb_image.h"
 
+#include <errno.h>
+#include <stdio.h>
 #include <string.h>
+#include <unistd.h>
+
+static int ends_with_pfm(const char *path)
+{
+    size_t n = strlen(path);
+    return n >= 4 && (strcmp(path + n - 4, ".pfm") == 0 || strcmp(path + n - 4, ".PFM") == 0);
+}
 
 pb_result pb_image_read(const char *path, pb_image *out, pb_error *err)
 {
@@ -16,12 +27,28 @@ pb_result pb_image_read(const char *path, pb_image *out, pb_error *err)
 pb_result pb_image_write(const char *path, uint32_t width, uint32_t height, uint32_t channels, const float *pixels,
                          pb_error *err)
 {
-    (void)width;
-    (void)height;
-    (void)channels;
-    (void)pixels;
-    return pb_error_set(err, PB_ERROR_IO, "%s: this build of the bake core has no image writer (no OpenImageIO)",
-                        path ? path : "(null)");
+    if (!path || !pixels || width == 0 || height == 0)
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_image_write: no path, pixels or size");
+    if (!ends_with_pfm(path))
+        return pb_error_set(err, PB_ERROR_IO,
+                            "%s: this build of the bake core writes PFM only (no OpenImageIO); name a .pfm file", path);
+    if (channels != 1 && channels != 3)
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "%s: PFM holds 1 or 3 channels, not %u", path, channels);
+    char tmp[4096];
+    if (snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid()) >= (int)sizeof tmp)
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "%s: path too long", path);
+    FILE *f = fopen(tmp, "wb");
+    if (!f) return pb_error_set(err, PB_ERROR_IO, "%s: cannot create: %s", tmp, strerror(errno));
+    int ok = fprintf(f, "%s\n%u %u\n-1.0\n", channels == 3 ? "PF" : "Pf", width, height) > 0;
+    for (uint32_t y = height; ok && y-- > 0;) /* bottom row first; -1.0: little-endian (x86, Arm) */
+        ok = fwrite(pixels + (size_t)y * width * channels, sizeof(float) * channels, width, f) == width;
+    ok = (fclose(f) == 0) && ok;
+    if (!ok || rename(tmp, path) != 0) {
+        int e = errno;
+        unlink(tmp);
+        return pb_error_set(err, PB_ERROR_IO, "%s: cannot write: %s", path, strerror(e));
+    }
+    return PB_SUCCESS;
 }
 
 void pb_image_free(pb_image *image)

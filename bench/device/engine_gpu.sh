@@ -1,0 +1,78 @@
+#!/bin/bash
+# The engine's frame time on a lent GPU machine (bench/results/engine_gpu.md). Runs THERE, from the repo
+# root, over what bench/device/prep_engine_gpu.py put into DIR (default .devgpu, carried with the call),
+# after the Vulkan loader's packages in .gl (/work/.library/device/README.md) are unpacked:
+#   for f in .gl/*.deb; do dpkg -x $f /; done; ldconfig; bash bench/device/engine_gpu.sh
+# Writes $OUT/engine_gpu.log (every run's timing lines, tagged) and $OUT/frame.pfm (the frame that
+# prep_engine_gpu.py compare checks against lavapipe's).
+set -u
+DIR=${1:-.devgpu}
+OUT=${OUT:-/tmp/engine_gpu_out}
+FRAMES=${FRAMES:-60}
+ROUNDS=${ROUNDS:-2}
+mkdir -p "$OUT"
+LOG=$OUT/engine_gpu.log
+export LD_LIBRARY_PATH=$PWD/$DIR/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
+for f in /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json /usr/share/vulkan/icd.d/nvidia_icd.json \
+         /etc/vulkan/icd.d/nvidia_icd.json; do
+    if [ -f "$f" ]; then export VK_DRIVER_FILES=$f VK_ICD_FILENAMES=$f; break; fi
+done
+VIEW=$DIR/bin/schnee-view-noimage
+S=$DIR/scenes
+{
+    echo "# $(date -u +%FT%TZ) $(uname -r); ICD ${VK_DRIVER_FILES:-none found}"
+    nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,memory.total --format=csv,noheader 2>&1
+    nproc
+} >"$LOG"
+
+run() { # tag scene args...
+    local tag=$1 scene=$2
+    shift 2
+    local err
+    err=$("$VIEW" "$scene" --headless --output "$OUT/t.pfm" --frames "$FRAMES" "$@" 2>&1 >/dev/null)
+    local rc=$?
+    echo "$err" | grep -E "device |frame\(s\) at|GPU time|warning|error" | sed "s|^|$tag rc=$rc: |" >>"$LOG"
+}
+
+HD="--width 1920 --height 1080"
+# bin/schnee-view-noimage.old, when there (prep_engine_gpu.py prep --old BINARY), runs the scene-pass
+# configurations too, interleaved with the current build on the same machine.
+BINS="$VIEW"
+[ -x "$VIEW.old" ] && BINS="$VIEW.old $VIEW"
+# SET=repr: the probe representations instead (bench_engine_representations.py's configurations on the
+# v1 grid room, --no-direct), current build only.
+if [ "${SET:-shader}" = repr ]; then
+    for r in $(seq "$ROUNDS"); do
+        for m in object pixel; do
+            for st in float half; do
+                for rep in sh ambientCube; do
+                    run "r$r new $m-$rep-$st" "$S/room.gltf" $HD --probe-mode $m --probe-representation $rep \
+                        --probe-storage $st --no-direct --shadow-res 0
+                done
+            done
+        done
+    done
+    cat "$LOG"
+    exit 0
+fi
+for r in $(seq "$ROUNDS"); do
+    for b in $BINS; do
+        VIEW=$b
+        v=new
+        [ "${b%.old}" != "$b" ] && v=old
+        run "r$r $v grid-object" "$S/room.gltf" $HD --probe-mode object --shadow-res 0
+        run "r$r $v grid-pixel" "$S/room.gltf" $HD --probe-mode pixel --shadow-res 0
+        run "r$r $v octree-object" "$S/room_v3.gltf" $HD --probe-mode object --shadow-res 0
+        run "r$r $v octree-pixel" "$S/room_v3.gltf" $HD --probe-mode pixel --shadow-res 0
+    done
+    VIEW=$DIR/bin/schnee-view-noimage
+    run "r$r new debug-normals" "$S/room_v3.gltf" $HD --debug normals --shadow-res 0
+    run "r$r new octree-pixel-lamp" "$S/room_v3.gltf" $HD --probe-mode pixel
+    run "r$r new octree-pixel-lamp-sun-c1" "$S/room_v3_sun.gltf" $HD --probe-mode pixel --shadow-cascades 1
+    run "r$r new octree-pixel-lamp-sun-c4" "$S/room_v3_sun.gltf" $HD --probe-mode pixel --shadow-cascades 4
+done
+# The frame prep_engine_gpu.py compares (its FRAME_ARGS), linear HDR.
+"$VIEW" "$S/room_v3_sun.gltf" --headless --output "$OUT/frame.pfm" --width 640 --height 360 --probe-mode pixel \
+    >>"$LOG" 2>&1
+rm -f "$OUT/t.pfm"
+cat "$LOG"
