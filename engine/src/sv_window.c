@@ -219,7 +219,7 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
                       0.25f * fmaxf(scene->aabb_max[0] - scene->aabb_min[0], scene->aabb_max[2] - scene->aabb_min[2]));
 
     uint32_t selected = 0, frame = 0;
-    double last = sv_now_ms(), title_time = last, ms_avg = 0.0;
+    double last = sv_now_ms(), title_time = last, ms_avg = 0.0, gpu_avg = 0.0; /* gpu_avg: timestamps, 0 = none */
     double mouse_x = 0, mouse_y = 0;
     bool dragging = false, prev_p = false, prev_c = false, prev_n = false, prev_m = false;
     while (!glfwWindowShouldClose(win)) {
@@ -308,15 +308,22 @@ int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, con
             char title[256];
             const sv_object *o = &scene->objects[selected];
             const char *mode = sv_probe_mode_name(view.probe_mode);
+            char gpu_ms[32] = "";
+            if (gpu_avg > 0.0) snprintf(gpu_ms, sizeof gpu_ms, ", GPU %.2f ms", gpu_avg);
             snprintf(title, sizeof(title),
-                     "schnee-view - %.2f ms (%.0f fps) - %s%s, probe mode %s - object '%s' probe %u", ms_avg,
-                     1000.0 / ms_avg, view.debug_mode == SV_DEBUG_PROBE_COLOR ? "probe colours" : "shaded",
+                     "schnee-view - %.2f ms (%.0f fps%s) - %s%s, probe mode %s - object '%s' probe %u", ms_avg,
+                     1000.0 / ms_avg, gpu_ms, view.debug_mode == SV_DEBUG_PROBE_COLOR ? "probe colours" : "shaded",
                      view.show_cells ? " + probe view" : "", mode ? mode : "?", o->name, o->probe);
             glfwSetWindowTitle(win, title);
             title_time = now;
         }
 
         VK_CHECK(vkWaitForFences(ctx->device, 1, &fence, VK_TRUE, UINT64_MAX));
+        double stage[3]; /* the previous frame is done: its GPU time, smoothed like the frame time */
+        if (frame > 0 && sv_renderer_gpu_times(r, stage)) {
+            double g = stage[0] + stage[1] + stage[2];
+            gpu_avg = gpu_avg > 0.0 ? 0.9 * gpu_avg + 0.1 * g : g;
+        }
         uint32_t image = 0;
         VkResult acq = vkAcquireNextImageKHR(ctx->device, sc.handle, UINT64_MAX, acquired, VK_NULL_HANDLE, &image);
         if (acq == VK_ERROR_OUT_OF_DATE_KHR) {
