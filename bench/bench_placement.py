@@ -58,6 +58,9 @@ def main():
     ap.add_argument("--predict", type=float, nargs="+", default=[adaptive.PREDICT],
                     help="adaptive.PREDICT factors of the adaptive bakes (default: the add-on's; 0 = every "
                          "child tested; each tolerance x tests is baked with each)")
+    ap.add_argument("--retest", type=int, nargs="+", default=[adaptive.RETEST],
+                    help="adaptive.RETEST sample factors of the adaptive bakes (default: the add-on's; 1 = no "
+                         "re-tests; each tolerance x tests x predict is baked with each)")
     ap.add_argument("--points", type=int, default=64)
     ap.add_argument("--ref-samples", type=int, default=128)
     ap.add_argument("--ref-res", type=int, default=None,
@@ -133,9 +136,11 @@ def main():
     out["floor_point_errors"] = [round(float(e), 5) for e in error(floor)]
     out["points_blender"] = blender_pts.round(4).tolist()
 
-    for tol, tests, pred in [(tol, tests, pred) for tol in a.tolerance for tests in a.tests for pred in a.predict]:
-        path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}_{pred:g}.shprobe")
+    for tol, tests, pred, rt in [(tol, tests, pred, rt) for tol in a.tolerance for tests in a.tests
+                                 for pred in a.predict for rt in a.retest]:
+        path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}_{pred:g}_{rt}.shprobe")
         adaptive.PREDICT = pred
+        adaptive.RETEST = rt
         b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", error_tolerance=tol,
                                                        refinement_tests=tests, output_path=path), log=print)
         t, cpu = time.perf_counter(), cpu_seconds()
@@ -145,7 +150,7 @@ def main():
         got = native.interpolation_from_file(path).interpolate(engine_pts, f.coeffs, f.validity)
         err = error(got)
         out["rows"].append({"placement": "adaptive", "tolerance": tol, "tests": tests, "predict": pred,
-                            "seconds": sec,
+                            "retest": rt, "seconds": sec,
                             "cpu_seconds": cpu,
                             "probes": r.probe_count, "render_seconds": r.timings["render"],
                             "renders": r.renders, "passes": [vars(p) for p in r.passes],
@@ -160,7 +165,8 @@ def main():
             got_t = tet.interpolate(engine_pts, np.asarray(f.coeffs)[keep])
             err_t = error(got_t)
             out["rows"].append({"placement": "adaptive", "interpolation": "tetrahedra", "tolerance": tol,
-                                "tests": tests, "predict": pred, "probes": int(keep.sum()), "renders": r.renders,
+                                "tests": tests, "predict": pred, "retest": rt, "probes": int(keep.sum()),
+                                "renders": r.renders,
                                 "cpu_seconds": cpu, "seconds": sec, "error": stats(err_t),
                                 "point_errors": [round(float(e), 5) for e in err_t]})
             print("ROW", json.dumps(out["rows"][-1]), flush=True)

@@ -14,7 +14,9 @@ decides where. The algorithm is docs/placement.md, "Error-driven refinement"; th
    baked, edge midpoints: new) are baked; back to 2 until nothing splits or every leaf is at Min Cell
    Size. Children predicted to pass (PREDICT: their parent's error next to them, over the rate the
    error was measured falling per halving; no rate where the noise sets the threshold,
-   PREDICT_NOISE) are never tested (docs/placement.md, step 4a).
+   PREDICT_NOISE) are never tested (docs/placement.md, step 4a). A leaf left unsplit only because the
+   noise raised its threshold (a test erred by more than the tolerance) has those tests rendered
+   again with RETEST × the samples and is decided again (docs/placement.md, step 3a).
 
 Points inside solid geometry (the placement's solid test: more than ``SOLID_RATIO`` of 64 rays hit
 back faces) are never rendered: as probes they get validity 0 (left out of the interpolation), as
@@ -58,6 +60,16 @@ PREDICT = 4.0
 # such rates settled children 3–5 % off; bench/results/placement.md). There a child passes
 # untested only where its parent passed next to it, as before a rate is known.
 PREDICT_NOISE = 1.5
+# Inconclusive tests are rendered again (docs/placement.md step 3a): where a leaf did not split but a
+# test of it erred by more than Error Tolerance, and the leaf's threshold sqrt(tol² + (2σ)²) is above
+# RETEST_NOISE × tol (the noise, not the light, let it pass), each such test point is rendered once
+# more with (RETEST − 1) × Samples (seeds Seed + 2, Seed + 3; journal flag RETEST_FLAG) and combined
+# with its first render: RETEST × the samples, half the noise at RETEST = 4. The leaf is then decided
+# again on the combined values (a split stays a split). 1 = no re-tests. Measured in
+# bench/results/placement.md.
+RETEST = 4
+RETEST_NOISE = 1.2
+RETEST_FLAG = 1             # journal key flags of a re-test render (docs/farm.md "Journal file")
 # The direct-light check of a leaf (AdaptiveGroup.direct_check) samples the lamps' exact direct term
 # on this many steps per axis of the leaf (5³ − 8 points; fewer where that is finer than Min Cell).
 DIRECT_DIVISIONS = 4
@@ -120,6 +132,18 @@ def combine_halves(a: np.ndarray, b: np.ndarray, s1: int, s2: int):
     return mean, noise
 
 
+def combine_retest(a: np.ndarray, noise_a: float, b: np.ndarray, noise_b: float, factor: float):
+    """(value, relative noise) of a point from its first render ``a`` (Samples, relative noise σ_a of
+    that mean) and a re-test render ``b`` of ``factor`` × the samples (σ_b): the sample-weighted mean,
+    and σ of it from the pooled per-sample variance of the two estimates, (σ_a²·S + σ_b²·fS) / 2
+    over (1 + f)·S samples."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    mean = (a + factor * b) / (1.0 + factor)
+    var = (noise_a * noise_a + factor * noise_b * noise_b) / (2.0 * (1.0 + factor))
+    return mean, math.sqrt(var)
+
+
 def _rel(d: np.ndarray, ref: np.ndarray) -> float:
     den, num = float(irradiance_norm(ref)), float(irradiance_norm(d))
     return num / den if den > 0 else 0.0
@@ -138,12 +162,18 @@ def lattice_frame(volume_vertices: np.ndarray, min_cell: float, max_cell: float)
     return lo, level, dims
 
 
+def stages_per_pass(retest: int) -> int:
+    """Stages of one refinement pass: its probes, its tests and, with re-tests (RETEST > 1), the
+    inconclusive tests again."""
+    return 3 if retest > 1 else 2
+
+
 def stage_bound(min_cell: float, max_cell: float) -> int:
-    """An upper bound of the stages (probe bakes and test bakes) of any group's refinement with
-    these cell sizes (AdaptiveGroup.stage_count before the group exists): the farm submits one job
-    array per stage."""
+    """An upper bound of the stages (probe bakes, test bakes, re-test bakes) of any group's
+    refinement with these cell sizes (AdaptiveGroup.stage_count before the group exists): the farm
+    submits one job array per stage."""
     level = min(20, max(0, int(math.floor(math.log2(max_cell / min_cell) + 1e-9))))
-    return 2 * level + 1
+    return stages_per_pass(RETEST) * level + 1
 
 
 def centre_only(tests: "native.RefineTests") -> "native.RefineTests":
@@ -240,6 +270,10 @@ class PointCache:
         self.noise = np.zeros(0, dtype=np.float32)
         self.ratio = np.zeros(0, dtype=np.float32)       # solid test's back-face ratio
         self.rendered = np.zeros(0, dtype=bool)
+        # Re-tests (RETEST): entry k of a point renders factor[k] × Samples (0: the point's own
+        # render, Samples); retest_of maps a point's index to its re-test entry.
+        self.factor = np.zeros(0, dtype=np.int32)
+        self.retest_of = {}
 
     def __len__(self):
         return len(self.positions)
@@ -275,8 +309,39 @@ class PointCache:
         self.noise = np.concatenate([self.noise, np.zeros(len(new), dtype=np.float32)])
         self.ratio = np.concatenate([self.ratio, ratio])
         self.rendered = np.concatenate([self.rendered, np.zeros(len(new), dtype=bool)])
+        self.factor = np.concatenate([self.factor, np.zeros(len(new), dtype=np.int32)])
         todo = [first + i for i in range(len(new)) if ratio[i] <= SOLID_RATIO]
         return out, todo
+
+    def retest(self, idx, factor: int) -> List[int]:
+        """Re-test entries for the points ``idx`` (each rendered once more with ``factor`` × Samples, at
+        the same render position; at most one per point): returns the new entries to render."""
+        new = [int(i) for i in dict.fromkeys(int(i) for i in np.asarray(idx).reshape(-1))
+               if int(i) not in self.retest_of and not self.solid(int(i))]
+        if not new:
+            return []
+        first = len(self.positions)
+        for k, i in enumerate(new):
+            self.retest_of[i] = first + k
+        self.positions = np.concatenate([self.positions, self.positions[new]])
+        self.coeffs = np.concatenate([self.coeffs, np.zeros((len(new), self.count_coeffs, 3))])
+        self.noise = np.concatenate([self.noise, np.zeros(len(new), dtype=np.float32)])
+        self.ratio = np.concatenate([self.ratio, self.ratio[new]])
+        self.rendered = np.concatenate([self.rendered, np.zeros(len(new), dtype=bool)])
+        self.factor = np.concatenate([self.factor, np.full(len(new), factor, dtype=np.int32)])
+        return list(range(first, first + len(new)))
+
+    def values(self, idx) -> Tuple[np.ndarray, np.ndarray]:
+        """(coefficients, relative noise) of points ``idx``: a point with a rendered re-test combines
+        both renders (:func:`combine_retest`), any other its own render."""
+        idx = np.asarray(idx, dtype=np.int64).reshape(-1)
+        coeffs, noise = self.coeffs[idx].copy(), self.noise[idx].astype(np.float64)
+        for k, i in enumerate(idx):
+            r = self.retest_of.get(int(i))
+            if r is not None and self.rendered[r]:
+                coeffs[k], noise[k] = combine_retest(self.coeffs[i], float(self.noise[i]), self.coeffs[r],
+                                                     float(self.noise[r]), float(self.factor[r]))
+        return coeffs, noise.astype(np.float32)
 
     def solid(self, idx) -> np.ndarray:
         return self.ratio[idx] > SOLID_RATIO
@@ -297,13 +362,15 @@ class PassRecord:
     tests: int = 0
     split: int = 0
     predicted: int = 0      # leaves not tested: predicted to pass from their parent's error (PREDICT)
+    retests: int = 0        # test points rendered again (RETEST)
     direct_split: int = 0   # leaves split by the lamps' exact direct light alone (no test flagged them)
 
 
 class AdaptiveGroup:
     """The corner octree of one output file (the union of the volumes, or one volume) and where its
-    refinement stands: ``stage`` "probes" (the tree's probes are being baked) or "tests" (test points
-    are being baked), ``finished`` when nothing splits any more."""
+    refinement stands: ``stage`` "probes" (the tree's probes are being baked), "tests" (test points
+    are being baked) or "retest" (inconclusive test points are being baked again, RETEST),
+    ``finished`` when nothing splits any more."""
 
     def __init__(self, name: str, path: str, volumes, geometry, min_cell: float, max_cell: float,
                  tolerance: float, tests: str = "CENTRE_FACES",
@@ -332,6 +399,8 @@ class AdaptiveGroup:
         self.probe_index = None     # cache index per tree probe
         self.last_errors = None
         self.predict = float(PREDICT)
+        self.retest = int(RETEST)   # samples factor of a re-test (1: none); bench_placement.py --retest
+        self._first_split = None    # the split decided before this pass's re-tests
         self.settled = set()        # leaf keys (x, y, z, level) predicted to pass: never tested
         self.parent_ratio = {}      # leaf key -> its parent's error over threshold next to it
         self.parent_rate = {}       # leaf key -> the rate its parent's error fell by (when measured)
@@ -456,7 +525,24 @@ class AdaptiveGroup:
             self.passes[-1].tests = int(need.sum())
             self.stage = "tests"
             return todo
-        # stage "tests": decide, split, request the new probes
+        if self.stage == "tests" and self.retest > 1:
+            split, err, thr, pc, tc, tv = self._decide(cache)
+            todo = self._retests(cache, split, err, thr, pc, tc, tv)
+            if todo:
+                self._first_split = split
+                self.stage = "retest"
+                return todo
+            return self._conclude(cache, split, err, thr, pc, tc, tv)
+        # stage "tests" (no re-tests) or "retest" (its renders done): decide, split, request the new probes
+        split, err, thr, pc, tc, tv = self._decide(cache)
+        if self.stage == "retest":
+            split = split | self._first_split   # a split stays a split
+            self._first_split = None
+        return self._conclude(cache, split, err, thr, pc, tc, tv)
+
+    def _decide(self, cache: PointCache):
+        """refine_decide on the current tests: (split, worst error, its threshold, probe values, test
+        values, test valid), every value as a moving object sees it (:meth:`seen`)."""
         tests = self.tests
         pidx = self.probe_index
         need = tests.probe < 0
@@ -471,6 +557,34 @@ class AdaptiveGroup:
             tests, probe_coeffs, test_coeffs, probe_noise=probe_noise, test_noise=test_noise,
             probe_validity=cache.validity(pidx), test_valid=test_valid, tolerance=self.tolerance,
             noise_k=NOISE_K)
+        return split, err, thr, probe_coeffs, test_coeffs, test_valid
+
+    def _retests(self, cache: PointCache, split, err, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
+        """Re-test entries to render (RETEST): the test points erring by more than the tolerance in
+        leaves that did not split only because the noise raised their threshold above RETEST_NOISE ×
+        the tolerance. The decision on the lamps' direct light needs no re-test."""
+        leaves = self.tree.info()["leaves"]
+        direct = self._direct_split if self._direct_split is not None else np.zeros(len(leaves), dtype=bool)
+        doubt = (~split & ~direct & (leaves[:, 3] > 0) & (np.asarray(err) > self.tolerance)
+                 & (np.asarray(thr) > RETEST_NOISE * self.tolerance))
+        if not doubt.any():
+            return []
+        tests = self.tests
+        interp = self.tree.interpolate(tests.positions, probe_coeffs, cache.validity(self.probe_index))
+        err_t = np.nan_to_num(irradiance_error(interp, test_coeffs))
+        pick = np.zeros(len(tests.positions), dtype=bool)
+        cols = tests.leaf_tests[doubt]
+        cols = cols[cols >= 0]
+        pick[cols] = True
+        pick &= (tests.probe < 0) & np.asarray(test_valid, dtype=bool) & (err_t > self.tolerance)
+        if not pick.any():
+            return []
+        todo = cache.retest(self.test_index[pick], self.retest - 1)
+        self.passes[-1].retests += len(todo)
+        return todo
+
+    def _conclude(self, cache: PointCache, split, err, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
+        """The pass's decision made: record it, predict the children that pass, split."""
         self.last_errors = (err, thr)
         if self._direct_split is not None:
             self.passes[-1].direct_split = int((self._direct_split & ~split).sum())
@@ -482,7 +596,8 @@ class AdaptiveGroup:
             self.finished = True
             return []
         if self.predict > 0:
-            self._settle_children(split, thr, probe_coeffs, cache.validity(pidx), test_coeffs, test_valid)
+            self._settle_children(split, thr, probe_coeffs, cache.validity(self.probe_index), test_coeffs,
+                                  test_valid)
         self.tests = self.test_index = None
         return self._split(split, cache)
 
@@ -491,7 +606,8 @@ class AdaptiveGroup:
         point's value plus the mixed lamps' exact direct light there (engine_direct; nothing without
         one), its noise rescaled to that total (the noise is absolute: σ‖A·c‖ / ‖A·(c + d)‖)."""
         idx = np.asarray(idx, dtype=np.int64).reshape(-1)
-        coeffs, noise = cache.coeffs[idx], cache.noise[idx].astype(np.float64)
+        coeffs, noise = cache.values(idx)
+        noise = noise.astype(np.float64)
         if self.engine_direct is None or len(idx) == 0:
             return coeffs, noise.astype(np.float32)
         missing = sorted({int(i) for i in idx if int(i) not in self._engine_of})
@@ -622,11 +738,12 @@ class AdaptiveGroup:
 
     def stage_count(self) -> int:
         """An upper bound of the stages (probe bakes and test bakes) of this group's refinement."""
-        return 2 * self.root_level + 1
+        return stages_per_pass(self.retest) * self.root_level + 1
 
     def stage_index(self) -> int:
-        return 2 * (len(self.passes) - 1) + (1 if self.stage == "tests" else 0)
+        within = {"probes": 0, "tests": 1, "retest": 2}[self.stage]
+        return stages_per_pass(self.retest) * (len(self.passes) - 1) + within
 
     def probe_values(self, cache: PointCache):
         """(coeffs (P, C, 3), validity (P,)) of the finished tree's probes."""
-        return cache.coeffs[self.probe_index], cache.validity(self.probe_index)
+        return cache.values(self.probe_index)[0], cache.validity(self.probe_index)

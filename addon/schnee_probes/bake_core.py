@@ -541,6 +541,7 @@ class ProbeBake:
                 if len(g.passes) > before:
                     prev, rec = g.passes[-2], g.passes[-1]
                     extra = "".join([f", {prev.predicted} predicted to pass" if prev.predicted else "",
+                                     f", {prev.retests} re-tested" if prev.retests else "",
                                      f", {prev.direct_split} split by the lamps' direct light"
                                      if prev.direct_split else ""])
                     self.log(f"Schnee: '{g.name}': pass {prev.pass_index}: {prev.split} of {prev.leaves} "
@@ -639,7 +640,9 @@ class ProbeBake:
         while self.done < self.total:
             i = self._todo[self.done]
             pos = self._cache.positions[i] if self.adaptive else self.positions[i]
-            key = journal.key_of(pos) if self._journal is not None else None
+            retest = self.adaptive and self._cache.factor[i] > 0
+            key = (journal.key_of(pos, adaptive.RETEST_FLAG if retest else 0)
+                   if self._journal is not None else None)
             rendered = False
             if key is not None and key in self._known:
                 self._store(i, self._known[key], self._known_noise[key])
@@ -681,12 +684,16 @@ class ProbeBake:
             # point's Monte-Carlo noise, which the refinement must not mistake for light changing.
             # Cycles' persistent data ignores changed integrator settings unless the scene is
             # tagged (measured: identical renders for seeds 0 and 1 without update_tag).
-            s1, s2 = adaptive.split_samples(s.samples)
+            # A re-test (adaptive.RETEST) renders factor × the samples with seeds of its own, so it
+            # is independent of the point's first render, which it is combined with.
+            factor = int(self._cache.factor[i])
+            seed = s.seed + (2 if factor > 0 else 0)
+            s1, s2 = adaptive.split_samples(s.samples * max(factor, 1))
             cycles = self.scene.cycles
-            cycles.samples, cycles.seed = s1, s.seed
+            cycles.samples, cycles.seed = s1, seed
             self.scene.update_tag()
             a = self._render_point(pos, i)
-            cycles.samples, cycles.seed = s2, s.seed + 1
+            cycles.samples, cycles.seed = s2, seed + 1
             self.scene.update_tag()
             b = self._render_point(pos, i)
             cycles.samples, cycles.seed = s.samples, s.seed

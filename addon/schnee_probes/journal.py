@@ -30,7 +30,7 @@ VERSION = 1
 HEADER = struct.Struct("<8sIIIIII32s")  # magic, version, coeff count, channels, shard k, shard n, manifest bytes, fingerprint
 MAX_MANIFEST_BYTES = 1 << 16
 MAX_RECORDS = 1 << 24  # the .shprobe probe limit (PB_SHPROBE_MAX_PROBES)
-KEY = struct.Struct("<3dI")  # position (engine space), flags (0; reserved)
+KEY = struct.Struct("<3dI")  # position (engine space), flags (0: the point's render; 1: its re-test)
 CHANNELS = 3
 
 
@@ -47,10 +47,11 @@ def fingerprint_of(parts: Dict[str, str]) -> bytes:
     return h.digest()
 
 
-def key_of(position) -> bytes:
-    """The record key of a probe at ``position`` (engine space, metres): its float64 bits."""
+def key_of(position, flags: int = 0) -> bytes:
+    """The record key of a probe at ``position`` (engine space, metres): its float64 bits and
+    ``flags`` (0: the point's own render; 1: its re-test render, adaptive.RETEST_FLAG)."""
     x, y, z = (float(c) for c in position)
-    return KEY.pack(x, y, z, 0)
+    return KEY.pack(x, y, z, int(flags))
 
 
 def record_size(coeff_count: int) -> int:
