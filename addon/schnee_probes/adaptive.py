@@ -14,9 +14,9 @@ decides where. The algorithm is docs/placement.md, "Error-driven refinement"; th
    baked, edge midpoints: new) are baked; back to 2 until nothing splits or every leaf is at Min Cell
    Size. Children predicted to pass (PREDICT: their parent's error next to them, over the rate the
    error was measured falling per halving; no rate where the noise sets the threshold,
-   PREDICT_NOISE) are never tested (docs/placement.md, step 4a). A leaf left unsplit only because the
-   noise raised its threshold (a test erred by more than the tolerance) has those tests rendered
-   again with RETEST × the samples and is decided again (docs/placement.md, step 3a).
+   PREDICT_NOISE) are never tested (docs/placement.md, step 4a). With RETEST > 1 (off by default), a
+   leaf left unsplit only because the noise raised its threshold has its erring tests rendered again
+   with RETEST × the samples and is decided again (docs/placement.md, step 3a).
 
 Points inside solid geometry (the placement's solid test: more than ``SOLID_RATIO`` of 64 rays hit
 back faces) are never rendered: as probes they get validity 0 (left out of the interpolation), as
@@ -65,9 +65,10 @@ PREDICT_NOISE = 1.5
 # RETEST_NOISE × tol (the noise, not the light, let it pass), each such test point is rendered once
 # more with (RETEST − 1) × Samples (seeds Seed + 2, Seed + 3; journal flag RETEST_FLAG) and combined
 # with its first render: RETEST × the samples, half the noise at RETEST = 4. The leaf is then decided
-# again on the combined values (a split stays a split). 1 = no re-tests. Measured in
-# bench/results/placement.md.
-RETEST = 4
+# again on the combined values (a split stays a split). 1 = no re-tests, the default: measured in the
+# room at 16 spp (bench/results/placement.md) re-tests cost 37 % more CPU for the same error
+# (2.10 vs 2.11 %), in the courtyard nothing was re-tested; bench_placement.py --retest 4 measures it.
+RETEST = 1
 RETEST_NOISE = 1.2
 RETEST_FLAG = 1             # journal key flags of a re-test render (docs/farm.md "Journal file")
 # The direct-light check of a leaf (AdaptiveGroup.direct_check) samples the lamps' exact direct term

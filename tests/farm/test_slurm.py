@@ -22,8 +22,8 @@ from slurm_cluster import SlurmCluster  # noqa: E402
 
 pytestmark = requires_native
 SCRIPTS = REPO / "tests" / "blender" / "scripts"
-# Adaptive placement from 1 m cells down to 0.5 m: at most 4 stages (first layer, tests, re-tests,
-# finer probes; adaptive.stage_bound), so 4 chained job arrays.
+# Adaptive placement from 1 m cells down to 0.5 m: 3 stages (first layer, tests, finer probes), so 3
+# chained job arrays.
 BAKE_ARGS = ["--min-cell-size", "0.5", "--max-cell-size", "1", "--panorama-resolution", "16", "--samples", "2"]
 
 
@@ -53,10 +53,9 @@ def test_farm_bake_with_a_requeued_task_equals_a_local_bake(cluster, tmp_path):
 
     proc = run_blender(REPO / "bake.py", *BAKE_ARGS, "--farm", "slurm", "--shards", "2",
                        blend=farm / "scene.blend", env={"SLURM_CONF": cluster.env["SLURM_CONF"]})
-    m = re.search(r"submitted 4 shard array\(s\) (\d+), (\d+), (\d+), (\d+) \(2 tasks each.* merge job (\d+)",
-                  proc.stdout)
+    m = re.search(r"submitted 3 shard array\(s\) (\d+), (\d+), (\d+) \(2 tasks each.* merge job (\d+)", proc.stdout)
     assert m, proc.stdout[-2000:]
-    array, merge = m.group(1), m.group(5)
+    array, merge = m.group(1), m.group(4)
     out = farm / "sh_coeffs"
     assert (out / "probes.shprobe.farm" / "shards.sbatch").exists()
 

@@ -109,7 +109,7 @@ def test_shadow_plane_refines_only_the_cells_it_crosses(tests):
 
 
 @pytest.mark.parametrize("tests", adaptive.TEST_MODES)
-def test_linear_field_and_bounded_noise_split_nothing(tests):
+def test_linear_field_and_bounded_noise_split_nothing(tests, monkeypatch):
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests)
     drive(group, lambda p: np.array([sh_of(1.0 + 0.2 * x, 0.5) for x in p[:, 0]]))
     assert len(group.passes) == 1 and group.passes[0].split == 0
@@ -117,6 +117,7 @@ def test_linear_field_and_bounded_noise_split_nothing(tests):
     # The noise re-tests the leaves it lets pass (adaptive.RETEST), and they pass again: a re-test
     # lowers the noise, it does not make noise split.
     rng = np.random.default_rng(5)
+    monkeypatch.setattr(adaptive, "RETEST", 4)
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests)
     drive(group, lambda p: np.array([sh_of(1.0, 0.0) for _ in p]), noise=0.05,
           jitter=lambda p, scale: np.array([sh_of(1.0, 0.0) * rng.uniform(-0.08, 0.08) * scale for _ in p]))
@@ -267,7 +268,7 @@ def test_prediction_measures_no_rate_where_the_noise_sets_the_threshold(monkeypa
     # passes untested only where its parent passed next to it. The quadratic field at tol 0.05:
     # σ = 0.02 gives a threshold of 0.064 (< 0.075, rates measured), σ = 0.03 one of 0.078 (none).
     monkeypatch.setattr(adaptive, "PREDICT", 4.0)
-    monkeypatch.setattr(adaptive, "RETEST", 1)   # re-tests lower the thresholds they look at
+    assert adaptive.RETEST == 1   # the default: re-tests would lower the thresholds looked at here
     assert adaptive.PREDICT_NOISE == 1.5
 
     def run(noise):

@@ -23,8 +23,8 @@ const JOB_TYPE = {
             default: 11,
             required: true,
             visible: "submission",
-            description: "Placement stages: 3 x floor(log2(Max / Min Cell Size)) + 1 for Adaptive placement " +
-                "(16 at the defaults 0.5 / 16 m; bake.py --farm prints it), 1 for the geometry octree. " +
+            description: "Placement stages: 2 x floor(log2(Max / Min Cell Size)) + 1 for Adaptive placement " +
+                "(11 at the defaults 0.5 / 16 m; bake.py --farm prints it), 1 for the geometry octree. " +
                 "More than needed costs only a quick task per shard.",
         },
         {
