@@ -65,9 +65,10 @@ PREDICT_NOISE = 1.5
 # RETEST_NOISE × tol (the noise, not the light, let it pass), each such test point is rendered once
 # more with (RETEST − 1) × Samples (seeds Seed + 2, Seed + 3; journal flag RETEST_FLAG) and combined
 # with its first render: RETEST × the samples, half the noise at RETEST = 4. The leaf is then decided
-# again on the combined values (a split stays a split). 1 = no re-tests, the default: measured in the
-# room at 16 spp (bench/results/placement.md) re-tests cost 37 % more CPU for the same error
-# (2.10 vs 2.11 %), in the courtyard nothing was re-tested; bench_placement.py --retest 4 measures it.
+# again on the combined values (a split stays a split). 1 = no re-tests, the default: measured at 16 spp
+# (bench/results/placement.md) re-tests cost the room 37 % more CPU for the same error (2.10 vs
+# 2.11 %), re-tested nothing in the courtyard, and gave the hall 2.71 vs 3.02 % for 1.3× the points,
+# where testing every child gives 2.79 % for 1.1×; bench_placement.py --retest 4 measures them.
 RETEST = 1
 RETEST_NOISE = 1.2
 RETEST_FLAG = 1             # journal key flags of a re-test render (docs/farm.md "Journal file")
