@@ -8,6 +8,7 @@
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -121,4 +122,73 @@ const char *pb_format_double_(double v, char *buf, size_t n)
     if (isinf(v)) return v > 0 ? "inf" : "-inf";
     snprintf(buf, n, "%g", v);
     return buf;
+}
+
+pb_result pb_write_atomic_(const char *path, const void *data, size_t size,
+                           pb_result (*recheck)(const char *path, pb_error *err), pb_error *err)
+{
+    static const char suffix[] = ".tmp.XXXXXX";
+    size_t n = strlen(path);
+    char *tmp = malloc(n + sizeof suffix);
+    if (!tmp) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
+    memcpy(tmp, path, n);
+    memcpy(tmp + n, suffix, sizeof suffix);
+
+    char why[128];
+    const char *step = "create a temporary file";
+    int fd = mkstemp(tmp);
+    if (fd < 0) goto fail;
+    step = "write";
+    for (size_t done = 0; done < size;) {
+        ssize_t k = write(fd, (const uint8_t *)data + done, size - done);
+        if (k < 0 && errno == EINTR) continue;
+        if (k < 0) goto fail;
+        done += (size_t)k;
+    }
+    step = "set permissions of";
+    if (fchmod(fd, 0644) != 0) goto fail;
+    step = "fsync";
+    if (fsync(fd) != 0) goto fail;
+    step = "close";
+    {
+        int c = close(fd);
+        fd = -1;
+        if (c != 0) goto fail;
+    }
+    /* Checked again just before the rename: something may have appeared there while writing. */
+    if (recheck) {
+        pb_result again = recheck(path, err);
+        if (again != PB_SUCCESS) {
+            unlink(tmp);
+            free(tmp);
+            return again;
+        }
+    }
+    step = "rename the temporary file onto";
+    if (rename(tmp, path) != 0) goto fail;
+    free(tmp);
+
+    /* Make the rename durable too (best effort: some filesystems refuse fsync on directories). */
+    {
+        const char *slash = strrchr(path, '/');
+        char *dir = slash ? strndup(path, slash == path ? 1u : (size_t)(slash - path)) : strdup(".");
+        if (dir) {
+            int dfd = open(dir, O_RDONLY);
+            if (dfd >= 0) {
+                (void)fsync(dfd);
+                close(dfd);
+            }
+            free(dir);
+        }
+    }
+    return PB_SUCCESS;
+
+fail:
+    if (strerror_r(errno, why, sizeof why) != 0) snprintf(why, sizeof why, "errno %d", errno);
+    if (fd >= 0) close(fd);
+    if (strcmp(step, "create a temporary file") != 0) unlink(tmp);
+    pb_error_set(err, PB_ERROR_IO, "%s: cannot %s %s: %s", path, step,
+                 strcmp(step, "create a temporary file") == 0 ? "next to it" : "it", why);
+    free(tmp);
+    return PB_ERROR_IO;
 }

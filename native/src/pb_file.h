@@ -25,6 +25,13 @@ pb_result pb_open_regular_(const char *path, const char *what, int *fd, uint64_t
 /* Reads up to n bytes (fewer only at end of file); EINTR is retried. */
 pb_result pb_read_full_(int fd, const char *path, void *buf, size_t n, size_t *got, pb_error *err);
 
+/* Writes `size` bytes to `path` atomically: a temporary file next to it (mkstemp), written, mode 0644,
+ * fsync'ed and closed, then `recheck(path)` (NULL: none; the .shprobe writer checks that nothing but
+ * a .shprobe file appeared there meanwhile) just before the rename onto `path`, and a best-effort
+ * fsync of the folder. The temporary file is removed on any failure. Messages start with the path. */
+pb_result pb_write_atomic_(const char *path, const void *data, size_t size,
+                           pb_result (*recheck)(const char *path, pb_error *err), pb_error *err);
+
 /* "nan", "inf", "-inf" or the value with %g (never "-nan"): for messages about non-finite data. */
 const char *pb_format_double_(double v, char *buf, size_t n);
 

@@ -6,10 +6,11 @@
  * losslessly; any other extension is refused. */
 #include "schnee/pb_image.h"
 
-#include <errno.h>
+#include "pb_file.h"
+
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 static int ends_with_pfm(const char *path)
 {
@@ -34,21 +35,17 @@ pb_result pb_image_write(const char *path, uint32_t width, uint32_t height, uint
                             "%s: this build of the bake core writes PFM only (no OpenImageIO); name a .pfm file", path);
     if (channels != 1 && channels != 3)
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "%s: PFM holds 1 or 3 channels, not %u", path, channels);
-    char tmp[4096];
-    if (snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid()) >= (int)sizeof tmp)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "%s: path too long", path);
-    FILE *f = fopen(tmp, "wb");
-    if (!f) return pb_error_set(err, PB_ERROR_IO, "%s: cannot create: %s", tmp, strerror(errno));
-    int ok = fprintf(f, "%s\n%u %u\n-1.0\n", channels == 3 ? "PF" : "Pf", width, height) > 0;
-    for (uint32_t y = height; ok && y-- > 0;) /* bottom row first; -1.0: little-endian (x86, Arm) */
-        ok = fwrite(pixels + (size_t)y * width * channels, sizeof(float) * channels, width, f) == width;
-    ok = (fclose(f) == 0) && ok;
-    if (!ok || rename(tmp, path) != 0) {
-        int e = errno;
-        unlink(tmp);
-        return pb_error_set(err, PB_ERROR_IO, "%s: cannot write: %s", path, strerror(e));
-    }
-    return PB_SUCCESS;
+    char head[64];
+    int hn = snprintf(head, sizeof head, "%s\n%u %u\n-1.0\n", channels == 3 ? "PF" : "Pf", width, height);
+    size_t row = (size_t)width * channels * sizeof(float), size = (size_t)hn + row * height;
+    uint8_t *buf = malloc(size);
+    if (!buf) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "%s: out of memory for %zu bytes", path, size);
+    memcpy(buf, head, (size_t)hn);
+    for (uint32_t y = 0; y < height; ++y) /* bottom row first; -1.0: little-endian (x86, Arm) */
+        memcpy(buf + hn + row * y, pixels + (size_t)(height - 1 - y) * width * channels, row);
+    pb_result r = pb_write_atomic_(path, buf, size, NULL, err);
+    free(buf);
+    return r;
 }
 
 void pb_image_free(pb_image *image)

@@ -1062,75 +1062,6 @@ static pb_result check_destination(const char *path, pb_error *err)
     return PB_SUCCESS;
 }
 
-/* Temp file in the same folder, write, fsync, rename; the temp is removed on any failure. */
-static pb_result write_atomic(const char *path, const uint8_t *data, size_t size, pb_error *err)
-{
-    static const char suffix[] = ".tmp.XXXXXX";
-    size_t n = strlen(path);
-    char *tmp = malloc(n + sizeof suffix);
-    if (!tmp) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
-    memcpy(tmp, path, n);
-    memcpy(tmp + n, suffix, sizeof suffix);
-
-    char why[128];
-    const char *step = "create a temporary file";
-    int fd = mkstemp(tmp);
-    if (fd < 0) goto fail;
-    step = "write";
-    for (size_t done = 0; done < size;) {
-        ssize_t k = write(fd, data + done, size - done);
-        if (k < 0 && errno == EINTR) continue;
-        if (k < 0) goto fail;
-        done += (size_t)k;
-    }
-    step = "set permissions of";
-    if (fchmod(fd, 0644) != 0) goto fail;
-    step = "fsync";
-    if (fsync(fd) != 0) goto fail;
-    step = "close";
-    {
-        int c = close(fd);
-        fd = -1;
-        if (c != 0) goto fail;
-    }
-    /* Checked again just before the rename: something may have appeared there while writing. */
-    {
-        pb_result again = check_destination(path, err);
-        if (again != PB_SUCCESS) {
-            unlink(tmp);
-            free(tmp);
-            return again;
-        }
-    }
-    step = "rename the temporary file onto";
-    if (rename(tmp, path) != 0) goto fail;
-    free(tmp);
-
-    /* Make the rename durable too (best effort: some filesystems refuse fsync on directories). */
-    {
-        const char *slash = strrchr(path, '/');
-        char *dir = slash ? strndup(path, slash == path ? 1u : (size_t)(slash - path)) : strdup(".");
-        if (dir) {
-            int dfd = open(dir, O_RDONLY);
-            if (dfd >= 0) {
-                (void)fsync(dfd);
-                close(dfd);
-            }
-            free(dir);
-        }
-    }
-    return PB_SUCCESS;
-
-fail:
-    describe_errno(errno, why, sizeof why);
-    if (fd >= 0) close(fd);
-    if (strcmp(step, "create a temporary file") != 0) unlink(tmp);
-    pb_error_set(err, PB_ERROR_IO, "%s: cannot %s %s: %s", path, step,
-                 strcmp(step, "create a temporary file") == 0 ? "next to it" : "it", why);
-    free(tmp);
-    return PB_ERROR_IO;
-}
-
 pb_result pb_shprobe_write(const char *path, const pb_shprobe *probes, pb_error *err)
 {
     if (!path || !probes) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_write: NULL argument");
@@ -1164,7 +1095,7 @@ pb_result pb_shprobe_write(const char *path, const pb_shprobe *probes, pb_error 
     if (!bytes)
         return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "cannot write %s: out of memory for %llu bytes", path,
                             (unsigned long long)lay.total_size);
-    r = write_atomic(path, bytes, (size_t)lay.total_size, err);
+    r = pb_write_atomic_(path, bytes, (size_t)lay.total_size, check_destination, err);
     free(bytes);
     return r;
 }
