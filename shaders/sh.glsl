@@ -1,5 +1,6 @@
 // Real spherical harmonics of DESIGN.md §3, a line-for-line mirror of native/src/pb_sh.c
-// (pb_sh_eval_basis, pb_sh_lambert_band, pb_sh_irradiance): no Condon-Shortley phase,
+// (pb_sh_eval_basis, pb_sh_lambert_band; pb_sh_irradiance's sum is sh_lambert_basis here, summed
+// against a probe's coefficients in shading.glsl): no Condon-Shortley phase,
 // index i = l*l + l + m, bands 0..4, unit directions in engine space (Y-up).
 #ifndef SV_SH_GLSL
 #define SV_SH_GLSL
@@ -50,35 +51,16 @@ float sh_lambert_band(uint l) {
     return -SH_PI / 24.0;
 }
 
-// sum_l A_l sum_m L_lm Y_lm for a precomputed basis Y (sh_eval_basis) and coefficients
-// coeffs[0..(L+1)^2): the one irradiance sum of the engine (sh_irradiance and the probe lookups
-// of shading.glsl both end here).
-vec3 sh_irradiance_basis(uint max_band, float Y[25], vec3 coeffs[25]) {
-    vec3 e = vec3(0.0);
-    for (uint l = 0u; l <= max_band; ++l) {
-        float a = sh_lambert_band(l);
-        for (uint i = l * l; i < (l + 1u) * (l + 1u); ++i) e += a * Y[i] * coeffs[i];
-    }
-    return e;
-}
-
-// A_l Y_i(d) for i < (max_band+1)^2, 0 past it: E(n) of any probe is then sum_i AY[i] c_i, which the
-// probe lookups of shading.glsl sum straight from the probe buffer (no array of coefficients: a
-// dynamically indexed local array lives in slow local memory on GPUs). The same products
-// sh_irradiance_basis forms, in the same order of bands.
+// A_l Y_i(d) for i < (max_band+1)^2, 0 past it: irradiance E(n) = sum_l A_l sum_m L_lm Y_lm(n) of any
+// probe is then sum_i AY[i] c_i, which the probe lookups of shading.glsl (probe_irradiance_basis, the
+// one irradiance sum of the engine) sum straight from the probe buffer: no array of coefficients (a
+// dynamically indexed local array lives in slow local memory on GPUs).
 void sh_lambert_basis(uint max_band, vec3 d, out float AY[25]) {
     sh_eval_basis(max_band, d, AY);
     for (uint i = 0u; i < 25u; ++i) {
         uint l = i < 1u ? 0u : i < 4u ? 1u : i < 9u ? 2u : i < 16u ? 3u : 4u;
         AY[i] = l <= max_band ? sh_lambert_band(l) * AY[i] : 0.0;
     }
-}
-
-// Irradiance E(n) = sum_l A_l sum_m L_lm Y_lm(n), RGB, for coefficients coeffs[0..(L+1)^2).
-vec3 sh_irradiance(uint max_band, vec3 coeffs[25], vec3 n) {
-    float Y[25];
-    sh_eval_basis(max_band, n, Y);
-    return sh_irradiance_basis(max_band, Y, coeffs);
 }
 
 #endif

@@ -24,8 +24,8 @@ vec3 probe_coeff(uint index, uint i) {
 }
 
 // sum_i AY[i] c_i over the first (band+1)^2 coefficients of probe `index`, read one by one from the
-// probe buffer, for a basis from sh_lambert_basis() of sh.glsl: sh_irradiance_basis() on the probe's
-// coefficients, without copying them into a local array.
+// probe buffer, for a basis from sh_lambert_basis() of sh.glsl: pb_sh_irradiance() of native/src/pb_sh.c
+// on the probe's coefficients, without copying them into a local array.
 vec3 probe_irradiance_basis(uint index, uint band, float AY[25]) {
     uint count = (band + 1u) * (band + 1u);
     vec3 e = vec3(0.0);
@@ -36,8 +36,7 @@ vec3 probe_irradiance_basis(uint index, uint band, float AY[25]) {
     return e;
 }
 
-// Irradiance E(n) of probe `index` (DESIGN.md §3), not clamped: sh_irradiance() of sh.glsl on
-// the probe's coefficients, only the bands the probe has.
+// Irradiance E(n) of probe `index` (DESIGN.md §3), not clamped, only the bands the probe has.
 vec3 probe_irradiance(uint index, vec3 n) {
     uint band = probe_band(index);
     float AY[25];

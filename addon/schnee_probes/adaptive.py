@@ -303,17 +303,23 @@ class PointCache:
         if not new_pts:
             return out, []
         new, ratio = locate(np.array(new_pts))
-        new = np.asarray(new, dtype=np.float64).reshape(-1, 3)
         ratio = np.asarray(ratio, dtype=np.float32)
-        first = len(self.positions)
-        self.positions = np.concatenate([self.positions, new])
-        self.coeffs = np.concatenate([self.coeffs, np.zeros((len(new), self.count_coeffs, 3))])
-        self.noise = np.concatenate([self.noise, np.zeros(len(new), dtype=np.float32)])
-        self.ratio = np.concatenate([self.ratio, ratio])
-        self.rendered = np.concatenate([self.rendered, np.zeros(len(new), dtype=bool)])
-        self.factor = np.concatenate([self.factor, np.zeros(len(new), dtype=np.int32)])
-        todo = [first + i for i in range(len(new)) if ratio[i] <= SOLID_RATIO]
+        first = self._append(new, ratio, 0)
+        todo = [first + i for i in range(len(ratio)) if ratio[i] <= SOLID_RATIO]
         return out, todo
+
+    def _append(self, positions, ratio, factor: int) -> int:
+        """Append entries (not rendered yet) at render ``positions`` with solid-test ``ratio`` and
+        samples ``factor``; returns the first new index."""
+        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        n, first = len(positions), len(self.positions)
+        self.positions = np.concatenate([self.positions, positions])
+        self.coeffs = np.concatenate([self.coeffs, np.zeros((n, self.count_coeffs, 3))])
+        self.noise = np.concatenate([self.noise, np.zeros(n, dtype=np.float32)])
+        self.ratio = np.concatenate([self.ratio, np.asarray(ratio, dtype=np.float32)])
+        self.rendered = np.concatenate([self.rendered, np.zeros(n, dtype=bool)])
+        self.factor = np.concatenate([self.factor, np.full(n, factor, dtype=np.int32)])
+        return first
 
     def retest(self, idx, factor: int) -> List[int]:
         """Re-test entries for the points ``idx`` (each rendered once more with ``factor`` × Samples, at
@@ -322,21 +328,17 @@ class PointCache:
                if int(i) not in self.retest_of and not self.solid(int(i))]
         if not new:
             return []
-        first = len(self.positions)
+        first = self._append(self.positions[new], self.ratio[new], factor)
         for k, i in enumerate(new):
             self.retest_of[i] = first + k
-        self.positions = np.concatenate([self.positions, self.positions[new]])
-        self.coeffs = np.concatenate([self.coeffs, np.zeros((len(new), self.count_coeffs, 3))])
-        self.noise = np.concatenate([self.noise, np.zeros(len(new), dtype=np.float32)])
-        self.ratio = np.concatenate([self.ratio, self.ratio[new]])
-        self.rendered = np.concatenate([self.rendered, np.zeros(len(new), dtype=bool)])
-        self.factor = np.concatenate([self.factor, np.full(len(new), factor, dtype=np.int32)])
         return list(range(first, first + len(new)))
 
     def values(self, idx) -> Tuple[np.ndarray, np.ndarray]:
         """(coefficients, relative noise) of points ``idx``: a point with a rendered re-test combines
         both renders (:func:`combine_retest`), any other its own render."""
         idx = np.asarray(idx, dtype=np.int64).reshape(-1)
+        if not self.retest_of:  # no re-tests (the default): the renders as they are
+            return self.coeffs[idx], self.noise[idx]
         coeffs, noise = self.coeffs[idx].copy(), self.noise[idx].astype(np.float64)
         for k, i in enumerate(idx):
             r = self.retest_of.get(int(i))
