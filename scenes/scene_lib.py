@@ -58,7 +58,9 @@ def diffuse_material(name, color, emission=None, strength=0.0):
     bsdf.inputs["Base Color"].default_value = (*color, 1.0)
     bsdf.inputs["Roughness"].default_value = 0.8
     if emission is not None:
-        bsdf.inputs["Emission"].default_value = (*emission, 1.0)
+        # "Emission Color" since Blender 4.0 (Principled BSDF v2), "Emission" before.
+        key = "Emission Color" if "Emission Color" in bsdf.inputs else "Emission"
+        bsdf.inputs[key].default_value = (*emission, 1.0)
         bsdf.inputs["Emission Strength"].default_value = strength
     return mat
 

@@ -1399,6 +1399,30 @@ done:
     return r;
 }
 
+/* The context of one pb_placement_build / pb_placement_classify call: set up before, and every
+ * Embree object, table and lock it gained released after (fields never made stay NULL / false). */
+static void ctx_init(oct_ctx *c, const pb_placement_desc *desc, pb_error *err)
+{
+    c->desc = desc;
+    c->err = err;
+    c->embree_lock_ok = pthread_mutex_init(&c->embree_lock, NULL) == 0;
+    atomic_init(&c->cancel, false);
+    c->last_report = -1e300;
+}
+
+static void ctx_free(oct_ctx *c)
+{
+    if (c->probe_scene) rtcReleaseScene(c->probe_scene);
+    if (c->geo_scene) rtcReleaseScene(c->geo_scene);
+    if (c->vol_scene) rtcReleaseScene(c->vol_scene);
+    if (c->device) rtcReleaseDevice(c->device);
+    free(c->vol_mesh_of_geom);
+    free(c->geo_mesh_of_geom);
+    free(c->ray_dirs);
+    if (c->embree_lock_ok) pthread_mutex_destroy(&c->embree_lock);
+    free(c);
+}
+
 pb_result pb_placement_build(const pb_placement_desc *desc, pb_placement **out, pb_error *err)
 {
     if (out) *out = NULL;
@@ -1411,23 +1435,9 @@ pb_result pb_placement_build(const pb_placement_desc *desc, pb_placement **out, 
         free(p);
         return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory");
     }
-    c->desc = desc;
-    c->err = err;
-    c->embree_lock_ok = pthread_mutex_init(&c->embree_lock, NULL) == 0;
-    atomic_init(&c->cancel, false);
-    c->last_report = -1e300;
-
+    ctx_init(c, desc, err);
     pb_result r = place(c, p);
-
-    if (c->probe_scene) rtcReleaseScene(c->probe_scene);
-    if (c->geo_scene) rtcReleaseScene(c->geo_scene);
-    if (c->vol_scene) rtcReleaseScene(c->vol_scene);
-    if (c->device) rtcReleaseDevice(c->device);
-    free(c->vol_mesh_of_geom);
-    free(c->geo_mesh_of_geom);
-    free(c->ray_dirs);
-    if (c->embree_lock_ok) pthread_mutex_destroy(&c->embree_lock);
-    free(c);
+    ctx_free(c);
     if (r) {
         pb_placement_destroy(p);
         /* The error detail is already set; make sure a code is recorded even if err was NULL. */
@@ -1511,19 +1521,8 @@ pb_result pb_placement_classify(const pb_placement_desc *desc, const pb_classify
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_placement_classify: NULL points or boxes");
     oct_ctx *c = calloc(1, sizeof *c);
     if (!c) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory");
-    c->desc = desc;
-    c->err = err;
-    c->embree_lock_ok = pthread_mutex_init(&c->embree_lock, NULL) == 0;
-    atomic_init(&c->cancel, false);
-    c->last_report = -1e300;
+    ctx_init(c, desc, err);
     pb_result r = classify(c, query);
-    if (c->geo_scene) rtcReleaseScene(c->geo_scene);
-    if (c->vol_scene) rtcReleaseScene(c->vol_scene);
-    if (c->device) rtcReleaseDevice(c->device);
-    free(c->vol_mesh_of_geom);
-    free(c->geo_mesh_of_geom);
-    free(c->ray_dirs);
-    if (c->embree_lock_ok) pthread_mutex_destroy(&c->embree_lock);
-    free(c);
+    ctx_free(c);
     return r;
 }
