@@ -126,7 +126,7 @@ def _noise(a, bpy):
         t = time.perf_counter()
         out[seed] = bake_core.bake_points(scene, layer, s, pts, log=lambda m: None)
         out[f"t{seed}"] = (time.perf_counter() - t) / len(pts)
-    noise = np.array([adaptive.irradiance_error(out[1][i], out[2][i]) for i in range(len(pts))]) / math.sqrt(2)
+    noise = adaptive.irradiance_error(out[1], out[2]) / math.sqrt(2)
     return {"blender": bpy.app.version_string, "spp": a.spp, "portal": a.portal, "points": len(pts),
             "noise_per_render_mean": round(float(noise.mean()), 5),
             "noise_per_render_median": round(float(np.median(noise)), 5),

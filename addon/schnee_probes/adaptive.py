@@ -741,7 +741,8 @@ class AdaptiveGroup:
                     self.settled.add(child)
 
     def stage_count(self) -> int:
-        """An upper bound of the stages (probe bakes and test bakes) of this group's refinement."""
+        """An upper bound of the stages (probe bakes, test bakes, re-test bakes) of this group's
+        refinement."""
         return stages_per_pass(self.retest) * self.root_level + 1
 
     def stage_index(self) -> int:

@@ -59,10 +59,15 @@ const char *pb_file_kind_(mode_t mode)
     return "special file";
 }
 
+void pb_describe_errno_(int e, char *buf, size_t n)
+{
+    if (strerror_r(e, buf, n) != 0) snprintf(buf, n, "errno %d", e);
+}
+
 static pb_result open_failed(const char *path, const char *step, int e, pb_error *err)
 {
     char why[128];
-    if (strerror_r(e, why, sizeof why) != 0) snprintf(why, sizeof why, "errno %d", e);
+    pb_describe_errno_(e, why, sizeof why);
     return pb_error_set(err, PB_ERROR_IO, "%s: cannot %s: %s%s", path, step, why,
                         e == ELOOP ? " (a symbolic link loop, or too many links in the path)" : "");
 }
@@ -184,7 +189,7 @@ pb_result pb_write_atomic_(const char *path, const void *data, size_t size,
     return PB_SUCCESS;
 
 fail:
-    if (strerror_r(errno, why, sizeof why) != 0) snprintf(why, sizeof why, "errno %d", errno);
+    pb_describe_errno_(errno, why, sizeof why);
     if (fd >= 0) close(fd);
     if (strcmp(step, "create a temporary file") != 0) unlink(tmp);
     pb_error_set(err, PB_ERROR_IO, "%s: cannot %s %s: %s", path, step,

@@ -32,6 +32,9 @@ pb_result pb_read_full_(int fd, const char *path, void *buf, size_t n, size_t *g
 pb_result pb_write_atomic_(const char *path, const void *data, size_t size,
                            pb_result (*recheck)(const char *path, pb_error *err), pb_error *err);
 
+/* strerror_r of `e` into buf ("errno N" when it has no text for it). */
+void pb_describe_errno_(int e, char *buf, size_t n);
+
 /* "nan", "inf", "-inf" or the value with %g (never "-nan"): for messages about non-finite data. */
 const char *pb_format_double_(double v, char *buf, size_t n);
 

@@ -807,11 +807,6 @@ pb_result pb_shprobe_read_memory(const void *data, size_t size, pb_shprobe **out
     return PB_SUCCESS;
 }
 
-static void describe_errno(int e, char *buf, size_t n)
-{
-    if (strerror_r(e, buf, n) != 0) snprintf(buf, n, "errno %d", e);
-}
-
 /* Re-reports a format/validation error with the file name in front. */
 static pb_result prefix_path(pb_result r, const char *path, const pb_error *local, pb_error *err)
 {
@@ -1027,7 +1022,7 @@ static pb_result check_destination(const char *path, pb_error *err)
     struct stat st;
     if (lstat(path, &st) != 0) {
         if (errno == ENOENT) return PB_SUCCESS;
-        describe_errno(errno, why, sizeof why);
+        pb_describe_errno_(errno, why, sizeof why);
         return pb_error_set(err, PB_ERROR_IO, "cannot write %s: cannot check what is there: %s", path, why);
     }
     if (S_ISLNK(st.st_mode))
@@ -1042,7 +1037,7 @@ static pb_result check_destination(const char *path, pb_error *err)
                             path, pb_file_kind_(st.st_mode));
     int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY | O_NOFOLLOW);
     if (fd < 0) {
-        describe_errno(errno, why, sizeof why);
+        pb_describe_errno_(errno, why, sizeof why);
         return pb_error_set(err, PB_ERROR_IO,
                             "refusing to write %s: it exists and cannot be read to check that it is a .shprobe "
                             "file: %s",
