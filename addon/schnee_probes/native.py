@@ -611,20 +611,31 @@ class RefineTests:
 class _Interpolation:
     _handle = None
 
-    def query(self, points: np.ndarray, validity: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
+    def query(self, points: np.ndarray, validity: Optional[np.ndarray] = None,
+              pair_visibility: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
         """Weights of the probes at engine-space points (N, 3): (probes (N, K) int32, weights (N, K)
         float64); unused slots are −1 / 0, weights >= 0 sum to 1 (a row of −1 = outside).
-        ``validity`` (P,): probes with validity <= 0 are dropped and the rest renormalised."""
+        ``validity`` (P,): probes with validity <= 0 are dropped and the rest renormalised.
+        ``pair_visibility`` (corner octrees): (leaf_count, 8, 8) uint8, [leaf, k, c] = round(255 t)
+        with t the fraction of the segment from corner c towards corner k before its first surface
+        (255 = clear): the continuous visibility field of pb_interp.h / docs/placement.md."""
         p, _ = _vectors(points, "points")
         val = None if validity is None else _array(validity, "validity", np.float32, _FLOAT_KINDS)
-        pr, wt, k = _lib().interp_query(self._handle, p, val)
+        pv = None
+        if pair_visibility is not None:
+            pv = np.asarray(pair_visibility)
+            if pv.dtype != np.uint8:
+                raise TypeError(f"pair_visibility must be uint8, got {pv.dtype}")
+            pv = np.ascontiguousarray(pv).reshape(-1)
+        pr, wt, k = _lib().interp_query(self._handle, p, val, pv)
         return (np.frombuffer(pr, dtype=np.int32).reshape(-1, k),
                 np.frombuffer(wt, dtype=np.float64).reshape(-1, k))
 
     def interpolate(self, points: np.ndarray, values: np.ndarray,
-                    validity: Optional[np.ndarray] = None) -> np.ndarray:
+                    validity: Optional[np.ndarray] = None,
+                    pair_visibility: Optional[np.ndarray] = None) -> np.ndarray:
         """Per-probe values (P, ...) interpolated at the points -> (N, ...); NaN outside."""
-        probes, weights = self.query(points, validity)
+        probes, weights = self.query(points, validity, pair_visibility)
         v = np.asarray(values, dtype=np.float64)
         out = np.einsum("nk,nk...->n...", weights, v[np.maximum(probes, 0)])
         out[probes[:, 0] < 0] = np.nan
@@ -897,3 +908,59 @@ def sky_table(world: np.ndarray, pano_width: int, pano_height: int, max_band: in
     out = _lib().sky_table(arr, arr.shape[1], arr.shape[0], arr.shape[2], int(pano_width), int(pano_height),
                            band, rot)
     return np.frombuffer(out, dtype=np.float64).reshape(int(pano_height), int(pano_width), sh_count(band), 3)
+
+
+# ---- the sky's sun (issue 27, docs/direct-light.md "The sky's sun") ------------------------------
+
+@dataclass
+class SkySun:
+    """The sun split off a sky image (native/include/schnee/pb_sky_sun.h). ``direction``: unit,
+    engine space, the way its light travels; ``irradiance``: RGB W/m² at normal incidence (the
+    image's radiance units × sr); ``angle``: angular diameter (rad); ``share``: its part of the
+    image's luminance flux; ``background``: the sky level its texels keep; ``extent``: how far (rad)
+    its bright region reached from the peak texel ``peak`` (column, row); ``texels``: texels changed."""
+    direction: Tuple[float, float, float]
+    irradiance: Tuple[float, float, float]
+    angle: float
+    share: float
+    background: Tuple[float, float, float]
+    extent: float
+    peak: Tuple[int, int]
+    texels: int
+
+    def lamp(self) -> Lamp:
+        """The Cycles Sun lamp carrying the same light (what the engine and the bake's direct
+        light model it as: strength = irradiance, angle = angular diameter)."""
+        return Lamp("SUN", tuple(self.irradiance), direction=tuple(self.direction), radius=float(self.angle))
+
+
+@dataclass
+class SkySplit:
+    """:func:`sky_sun_split`'s answer: ``sun`` (None when the image has none), ``rest`` (the image
+    without it, (H, W, C) float32, the image itself when there is no sun) and ``verdict``
+    ("found", "black", "wide": no compact bright region, "faint": below the least share)."""
+    sun: Optional[SkySun]
+    rest: np.ndarray
+    verdict: str
+
+
+def sky_sun_split(world: np.ndarray, peak_fraction: float = 0.0, max_radius: float = 0.0,
+                  min_share: float = 0.0) -> SkySplit:
+    """Split an equirect world image (H, W, C>=3) linear radiance, rows top-down, the texel
+    directions of :func:`sky_table`, into its sun and the rest: sun + rest = the image exactly
+    (docs/direct-light.md "The sky's sun": the criteria and their defaults, 0 = default:
+    ``peak_fraction`` 0.01, ``max_radius`` 5° in rad, ``min_share`` 0.01). Texels must be finite and
+    >= 0 (SchneeError otherwise). GIL released."""
+    arr = _array(world, "world", np.float32, _FLOAT_KINDS)
+    if arr.ndim != 3 or arr.shape[2] < 3:
+        raise _shape_error("world", "(H, W, C>=3)", arr)
+    info, rest = _lib().sky_sun_split(arr, arr.shape[1], arr.shape[0], arr.shape[2], float(peak_fraction),
+                                      float(max_radius), float(min_share))
+    rest = np.frombuffer(rest, dtype=np.float32).reshape(arr.shape)
+    sun = None
+    if info["found"]:
+        sun = SkySun(direction=tuple(info["direction"]), irradiance=tuple(info["irradiance"]),
+                     angle=float(info["angle"]), share=float(info["share"]),
+                     background=tuple(info["background"]), extent=float(info["extent"]),
+                     peak=tuple(int(v) for v in info["peak"]), texels=int(info["texels"]))
+    return SkySplit(sun=sun, rest=rest, verdict=str(info["verdict"]))

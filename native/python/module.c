@@ -18,6 +18,7 @@
 #include "schnee/pb_refine.h"
 #include "schnee/pb_sh.h"
 #include "schnee/pb_shprobe.h"
+#include "schnee/pb_sky_sun.h"
 #ifdef SCHNEE_EMBREE_DYN
 #include "pb_embree_dyn.h"
 #endif
@@ -974,8 +975,8 @@ static PyObject *py_tetra_info(PyObject *module, PyObject *t_obj)
  * (probes int32[N*K], weights float64[N*K], K): K = most weights any point got; unused: −1 / 0. */
 static PyObject *py_interp_query(PyObject *module, PyObject *args)
 {
-    PyObject *h_obj, *p_obj, *v_obj = Py_None;
-    if (!PyArg_ParseTuple(args, "OO|O:interp_query", &h_obj, &p_obj, &v_obj)) return NULL;
+    PyObject *h_obj, *p_obj, *v_obj = Py_None, *pv_obj = Py_None;
+    if (!PyArg_ParseTuple(args, "OO|OO:interp_query", &h_obj, &p_obj, &v_obj, &pv_obj)) return NULL;
     pb_cotree *tree = PyCapsule_IsValid(h_obj, CAP_COTREE) ? PyCapsule_GetPointer(h_obj, CAP_COTREE) : NULL;
     pb_tetra *tetra = PyCapsule_IsValid(h_obj, CAP_TETRA) ? PyCapsule_GetPointer(h_obj, CAP_TETRA) : NULL;
     if (!tree && !tetra) {
@@ -993,14 +994,29 @@ static PyObject *py_interp_query(PyObject *module, PyObject *args)
         release(&pts);
         return NULL;
     }
+    held_buffer pvis = {0};
+    if (pv_obj != Py_None) {
+        if (!tree) {
+            PyErr_SetString(PyExc_ValueError, "pair_visibility is for corner octrees only");
+        } else {
+            (void)get_buffer(pv_obj, "pair_visibility", 'B', 0, 64 * (Py_ssize_t)pb_cotree_leaf_count(tree), &pvis);
+        }
+        if (PyErr_Occurred()) {
+            release(&pts);
+            release(&val);
+            return NULL;
+        }
+    }
     Py_ssize_t n = pts.count / 3;
     pb_interp_weights *w = malloc(((size_t)n + 1) * sizeof *w);
     if (!w) {
         release(&pts);
         release(&val);
+        release(&pvis);
         return PyErr_NoMemory();
     }
-    pb_interp_options opt = {.validity = val.view.obj ? val.view.buf : NULL};
+    pb_interp_options opt = {.validity = val.view.obj ? val.view.buf : NULL,
+                             .pair_visibility = pvis.view.obj ? pvis.view.buf : NULL};
     const double *pp = pts.view.buf;
     uint32_t K = 1;
     Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < n; i++)
@@ -1013,6 +1029,7 @@ static PyObject *py_interp_query(PyObject *module, PyObject *args)
     }
     Py_END_ALLOW_THREADS release(&pts);
     release(&val);
+    release(&pvis);
     PyObject *po = PyByteArray_FromStringAndSize(NULL, n * (Py_ssize_t)K * 4);
     PyObject *wo = PyByteArray_FromStringAndSize(NULL, n * (Py_ssize_t)K * 8);
     if (!po || !wo) {
@@ -1530,6 +1547,54 @@ static PyObject *py_sky_table(PyObject *module, PyObject *args, PyObject *kw)
     return res;
 }
 
+/* sky_sun_split(image, width, height, channels, peak_fraction=0, max_radius=0, min_share=0)
+ * -> (dict, bytearray rest float32[H*W*C]); the dict always holds "found" and "verdict". */
+static PyObject *py_sky_sun_split(PyObject *module, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"image", "width", "height", "channels", "peak_fraction", "max_radius", "min_share", NULL};
+    PyObject *image_obj;
+    Py_ssize_t width, height, channels;
+    pb_sky_sun_desc desc = {0};
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Onnn|ddd:sky_sun_split", kwlist, &image_obj, &width, &height,
+                                     &channels, &desc.peak_fraction, &desc.max_radius, &desc.min_share))
+        return NULL;
+    uint32_t w, h, c;
+    if (check_u32(width, "width", &w) < 0 || check_u32(height, "height", &h) < 0 ||
+        check_u32(channels, "channels", &c) < 0)
+        return NULL;
+    Py_ssize_t expected = product3(width, height, channels, "width x height x channels");
+    if (expected < 0) return NULL;
+    held_buffer image;
+    if (get_buffer(image_obj, "image", 'f', 0, expected, &image) < 0) return NULL;
+    PyObject *rest = PyByteArray_FromStringAndSize(NULL, expected * (Py_ssize_t)sizeof(float));
+    if (!rest) {
+        release(&image);
+        return NULL;
+    }
+    float *rest_buf = (float *)PyByteArray_AsString(rest);
+    pb_sky_sun sun;
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS r = pb_sky_sun_split(&desc, image.view.buf, w, h, c, rest_buf, &sun, &err);
+    Py_END_ALLOW_THREADS release(&image);
+    if (r != PB_SUCCESS) {
+        Py_DECREF(rest);
+        return raise_core(module, r, &err);
+    }
+    PyObject *d = Py_BuildValue(
+        "{s:O,s:s,s:(ddd),s:(ddd),s:d,s:d,s:(ddd),s:d,s:(II),s:I}", "found", sun.found ? Py_True : Py_False,
+        "verdict", pb_sky_sun_verdict_string(sun.verdict), "direction", sun.direction[0], sun.direction[1],
+        sun.direction[2], "irradiance", sun.irradiance[0], sun.irradiance[1], sun.irradiance[2], "angle", sun.angle,
+        "share", sun.share, "background", sun.background[0], sun.background[1], sun.background[2], "extent",
+        sun.extent, "peak", sun.peak_col, sun.peak_row, "texels", sun.texels);
+    if (!d) {
+        Py_DECREF(rest);
+        return NULL;
+    }
+    PyObject *res = Py_BuildValue("(NN)", d, rest);
+    return res;
+}
+
 static PyMethodDef methods[] = {
     {"sh_basis", py_sh_basis, METH_VARARGS, "sh_basis(dirs: float64[N*3], max_band) -> bytearray float64[N*count]"},
     {"min_panorama_size", py_min_panorama_size, METH_VARARGS, "min_panorama_size(max_band) -> (w, h)"},
@@ -1566,6 +1631,9 @@ static PyMethodDef methods[] = {
     {"sky_table", (PyCFunction)(void (*)(void))py_sky_table, METH_VARARGS | METH_KEYWORDS,
      "sky_table(world: float32[H*W*C], width, height, channels, pano_width, pano_height, max_band=2, "
      "rotation=None) -> bytearray float64[pano_h*pano_w*count*3]"},
+    {"sky_sun_split", (PyCFunction)(void (*)(void))py_sky_sun_split, METH_VARARGS | METH_KEYWORDS,
+     "sky_sun_split(image: float32[H*W*C], width, height, channels, peak_fraction=0, max_radius=0, min_share=0) "
+     "-> (dict, bytearray float32 rest)"},
     {"result_string", py_result_string, METH_VARARGS, "result_string(code) -> str"},
     {"placement_classify", (PyCFunction)(void (*)(void))py_placement_classify, METH_VARARGS | METH_KEYWORDS,
      "placement_classify(volumes, geometry, points=None, boxes=None, ...) -> (inside, backface_ratio, box_class)"},
@@ -1580,7 +1648,7 @@ static PyMethodDef methods[] = {
     {"tetra_create", py_tetra_create, METH_VARARGS, "tetra_create(positions: float64[P*3]) -> tetrahedra handle"},
     {"tetra_info", py_tetra_info, METH_O, "tetra_info(tetra) -> dict (tets, neighbours)"},
     {"interp_query", py_interp_query, METH_VARARGS,
-     "interp_query(handle, points: float64[N*3], validity=None) -> (int32[N*K], float64[N*K], K)"},
+     "interp_query(handle, points: float64[N*3], validity=None, pair_visibility=None) -> (int32[N*K], float64[N*K], K)"},
     {"refine_tests", py_refine_tests, METH_VARARGS, "refine_tests(tree, active=None) -> dict of test points"},
     {"refine_decide", (PyCFunction)(void (*)(void))py_refine_decide, METH_VARARGS | METH_KEYWORDS,
      "refine_decide(tree, leaf_tests, test_positions, test_probe, max_band, probe_coeffs, test_coeffs, ...) -> "
