@@ -1,11 +1,12 @@
 """3D Viewport > Sidebar (N) > Schnee Engine: the bake buttons, the settings, the last result and
-the active lamp's light mode (baked into the probes or realtime in the engine, light_modes.py)."""
+the active lamp's light mode (baked into the probes, mixed or realtime in the engine, light_modes.py),
+which Properties > Light also shows (DATA_PT_schnee_light)."""
 import os
 
 import bpy
 
 from . import bake_core, compat, journal, light_modes
-from .properties import draw_estimate, draw_settings
+from .properties import LIGHT_MODE_ITEMS, draw_estimate, draw_settings
 
 
 class VIEW3D_PT_schnee_probes(bpy.types.Panel):
@@ -69,29 +70,23 @@ class VIEW3D_PT_schnee_probes_last(bpy.types.Panel):
 
 
 class SCHNEE_OT_set_light_mode(bpy.types.Operator):
-    """Baked: the lamp lights objects only through the probes. Mixed: its bounced light is in the
-    probes, the engine adds its direct light with shadows. Realtime: left out of the probe renders;
-    the engine adds it as direct light"""
+    """Set the light mode of the active and every selected lamp (Object.schnee_light.mode; removes a
+    legacy schnee_light_mode custom property, as choosing in the panel does)"""
     bl_idname = "schnee.set_light_mode"
     bl_label = "Set Light Mode"
     bl_options = {'REGISTER', 'UNDO'}
 
-    mode: bpy.props.EnumProperty(
-        name="Mode",
-        items=((light_modes.BAKED, "Baked", "Lit through the probes only (the bake renders it)"),
-               (light_modes.MIXED, "Mixed", "Bounced light in the probes; the engine adds its "
-                                            "direct light with shadows (sharp sunbeams)"),
-               (light_modes.REALTIME, "Realtime", "Left out of the probe renders; the engine adds "
-                                                  "it as direct light")))
+    # The identifiers and tooltips of the registered property (properties.LIGHT_MODE_ITEMS).
+    mode: bpy.props.EnumProperty(name="Mode", items=LIGHT_MODE_ITEMS)
 
     @classmethod
     def poll(cls, context):
         return any(ob.type == 'LIGHT' for ob in _target_lights(context))
 
     def execute(self, context):
-        # The custom property is the contract (bake, export, scripts); the panel only writes it.
         for ob in _target_lights(context):
-            ob[light_modes.PROPERTY] = self.mode
+            # The property's update callback removes the legacy custom property (properties.py).
+            ob.schnee_light.mode = self.mode
         return {'FINISHED'}
 
 
@@ -102,6 +97,39 @@ def _target_lights(context):
     if active is not None and active not in obs:
         obs.append(active)
     return [ob for ob in obs if ob.type == 'LIGHT']
+
+
+_MODE_TEXT = {
+    light_modes.BAKED: "In the probes; no direct light where probes light",
+    light_modes.MIXED: "Bounced light in the probes; engine direct light, shadowed",
+    light_modes.REALTIME: "Not in the probes; engine direct light",
+}
+
+
+def draw_light_mode(layout, ob, context=None):
+    """The light mode of lamp object ``ob``: the choice (Object.schnee_light.mode, with its
+    tooltips), what the lamp resolves to and why (light_modes.resolve), and the problems the bake
+    would report. Shared by the Light properties tab and the sidebar."""
+    col = layout.column(align=True)
+    col.prop(ob.schnee_light, "mode", text="")
+    try:
+        mode, source = light_modes.resolve(ob)
+    except light_modes.LightModeError:
+        mode, source = None, None
+        col.label(text=f"Bad custom property {light_modes.PROPERTY}: {ob.get(light_modes.PROPERTY)!r}",
+                  icon='ERROR')
+        col.label(text="The bake refuses it; choose a mode above")
+    if mode is not None:
+        why = {"default": f"by type ({ob.data.type.title()})", "chosen": "chosen",
+               "custom property": f"custom property {light_modes.PROPERTY}"}[source]
+        col.label(text=f"{mode.title()}: {why}", icon='LIGHT')
+        col.label(text=_MODE_TEXT[mode])
+        if source == "custom property":
+            col.label(text="Choosing a mode above removes the custom property", icon='INFO')
+    if mode in (light_modes.MIXED, light_modes.REALTIME) and ob.data.type == 'AREA':
+        col.label(text="glTF cannot export area lights", icon='ERROR')
+    if context is not None and len(_target_lights(context)) > 1:
+        col.operator_menu_enum(SCHNEE_OT_set_light_mode.bl_idname, "mode", text="Set All Selected Lamps")
 
 
 class VIEW3D_PT_schnee_light(bpy.types.Panel):
@@ -119,28 +147,28 @@ class VIEW3D_PT_schnee_light(bpy.types.Panel):
 
     def draw(self, context):
         ob = context.active_object
-        col = self.layout.column(align=True)
-        col.label(text=ob.name, icon='LIGHT')
-        try:
-            mode = light_modes.light_mode(ob)
-        except light_modes.LightModeError:
-            mode = None
-            col.label(text=f"Unknown {light_modes.PROPERTY}: {ob.get(light_modes.PROPERTY)!r}", icon='ERROR')
-        row = col.row(align=True)
-        for value, text in ((light_modes.BAKED, "Baked"), (light_modes.MIXED, "Mixed"),
-                            (light_modes.REALTIME, "Realtime")):
-            row.operator(SCHNEE_OT_set_light_mode.bl_idname, text=text, depress=mode == value).mode = value
-        if mode == light_modes.BAKED:
-            col.label(text="In the probes; no direct light where probes light")
-        elif mode == light_modes.MIXED:
-            col.label(text="Bounced light in the probes; engine direct light, shadowed")
-        elif mode == light_modes.REALTIME:
-            col.label(text="Not in the probes; engine direct light")
-        if mode in (light_modes.MIXED, light_modes.REALTIME) and ob.data.type == 'AREA':
-            col.label(text="glTF cannot export area lights", icon='ERROR')
+        self.layout.label(text=ob.name, icon='LIGHT')
+        draw_light_mode(self.layout, ob, context)
+
+
+class DATA_PT_schnee_light(bpy.types.Panel):
+    """Properties > Light (Object Data of a lamp): the Schnee light mode."""
+    bl_label = "Schnee Light Mode"
+    bl_idname = "DATA_PT_schnee_light"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "data"
+
+    @classmethod
+    def poll(cls, context):
+        ob = getattr(context, "object", None)
+        return ob is not None and ob.type == 'LIGHT'
+
+    def draw(self, context):
+        draw_light_mode(self.layout, context.object, context)
 
 
 classes = (VIEW3D_PT_schnee_probes, VIEW3D_PT_schnee_probes_last, SCHNEE_OT_set_light_mode,
-           VIEW3D_PT_schnee_light)
+           VIEW3D_PT_schnee_light, DATA_PT_schnee_light)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -9,6 +9,7 @@ declaration; figures measured with bench/sweep/run.py, report bench/results/swee
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
+from . import light_modes
 from .settings import SETTINGS, BakeSettings
 
 
@@ -92,16 +93,55 @@ SchneeProbeSettings = type("SchneeProbeSettings", (bpy.types.PropertyGroup,), {
     "__module__": __name__,
 })
 
-classes = (SchneeProbeSettings,)
+
+
+def _light_mode_changed(self, _context):
+    # A choice made here is the user's latest: the legacy custom property, which would override it
+    # (light_modes.resolve), goes. Runs for a choice from a script too (RNA calls update then).
+    ob = self.id_data
+    if ob is not None and light_modes.PROPERTY in ob.keys():
+        del ob[light_modes.PROPERTY]
+
+
+LIGHT_MODE_ITEMS = (
+    (light_modes.BY_TYPE, "By Type",
+     "Mixed for a Sun, a spot and a point lamp of radius up to "
+     f"{light_modes.POINT_MIXED_MAX_RADIUS:g} m (their direct light is too sharp for the probes); "
+     "baked for a larger point lamp and an area lamp"),
+    ("BAKED", "Baked", "Direct and bounced light in the probes; the engine adds no direct light where "
+                       "probes light a surface (soft light; a sharp shadow is blurred across probe cells)"),
+    ("MIXED", "Mixed", "Bounced light in the probes; the engine adds the direct light per pixel with "
+                       "shadow maps (sharp sunbeams and lamp shadows)"),
+    ("REALTIME", "Realtime", "Left out of the probe renders; the engine adds it as direct light, "
+                             "shadowed (no bounced light)"),
+)
+
+
+class SchneeLightSettings(bpy.types.PropertyGroup):
+    """The light mode of a lamp object (light_modes.py): Object.schnee_light. On the object, not the
+    light datablock: render visibility and glTF nodes are per object. Not named like the legacy
+    custom property ``schnee_light_mode``, whose string old files hold."""
+    mode: EnumProperty(
+        name="Light Mode",
+        description="How the lamp reaches the engine: through the probes (baked), the probes' bounced "
+                    "light plus the engine's shadowed direct light (mixed), or the engine alone (realtime)",
+        items=LIGHT_MODE_ITEMS, default=light_modes.BY_TYPE, update=_light_mode_changed,
+        options=set())  # not animatable: one mode per bake
+
+
+classes = (SchneeProbeSettings, SchneeLightSettings)
 
 
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
     bpy.types.Scene.schnee_probes = PointerProperty(type=SchneeProbeSettings)
+    bpy.types.Object.schnee_light = PointerProperty(type=SchneeLightSettings, name="Schnee Light",
+                                                    description="Light mode of a lamp (Schnee probes)")
 
 
 def unregister():
+    del bpy.types.Object.schnee_light
     del bpy.types.Scene.schnee_probes
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)

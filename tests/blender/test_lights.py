@@ -1,9 +1,11 @@
 """Baked, mixed and realtime lamps in the add-on: the bake leaves realtime lamps out of the probes and
 a mixed lamp's direct light (not its bounced light), the glTF export writes each punctual light's
-mode (docs/user-guide.md "Lights", docs/export.md).
+mode; the defaults by lamp type, the registered property Object.schnee_light.mode and the legacy
+custom property schnee_light_mode, and the panels that draw them (light_modes.py,
+docs/user-guide.md "Lights", docs/export.md).
 
-Two Blender launches (tests/blender/scripts/lights_bake.py: six tiny bakes of 4 probes at 32x16,
-16 spp; lights_export.py: two exports), about 3 s in all, plus the Khronos validator.
+Two Blender launches (tests/blender/scripts/lights_bake.py: eight tiny bakes of 4 probes at 32x16,
+16 spp; lights_export.py: four exports), about 5 s in all, plus the Khronos validator.
 """
 import json
 import shutil
@@ -16,6 +18,7 @@ import pytest
 from conftest import BUILD_DIR, REPO, run_blender
 
 SCRIPTS = Path(__file__).resolve().parent / "scripts"
+LIGHT_COUNT = 12  # lamps of scripts/lights_export.py that are glTF punctual lights (all but the area lamp)
 VALIDATOR = REPO / "tests" / "tools" / "validate_gltf.mjs"
 EXT = "VULKAN_SCHNEE_light"
 
@@ -121,8 +124,8 @@ def test_mixed_lamp_hidden_from_camera_rays_only_during_the_bake(bakes):
     assert r["flags_during"]["TestLamp"]["visible_camera"] is False
     assert r["flags_during"]["TestLamp"]["hide_render"] is False       # it still lights the scene
     assert r["flags_after"] == r["flags_before"]
-    ops = [tuple(x[2:]) for x in r["panel"] if x[0] == "operator"]
-    assert ops == [("Baked", False, "baked"), ("Mixed", True, "mixed"), ("Realtime", False, "realtime")]
+    assert ["prop", "SchneeLightSettings", "mode", "MIXED"] in r["panel"]
+    assert ["label", "Mixed: chosen"] in r["panel"]
 
 
 @pytest.mark.parametrize("case", ["realtime", "baked", "mixed", "deleted", "cancelled", "bad"])
@@ -144,6 +147,50 @@ def test_realtime_lamp_hidden_only_during_the_bake(bakes):
     assert r["flags_during"]["KeyLamp"]["hide_render"] is False
 
 
+def test_default_sun_keeps_its_direct_light_out_of_the_probes(bakes):
+    """A Sun lamp left at its default (mixed) against the same Sun marked baked with the legacy
+    custom property: same seed, same panoramas (the Sun is hidden from camera rays in both and
+    lights the floor in both), so baked - default is the Sun's direct light alone, which the bake
+    adds in closed form: a Sun of angle 0 and strength S is a delta of irradiance S from the sun's
+    direction d, radiance SH S·Y_lm(d) (docs/direct-light.md; nothing shadows the probes)."""
+    info = bakes["sun_info"]
+    d = np.asarray(info["to_sun_engine"])
+    from schnee_probes import native
+    want = info["strength"] * native.sh_basis(d / np.linalg.norm(d), 2)
+    default, baked = np.asarray(bakes["sun_default"]["coeffs"]), np.asarray(bakes["sun_baked"]["coeffs"])
+    diff = baked - default
+    assert diff.shape == (4, 9, 3)
+    # Float rounding of the panoramas' sums only (the Sun's part is exact: measured 1e-7 relative).
+    np.testing.assert_allclose(diff, np.broadcast_to(want[None, :, None], diff.shape),
+                               rtol=1e-4, atol=1e-5 * abs(want[0]))
+    # The default still holds the Sun's bounced light: more than the scene without it (deleted).
+    assert np.all(default[:, 0, :] > np.asarray(bakes["deleted"]["coeffs"])[:, 0, :])
+    # The sidebar says why: a Sun is mixed by type.
+    assert ["label", "Mixed: by type (Sun)"] in info["panel"]
+
+
+def test_defaults_by_lamp_type(bakes):
+    # bench/results/lamp_modes.md: a Sun and a spot are mixed, a point lamp up to 0.25 m radius
+    # mixed and above it baked, an area lamp baked (glTF has no area lights).
+    assert {k: v for k, v in bakes["modes"].items() if k not in ("case", "story", "items")} == {
+        "SUN None": ["mixed", "default"], "POINT 0.1": ["mixed", "default"],
+        "POINT 0.25": ["mixed", "default"], "POINT 0.3": ["baked", "default"],
+        "SPOT 0.25": ["mixed", "default"], "SPOT 1.0": ["mixed", "default"],
+        "AREA None": ["baked", "default"]}
+
+
+def test_registered_property_and_legacy_custom_property(bakes):
+    # (step, custom property, Object.schnee_light.mode, resolved mode, source): the latest choice
+    # wins, whichever way it was made; a choice in the UI removes the legacy property.
+    assert bakes["modes"]["story"] == [
+        ["fresh", None, "DEFAULT", "mixed", "default"],
+        ["legacy baked", "baked", "DEFAULT", "baked", "custom property"],
+        ["chose realtime", None, "REALTIME", "realtime", "chosen"],
+        ["legacy baked again", "baked", "REALTIME", "baked", "custom property"],
+        ["chose by type", None, "DEFAULT", "mixed", "default"],
+    ]
+
+
 def test_bad_mode_is_refused_naming_the_lamp(bakes):
     r = bakes["bad"]
     assert r["message"] is not None
@@ -152,13 +199,31 @@ def test_bad_mode_is_refused_naming_the_lamp(bakes):
     assert r["wrote"] is False
 
 
-def test_panel_operator_writes_the_custom_property(bakes):
-    assert bakes["operator"]["value"] == "realtime"
-    # The sidebar's Light Mode sub-panel (drawn into a recording stub): the active lamp's name,
-    # one button per mode setting that mode, the current one pressed.
-    ops = [tuple(x[2:]) for x in bakes["operator"]["panel"] if x[0] == "operator"]
-    assert ops == [("Baked", False, "baked"), ("Mixed", False, "mixed"), ("Realtime", True, "realtime")]
-    assert ["label", "TestLamp"] in bakes["operator"]["panel"]
+def test_panel_operator_sets_the_registered_property(bakes):
+    r = bakes["operator"]
+    # The lamp had the legacy custom property "baked": the operator chose REALTIME and removed it.
+    assert r["chosen"] == "REALTIME" and r["value"] is None
+    # The sidebar's Light Mode sub-panel and Properties > Light (drawn into a recording stub that
+    # checks each property exists): the active lamp's name, the property, what it resolves to.
+    for panel in (r["panel"], r["data_panel"]):
+        assert ["prop", "SchneeLightSettings", "mode", "REALTIME"] in panel
+        assert ["label", "Realtime: chosen"] in panel
+        assert ["label", "Not in the probes; engine direct light"] in panel
+    assert ["label", "TestLamp"] in r["panel"]
+    # Before: the legacy property decides, and the panel says so.
+    assert ["prop", "SchneeLightSettings", "mode", "DEFAULT"] in r["legacy_panel"]
+    assert ["label", "Baked: custom property schnee_light_mode"] in r["legacy_panel"]
+
+
+def test_mode_items_have_tooltips(bakes):
+    # Each choice of the registered property, as Blender registered it, says what it does (the
+    # descriptions are the tooltips); By Type names its rule.
+    items = bakes["modes"]["items"]
+    assert [i[0] for i in items] == ["DEFAULT", "BAKED", "MIXED", "REALTIME"]
+    assert [i[1] for i in items] == ["By Type", "Baked", "Mixed", "Realtime"]
+    assert all(len(i[2]) > 40 for i in items), items
+    assert "Sun" in items[0][2] and "0.25 m" in items[0][2] and "area" in items[0][2]
+    assert "shadow" in items[2][2]
 
 
 # ---------------------------------------------------------------------------- export
@@ -182,16 +247,20 @@ def _node_lights(doc):
 
 def test_each_light_carries_its_mode(exported):
     lights = _node_lights(exported["docs"]["on"])
-    # Expected: the object's custom property; absent -> baked; a bad value -> baked with a
-    # warning; area lamps are not glTF punctual lights (the exporter skips them).
-    expected = {name: {None: "baked", "Realtime": "baked"}.get(v["mode"], v["mode"])
-                for name, v in exported["lamps"].items() if v["type"] != "AREA"}
+    # The mode each lamp resolves to (light_modes.py): the legacy custom property or the registered
+    # property when set; else by type (Sun, spot, point of radius <= 0.25 m: mixed; the 0.5 m
+    # point: baked); a bad value -> baked with a warning; area lamps are not glTF punctual lights
+    # (the exporter skips them).
+    expected = {"PlainPoint": "mixed", "PlainSun": "mixed", "PlainSpot": "mixed", "BigPoint": "baked",
+                "ChosenBakedSun": "baked", "BakedPoint": "baked", "RealtimeSpot": "realtime",
+                "RealtimeSun": "realtime", "MixedSun": "mixed", "TwinBaked": "baked",
+                "TwinRealtime": "realtime", "BadMode": "baked"}
     got = {name: light["extensions"][EXT]["mode"] for name, light in lights.items()}
     assert got == expected
     # Two objects of one light datablock with different modes: two lights.
     assert lights["TwinBaked"]["name"] == lights["TwinRealtime"]["name"] == "TwinData"
     assert lights["TwinBaked"] is not lights["TwinRealtime"]
-    assert len(exported["docs"]["on"]["extensions"]["KHR_lights_punctual"]["lights"]) == 8
+    assert len(exported["docs"]["on"]["extensions"]["KHR_lights_punctual"]["lights"]) == LIGHT_COUNT
 
 
 @pytest.mark.parametrize("which", ["on", "raw", "compat"])
@@ -202,7 +271,7 @@ def test_intensity_scale_gives_blenders_radiometric_strength(exported, which):
     # (docs/export.md; Cycles' point lamp: irradiance P / (4 pi d^2), docs/direct-light.md).
     lights = _node_lights(exported["docs"][which])
     lamps = exported["lamps"]
-    assert len(lights) == 8
+    assert len(lights) == LIGHT_COUNT
     for name, light in lights.items():
         e = lamps[name]["energy"]
         want = e if lamps[name]["type"] == "SUN" else e / (4 * np.pi)
@@ -227,7 +296,7 @@ def test_checkbox_off_writes_no_mode(exported):
     doc = exported["docs"]["off"]
     assert EXT not in doc.get("extensionsUsed", [])
     assert all(EXT not in (light.get("extensions") or {}) for light in _node_lights(doc).values())
-    assert len(_node_lights(doc)) == 8  # the lights themselves are still exported
+    assert len(_node_lights(doc)) == LIGHT_COUNT  # the lights themselves are still exported
 
 
 @pytest.mark.parametrize("which", ["on", "off"])

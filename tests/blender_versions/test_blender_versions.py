@@ -181,6 +181,24 @@ def test_lamp_conventions_and_direct_light(session):
         assert bake == pytest.approx(model, rel=1e-6), (key, measured)
 
 
+def test_light_mode_defaults_and_choices(session):
+    """light_modes.py in this Blender (scripts/lamp_checks.py light_mode_checks): the default by
+    lamp type (bench/results/lamp_modes.md), Object.schnee_light.mode, the legacy custom property
+    over it, a choice removing the legacy property; a Sun left at its default (mixed) baked at the
+    cursor under a black world with nothing to bounce from holds none of its light (exactly 0; the
+    same Sun marked baked holds S·Y(d), test_lamp_conventions_and_direct_light)."""
+    r = session["lamps"]
+    assert "error" not in r, r.get("error")
+    assert r["modes"] == {"SUNNone": ["mixed", "default"], "POINT0.25": ["mixed", "default"],
+                          "POINT0.5": ["baked", "default"], "SPOT0.25": ["mixed", "default"],
+                          "AREANone": ["baked", "default"], "chosen": ["baked", "chosen"],
+                          "legacy_over_chosen": ["realtime", "custom property"],
+                          "chosen_again": ["mixed", "chosen", False]}
+    assert r["default_sun_mode"] == "mixed"
+    assert np.abs(np.array(r["default_sun_bake"])).max() == 0.0
+    assert np.abs(np.array(r["sun_bake"])).max() > 0.5  # the baked one is not (the check can fail)
+
+
 def test_bake_cursor_and_cancel(session):
     r = session["result"]
     assert "error" not in r, r.get("error")

@@ -156,6 +156,9 @@ def bake_scene(out, name, kind, placement="OCTREE"):
         ob = lamp('POINT', (-1.5, 0.0, 2.5), energy=200.0, shadow_soft_size=0.0)
     ob.visible_camera = True
     ob.name = "Lamp"
+    # Baked explicitly: a Sun and a small point lamp default to mixed (light_modes.py), and these
+    # bakes check the lamp's direct light in the probes.
+    ob["schnee_light_mode"] = "baked"
     before = ob.visible_camera
     settings = bake_core.BakeSettings(placement=placement, min_cell_size=0.5 if placement == "ADAPTIVE" else 1.0,
                                       max_cell_size=1.0, panorama_resolution=32, samples=16,

@@ -1,8 +1,9 @@
 """Light modes in the glTF export: ``blender -b --factory-startup -P lights_export.py -- OUT_DIR``.
 
-Builds a cube and lamps of every punctual type, with and without ``schnee_light_mode``, two lamp
-objects sharing one light datablock with different modes, one with a bad value, and an area
-lamp (not a glTF punctual light); exports OUT_DIR/on/scene.gltf (checkbox on) and
+Builds a cube and lamps of every punctual type: without a mode (the default by type, light_modes.py),
+with the legacy custom property ``schnee_light_mode`` and with the registered property
+``Object.schnee_light.mode``; two lamp objects sharing one light datablock with different modes,
+one with a bad value, and an area lamp (not a glTF punctual light); exports OUT_DIR/on/scene.gltf (checkbox on) and
 OUT_DIR/off/scene.gltf (checkbox off), both with Punctual Lights on in the exporter's default
 Lighting Mode (Standard), and OUT_DIR/raw, OUT_DIR/compat in the other two. Emits the expected mode
 and Blender's strength per lamp object.
@@ -20,9 +21,14 @@ import addon_common as common  # noqa: E402
 addon_utils.enable("io_scene_gltf2", default_set=True)
 assert addon_utils.enable("schnee_probes", default_set=True) is not None
 
-# name: (light type, datablock name, schnee_light_mode or None, location)
+# name: (light type, datablock name, mode, location). Mode: None = none chosen; lower or mixed case =
+# the legacy custom property schnee_light_mode; upper case = Object.schnee_light.mode.
 LAMPS = {
     "PlainPoint": ('POINT', "PlainPointData", None, (2, 0, 2)),
+    "PlainSun": ('SUN', "PlainSunData", None, (0, 1, 5)),
+    "PlainSpot": ('SPOT', "PlainSpotData", None, (1, 2, 3)),
+    "BigPoint": ('POINT', "BigPointData", None, (2, 2, 2)),
+    "ChosenBakedSun": ('SUN', "ChosenSunData", "BAKED", (-1, 1, 5)),
     "BakedPoint": ('POINT', "BakedPointData", "baked", (-2, 0, 2)),
     "RealtimeSpot": ('SPOT', "SpotData", "realtime", (0, 2, 3)),
     "RealtimeSun": ('SUN', "SunData", "realtime", (0, 0, 5)),
@@ -47,7 +53,11 @@ def build():
         data = bpy.data.lights.get(data_name) or bpy.data.lights.new(data_name, kind)
         ob = bpy.data.objects.new(name, data)
         ob.location = loc
-        if mode is not None:
+        if name == "BigPoint":
+            data.shadow_soft_size = 0.5           # over light_modes.POINT_MIXED_MAX_RADIUS: baked
+        if mode is not None and mode.isupper():
+            ob.schnee_light.mode = mode
+        elif mode is not None:
             ob["schnee_light_mode"] = mode
         scene.collection.objects.link(ob)
     return scene

@@ -11,6 +11,8 @@ conventions the direct-light step (docs/direct-light.md) assumes, against this B
   Soft Falloff on/off (Blender 4.0+); L0 reported next to the two closed forms, radiance
   P/(4π²r²) over a sphere (half-angle asin(r/d)) or a disc facing the viewer (atan(r/d)).
 - {...}_bake_l0: the same lamp baked at the cursor (hidden from camera rays, added analytically).
+  Every lamp above is marked baked with the legacy custom property ``schnee_light_mode``.
+- modes, default_sun_*: the light-mode defaults by type and the choices (light_mode_checks).
 """
 import importlib
 import json
@@ -43,8 +45,41 @@ def lamp(scene, kind, loc, rot=(0.0, 0.0, 0.0), **props):
     ob.rotation_euler = rot
     if hasattr(ob, "visible_camera"):
         ob.visible_camera = True   # lamps default to invisible to camera rays
+    # Baked explicitly (the legacy custom property): these checks compare the lamp's direct light
+    # in the probes with the render; a Sun and a small point or spot lamp default to mixed.
+    ob["schnee_light_mode"] = "baked"
     scene.collection.objects.link(ob)
     return ob
+
+
+def light_mode_checks(scene, name, bake_core):
+    """The light-mode defaults and choices in this Blender (light_modes.py, properties.py): each
+    lamp type's default, the registered property, the legacy custom property and a Sun left at
+    its default baked at the cursor (its direct light out of the probe: exactly 0 here)."""
+    light_modes = importlib.import_module(name + ".light_modes")
+    clear(scene)
+    modes = {}
+    for kind, radius in (('SUN', None), ('POINT', 0.25), ('POINT', 0.5), ('SPOT', 0.25), ('AREA', None)):
+        data = bpy.data.lights.new(f"{kind}{radius}", kind)
+        if radius is not None:
+            data.shadow_soft_size = radius
+        ob = bpy.data.objects.new(f"{kind}{radius}", data)
+        scene.collection.objects.link(ob)
+        modes[f"{kind}{radius}"] = light_modes.resolve(ob)
+    ob = bpy.data.objects["SUN" + "None"]
+    ob.schnee_light.mode = 'BAKED'
+    modes["chosen"] = light_modes.resolve(ob)
+    ob["schnee_light_mode"] = "realtime"
+    modes["legacy_over_chosen"] = light_modes.resolve(ob)
+    ob.schnee_light.mode = 'MIXED'              # a choice in the UI removes the legacy property
+    modes["chosen_again"] = light_modes.resolve(ob) + (light_modes.PROPERTY in ob.keys(),)
+    out["modes"] = modes
+    clear(scene)
+    sun = bpy.data.objects.new("DefaultSun", bpy.data.lights.new("DefaultSun", 'SUN'))
+    sun.data.energy, sun.data.angle = 3.0, 0.0
+    scene.collection.objects.link(sun)
+    out["default_sun_mode"] = light_modes.light_mode(sun)
+    out["default_sun_bake"] = cursor_bake(scene, bake_core, "default_sun", (0.0, 0.0, 1.0))
 
 
 def clear(scene):
@@ -89,6 +124,8 @@ def main():
     bake_core = importlib.import_module(name + ".bake_core")
     direct_light = importlib.import_module(name + ".direct_light")
     scene = bpy.context.scene
+
+    light_mode_checks(scene, name, bake_core)
 
     # --- Sun, angle 0, pointing along (sin 30°, 0, -cos 30°) in Blender space
     clear(scene)
