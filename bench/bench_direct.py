@@ -42,6 +42,7 @@ def lamp(name, kind, loc, rot=(0.0, 0.0, 0.0), **props):
     ob = bpy.data.objects.new(name, data)
     ob.location = loc
     ob.rotation_euler = rot
+    ob["schnee_light_mode"] = "baked"  # the analytic direct light is what is timed (a Sun defaults to mixed)
     bpy.context.scene.collection.objects.link(ob)
     return ob
 

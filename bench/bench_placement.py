@@ -102,10 +102,10 @@ def main():
     # which per pixel with shadow maps is the sun's exact shadowed direct light (direct_light's
     # projection, the one a baked sun adds to the probes). It is added to every value compared.
     direct = 0.0
+    for ob in scene.objects:  # explicit either way: a Sun lamp's default is mixed (light_modes.py)
+        if ob.type == 'LIGHT' and ob.data.type == 'SUN':
+            ob["schnee_light_mode"] = a.sun_mode
     if a.sun_mode == "mixed":
-        for ob in scene.objects:
-            if ob.type == 'LIGHT' and ob.data.type == 'SUN':
-                ob["schnee_light_mode"] = "mixed"
         b = bake_core.ProbeBake(scene, layer, settings(), log=lambda s: None)
         b.prepare()
         direct = b._mixed_at(engine_pts)

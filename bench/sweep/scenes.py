@@ -225,6 +225,9 @@ def _sun_lamp(to_sun, offset):
     data.energy = SUN_LAMP_STRENGTH
     data.angle = SUN_LAMP_ANGLE
     ob = bpy.data.objects.new("SunLamp", data)
+    # Baked, as the sweep measured it (a Sun lamp defaults to mixed, light_modes.py; bench_spheres.py
+    # sets its --sun-mode over this).
+    ob["schnee_light_mode"] = "baked"
     bpy.context.scene.collection.objects.link(ob)
     ob.location = _shift([(0.0, 0.0, 10.0)], offset)[0]  # a Sun's position does not matter
     ob.rotation_euler = (-Vector(to_sun)).to_track_quat('-Z', 'Y').to_euler()
