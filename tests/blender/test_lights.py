@@ -318,3 +318,20 @@ def test_engine_loads_the_export(exported):
                            "--print-assignments"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert "object 0 'Cube'" in proc.stdout
+
+
+# ------------------------------------------------------------------------- registration
+
+
+def test_mode_property_registers_unregisters_and_survives_a_reload(tmp_path):
+    """scripts/light_modes_register.py: enabling registers Object.schnee_light, both panels and the
+    operator; disabling removes all of them, and the bake's reader (light_modes.resolve) then sees
+    no choice (the default by type) but still the legacy custom property; enabling again and
+    reopening the saved file give the choice back (it is stored on the object)."""
+    r = _results(run_blender(SCRIPTS / "light_modes_register.py", tmp_path, timeout=300).stdout)[0]
+    everything = {"object_property": True, "data_panel": True, "sidebar_panel": True, "operator": True}
+    assert r["enabled"] == r["enabled_again"] == everything
+    assert r["disabled"] == {k: False for k in everything}
+    chosen = {"Chosen": ["baked", "chosen"], "Legacy": ["realtime", "custom property"]}
+    assert r["set"] == r["enabled_again_modes"] == r["reopened_modes"] == chosen
+    assert r["disabled_modes"] == {"Chosen": ["mixed", "default"], "Legacy": ["realtime", "custom property"]}
