@@ -21,15 +21,16 @@ Where the mode comes from, first match wins (:func:`resolve`):
 3. the default by the lamp's type (:func:`default_mode`): a Sun, a spot and a point lamp of radius
    at most :data:`POINT_MIXED_MAX_RADIUS` are mixed; a larger point lamp and an area lamp are baked.
 
-The defaults follow bench/bench_lamp_modes.py (bench/results/lamp_modes.md): against a 0.5 m probe
-lattice (the default Min Cell Size, the finest the refinement goes) a baked lamp's interpolated
-direct light is off by 2.8-3.3 % (sun), 2.9-20 % (point) and 46-720 % (spot, its cone's edge) of
-the light at points between probes, where the engine's shadowed punctual light (the same lamp at
-radius 0) is off by 0-0.2 % (sun), 0.2-4.5 % (point, radius <= 0.25 m) and 0.2-37 % (spot): mixed
-is the more accurate for every sun and spot measured and for point lamps up to 0.25 m; from 0.35 m
-the engine's hard-edged punctual light is further from Cycles' wide lamp than the probes are. An
-area lamp stays baked: glTF has no area lights, so a mixed area lamp's direct light would reach
-nothing.
+The defaults follow bench/bench_lamp_modes.py (bench/results/lamp_modes.md, no Cycles: the exact
+shadowed direct light of the native step): against a 0.5 m probe lattice (the default Min Cell
+Size, the finest the refinement goes) a baked lamp's interpolated direct light is off by a mean
+2.8-3.3 % (sun), 2.9-20 % (point) and 68-3077 % (spot: its cone's edge smeared over a cell) of the
+light at points between probes, where the engine's shadowed punctual light (the same lamp at
+radius 0) is off by 0-0.2 % (sun), 0.2-4.5 % (point, radius <= 0.25 m) and 4-39 % (spot): mixed is
+the more accurate for every sun and spot measured and for point lamps up to 0.25 m; from 0.35 m
+on the engine's hard-edged punctual light is mostly further from Cycles' wide lamp than the probes
+are. An area lamp stays baked: glTF has no area lights, so a mixed area lamp's direct light would
+reach nothing.
 
 On the object because render visibility, which the bake switches, is per object, and because a
 glTF node (one per object) is what refers to a light: two objects sharing one light datablock
