@@ -55,6 +55,42 @@ CHOICES = (BY_TYPE,) + tuple(m.upper() for m in MODES)
 POINT_MIXED_MAX_RADIUS = 0.25
 
 
+# The engine's shadow-map pool (docs/engine.md "Shadows", SV_MAX_SHADOW_LAYERS) and what each mixed or
+# realtime light takes of it at the engine's defaults: a mixed light left without layers is
+# unshadowed and lights through walls, so the panel warns when the scene's lights need more.
+ENGINE_SHADOW_LAYERS = 16
+ENGINE_SUN_CASCADES = 4         # --shadow-cascades' default (SV_SHADOW_DEFAULT_CASCADES)
+ENGINE_SPOT_CUBE_HALF_ANGLE = 1.0471975511965976  # 60°: a wider spot takes six layers, as a point
+
+
+def shadow_layers(kind: str, spot_size: float = 0.0) -> int:
+    """Shadow-map layers the engine gives a mixed or realtime lamp of Blender type ``kind`` (spot:
+    full cone ``spot_size``, radians; glTF's outer cone angle is half of it)."""
+    if kind == 'SUN':
+        return ENGINE_SUN_CASCADES
+    if kind == 'POINT':
+        return 6
+    if kind == 'SPOT':
+        return 6 if spot_size / 2.0 > ENGINE_SPOT_CUBE_HALF_ANGLE else 1
+    return 0  # AREA: not a glTF punctual light
+
+
+def scene_shadow_layers(objects) -> int:
+    """Shadow-map layers the mixed and realtime lamps among ``objects`` need in the engine (lamps
+    with a bad mode, which the bake refuses, are not counted)."""
+    total = 0
+    for ob in objects:
+        if getattr(ob, "type", None) != 'LIGHT' or getattr(ob, "hide_render", False):
+            continue
+        try:
+            mode = light_mode(ob)
+        except LightModeError:
+            continue
+        if mode != BAKED:
+            total += shadow_layers(ob.data.type, float(getattr(ob.data, "spot_size", 0.0) or 0.0))
+    return total
+
+
 class LightModeError(ValueError):
     """A light object's ``schnee_light_mode`` is not "baked", "mixed" or "realtime"."""
 

@@ -128,6 +128,14 @@ def draw_light_mode(layout, ob, context=None):
             col.label(text="Choosing a mode above removes the custom property", icon='INFO')
     if mode in (light_modes.MIXED, light_modes.REALTIME) and ob.data.type == 'AREA':
         col.label(text="glTF cannot export area lights", icon='ERROR')
+    scene = getattr(context, "scene", None) if context is not None else None
+    if mode in (light_modes.MIXED, light_modes.REALTIME) and scene is not None:
+        need = light_modes.scene_shadow_layers(scene.objects)
+        if need > light_modes.ENGINE_SHADOW_LAYERS:
+            # docs/engine.md "Shadows": the lamps past the pool are unshadowed in the engine.
+            col.label(text=f"Mixed/realtime lamps need {need} of the engine's "
+                           f"{light_modes.ENGINE_SHADOW_LAYERS} shadow layers", icon='ERROR')
+            col.label(text="Some will be unshadowed (light through walls): bake some")
     if context is not None and len(_target_lights(context)) > 1:
         col.operator_menu_enum(SCHNEE_OT_set_light_mode.bl_idname, "mode", text="Set All Selected Lamps")
 

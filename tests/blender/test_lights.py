@@ -167,6 +167,15 @@ def test_default_sun_keeps_its_direct_light_out_of_the_probes(bakes):
     assert np.all(default[:, 0, :] > np.asarray(bakes["deleted"]["coeffs"])[:, 0, :])
     # The sidebar says why: a Sun is mixed by type.
     assert ["label", "Mixed: by type (Sun)"] in info["panel"]
+    assert not [x for x in info["panel"] if "shadow layers" in x[-1]]  # 4 of 16: no warning
+
+
+def test_panel_warns_when_mixed_lamps_exceed_the_engines_shadow_layers(bakes):
+    # docs/engine.md "Shadows": a point light takes 6 of 16 layers; three small point lamps, mixed
+    # by default, need 18 (the Sun and KeyLamp are baked: none).
+    r = bakes["layers"]
+    assert r["need"] == 18
+    assert ["label", "Mixed/realtime lamps need 18 of the engine's 16 shadow layers"] in r["panel"]
 
 
 def test_defaults_by_lamp_type(bakes):

@@ -15,8 +15,9 @@ Tiny bakes (4 probes, 32x16 panoramas, 16 spp, 4 bounces, same seed, no sky):
 - sun_default / sun_baked: TestLamp deleted, a Sun lamp (angle 0) added, left at its default
   (mixed) / marked baked with the legacy custom property ``schnee_light_mode`` = "baked".
 
-Also the light-mode panels (sidebar and Properties > Light) drawn into a recording stub, and the
-modes lamps of each type resolve to (modes).
+Also the light-mode panels (sidebar and Properties > Light) drawn into a recording stub, the
+modes lamps of each type resolve to (modes), and the engine's shadow-map layers that three small
+point lamps would need (layers).
 
 Emits RESULT lines: each bake's coefficients, each lamp's visibility flags before and after every
 bake, the bad value's message.
@@ -247,6 +248,16 @@ def main():
     bake(out, "sun_default")
     sun["schnee_light_mode"] = "baked"
     bake(out, "sun_baked")
+
+    # Three small point lamps (mixed by default, 6 shadow-map layers each in the engine) beside the
+    # baked Sun and KeyLamp: 18 of 16 layers, and the panel says so.
+    for i in range(3):
+        p = bpy.data.objects.new(f"Small{i}", bpy.data.lights.new(f"Small{i}", 'POINT'))
+        p.data.shadow_soft_size = 0.05
+        bpy.context.scene.collection.objects.link(p)
+    from schnee_probes import light_modes
+    common.emit(case="layers", need=light_modes.scene_shadow_layers(bpy.context.scene.objects),
+                panel=draw_light_panel_of(bpy.data.objects["Small0"]))
 
 
 def draw_light_panel_of(ob):
