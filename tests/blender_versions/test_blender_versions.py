@@ -194,6 +194,7 @@ def test_light_mode_defaults_and_choices(session):
                           "AREANone": ["baked", "default"], "chosen": ["baked", "chosen"],
                           "legacy_over_chosen": ["realtime", "custom property"],
                           "chosen_again": ["mixed", "chosen", False]}
+    assert r["data_panel"][:2] == [["prop", "mode", "MIXED"], ["label", "Mixed: chosen"]], r["data_panel"]
     assert r["default_sun_mode"] == "mixed"
     assert np.abs(np.array(r["default_sun_bake"])).max() == 0.0
     assert np.abs(np.array(r["sun_bake"])).max() > 0.5  # the baked one is not (the check can fail)

@@ -74,6 +74,29 @@ def light_mode_checks(scene, name, bake_core):
     ob.schnee_light.mode = 'MIXED'              # a choice in the UI removes the legacy property
     modes["chosen_again"] = light_modes.resolve(ob) + (light_modes.PROPERTY in ob.keys(),)
     out["modes"] = modes
+    # Properties > Light's panel drawn into a recording layout (no window in background mode) that
+    # checks each property it is given exists, as Blender's layout does.
+    log = []
+
+    class Layout:
+        def column(self, **_):
+            return self
+        row = box = column
+
+        def label(self, text="", **_):
+            log.append(["label", text])
+
+        def prop(self, data, prop, **_):
+            assert prop in data.bl_rna.properties, prop
+            log.append(["prop", prop, getattr(data, prop)])
+
+        def operator_menu_enum(self, *args, **_):
+            log.append(["menu"])
+    panel = importlib.import_module(name + ".panel")
+    ctx = type("Ctx", (), {"object": ob, "scene": scene, "active_object": ob, "selected_objects": [ob]})()
+    assert panel.DATA_PT_schnee_light.poll(ctx)
+    panel.DATA_PT_schnee_light.draw(type("P", (), {"layout": Layout()})(), ctx)
+    out["data_panel"] = log
     clear(scene)
     sun = bpy.data.objects.new("DefaultSun", bpy.data.lights.new("DefaultSun", 'SUN'))
     sun.data.energy, sun.data.angle = 3.0, 0.0
