@@ -74,6 +74,33 @@ spheres' diffuse surfaces Cycles' Combined pass is still albedo * E / pi, E now 
 direct light; which sphere points are sunlit is checked analytically (sun_lit) when the scene is
 built.
 
+With --scene daylight --case sun|hdri|both (issue 27, "Daylight right by default"): the box of
+scenes/make_daylight_box.py (4 x 3 x 2.5 m, closed but for one 1.6 x 1.2 m window; one sun path 40 deg
+up through it drawing a sharp patch on the floor) lit by a Sun lamp (sun; black world), by
+sunrise.exr turned so that its sun comes along the same path (hdri; no lamp), or both, with its six
+spheres (in the beam, across the beam's edge, in shadow below the beam by the window, beside the
+sunlit floor patch, deep in the room, by a wall; each checked against the closed form sun_lit before
+anything runs, tests/bench/test_daylight_box.py checks the same with Cycles and Blender's ray casts).
+The bake uses the add-on's defaults (settings.py: Adaptive, Min/Max Cell 0.5/16 m, Error Tolerance
+0.03, 128 x 64 px, 8 spp, 32 bounces) unless an option says otherwise, and the lamp's light mode is
+the measured tree's default unless --sun-mode sets it. Mixed and realtime suns (the glTF's
+directional lights, read from the exported file: the Sun lamp, and the sky's sun once the bake can
+split it off, --sky-sun) are added by the engine per pixel with its shadow maps; the reference is
+Cycles with everything; the CPU models get each such sun's exact direct term (albedo S cos / pi
+where the surface point sees it through the window: sun_lit); the floor stays a probe baked at the
+sphere's centre holding all the light: every lamp baked and the sky's sun not split, whatever the
+bake did (issue 27's table). --root TREE measures another checkout's add-on and build/schnee-view
+(e.g. a git worktree of an older commit, built there with scripts/build.sh) on this checkout's scenes
+and method. The runs of bench/results/spheres.md "Daylight (issue 27)", one command per case:
+
+    blender -b --factory-startup -P bench/bench_spheres.py -- OUT_sun --scene daylight --case sun
+    blender -b --factory-startup -P bench/bench_spheres.py -- OUT_hdri --scene daylight --case hdri
+    blender -b --factory-startup -P bench/bench_spheres.py -- OUT_both --scene daylight --case both
+
+"Before" (the commit before issue 27's changes, suns baked by default): the same with
+--root /work/before (git worktree add /work/before 24e5473; cd /work/before && scripts/build.sh).
+The old behaviour on a new tree: --sun-mode baked --sky-sun <the setting's "baked" value>.
+
 Writes OUT_DIR/spheres.json (all numbers, settings, timings), OUT_DIR/table.md (the table),
 OUT_DIR/spheres.png (per sphere: Cycles | per object | per pixel | converged floor), the EXRs.
 The report is bench/results/spheres.md (numbers copied from the JSON with the command).
@@ -94,8 +121,24 @@ import time
 import zlib
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _root_from_argv(argv):
+    """--root's value, read before the add-on is imported (it decides which add-on that is)."""
+    for i, arg in enumerate(argv):
+        if arg == "--root" and i + 1 < len(argv):
+            return os.path.abspath(argv[i + 1])
+        if arg.startswith("--root="):
+            return os.path.abspath(arg.split("=", 1)[1])
+    return REPO
+
+
+# The tree measured: its add-on (with its built native module) and its build/schnee-view. The
+# scenes and this script always come from this checkout, so a "before" tree (a git worktree of an
+# older commit, built there) is measured on exactly the scenes and method of an "after" run.
+ROOT = _root_from_argv(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else [])
 sys.path.insert(0, os.path.join(REPO, "scenes"))
-sys.path.insert(0, os.path.join(REPO, "addon"))
+sys.path.insert(0, os.path.join(ROOT, "addon"))
 sys.path.insert(0, os.path.join(REPO, "bench"))
 
 import addon_utils  # noqa: E402
@@ -103,6 +146,7 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
+import make_daylight_box  # noqa: E402
 import make_default_scene  # noqa: E402
 import scene_lib as lib  # noqa: E402
 from bench_util import cpu_seconds  # noqa: E402
@@ -117,6 +161,8 @@ RADIUS = 0.3
 CAM_DISTANCE = 1.2
 LENS_MM = 50.0           # 36 mm sensor, square image: vertical = horizontal FOV = 2 atan(18/50) = 39.6 deg
 MOVE_EPS = 1e-4          # engine --move offset (m) that makes a sphere movable for the engine
+ROOM_BAKE = dict(res=64, samples=16, bounces=16, placement="ADAPTIVE", min_cell=0.5, max_cell=16.0,
+                 tolerance=0.05)  # --scene room's bake when no option is given (its committed results)
 RED_PATCH = ((-5.0, -1.25, 0.0), (-4.97, 1.25, 2.5), (0.8, 0.05, 0.03))  # min, max, albedo
 
 # name, centre (Blender x, y, z; room x, y in -5..5, z in 0..4), direction from the sphere to its camera
@@ -153,13 +199,22 @@ def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     ap = argparse.ArgumentParser(prog="bench_spheres.py", description=__doc__.split("\n")[0])
     ap.add_argument("out", help="output folder")
-    ap.add_argument("--res", type=int, default=64, help="bake: panorama width (px)")
-    ap.add_argument("--samples", type=int, default=16, help="bake: samples per panorama pixel")
-    ap.add_argument("--bounces", type=int, default=16, help="bake: max bounces")
-    ap.add_argument("--placement", default="ADAPTIVE", choices=("ADAPTIVE", "OCTREE"))
-    ap.add_argument("--min-cell", type=float, default=0.5)
-    ap.add_argument("--max-cell", type=float, default=16.0)
-    ap.add_argument("--tolerance", type=float, default=0.05, help="Adaptive: Error Tolerance")
+    ap.add_argument("--scene", default="room", choices=("room", "daylight"),
+                    help="room: the bundled room (default); daylight: scenes/make_daylight_box.py (issue 27)")
+    ap.add_argument("--case", default="sun", choices=make_daylight_box.CASES,
+                    help="--scene daylight: what shines through the window (Sun lamp, sunrise.exr, both)")
+    ap.add_argument("--root", default=REPO,
+                    help="the tree whose add-on and build/schnee-view are measured (default: this checkout; "
+                         "build it first)")
+    # Bake settings: unset = the add-on's default (settings.py) for --scene daylight, and the values
+    # this script has always used for --scene room (ROOM_BAKE), so its committed results reproduce.
+    ap.add_argument("--res", type=int, default=None, help="bake: panorama width (px)")
+    ap.add_argument("--samples", type=int, default=None, help="bake: samples per panorama pixel")
+    ap.add_argument("--bounces", type=int, default=None, help="bake: max bounces")
+    ap.add_argument("--placement", default=None, choices=("ADAPTIVE", "OCTREE"))
+    ap.add_argument("--min-cell", type=float, default=None)
+    ap.add_argument("--max-cell", type=float, default=None)
+    ap.add_argument("--tolerance", type=float, default=None, help="Adaptive: Error Tolerance")
     ap.add_argument("--size", type=int, default=96, help="camera image side (px)")
     ap.add_argument("--ref-samples", type=int, default=512, help="Cycles reference spp (two halves)")
     ap.add_argument("--ref-bounces", type=int, default=32, help="Cycles reference bounces")
@@ -168,31 +223,85 @@ def main():
     ap.add_argument("--isolated-samples", type=int, default=256,
                     help="spp of the Cycles render with the sphere invisible to all but the camera (0: none)")
     ap.add_argument("--sun", action="store_true",
-                    help="the hard-shadow case: a baked Sun lamp through the window and SUN_SPHERES")
-    ap.add_argument("--sun-mode", default="baked", choices=("baked", "mixed"),
-                    help="--sun: the lamp's light mode; mixed = its bounced light in the probes, its direct "
-                         "light from the engine with shadow maps (the CPU models and floors add it exactly)")
+                    help="--scene room: the hard-shadow case, a Sun lamp through the window and SUN_SPHERES")
+    ap.add_argument("--sun-mode", default=None, choices=("baked", "mixed"),
+                    help="the Sun lamp's light mode, set as its object's custom property schnee_light_mode "
+                         "(room --sun: baked when unset; daylight: unset = the measured tree's default); "
+                         "mixed = its bounced light in the probes, its direct light from the engine's shadow maps")
+    ap.add_argument("--sky-sun", default=None,
+                    help="the bake setting sky_sun (the sky's sun split off as a light, issue 27), passed only "
+                         "when given (a tree without the setting refuses it)")
     ap.add_argument("--spheres", nargs="*", default=None, help="subset of sphere names")
     ap.add_argument("--reuse", action="store_true",
                     help="keep the probe file, Cycles renders and floor probes already in OUT")
-    ap.add_argument("--viewer", default=os.path.join(REPO, "build", "schnee-view"))
+    ap.add_argument("--viewer", default=None, help="schnee-view (default: ROOT/build/schnee-view)")
     a = ap.parse_args(argv)
+    a.root = os.path.abspath(a.root)
+    if a.root != ROOT:
+        sys.exit(f"bench_spheres: --root {a.root} was not seen before the add-on import ({ROOT})")
+    a.viewer = a.viewer or os.path.join(ROOT, "build", "schnee-view")
+    if not os.access(a.viewer, os.X_OK):
+        sys.exit(f"bench_spheres: no schnee-view at {a.viewer} (build the tree first: scripts/build.sh)")
+    if a.scene == "daylight" and a.sun:
+        sys.exit("bench_spheres: --sun is the room's sun case; the daylight scene takes --case")
+    if a.scene == "room":
+        for key, value in ROOM_BAKE.items():
+            if getattr(a, key) is None:
+                setattr(a, key, value)
+        if a.sun and a.sun_mode is None:
+            a.sun_mode = "baked"
     out = os.path.abspath(a.out)
     os.makedirs(out, exist_ok=True)
-    spheres = [s for s in (SUN_SPHERES if a.sun else SPHERES) if a.spheres is None or s[0] in a.spheres]
-    t_start = time.perf_counter()
+    if a.scene == "daylight":
+        if make_daylight_box.RADIUS != RADIUS or make_daylight_box.CAM_DISTANCE != CAM_DISTANCE:
+            sys.exit("bench_spheres: the daylight box's spheres and cameras differ from RADIUS / CAM_DISTANCE")
+        problems = make_daylight_box.layout_problems()
+        if problems:
+            sys.exit("bench_spheres: daylight layout: " + "; ".join(problems))
+        all_spheres = tuple(s[:3] for s in make_daylight_box.SPHERES)
+    else:
+        all_spheres = SUN_SPHERES if a.sun else SPHERES
+    spheres = [s for s in all_spheres if a.spheres is None or s[0] in a.spheres]
+    if not spheres:
+        sys.exit(f"bench_spheres: no sphere named {a.spheres} (there are {[s[0] for s in all_spheres]})")
+    t_start, cpu_start = time.perf_counter(), cpu_seconds()
     timings = {}
     result = {"command": "blender -b --factory-startup -P bench/bench_spheres.py -- " + " ".join(
         shlex.quote(x) for x in argv), "settings": vars(a), "load_start": os.getloadavg(),
-        "blender": bpy.app.version_string, "spheres": []}
+        "blender": bpy.app.version_string, "root": tree_state(ROOT), "bench_tree": tree_state(REPO),
+        "spheres": []}
 
     # ---------------------------------------------------------------- scene
     addon_utils.enable("io_scene_gltf2", default_set=True)
     if addon_utils.enable("schnee_probes", default_set=True) is None:
         sys.exit("bench_spheres: the schnee_probes add-on could not be enabled (build it first)")
-    from schnee_probes import bake_core, native, nodes
+    import schnee_probes
+    from schnee_probes import bake_core, light_modes, native, nodes
     from schnee_probes.scene_export import blender_to_engine as to_engine
-    scene = build_scene(spheres, a.size, nodes)
+    if not os.path.abspath(schnee_probes.__file__).startswith(os.path.join(ROOT, "addon") + os.sep):
+        sys.exit(f"bench_spheres: imported {schnee_probes.__file__}, not the add-on of {ROOT}")
+    bake_extra = {}
+    if a.sky_sun is not None:
+        bake_extra["sky_sun"] = setting_value(bake_core, "sky_sun", a.sky_sun)
+    if a.scene == "daylight":
+        scene = build_daylight_scene(a.case, spheres, a.size, nodes)
+        lamp = bpy.data.objects.get("SunLamp")
+        if lamp is not None and a.sun_mode is not None:
+            set_light_mode(light_modes, lamp, a.sun_mode)
+        result["daylight"] = {
+            "case": a.case, "to_sun": make_daylight_box.TO_SUN, "window": make_daylight_box.WINDOW,
+            "sun_strength": make_daylight_box.SUN_STRENGTH if lamp is not None else None,
+            "sun_mode": light_modes.light_mode(lamp) if lamp is not None else None,
+            "hdri_sun": list(scene.get("daylight_hdri_sun", [])) or None,
+            "sky_sun": bake_extra.get("sky_sun", "(the tree's default)"),
+            "spheres_lit": {}}
+        dirs = np.random.default_rng(7).normal(size=(400, 3))
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        for name, centre, _ in spheres:
+            result["daylight"]["spheres_lit"][name] = float(
+                make_daylight_box.sun_lit_many(np.array(centre) + RADIUS * dirs).mean())
+    else:
+        scene = build_scene(spheres, a.size, nodes)
     if a.sun:
         lamp = sweep_scenes._sun_lamp(SUN_TO_SUN, (0.0, 0.0, 0.0))
         lamp["schnee_light_mode"] = a.sun_mode
@@ -211,12 +320,15 @@ def main():
     lib.save(blend)
 
     def settings(**kw):
-        base = dict(placement=a.placement, min_cell_size=a.min_cell, max_cell_size=a.max_cell,
-                    error_tolerance=a.tolerance, panorama_resolution=a.res, samples=a.samples,
-                    max_bounces=a.bounces, probe_limit=0,
-                    output_path=os.path.join(out, "sh_coeffs", "probes.shprobe"))
+        """The bake's settings: the options given, the add-on's defaults for the rest."""
+        base = {k: v for k, v in dict(
+            placement=a.placement, min_cell_size=a.min_cell, max_cell_size=a.max_cell,
+            error_tolerance=a.tolerance, panorama_resolution=a.res, samples=a.samples,
+            max_bounces=a.bounces).items() if v is not None}
+        base.update(bake_extra, probe_limit=0, output_path=os.path.join(out, "sh_coeffs", "probes.shprobe"))
         base.update(kw)
         return bake_core.BakeSettings(**base)
+    result["bake_settings"] = {k: v for k, v in vars(settings()).items() if not k.startswith("_")}
 
     sphere_obs = [bpy.data.objects["Sphere_" + s[0]] for s in spheres]
     blender_c = np.array([s[1] for s in spheres], dtype=np.float64)
@@ -235,7 +347,9 @@ def main():
         r = bake.run()
         timings["bake"] = {"seconds": time.perf_counter() - t, "cpu_seconds": cpu_seconds() - cpu}
         result["bake"] = {"probes": r.probe_count, "renders": getattr(r, "renders", None),
-                          "resumed": bake.resumed, "file_bytes": os.path.getsize(path)}
+                          "resumed": bake.resumed, "file_bytes": os.path.getsize(path),
+                          "lights": {ob.name: light_modes.light_mode(ob) for ob in scene.objects
+                                     if ob.type == 'LIGHT'}}
     print("BAKE", json.dumps(result["bake"]), json.dumps(timings.get("bake")), flush=True)
 
     floor_path = os.path.join(out, "floor.npz")
@@ -244,10 +358,30 @@ def main():
         floor, floor_conv = z["floor"], z["floor_conv"]
     else:
         t = time.perf_counter()
-        floor = bake_core.bake_points(scene, layer, settings(), engine_c, log=lambda s: None)
-        floor_conv = bake_core.bake_points(
-            scene, layer, settings(panorama_resolution=a.floor_res, samples=a.floor_samples,
-                                   max_bounces=a.ref_bounces), engine_c, log=lambda s: None)
+        # Daylight: the floor is a probe holding all the light, every sun in it (issue 27's table):
+        # lamps baked and the sky's sun not split off, whatever the bake above did.
+        floor_kw, restore = {}, []
+        if a.scene == "daylight":
+            for ob in scene.objects:
+                if ob.type == 'LIGHT' and light_modes.light_mode(ob) != "baked":
+                    restore.append((ob, ob.get("schnee_light_mode")))
+                    set_light_mode(light_modes, ob, "baked")
+            if any(x.name == "sky_sun" for x in settings_module(bake_core).SETTINGS):
+                floor_kw["sky_sun"] = setting_value(bake_core, "sky_sun", "baked")
+            result["floor_bake"] = {"lights": {ob.name: light_modes.light_mode(ob) for ob in scene.objects
+                                               if ob.type == 'LIGHT'},
+                                    "sky_sun": floor_kw.get("sky_sun", "(no such setting)")}
+        try:
+            floor = bake_core.bake_points(scene, layer, settings(**floor_kw), engine_c, log=lambda s: None)
+            floor_conv = bake_core.bake_points(
+                scene, layer, settings(panorama_resolution=a.floor_res, samples=a.floor_samples,
+                                       max_bounces=a.ref_bounces, **floor_kw), engine_c, log=lambda s: None)
+        finally:
+            for ob, value in restore:
+                if value is None:
+                    del ob["schnee_light_mode"]
+                else:
+                    ob["schnee_light_mode"] = value
         timings["floor_probes"] = time.perf_counter() - t
         np.savez(floor_path, floor=floor, floor_conv=floor_conv)
     for ob in sphere_obs:
@@ -287,6 +421,14 @@ def main():
                       "cameras": [c.get("name") for c in doc.get("cameras", [])]}
     if not result["gltf"]["grids"]:
         sys.exit("bench_spheres: the glTF lists no probe grid (is the add-on's export hook enabled?)")
+    # Directional lights whose direct light the engine adds (mixed / realtime) as the glTF has them.
+    direct_lights = [x for x in gltf_directional_lights(doc) if x["mode"] in ("mixed", "realtime")]
+    result["gltf"]["directional_lights"] = gltf_directional_lights(doc)
+    if a.scene == "daylight":
+        for x in direct_lights:
+            off = math.degrees(math.acos(min(1.0, float(np.dot(x["to_sun"], make_daylight_box.TO_SUN)))))
+            if off > 1.0:   # the closed form of which points see the sun holds for TO_SUN only
+                sys.exit(f"bench_spheres: light {x['name']} is {off:.2f} deg from the daylight sun path")
 
     # ---------------------------------------------------------------- per sphere
     timings["cycles"] = 0.0
@@ -337,6 +479,14 @@ def main():
         node = sphere_obs[k].name
         ec = engine_c[k]
         move = ["--move", node, f"{ec[0] + MOVE_EPS:.6f}", f"{ec[1]:.6f}", f"{ec[2]:.6f}"]
+        if a.scene == "daylight":
+            # Cycles renders each sphere alone; in the small box another sphere can stand between a
+            # camera and its sphere or shadow it, so the engine gets the others 2 m under the floor
+            # slab (out of view and of every sunbeam, inside the scene's bounds for the shadow maps).
+            for j, (other, oc, _) in enumerate(spheres):
+                if j != k:
+                    e = to_engine(np.array([oc[0], oc[1], make_daylight_box.ROOM_MIN[2] - 2.0]))
+                    move += ["--move", sphere_obs[j].name] + [f"{v:.6f}" for v in e]
         eng = {}
         for mode, extra in (("normals", ["--debug", "normals"]), ("object", ["--probe-mode", "object"]),
                             ("pixel", ["--probe-mode", "pixel"])):
@@ -354,6 +504,18 @@ def main():
         surf = np.nan_to_num(surf)
         plain_img = ALBEDO * np.maximum(np.array(
             [native.irradiance(c, nn) for c, nn in zip(surf, n_eng)]), 0.0) / math.pi
+        if a.scene == "daylight" and direct_lights:
+            # The probes lack the direct light of mixed and realtime suns (the Sun lamp, the sky's sun
+            # when split off); the engine adds it per pixel with its shadow maps, so the CPU models
+            # get it exactly: S cos / pi where the surface point sees the sun through the window.
+            # The floors are baked with every sun in them and get nothing added.
+            pts = np.array(centre) + RADIUS * n_c[mask]
+            sun_img = np.zeros((len(pts), 3))
+            for light in direct_lights:
+                lit = make_daylight_box.sun_lit_many(pts, light["to_sun"])
+                cos = np.maximum(n_c[mask] @ np.asarray(light["to_sun"]), 0.0) * lit
+                sun_img += ALBEDO / math.pi * cos[:, None] * np.asarray(light["irradiance"])[None, :]
+            cpu_img, plain_img = cpu_img + sun_img, plain_img + sun_img
         if a.sun and a.sun_mode == "mixed":
             # The probes hold no direct sun: every model gets the engine's term, the sun's exact
             # direct light on a Lambert surface, S cos / pi where the point is lit (sun_lit: the
@@ -391,6 +553,7 @@ def main():
 
     result["spheres"] = rows
     timings["total"] = time.perf_counter() - t_start
+    timings["total_cpu_seconds"] = cpu_seconds() - cpu_start   # this process; Cycles runs in it
     result["timings"] = timings
     result["load_end"] = os.getloadavg()
     with open(os.path.join(out, "spheres.json"), "w", encoding="utf-8") as fh:
@@ -403,7 +566,118 @@ def main():
     print("WROTE", os.path.join(out, "spheres.json"), "in", f"{timings['total']:.0f} s")
 
 
+# -------------------------------------------------------------------- helpers
+def tree_state(root):
+    """The commit of ``root`` and whether its tracked files differ from it (for the JSON)."""
+    def git(*args):
+        p = subprocess.run(["git", "-C", root] + list(args), capture_output=True, text=True)
+        return p.stdout.strip() if p.returncode == 0 else None
+    return {"path": root, "commit": git("rev-parse", "HEAD"),
+            "modified": [line[3:] for line in (git("status", "--porcelain", "--untracked-files=no") or "").splitlines()]}
+
+
+def settings_module(bake_core):
+    return sys.modules[bake_core.BakeSettings.__module__]
+
+
+def setting_value(bake_core, name, text):
+    """``text`` as the value of bake setting ``name`` (settings.py's declaration): an enum's
+    identifier (case-insensitive), a bool from on/off/true/false, else the text; a clear exit when
+    the measured tree has no such setting."""
+    decl = next((x for x in settings_module(bake_core).SETTINGS if x.name == name), None)
+    if decl is None:
+        sys.exit(f"bench_spheres: the tree at {ROOT} has no bake setting '{name}'")
+    if decl.kind == "enum":
+        ids = {c.lower(): c for c in decl.choice_ids}
+        if text.lower() not in ids:
+            sys.exit(f"bench_spheres: {name} {text!r} is not one of {', '.join(decl.choice_ids)}")
+        return ids[text.lower()]
+    if decl.kind == "bool":
+        words = {"on": True, "true": True, "1": True, "off": False, "false": False, "0": False}
+        if text.lower() not in words:
+            sys.exit(f"bench_spheres: {name} is on/off, not {text!r}")
+        return words[text.lower()]
+    return text
+
+
+def set_light_mode(light_modes, ob, mode):
+    """Sets the lamp object's custom property schnee_light_mode (the form every tree reads) and
+    checks that the measured tree's add-on now reports ``mode``."""
+    ob["schnee_light_mode"] = mode
+    if light_modes.light_mode(ob) != mode:
+        sys.exit(f"bench_spheres: {ob.name}: schnee_light_mode = {mode!r} but the add-on reports "
+                 f"{light_modes.light_mode(ob)!r}")
+
+
+def gltf_directional_lights(doc):
+    """The glTF's KHR_lights_punctual directional lights: name, mode (VULKAN_SCHNEE_light, "baked"
+    when absent), to_sun (unit, Blender space: the light shines along the node's -Z) and irradiance
+    (colour * intensity * intensityScale, W/m^2: docs/export.md)."""
+    lights = doc.get("extensions", {}).get("KHR_lights_punctual", {}).get("lights", [])
+    nodes_ = doc.get("nodes", [])
+    out = []
+
+    def matrix(node):
+        if "matrix" in node:
+            return np.array(node["matrix"], dtype=np.float64).reshape(4, 4).T
+        x, y, z, w = node.get("rotation", (0.0, 0.0, 0.0, 1.0))
+        r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        m = np.eye(4)
+        m[:3, :3] = r * np.asarray(node.get("scale", (1.0, 1.0, 1.0)))[None, :]
+        m[:3, 3] = node.get("translation", (0.0, 0.0, 0.0))
+        return m
+
+    def walk(index, parent):
+        node = nodes_[index]
+        m = parent @ matrix(node)
+        k = node.get("extensions", {}).get("KHR_lights_punctual", {}).get("light")
+        if k is not None and lights[k].get("type") == "directional":
+            light = lights[k]
+            ext = light.get("extensions", {}).get("VULKAN_SCHNEE_light", {})
+            d = m[:3, :3] @ np.array([0.0, 0.0, -1.0])             # glTF (Y-up) direction of travel
+            d = np.array([d[0], -d[2], d[1]]) / np.linalg.norm(d)   # Blender space
+            irr = (np.asarray(light.get("color", (1.0, 1.0, 1.0))) * light.get("intensity", 1.0)
+                   * ext.get("intensityScale", 1.0))
+            out.append({"name": light.get("name", node.get("name")), "mode": ext.get("mode", "baked"),
+                        "to_sun": (-d).tolist(), "irradiance": irr.tolist()})
+        for c in node.get("children", []):
+            walk(c, m)
+    for root in doc.get("scenes", [{}])[doc.get("scene", 0)].get("nodes", []):
+        walk(root, np.eye(4))
+    return out
+
+
 # -------------------------------------------------------------------- scene
+def add_camera(scene, name, centre, cam_dir):
+    cam_data = bpy.data.cameras.new("Cam_" + name)
+    cam_data.lens = LENS_MM
+    cam_data.sensor_width = 36.0
+    cam_data.sensor_fit = 'AUTO'
+    cam = bpy.data.objects.new("Cam_" + name, cam_data)
+    d = Vector(cam_dir).normalized()
+    cam.location = Vector(centre) + CAM_DISTANCE * d
+    cam.rotation_euler = (-d).to_track_quat('-Z', 'Y').to_euler()
+    scene.collection.objects.link(cam)
+
+
+def build_daylight_scene(case, spheres, size, nodes):
+    """scenes/make_daylight_box.py's box for ``case`` with the spheres asked for, the benchmark's
+    grey material (SH Scale 1, Ambient Term 0) and a camera per sphere."""
+    def material():
+        return nodes.make_movable_diffuse_material("TestGrey", base_color=(ALBEDO, ALBEDO, ALBEDO, 1.0),
+                                                   sh_scale=1.0, ambient=0.0)
+    chosen = [s for s in make_daylight_box.SPHERES if s[0] in {x[0] for x in spheres}]
+    scene = make_daylight_box.build(case, spheres=chosen, make_material=material)
+    for name, centre, cam_dir in spheres:
+        add_camera(scene, name, centre, cam_dir)
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    bpy.context.view_layer.update()
+    return scene
+
+
 def build_scene(spheres, size, nodes):
     scene = make_default_scene.build()
     for name in ("MovableSphere", "MovableMonkey"):  # the demo movables: not part of this test
@@ -424,15 +698,7 @@ def build_scene(spheres, size, nodes):
         for c in list(ob.users_collection):
             c.objects.unlink(ob)
         movable.objects.link(ob)
-        cam_data = bpy.data.cameras.new("Cam_" + name)
-        cam_data.lens = LENS_MM
-        cam_data.sensor_width = 36.0
-        cam_data.sensor_fit = 'AUTO'
-        cam = bpy.data.objects.new("Cam_" + name, cam_data)
-        d = Vector(cam_dir).normalized()
-        cam.location = Vector(centre) + CAM_DISTANCE * d
-        cam.rotation_euler = (-d).to_track_quat('-Z', 'Y').to_euler()
-        scene.collection.objects.link(cam)
+        add_camera(scene, name, centre, cam_dir)
     scene.render.resolution_x = scene.render.resolution_y = size  # also the exported cameras' aspect
     scene.render.resolution_percentage = 100
     bpy.context.view_layer.update()

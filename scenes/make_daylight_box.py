@@ -212,9 +212,10 @@ def movable_material(name="TestGrey"):
         return lib.diffuse_material(name, (ALBEDO, ALBEDO, ALBEDO))
 
 
-def build(case="sun", spheres=SPHERES, material=None):
+def build(case="sun", spheres=SPHERES, make_material=None):
     """Builds the box for ``case`` into an emptied scene; returns the scene. Spheres are named
-    ``Sphere_<name>`` in the collection "Movable"."""
+    ``Sphere_<name>`` in the collection "Movable", their material made by ``make_material()``
+    (after the scene is emptied; default: :func:`movable_material`)."""
     if case not in CASES:
         raise ValueError(f"case {case!r} is not one of {', '.join(CASES)}")
     import bpy
@@ -236,7 +237,7 @@ def build(case="sun", spheres=SPHERES, material=None):
     lib.probe_volume("RoomVolume", ROOM_MIN, ROOM_MAX)
 
     movable = lib.collection("Movable")
-    mat = material or movable_material()
+    mat = (make_material or movable_material)()
     for name, centre, _cam, _cls in spheres:
         bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=RADIUS, location=centre)
         ob = bpy.context.active_object
