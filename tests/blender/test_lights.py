@@ -344,3 +344,22 @@ def test_mode_property_registers_unregisters_and_survives_a_reload(tmp_path):
     chosen = {"Chosen": ["baked", "chosen"], "Legacy": ["realtime", "custom property"]}
     assert r["set"] == r["enabled_again_modes"] == r["reopened_modes"] == chosen
     assert r["disabled_modes"] == {"Chosen": ["mixed", "default"], "Legacy": ["realtime", "custom property"]}
+
+
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run not installed")
+def test_panels_drawn_by_blender_in_a_real_ui(tmp_path):
+    """scripts/light_modes_ui.py under Xvfb: Blender itself draws Properties > Light's Schnee Light
+    Mode panel and the sidebar's Light Mode panel for the startup lamp, before and after a choice,
+    without an exception (each draw recorded; Blender would only print a panel's exception)."""
+    import os
+    from conftest import ADDON_DIR
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", "blender", "--factory-startup",
+           "--python-exit-code", "1", "-P", str(SCRIPTS / "light_modes_ui.py"), "--", str(tmp_path)]
+    env = {**os.environ, "PYTHONPATH": str(ADDON_DIR), "SCHNEE_REPO": str(REPO)}
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    calls = _results(proc.stdout)[0]["calls"]
+    assert [c for c in calls if c[2] != "ok"] == []
+    for area in ("PROPERTIES", "VIEW_3D"):
+        seen = [c[3] for c in calls if c[0] == area]
+        assert "DEFAULT" in seen and "BAKED" in seen, calls
+    assert "Traceback" not in proc.stderr, proc.stderr[-3000:]
