@@ -113,6 +113,7 @@ import importlib.util
 import json
 import math
 import os
+import resource
 import shlex
 import struct
 import subprocess
@@ -554,12 +555,14 @@ def main():
     result["spheres"] = rows
     timings["total"] = time.perf_counter() - t_start
     timings["total_cpu_seconds"] = cpu_seconds() - cpu_start   # this process; Cycles runs in it
+    ch = resource.getrusage(resource.RUSAGE_CHILDREN)
+    timings["children_cpu_seconds"] = ch.ru_utime + ch.ru_stime   # the schnee-view runs (and git)
     result["timings"] = timings
     result["load_end"] = os.getloadavg()
     with open(os.path.join(out, "spheres.json"), "w", encoding="utf-8") as fh:
         json.dump(result, fh, indent=1)
     write_montage(os.path.join(out, "spheres.png"), [os.path.join(out, r["name"] + "_pixels.npz") for r in rows])
-    table = markdown_table(rows)
+    table = markdown_table(rows, result)
     with open(os.path.join(out, "table.md"), "w", encoding="utf-8") as fh:
         fh.write(table)
     print(table)
@@ -924,7 +927,7 @@ def write_montage(path, npz_paths):
                  + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
 
 
-def markdown_table(rows):
+def markdown_table(rows, result=None):
     """Per sphere: RMS (net of the reference's noise) / mean-colour error / luminance bias, in %."""
     cols = ("per_object", "per_pixel", "per_pixel_cpu_plain", "floor", "floor_converged")
     lines = ["| sphere | pixels | ref. noise | " + " | ".join(c.replace("_", " ") for c in cols)
@@ -939,8 +942,28 @@ def markdown_table(rows):
         lines.append(f"| {r['name']} | {r['pixels']} | {100 * r['reference']['noise_rel_rms']:.1f} | "
                      + " | ".join(cell(r["errors"][c]) for c in cols)
                      + f" | {iso} | {100 * r['engine_object_vs_cpu_model']:.2f} |")
-    return ("Each cell: relative RMS over the pixels (net of the reference's noise) / relative error of "
+    if len(rows) > 1:
+        def mean_cell(get):
+            es = [get(r) for r in rows]
+            if any(e is None for e in es):
+                return "—"
+            return cell({k: float(np.mean([e.get(k, float("nan")) for e in es]))
+                         for k in ("rel_rms", "rel_rms_net", "mean_rel", "mean_lum_bias")})
+        lines.append(f"| **mean of {len(rows)}** | | {100 * np.mean([r['reference']['noise_rel_rms'] for r in rows]):.1f} | "
+                     + " | ".join(mean_cell(lambda r, c=c: r["errors"][c]) for c in cols)
+                     + f" | {mean_cell(lambda r: r.get('isolated_reference'))} | "
+                     + f"{100 * np.mean([r['engine_object_vs_cpu_model'] for r in rows]):.2f} |")
+    text = ("Each cell: relative RMS over the pixels (net of the reference's noise) / relative error of "
             "the mean colour / luminance bias of the mean, all in %.\n\n" + "\n".join(lines) + "\n")
+    if result is not None:
+        b, t = result.get("bake", {}), result.get("timings", {})
+        tb = t.get("bake", {})
+        text += (f"\nBake: {b.get('probes')} probes, {b.get('renders')} points rendered, "
+                 f"{tb.get('seconds', float('nan')):.0f} s wall, {tb.get('cpu_seconds', float('nan')):.0f} CPU-s "
+                 f"(lights {b.get('lights')}). Whole command: {t.get('total', float('nan')):.0f} s wall, "
+                 f"{t.get('total_cpu_seconds', float('nan')):.0f} CPU-s (Blender and Cycles) + "
+                 f"{t.get('children_cpu_seconds', float('nan')):.0f} CPU-s (schnee-view).\n")
+    return text
 
 
 if __name__ == "__main__":
