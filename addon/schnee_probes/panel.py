@@ -120,7 +120,11 @@ def draw_light_mode(layout, ob, context=None):
                   icon='ERROR')
         col.label(text="The bake refuses it; choose a mode above")
     if mode is not None:
-        why = {"default": f"by type ({ob.data.type.title()})", "chosen": "chosen",
+        kind = ob.data.type.title()
+        if ob.data.type == 'POINT':  # the default depends on the radius too: say which side
+            limit = light_modes.POINT_MIXED_MAX_RADIUS
+            kind += f", radius {'≤' if ob.data.shadow_soft_size <= limit else '>'} {limit:g} m"
+        why = {"default": f"by type ({kind})", "chosen": "chosen",
                "custom property": f"custom property {light_modes.PROPERTY}"}[source]
         col.label(text=f"{mode.title()}: {why}", icon='LIGHT')
         col.label(text=_MODE_TEXT[mode])

@@ -176,6 +176,8 @@ def test_panel_warns_when_mixed_lamps_exceed_the_engines_shadow_layers(bakes):
     r = bakes["layers"]
     assert r["need"] == 18
     assert ["label", "Mixed/realtime lamps need 18 of the engine's 16 shadow layers"] in r["panel"]
+    # A point lamp's default depends on its radius: the panel says which side of the limit it is.
+    assert ["label", "Mixed: by type (Point, radius ≤ 0.25 m)"] in r["panel"]
 
 
 def test_defaults_by_lamp_type(bakes):
