@@ -76,11 +76,8 @@ RETEST_FLAG = 1             # journal key flags of a re-test render (docs/farm.m
 # on this many steps per axis of the leaf (5³ − 8 points; fewer where that is finer than Min Cell).
 DIRECT_DIVISIONS = 4
 # A sun in the sky image (its light is in the panoramas, not a lamp's exact term) is checked like a
-# lamp (AdaptiveGroup.direct_check, docs/placement.md step 4b) through a stand-in Sun lamp: the
-# texels connected to the brightest one and at least SKY_SUN_FRACTION as bright, when they span
-# at most SKY_SUN_MAX_ANGLE from their centre (a wider bright region casts no hard shadow).
-SKY_SUN_FRACTION = 0.05
-SKY_SUN_MAX_ANGLE = math.radians(5.0)
+# lamp (AdaptiveGroup.direct_check, docs/placement.md step 4b) through a stand-in Sun lamp: sky_sun,
+# the C split of native.sky_sun_split (its criteria: docs/direct-light.md "The sky's sun").
 # Relocation directions: the 6 axes first, then the 12 edge and 8 corner diagonals (unit vectors).
 _RELOCATE_DIRS = np.array(sorted(((i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                                   if (i, j, k) != (0, 0, 0)), key=lambda d: sum(map(abs, d))), dtype=np.float64)
@@ -210,53 +207,19 @@ def restrict_tests(tests: "native.RefineTests", lt: np.ndarray) -> "native.Refin
 
 
 def sky_sun(world: np.ndarray) -> Optional["native.Lamp"]:
-    """A Sun lamp (engine space) standing in for the sun of an equirectangular world image (H, W, ≥3)
+    """A Sun lamp (engine space) carrying the sun of an equirectangular world image (H, W, >=3)
     radiance, rows top-down, the texel directions of pb_direct_sky_table (θ = π(row + ½)/H from
-    Blender +Z, φ = π − 2π(col + ½)/W), or None when it has none. The sun is the brightest texel's
-    8-connected region (wrapping in φ) of texels at least SKY_SUN_FRACTION of its luminance: its
-    colour × strength is the region's ∫L dω, its direction the luminance-weighted mean (the light
-    travels the other way), its angle the diameter of the disc of the region's solid angle. None
-    for a black world and when the region reaches beyond SKY_SUN_MAX_ANGLE from its centre or
-    holds more than 0.1 % of the texels (a bright sky, a window: no hard shadow to check). Only
-    the refinement's direct-light check uses it; the probes keep the sun their panoramas saw."""
+    Blender +Z, φ = π − 2π(col + ½)/W), or None when it has none: the sun of
+    native.sky_sun_split (docs/direct-light.md "The sky's sun": a compact region around the
+    brightest texel, its light above the surrounding sky's level; colour × strength = that excess
+    ∫L dω, direction the way its light travels, angle its angular diameter). With Sky Sun "baked"
+    the refinement's direct-light check uses it as a stand-in for the sun the probes keep; with
+    "mixed" it is the light the engine adds (bake_core's engine lamps)."""
     w = np.asarray(world)
     if w.ndim != 3 or w.shape[2] < 3 or w.shape[0] < 1 or w.shape[1] < 1:
         raise ValueError(f"world image of shape {w.shape}: expected (H, W, >=3)")
-    h, wd = w.shape[:2]
-    # float32 over the whole image (an 8k world is 32 M texels), float64 only for the sun's texels
-    lum = 0.2126 * w[:, :, 0].astype(np.float32) + 0.7152 * w[:, :, 1] + 0.0722 * w[:, :, 2]
-    peak = float(lum.max())
-    if not (peak > 0.0 and math.isfinite(peak)):
-        return None
-    bright = lum >= SKY_SUN_FRACTION * peak
-    start = np.unravel_index(int(np.argmax(lum)), lum.shape)
-    region = np.zeros_like(bright)
-    region[start] = True
-    stack, count, limit = [start], 1, max(64, (h * wd) // 1000)
-    while stack:
-        r, c = stack.pop()
-        for dr in (-1, 0, 1):
-            for dc in (-1, 0, 1):
-                rr, cc = r + dr, (c + dc) % wd
-                if 0 <= rr < h and bright[rr, cc] and not region[rr, cc]:
-                    region[rr, cc] = True
-                    stack.append((rr, cc))
-                    count += 1
-                    if count > limit:
-                        return None
-    rows, cols = np.nonzero(region)
-    dw = (2.0 * math.pi / wd) * (np.cos(math.pi * rows / h) - np.cos(math.pi * (rows + 1) / h))
-    theta, phi = math.pi * (rows + 0.5) / h, math.pi - 2.0 * math.pi / wd * (cols + 0.5)
-    d = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=1)
-    centre = (d * (lum[rows, cols].astype(np.float64) * dw)[:, None]).sum(axis=0)
-    centre /= np.linalg.norm(centre)
-    if float(np.arccos(np.clip(d @ centre, -1.0, 1.0)).max()) > SKY_SUN_MAX_ANGLE:
-        return None
-    flux = (w[rows, cols, :3].astype(np.float64) * dw[:, None]).sum(axis=0)
-    radius = math.acos(max(-1.0, 1.0 - float(dw.sum()) / (2.0 * math.pi)))
-    travel = -np.array([centre[0], centre[2], -centre[1]])     # Blender (x, y, z) -> engine (x, z, -y)
-    return native.Lamp("SUN", tuple(float(v) for v in flux), direction=tuple(float(v) for v in travel),
-                       radius=2.0 * radius)
+    split = native.sky_sun_split(np.ascontiguousarray(w[:, :, :3], dtype=np.float32))
+    return None if split.sun is None else split.sun.lamp()
 
 
 class PointCache:

@@ -27,6 +27,7 @@ probe, before the sky and before writing.
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
@@ -51,6 +52,12 @@ from .estimate import (SECONDS_PER_PIXEL_SAMPLE, estimate_seconds, format_durati
 # The world (sky) alone, captured by a volume bake next to the probe files; the glTF exporter
 # copies it and lists it as VULKAN_SCHNEE_engine_properties.sky (docs/export.md).
 SKY_FILE_NAME = "sky.exr"
+# The sky's sun split off as a mixed light (Sky Sun "mixed", docs/export.md "The sky's sun"); the
+# file starts with SUN_MAGIC (json.dumps of a dict whose first key is "format", indent 2), which
+# check_replaceable looks for before replacing or removing it.
+SUN_FILE_NAME = "sun.json"
+SUN_FORMAT = "schnee-sky-sun"
+SUN_MAGIC = b'{\n  "format": "schnee-sky-sun"'
 DEBUG_TEXT_NAME = "debug_probe.txt"
 # Where Bake SH at Cursor puts its single-probe file when probes.shprobe holds a full bake:
 # a subfolder, so the glTF exporter (which scans sh_coeffs/*.shprobe) never exports it.
@@ -404,6 +411,8 @@ class ProbeBake:
             check_replaceable(path, "shprobe")
         if s.capture_sky:
             check_replaceable(os.path.join(os.path.dirname(main_path), SKY_FILE_NAME), "exr")
+        # Written (Sky Sun "mixed" and a sun) or removed (else: a stale sun would be added twice).
+        check_replaceable(os.path.join(os.path.dirname(main_path), SUN_FILE_NAME), "sun")
         exclude = frozenset(ob.name for ob in objects)
         # Solid geometry as Cycles renders it, not as the viewport shows it (render_settings.py).
         coll = bpy.data.collections.get(s.volume_collection)
@@ -487,13 +496,15 @@ class ProbeBake:
         self.positions = self._cache.positions
 
     def _check_lamps(self) -> list:
-        """The lamps of the refinement's direct-light check: the lamps added analytically, and a Sun
-        standing in for a sun in the world image (adaptive.sky_sun; only where the shadow geometry
-        was gathered, i.e. with Lamps Seen by Probes, and the world is an image read as it is)."""
+        """The lamps of the refinement's direct-light check: the lamps added analytically, and with
+        Sky Sun "baked" a Sun standing in for a sun in the world image (adaptive.sky_sun; only where
+        the shadow geometry was gathered, i.e. with Lamps Seen by Probes, and the world is an image
+        read as it is). With "mixed" the world's sun is not in the probes: it is one of the engine's
+        lamps (_engine_lamps), like a mixed Sun lamp."""
         if self._sky_sun is None:
             self._sky_sun = []
             d = self._direct
-            if d is not None and d.geometry:
+            if d is not None and d.geometry and self.settings.sky_sun == "baked":
                 src = direct_light.world_image(self.scene.world)
                 sun = None if src is None else adaptive.sky_sun(np.clip(src[0][:, :, :3] * src[1], 0.0, None))
                 if sun is not None:
@@ -508,11 +519,26 @@ class ProbeBake:
         there is none: the refinement's direct-light check (adaptive.AdaptiveGroup)."""
         return self._project_lamps(positions, self._check_lamps())
 
+    def _engine_lamps(self) -> list:
+        """The lights whose direct part the engine adds and the probes leave out: the mixed lamps,
+        and with Sky Sun "mixed" the world's sun split off (direct_light.DirectLightPlan.sun_lamp;
+        only with Lamps Seen by Probes, when the shadow geometry is gathered, as for mixed lamps)."""
+        d = self._direct
+        if d is None:
+            return []
+        lamps = list(d.mixed_lamps)
+        if self.settings.sky_sun == "mixed" and self.settings.lights_visible:
+            sun = d.sun_lamp(self)
+            if sun is not None:
+                lamps.append(sun)
+        return lamps
+
     def _mixed_at(self, positions: np.ndarray) -> Optional[np.ndarray]:
-        """The mixed lamps' exact direct light at engine-space positions (the engine's direct term,
-        which the probes leave out), or None without such lamps: the refinement judges the probes'
-        error against the light a moving object gets, probe + this (adaptive.AdaptiveGroup.seen)."""
-        return self._project_lamps(positions, self._direct.mixed_lamps if self._direct is not None else [])
+        """The engine lamps' exact direct light at engine-space positions (the mixed lamps' and the
+        sky's mixed sun's, which the probes leave out), or None without such lamps: the refinement
+        judges the probes' error against the light a moving object gets, probe + this
+        (adaptive.AdaptiveGroup.seen)."""
+        return self._project_lamps(positions, self._engine_lamps())
 
     def _project_lamps(self, positions: np.ndarray, lamps: list) -> Optional[np.ndarray]:
         """``lamps``' exact direct light (radiance SH, shadowed) at engine-space positions, timed as
@@ -822,8 +848,41 @@ class ProbeBake:
             image.save_render(path, scene=scene)
         if sky_state.failed:
             self.log("Schnee: could not restore " + ", ".join(sky_state.failed))
+        sun = self._sky_sun_split()
+        if sun is not None:
+            self._remove_sun_from(path, sun)
         self._sky_exr = path
         self.timings["sky"] = time.perf_counter() - t0
+
+    def _sky_sun_split(self):
+        """The world's sun split off under Sky Sun "mixed" (native.SkySun), or None (the world is
+        read or captured now if no panorama has needed it yet, e.g. a bake resumed whole)."""
+        d = self._direct
+        if d is None or not d.sky or self.settings.sky_sun != "mixed":
+            return None
+        d.world(self)
+        return d.sun
+
+    def _remove_sun_from(self, path, sun):
+        """sky.exr (the engine's background, image-based specular and fallback probe 0) without the
+        sun the probes left out, else the engine would count it twice (direct_light.remove_sun);
+        written back through Blender as a float EXR with the bake's image settings."""
+        img = bpy.data.images.load(path, check_existing=False)
+        try:
+            w, h = img.size
+            ch = img.channels
+            buf = np.empty(w * h * ch, dtype=np.float32)
+            img.pixels.foreach_get(buf)
+            pixels = np.ascontiguousarray(buf.reshape(h, w, ch)[::-1])
+            clipped = np.clip(pixels, 0.0, None)
+            rest, how = direct_light.remove_sun(clipped, sun)
+            changed = np.any(rest[:, :, :3] != clipped[:, :, :3], axis=2)   # the sun's texels only
+            pixels[changed, :3] = rest[changed, :3]
+            img.pixels.foreach_set(np.ascontiguousarray(pixels[::-1]).reshape(-1))
+            img.save_render(path, scene=self.scene)
+        finally:
+            bpy.data.images.remove(img)
+        self.log(f"Schnee: the sun removed from {SKY_FILE_NAME} too ({how})")
 
     # ------------------------------------------------------------------ end
     def finish(self) -> BakeResult:
@@ -914,6 +973,12 @@ class ProbeBake:
             check_replaceable(os.path.join(os.path.dirname(_abspath(s.output_path)), SKY_FILE_NAME), "exr")
         if self.mode == "CURSOR":
             check_replaceable(self.debug_text_path, "text")
+        sun_path = None
+        sun = None
+        if self.mode == "VOLUMES":
+            sun_path = os.path.join(os.path.dirname(_abspath(s.output_path)), SUN_FILE_NAME)
+            check_replaceable(sun_path, "sun")
+            sun = self._sky_sun_split()
         current = None
         try:
             for t in self.targets:
@@ -940,6 +1005,15 @@ class ProbeBake:
                 tmp = tmp_name(final)
                 shutil.copyfile(self._sky_exr, tmp)
                 pending.append((tmp, final))
+            if sun is not None:
+                current = sun_path
+                tmp = tmp_name(sun_path)
+                record = dict(format=SUN_FORMAT, **direct_light.sun_record(sun, self._direct.sky_source))
+                with open(tmp, "w", encoding="utf-8") as fh:
+                    fh.write(json.dumps(record, indent=2) + "\n")
+                    fh.flush()
+                    os.fsync(fh.fileno())
+                pending.append((tmp, sun_path))
             if self.mode == "CURSOR":
                 current = self.debug_text_path
                 tmp = tmp_name(self.debug_text_path)
@@ -969,6 +1043,14 @@ class ProbeBake:
                 done = [f for _, f in pending[:i]]
                 raise BakeError(f"Cannot write {final}: {exc}"
                                 + (f" (already replaced: {', '.join(done)})" if done else "")) from exc
+        if sun_path is not None and sun is None and os.path.lexists(sun_path):
+            # An earlier bake's sun (Sky Sun "mixed") that these probes hold or that the world no
+            # longer has: the export would add it twice or add a sun that is not there.
+            try:
+                os.unlink(sun_path)
+                self.log(f"Schnee: removed {sun_path}: this bake split no sun off the sky")
+            except OSError as exc:
+                raise BakeError(f"Cannot remove the earlier bake's {sun_path}: {exc}") from exc
         return [final for _, final in pending]
 
     def _write_adaptive(self, target, tmp):
@@ -1094,7 +1176,7 @@ def _vector(c):
 # ------------------------------------------------------------------ what we may replace
 def check_replaceable(path, kind):
     """Raise :class:`BakeError` unless ``path`` is absent or a file the bake wrote: ``kind``
-    "shprobe" (magic SPHR), "exr" (the sky) or "text" (debug_probe.txt). Never the open .blend,
+    "shprobe" (magic SPHR), "exr" (the sky), "sun" (sun.json) or "text" (debug_probe.txt). Never the open .blend,
     never something that is not a regular file. Opens nothing that could block (no FIFO)."""
     blend = bpy.data.filepath
     try:
@@ -1114,7 +1196,7 @@ def check_replaceable(path, kind):
         raise BakeError(f"Refusing to replace {path}: it exists and is a {file_kind(st.st_mode)}; "
                         "the bake only replaces files it wrote")
     want = {"shprobe": SHPROBE_MAGIC, "exr": EXR_MAGIC, "text": DEBUG_TEXT_FIRST_LINE.encode(),
-            "journal": journal.MAGIC}[kind]
+            "journal": journal.MAGIC, "sun": SUN_MAGIC}[kind]
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
         try:
@@ -1127,7 +1209,7 @@ def check_replaceable(path, kind):
         raise BakeError(f"Cannot check {path} before replacing it: {exc.strerror}") from exc
     if head != want:
         what = {"shprobe": "a .shprobe file (no Schnee probe header)", "exr": "an OpenEXR image",
-                "journal": "a Schnee bake journal",
+                "journal": "a Schnee bake journal", "sun": "a sun.json written by a bake",
                 "text": "a debug_probe.txt written by Bake SH at Cursor"}[kind]
         raise BakeError(f"Refusing to replace {path}: it exists and is not {what}; move it away or "
                         "choose another output")

@@ -130,6 +130,11 @@ class DirectLightPlan:
     samples: int = SAMPLES_PER_LAMP
     sky: bool = False                 # panoramas with a transparent film + exact world projection
     sky_source: str = ""              # how the world was read (for the log and the docs' tests)
+    # Sky Sun "mixed" (issue 27): the world's sun split off (native.sky_sun_split), or None (Sky Sun
+    # "baked", or no sun in the world). The probes' directly seen sky is then the rest of the world.
+    sun: Optional[native.SkySun] = None
+    sun_verdict: str = ""             # the split's verdict ("found", "wide", "faint", "black")
+    _world: Optional[np.ndarray] = None
     _table: Optional[np.ndarray] = None
 
     def project(self, positions: np.ndarray, max_band: int, lamps: Optional[list] = None) -> np.ndarray:
@@ -147,6 +152,32 @@ class DirectLightPlan:
         bake.coeffs += self.project(bake.positions, bake.settings.max_band)
         bake.timings["direct"] = time.perf_counter() - t0
 
+
+    def world(self, bake) -> np.ndarray:
+        """(H, W, 3) float32, rows top-down: the world the probes see directly, read or captured once
+        per bake (world_radiance); with Sky Sun "mixed" and a sun in it, the rest without the sun
+        (``self.sun``). Timed as "sky_world"."""
+        if self._world is None:
+            t0 = time.perf_counter()
+            world = world_radiance(bake, bake.settings.panorama_resolution)
+            if bake.settings.sky_sun == "mixed" and not self.sky_source.startswith("constant"):
+                split = native.sky_sun_split(world)
+                self.sun_verdict = split.verdict
+                if split.sun is not None:
+                    self.sun, world = split.sun, split.rest
+                    bake.log("Schnee: " + sun_summary(split.sun) + ": split off as a mixed light (Sky Sun "
+                             "Mixed): the probes see the rest of the sky, the engine adds the sun")
+                else:
+                    bake.log(f"Schnee: no sun split off the world ({SUN_VERDICTS.get(split.verdict, split.verdict)})")
+            self._world = world
+            bake.timings["sky_world"] = time.perf_counter() - t0
+        return self._world
+
+    def sun_lamp(self, bake) -> Optional[native.Lamp]:
+        """The split sun as a Sun lamp (the engine's light), or None; splits the world if not yet."""
+        if self.sky:
+            self.world(bake)
+        return None if self.sun is None else self.sun.lamp()
 
     def sky_coeffs(self, bake, exr_path: str) -> Optional[np.ndarray]:
         """Σ_cells vis(cell) · ∫_cell L_world Y dω for the panorama just rendered with a transparent
@@ -276,13 +307,15 @@ def capture_world(bake, width: int) -> np.ndarray:
     return np.ascontiguousarray(buf.reshape(width // 2, width, 4)[::-1])
 
 
-def sky_table(bake, pano_w: int, pano_h: int) -> np.ndarray:
-    """(pano_h, pano_w, sh_count, 3): the world pre-integrated per panorama cell (native.sky_table)."""
+def world_radiance(bake, pano_w: int) -> np.ndarray:
+    """(H, W, 3) float32 >= 0, rows top-down: the world as the probes see it directly, read as it is
+    (a constant colour: pano_w x pano_w/2 of it; an image) or captured by Cycles; sets the plan's
+    ``sky_source``."""
     plan = bake._direct
     src = world_image(bake.scene.world)
     rgb = world_constant(bake.scene.world) if src is None else None
     if rgb is not None:
-        world = np.empty((pano_h, pano_w, 3), dtype=np.float32)
+        world = np.empty((pano_w // 2, pano_w, 3), dtype=np.float32)
         world[:] = np.clip(np.array(rgb, dtype=np.float32), 0.0, None)
         plan.sky_source = "constant colour ({:.6g}, {:.6g}, {:.6g})".format(*rgb)
     elif src is not None:
@@ -294,7 +327,60 @@ def sky_table(bake, pano_w: int, pano_h: int) -> np.ndarray:
         world = np.clip(capture_world(bake, width)[:, :, :3], 0.0, None)
         plan.sky_source = f"Cycles capture {width}x{width // 2}"
     bake.log(f"Schnee: world seen directly from {plan.sky_source}")
-    return native.sky_table(np.ascontiguousarray(world), pano_w, pano_h, bake.settings.max_band)
+    return np.ascontiguousarray(world, dtype=np.float32)
+
+
+def sky_table(bake, pano_w: int, pano_h: int) -> np.ndarray:
+    """(pano_h, pano_w, sh_count, 3): the world (the rest without its sun under Sky Sun "mixed")
+    pre-integrated per panorama cell (native.sky_table)."""
+    return native.sky_table(bake._direct.world(bake), pano_w, pano_h, bake.settings.max_band)
+
+
+# Why a world kept its sun (native.SkySplit.verdict), for the bake log.
+SUN_VERDICTS = {"wide": "no compact bright region: a soft sky", "faint": "its brightest spot holds under 1 % "
+                "of the sky's light", "black": "a black world"}
+
+
+def sun_summary(sun: native.SkySun) -> str:
+    """One line about a split sun for the log: where, how bright, how wide."""
+    d = sun.direction
+    elevation = math.degrees(math.asin(max(-1.0, min(1.0, -d[1]))))
+    return (f"the world's sun ({elevation:.1f}° up, {math.degrees(sun.angle):.2g}° wide, "
+            f"{sun.share * 100:.3g} % of the sky's light, irradiance "
+            f"({sun.irradiance[0]:.4g}, {sun.irradiance[1]:.4g}, {sun.irradiance[2]:.4g}) W/m²)")
+
+
+def sun_record(sun: native.SkySun, source: str) -> dict:
+    """The sun.json content (docs/export.md "The sky's sun"): engine space, the way the light
+    travels, RGB irradiance W/m² at normal incidence, angular diameter in radians."""
+    return {"version": 1, "mode": "mixed", "source": source,
+            "direction": [float(v) for v in sun.direction],
+            "irradiance": [float(v) for v in sun.irradiance],
+            "angle": float(sun.angle), "share": float(sun.share)}
+
+
+def remove_sun(pixels: np.ndarray, sun: native.SkySun) -> Tuple[np.ndarray, str]:
+    """``pixels`` (H, W, C>=3) float32, rows top-down, a rendering of the same world (sky.exr) with
+    the sun split off the same way: the split of these pixels when it finds the sun within 1° of
+    ``sun`` (the criteria hold at any resolution the sun stays compact in); else every texel whose
+    centre lies within the sun's reach (its extent + 2 texels of either image) clamped to the sun's
+    surrounding level (how is said in the second value)."""
+    split = native.sky_sun_split(pixels)
+    if split.sun is not None and float(np.dot(split.sun.direction, sun.direction)) >= math.cos(math.radians(1.0)):
+        return split.rest, "split"
+    h, w = pixels.shape[:2]
+    rows, cols = np.mgrid[0:h, 0:w]
+    theta, phi = math.pi * (rows + 0.5) / h, math.pi - 2.0 * math.pi / w * (cols + 0.5)
+    # The sun's Blender-space direction (to it): engine (x, y, z) = Blender (x, z, -y), reversed.
+    to_sun = np.array([-sun.direction[0], sun.direction[2], -sun.direction[1]])
+    cos_d = (np.sin(theta) * np.cos(phi) * to_sun[0] + np.sin(theta) * np.sin(phi) * to_sun[1]
+             + np.cos(theta) * to_sun[2])
+    reach = sun.extent + 2.0 * (2.0 * math.pi / w) + sun.angle
+    near = cos_d >= math.cos(min(reach, math.pi / 2))
+    out = np.array(pixels, dtype=np.float32, copy=True)
+    level = np.asarray(sun.background, dtype=np.float32)
+    out[near, :3] = np.minimum(out[near, :3], level)
+    return out, "clamped near the world's sun"
 
 
 def is_portal(light) -> bool:

@@ -37,6 +37,16 @@ _IGNORED = frozenset({
 _NOT_VALUES = frozenset({"output_path", "probe_limit", "per_volume_files", "probe_representation"})
 
 
+# Settings added after journals existed, with the value that bakes as before them: left out of the
+# digest at that value, so a journal of an earlier bake still resumes (Sky Sun "baked" is the bake
+# before issue 27 byte for byte; "mixed" changes the probes' sky and is digested).
+_LEGACY_VALUES = {"sky_sun": "baked"}
+
+
+def _at_legacy_value(name, value) -> bool:
+    return name in _LEGACY_VALUES and value == _LEGACY_VALUES[name]
+
+
 def _simple(struct) -> list:
     """Every simple RNA property of ``struct`` (booleans, numbers, enums, strings and their
     arrays) as (identifier, repr): repr of a float is exact."""
@@ -153,7 +163,8 @@ def parts(scene, view_layer, settings) -> Dict[str, str]:
     return {
         # Where the files go, how they store the values and when to ask for confirmation do not
         # change a probe's value.
-        "settings": _digest(sorted((k, v) for k, v in asdict(settings).items() if k not in _NOT_VALUES)),
+        "settings": _digest(sorted((k, v) for k, v in asdict(settings).items()
+                                   if k not in _NOT_VALUES and not _at_legacy_value(k, v))),
         "geometry": geometry.hexdigest(),
         "materials": _digest(materials),
         "lights": _digest(lights),

@@ -15,6 +15,9 @@ it gathers the scene. Contract: DESIGN.md §5; user documentation: docs/export.m
   {"mode": "baked" | "mixed" | "realtime"}`` from its object's ``schnee_light_mode`` (light_modes.py).
 - The sky the bake captured (``sh_coeffs/sky.exr`` next to the .blend) is copied likewise and
   listed as ``VULKAN_SCHNEE_engine_properties.sky`` with its radiance SH (L2, engine space).
+- The sky's sun the bake split off (Sky Sun "mixed": ``sh_coeffs/sun.json`` next to the .blend)
+  becomes a ``KHR_lights_punctual`` directional light with ``VULKAN_SCHNEE_light.mode = "mixed"``
+  on a node of its own in every exported scene (``gather_scene_hook``).
 
 The extensions are optional (``extensionsUsed`` only). The "Export Engine Properties" checkbox
 (Scene.schnee_gltf_export.enabled, on by default) switches off the extensions and the copy.
@@ -45,7 +48,12 @@ GRID_AXES = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]  # rows: grid X, Y, Z axes; v1 is 
 _KEY_GRIDS = "schnee_probe_grids"
 _KEY_WARNINGS = "schnee_warnings"
 _KEY_SKY = "schnee_sky"
+_KEY_SUN = "schnee_sun"
 SKY_FILE = "sky.exr"  # bake_core.SKY_FILE_NAME
+SUN_FILE = "sun.json"  # bake_core.SUN_FILE_NAME
+SUN_FORMAT = "schnee-sky-sun"  # bake_core.SUN_FORMAT
+SUN_MAX_BYTES = 1 << 16
+SUN_NODE_NAME = "Schnee Sky Sun"
 SKY_MAX_BAND = 2
 PROBE_MODE_PROPERTY = "schnee_probe_mode"
 PROBE_MODES = ("off", "object", "pixel")
@@ -402,6 +410,99 @@ def collect_sky(export_settings):
     return sky
 
 
+def _sun_fields(data):
+    """(direction, irradiance, angle) of a sun.json dict, or raise ValueError saying what is wrong."""
+    import numpy as np
+    if not isinstance(data, dict) or data.get("format") != SUN_FORMAT or data.get("version") != 1:
+        raise ValueError(f"not a version 1 '{SUN_FORMAT}' file")
+    if data.get("mode") != "mixed":
+        raise ValueError(f"mode {data.get('mode')!r} is not 'mixed'")
+
+    def vec(key):
+        v = data.get(key)
+        if not (isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) and
+                                                            not isinstance(x, bool) for x in v)):
+            raise ValueError(f"{key} is not 3 numbers")
+        a = np.asarray(v, dtype=np.float64)
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{key} is not finite")
+        return a
+    direction, irradiance = vec("direction"), vec("irradiance")
+    if abs(float(np.linalg.norm(direction)) - 1.0) > 1e-6:
+        raise ValueError("direction is not a unit vector")
+    if np.any(irradiance < 0.0) or not float(irradiance.max()) > 0.0:
+        raise ValueError("irradiance is not >= 0 with a positive channel")
+    angle = data.get("angle")
+    if not isinstance(angle, (int, float)) or isinstance(angle, bool) or not (0.0 <= angle < math.pi):
+        raise ValueError("angle is not in [0, pi)")
+    return direction, irradiance, float(angle)
+
+
+def _quaternion_minus_z_to(d):
+    """glTF rotation [x, y, z, w] turning the node's -Z onto unit vector ``d`` (shortest arc)."""
+    v0 = (0.0, 0.0, -1.0)
+    cross = (v0[1] * d[2] - v0[2] * d[1], v0[2] * d[0] - v0[0] * d[2], v0[0] * d[1] - v0[1] * d[0])
+    w = 1.0 + (v0[0] * d[0] + v0[1] * d[1] + v0[2] * d[2])
+    if w < 1e-9:  # d = +Z: half a turn about X
+        return [1.0, 0.0, 0.0, 0.0]
+    n = math.sqrt(cross[0] ** 2 + cross[1] ** 2 + cross[2] ** 2 + w * w)
+    return [cross[0] / n, cross[1] / n, cross[2] / n, w / n]
+
+
+def collect_sun(export_settings):
+    """The sky's sun (or None): ``sh_coeffs/sun.json`` next to the .blend, written by a bake with Sky
+    Sun "mixed" (docs/export.md "The sky's sun"), checked and turned into the glTF light's values:
+    dict(name, color, intensity, intensity_scale, angle, rotation). Cached per export."""
+    if _KEY_SUN in export_settings:
+        return export_settings[_KEY_SUN]
+    export_settings[_KEY_SUN] = None
+    src_dir = _blend_sh_dir()
+    src = os.path.join(src_dir, SUN_FILE) if src_dir else None
+    if src is None or not os.path.lexists(src):
+        return None
+    checked, why = _regular_stat(src)
+    if checked is None:
+        _warn(export_settings, f"skipped the sky's sun {src}: {why}")
+        return None
+    try:
+        import json
+        f, _ = open_regular(src, "a sun.json", SUN_MAX_BYTES)
+        with f:
+            data = json.loads(f.read(SUN_MAX_BYTES).decode("utf-8"))
+        direction, irradiance, angle = _sun_fields(data)
+    except (OSError, ValueError, UnicodeDecodeError) as exc:  # RefusedFile, JSONDecodeError: both ValueError/OSError
+        _warn(export_settings, f"skipped the sky's sun {src}: {exc}")
+        return None
+    scale = light_intensity_scale("directional", export_settings)
+    peak = float(irradiance.max())
+    # The exporter's lamps carry Blender's W/m² in the dialog's lighting mode (x 683 lux per W/m² in
+    # Standard) and VULKAN_SCHNEE_light.intensityScale takes it back: the same for this light.
+    sun = dict(name=SUN_NODE_NAME, color=[_f32(v / peak) for v in irradiance], intensity=peak / scale,
+               intensity_scale=scale, angle=angle, rotation=_quaternion_minus_z_to(direction))
+    export_settings[_KEY_SUN] = sun
+    return sun
+
+
+def _sun_node(sun):
+    """A new glTF node holding the sky's sun as a directional light (KHR_lights_punctual, the light
+    itself a child of the root list like the exporter's own lamps)."""
+    from io_scene_gltf2.io.com import gltf2_io  # the glTF schema classes (3.4 .. 5.x)
+    try:
+        from io_scene_gltf2.io.com.gltf2_io_extensions import ChildOfRootExtension, Extension
+    except ImportError:
+        from io_scene_gltf2.io.com.extensions import ChildOfRootExtension, Extension
+    light = {"name": sun["name"], "type": "directional", "color": sun["color"], "intensity": sun["intensity"],
+             "extensions": {EXT_LIGHT: Extension(name=EXT_LIGHT, required=False, extension={
+                 "mode": "mixed", "intensityScale": sun["intensity_scale"], "source": "sky",
+                 "angle": sun["angle"]})}}
+    khr = Extension(name="KHR_lights_punctual", required=False, extension={
+        "light": ChildOfRootExtension(name="KHR_lights_punctual", path=["lights"], extension=light,
+                                      required=False)})   # optional: a viewer without lights ignores it
+    return gltf2_io.Node(camera=None, children=[], extensions={"KHR_lights_punctual": khr}, extras=None,
+                         matrix=None, mesh=None, name=sun["name"], rotation=list(sun["rotation"]), scale=None,
+                         skin=None, translation=None, weights=None)
+
+
 def material_settings(blender_material, export_settings=None):
     """``VULKAN_SCHNEE_materials`` of a material, or None when it has nothing to say:
     ``shScale``/``ambientTerm`` from its "VS Movable Diffuse" node, ``probeMode`` and
@@ -457,6 +558,13 @@ class glTF2ExportUserExtension:
             return
         grids = collect_probe_grids(export_settings)
         sky = collect_sky(export_settings)
+        sun = collect_sun(export_settings)
+        if sun is not None and not any(getattr(n, "name", None) == SUN_NODE_NAME and
+                                       getattr(n, "extensions", None) for n in gltf2_scene.nodes):
+            try:
+                gltf2_scene.nodes.append(_sun_node(sun))   # once per scene, however often called
+            except (ImportError, TypeError) as exc:       # an exporter whose classes differ
+                _warn(export_settings, f"the sky's sun could not be added as a light: {exc}")
         if gltf2_scene.extensions is None:
             gltf2_scene.extensions = {}
         if not grids and sky is None:

@@ -286,6 +286,22 @@ SETTINGS: Tuple[Setting, ...] = (
                 "cameras (path traced). Off: lamps still light the scene (their bounced light is in "
                 "the probes) but their direct light is not. Realtime lamps are never in the probes, "
                 "mixed lamps only with their bounced light (docs/direct-light.md)."),
+    Setting("sky_sun", "enum", "mixed", "Sky Sun",
+            "A compact bright sun in the world (an HDRI's or a Nishita sky's): Mixed splits it off as "
+            "a directional light the engine adds with shadow maps (sharp sunbeams; the probes keep "
+            "the rest of the sky and the sun's bounced light, sky.exr loses the sun, "
+            "sh_coeffs/sun.json records it for the glTF export); Baked keeps it in the probes",
+            doc="**Mixed**: a compact bright sun in the world (an HDRI's, a Nishita sky's; criteria and "
+                "measured figures in docs/direct-light.md *The sky's sun*) is split off: the probes "
+                "see the rest of the sky directly (the sun's bounced light stays in them), `sky.exr` "
+                "loses it too, and `sh_coeffs/sun.json` records it, which the glTF export writes as a "
+                "mixed directional light (docs/export.md) that the engine shadows per pixel. A sky "
+                "without such a sun is baked as it is. **Baked**: the sun stays in the probes, "
+                "interpolated across cells (a sunbeam's edge blurs over a cell).",
+            choices=(("mixed", "Mixed", "Split the sky's sun off as a directional light the engine "
+                                        "shadows; the probes hold the rest of the sky"),
+                     ("baked", "Baked", "Keep the sky's sun in the probes")),
+            option="--sky-sun"),
     Setting("persistent_data", "bool", True, "Persistent Data",
             "Keep the scene in Cycles between probe renders, so a probe costs path tracing and not "
             "scene sync",

@@ -1555,8 +1555,8 @@ static PyObject *py_sky_sun_split(PyObject *module, PyObject *args, PyObject *kw
     PyObject *image_obj;
     Py_ssize_t width, height, channels;
     pb_sky_sun_desc desc = {0};
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "Onnn|ddd:sky_sun_split", kwlist, &image_obj, &width, &height,
-                                     &channels, &desc.peak_fraction, &desc.max_radius, &desc.min_share))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Onnn|ddd:sky_sun_split", kwlist, &image_obj, &width, &height, &channels,
+                                     &desc.peak_fraction, &desc.max_radius, &desc.min_share))
         return NULL;
     uint32_t w, h, c;
     if (check_u32(width, "width", &w) < 0 || check_u32(height, "height", &h) < 0 ||
@@ -1581,12 +1581,12 @@ static PyObject *py_sky_sun_split(PyObject *module, PyObject *args, PyObject *kw
         Py_DECREF(rest);
         return raise_core(module, r, &err);
     }
-    PyObject *d = Py_BuildValue(
-        "{s:O,s:s,s:(ddd),s:(ddd),s:d,s:d,s:(ddd),s:d,s:(II),s:I}", "found", sun.found ? Py_True : Py_False,
-        "verdict", pb_sky_sun_verdict_string(sun.verdict), "direction", sun.direction[0], sun.direction[1],
-        sun.direction[2], "irradiance", sun.irradiance[0], sun.irradiance[1], sun.irradiance[2], "angle", sun.angle,
-        "share", sun.share, "background", sun.background[0], sun.background[1], sun.background[2], "extent",
-        sun.extent, "peak", sun.peak_col, sun.peak_row, "texels", sun.texels);
+    PyObject *d = Py_BuildValue("{s:O,s:s,s:(ddd),s:(ddd),s:d,s:d,s:(ddd),s:d,s:(II),s:I}", "found",
+                                sun.found ? Py_True : Py_False, "verdict", pb_sky_sun_verdict_string(sun.verdict),
+                                "direction", sun.direction[0], sun.direction[1], sun.direction[2], "irradiance",
+                                sun.irradiance[0], sun.irradiance[1], sun.irradiance[2], "angle", sun.angle, "share",
+                                sun.share, "background", sun.background[0], sun.background[1], sun.background[2],
+                                "extent", sun.extent, "peak", sun.peak_col, sun.peak_row, "texels", sun.texels);
     if (!d) {
         Py_DECREF(rest);
         return NULL;

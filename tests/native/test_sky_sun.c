@@ -107,9 +107,9 @@ static void check_disc(double elev, double az, double alpha, uint32_t w, uint32_
     TU_CHECK(worst <= 1e-7);
     TU_CHECK_EQ_INT(alpha_changed, 0);
     printf("  disc %.4g deg at elevation %.3g deg, %ux%u: irradiance %+.2e, direction %.4f deg, angle %+.2e "
-           "(relative to the closed form), %u texels\n", 2.0 * alpha * 180.0 / PI, elev * 180.0 / PI, w, h,
-           s.irradiance[1] / ((sun[1] - SKY[1]) * omega) - 1.0, acos(fmin(1.0, dot)) * 180.0 / PI,
-           s.angle / (2.0 * alpha) - 1.0, s.texels);
+           "(relative to the closed form), %u texels\n",
+           2.0 * alpha * 180.0 / PI, elev * 180.0 / PI, w, h, s.irradiance[1] / ((sun[1] - SKY[1]) * omega) - 1.0,
+           acos(fmin(1.0, dot)) * 180.0 / PI, s.angle / (2.0 * alpha) - 1.0, s.texels);
     /* Energy: rest + sun = the image, to the rounding of double sums over ~0.5–2 M texels. */
     double after[3];
     flux(rest, w, h, channels, after);

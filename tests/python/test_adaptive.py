@@ -427,8 +427,9 @@ def _equirect_directions(h, w):
 
 
 def test_sky_sun_stands_in_for_the_sun_of_a_world_image():
-    """The stand-in Sun lamp carries the light of the world's sun disc: its projection equals the
-    disc's own exact projection (native.sky_table, the bake's world path, checked against Cycles in
+    """The stand-in Sun lamp carries the light of the world's sun disc above the sky around it (the
+    C split, native.sky_sun_split): its projection equals the exact projection of the disc's excess
+    (native.sky_table, the bake's world path, checked against Cycles in
     tests/blender/test_direct_sky.py) in every SH band, to the disc's discretisation."""
     h, w = 256, 512
     d = _equirect_directions(h, w)
@@ -438,7 +439,7 @@ def test_sky_sun_stands_in_for_the_sun_of_a_world_image():
     world[disc] = (2000.0, 1800.0, 1500.0)
     lamp = adaptive.sky_sun(world)
     assert lamp is not None and lamp.kind == "SUN"
-    only = np.where(disc[..., None], world, 0.0).astype(np.float32)
+    only = np.where(disc[..., None], world - np.float32(0.5), 0.0).astype(np.float32)   # the excess
     exact = native.sky_table(only, 8, 4, 2).sum(axis=(0, 1))
     got = native.direct_project([lamp], np.zeros((1, 3)), 2)[0]
     assert adaptive.irradiance_error(got, exact) < 0.005

@@ -55,14 +55,14 @@ typedef enum pb_sky_sun_verdict {
 typedef struct pb_sky_sun {
     bool found;
     pb_sky_sun_verdict verdict;
-    double direction[3];  /* engine space, unit: the direction the sun's light travels (to it: −this) */
-    double irradiance[3]; /* RGB W/m² at normal incidence: Σ over the sun's texels of excess · dω */
-    double angle;         /* angular diameter (rad) of the disc of the peak's excess radiance */
-    double share;         /* the sun's luminance flux / the image's (0 when not found) */
-    double background[3]; /* the ring median the sun's texels keep (RGB radiance) */
-    double extent;        /* rad: how far the region reached from the peak (up to max_radius) */
+    double direction[3];         /* engine space, unit: the direction the sun's light travels (to it: −this) */
+    double irradiance[3];        /* RGB W/m² at normal incidence: Σ over the sun's texels of excess · dω */
+    double angle;                /* angular diameter (rad) of the disc of the peak's excess radiance */
+    double share;                /* the sun's luminance flux / the image's (0 when not found) */
+    double background[3];        /* the ring median the sun's texels keep (RGB radiance) */
+    double extent;               /* rad: how far the region reached from the peak (up to max_radius) */
     uint32_t peak_col, peak_row; /* the brightest texel */
-    uint32_t texels;      /* texels of the sun (the region grown by one) */
+    uint32_t texels;             /* texels of the sun (the region grown by one) */
 } pb_sky_sun;
 
 /* Finds the sun of `image` (width × height texels of `channels` floats, RGB first, finite, >= 0)

@@ -74,6 +74,7 @@ def reference_capture(out):
 
 def bake(out, name, seed):
     settings = bake_core.BakeSettings(placement="OCTREE", min_cell_size=4.0, max_cell_size=4.0, seed=seed, capture_sky=False,
+                                      sky_sun="baked",  # the whole world in the probes (Sky Sun "mixed": test_sky_sun_bake.py)
                                       output_path=os.path.join(out, f"{name}_{seed}", "probes.shprobe"))
     job = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings, log=lambda *_: None)
     result = job.run()
