@@ -121,17 +121,25 @@ int octree_locate_point(sv_gpu_grid gr, vec3 u, uvec3 q) {
     return li;
 }
 
+// V(k, c) of the visibility field from its stored byte: pb_vis_pair_value() of pb_interp.h.
+float pair_vis(uint at, uint k, uint c) {
+    uint byte_index = 8u * k + c;
+    uint q = (uint(cell_probe[at + byte_index / 4u]) >> (8u * (byte_index & 3u))) & 255u;
+    return q >= 255u ? 1.0 : 1.0 - 127.5 / float(max(q, 1u));
+}
+
 // E(n) of a corner octree at p: mirrors leaf_weights() of native/src/pb_interp.c line by line (leaf
-// of the point, t = clamp((u - corner0) / 2^level, 0, 1), trilinear weights of the 8 corners, zero
-// weights skipped, probes of validity 0 dropped, renormalised). The hanging corners were resolved at
-// load into the entries after the probes (value and validity mass, sv_probes.c resolve_hanging), so
-// the 8 fetches give exactly the CPU's expanded and merged weights. On top, as the dense grids: the
-// back-face weight smoothstep(-0.1, 0.1, dot(c - p, n) / leaf size) of each corner (static objects only:
-// a movable object was not in the bake, so every corner holds the light where it now is, and on a
-// small convex object the weight would throw away the probes behind each surface point), and the leaf's
-// visibility mask (Embree segments from the leaf's centre to its corners through the static scene);
-// when these leave no weight, the plain CPU weights are used (the leaf's own field). False: no leaf
-// holds p, or every corner is invalid (the caller tries the next grid).
+// of the point, t = clamp((u - corner0) / 2^level, 0, 1), trilinear weights of the 8 corners, each
+// times the ramp smoothstep(1/2, 1/2 + PB_VIS_RAMP, v_c) of the leaf's continuous visibility field
+// v_c = sum_k w_k V(k, c) (pb_interp.h; tables traced at load through the static scene), zero weights
+// skipped, probes of validity 0 dropped, renormalised). The hanging corners were resolved at load into
+// the entries after the probes (value and validity mass, sv_probes.c resolve_hanging), so the 8
+// fetches give exactly the CPU's expanded and merged weights. On top, for static objects only, the
+// back-face weight smoothstep(-0.1, 0.1, dot(c - p, n) / leaf size) of each corner (a movable object was
+// not in the bake, so every corner holds the light where it now is, and on a small convex object the
+// weight would throw away the probes behind each surface point). When these leave no weight, the plain
+// trilinear weights are used (the leaf's own field, as the CPU). False: no leaf holds p, or every
+// corner is invalid (the caller tries the next grid).
 bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, bool movable, out vec3 e_out) {
     e_out = vec3(0.0);
     float h = gr.origin_spacing.w;
@@ -148,25 +156,35 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, bool m
     vec3 l = vec3(float(cell_probe[lb]), float(cell_probe[lb + 1u]), float(cell_probe[lb + 2u]));
     float s = float(1u << uint(cell_probe[lb + 3u]));
     vec3 tt = clamp((u - l) / s, vec3(0.0), vec3(1.0));
-    uint vis = uint(cell_probe[gr.base.y + uint(li)]);
+    uint vb = gr.base.y + SV_LEAF_VIS_INTS * uint(li);
+    float w8[8], wb[8]; // trilinear; times the back-face weight (static objects)
+    float wbsum = 0.0;
+    for (uint c = 0u; c < 8u; ++c) {
+        vec3 o = vec3(uvec3(c & 1u, (c >> 1) & 1u, (c >> 2) & 1u));
+        vec3 w3 = mix(1.0 - tt, tt, o);
+        w8[c] = w3.x * w3.y * w3.z;
+        vec3 corner = gr.origin_spacing.xyz + (l + o * s) * h;
+        wb[c] = movable ? w8[c] : w8[c] * smoothstep(-0.1, 0.1, dot(corner - p_surface, n) / (s * h));
+        wbsum += wb[c];
+    }
     uint band = 0u;
     float AY[25]; // A_l Y_i(n) (sh_lambert_basis)
     bool have_basis = false;
-    for (int pass = 0; pass < 2; ++pass) { // 0: with back-face weights and the mask; 1: without
+    for (int pass = wbsum > 0.0 ? 0 : 1; pass < 2; ++pass) { // 0: visibility field and back faces; 1: plain
         vec3 e = vec3(0.0);
         float wsum = 0.0;
         for (uint c = 0u; c < 8u; ++c) {
-            vec3 o = vec3(uvec3(c & 1u, (c >> 1) & 1u, (c >> 2) & 1u));
-            vec3 w3 = mix(1.0 - tt, tt, o);
-            float w = w3.x * w3.y * w3.z;
+            float w = w8[c];
             if (w <= 0.0) continue;
+            if (pass == 0) {
+                // The field blended over the corners in front of the surface (a static surface's own
+                // corners behind it would put its front probes' wall on the surface itself).
+                float v = 0.0;
+                for (uint k = 0u; k < 8u; ++k) v += wb[k] * pair_vis(vb, k, c);
+                w = wb[c] * smoothstep(0.5, 0.5 + SV_VIS_RAMP, v / wbsum);
+            }
             uint pi = gr.base.x + uint(cell_probe[lb + 8u + c]);
             w *= cube ? cube_validity(pi) : probe_validity(pi);
-            if (pass == 0) {
-                if ((vis & (1u << c)) == 0u) continue;
-                vec3 corner = gr.origin_spacing.xyz + (l + o * s) * h;
-                if (!movable) w *= smoothstep(-0.1, 0.1, dot(corner - p_surface, n) / (s * h));
-            }
             if (w <= 0.0) continue;
             if (cube) {
                 e += w * cube_scale(pi) * cube_irradiance(pi, n);

@@ -125,6 +125,10 @@
 /* Ints per octree leaf in the cell buffer: x, y, z (lattice min corner), level, 4 reserved (0), then
  * the 8 corner nodes (corner bit 0 = +x, 1 = +y, 2 = +z; node = probe-buffer index - base.x). */
 #define SV_LEAF_INTS 16u
+/* Ints per octree leaf of its visibility field (pb_cotree_pair_visibility, pb_interp.h): 64 bytes,
+ * byte 8k + c (little-endian within each int) = corner k looking at corner c, round(255 t). */
+#define SV_LEAF_VIS_INTS 16u
+#define SV_VIS_RAMP      0.25 /* = PB_VIS_RAMP of pb_interp.h (tests/engine/test_engine_v3.py compares the two) */
 
 /* Frame flags (sv_gpu_frame.flags). */
 #define SV_FRAME_NO_DIRECT   1u /* skip KHR_lights_punctual direct light */
@@ -281,7 +285,7 @@ SV_STRUCT(sv_gpu_grid)
                                 cell (0,0,0) (octree: of leaf 0, SV_LEAF_INTS each) in the cell buffer */
     SV_UVEC4(base);          /* x = probe-buffer index of the grid's probe 0 (octree: node 0; hanging
                                 nodes follow the probes), y = offset of its visibility masks in the cell
-                                buffer (octree: one 8-bit corner mask per leaf), z = SV_GRID_* flags,
+                                buffer (octree: SV_LEAF_VIS_INTS per leaf), z = SV_GRID_* flags,
                                 w = octree leaf count */
 }
 SV_END(sv_gpu_grid)

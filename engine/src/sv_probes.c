@@ -545,7 +545,7 @@ uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
             }
             if (i >= P->slot_count) continue;
             vis_query q = {P->vis, scene, i, f->positions};
-            pb_interp_options opt = {probe_visible, &q, f->validity};
+            pb_interp_options opt = {.visible = probe_visible, .visible_user = &q, .validity = f->validity};
             double pd[3] = {c[0], c[1], c[2]};
             pb_interp_weights w;
             if (gr->tree)
@@ -845,14 +845,6 @@ void sv_cell_centre(const pb_shprobe *f, int x, int y, int z, float out[3])
         out[k] = f->grid_origin[k] + l[0] * ax[0 * 3 + k] + l[1] * ax[1 * 3 + k] + l[2] * ax[2 * 3 + k];
 }
 
-/* World position of a lattice point of an octree file (identity axes: pb_interp_from_shprobe refuses
- * others). */
-static void lattice_point(const pb_shprobe *f, double x, double y, double z, float out[3])
-{
-    double l[3] = {x, y, z};
-    for (int k = 0; k < 3; ++k) out[k] = (float)(f->grid_origin[k] + l[k] * f->grid_spacing);
-}
-
 static bool segment_blocked(RTCScene rs, const float a[3], const float b[3])
 {
     struct RTCRay ray = {0};
@@ -865,20 +857,36 @@ static bool segment_blocked(RTCScene rs, const float a[3], const float b[3])
     return ray.tfar < 0.0f; /* occluded: -inf */
 }
 
+/* pb_segment_fn over the static scene: the first surface on a -> b as a fraction of its length (both
+ * sides of every triangle), 1 when clear. The ends are left out by 1e-4 of the length, as in
+ * segment_blocked: a probe on a floor modelled exactly on the lattice still sees along that floor. */
+static double segment_first_hit(void *user, const double a[3], const double b[3])
+{
+    struct RTCRayHit rh = {0};
+    rh.ray.org_x = (float)a[0], rh.ray.org_y = (float)a[1], rh.ray.org_z = (float)a[2];
+    rh.ray.dir_x = (float)(b[0] - a[0]), rh.ray.dir_y = (float)(b[1] - a[1]), rh.ray.dir_z = (float)(b[2] - a[2]);
+    rh.ray.tnear = 1e-4f;
+    rh.ray.tfar = 1.0f - 1e-4f;
+    rh.ray.mask = 0xFFFFFFFFu;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    pb_rtc_intersect1((RTCScene)user, &rh);
+    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? 1.0 : (double)rh.ray.tfar;
+}
+
 /* Neighbour visibility masks, one uint32 per cell in the layout of the concatenated dense cell grids
  * (n cells): bit (dx+1) + 3(dy+1) + 9(dz+1) (d in {-1,0,1}^3; bit 13 = the cell itself, always set) is
  * set when the segment between the centres of the cell and of its neighbour at offset d crosses no
  * triangle of the static scene (Embree occlusion ray, both sides). Empty cells, and cells whose
  * neighbour is empty or outside the grid, keep the bit set (no information, no change to the weights).
- * Then, in `leaf_masks` (leaf_count entries, octree grids in order), one 8-bit mask per octree leaf:
- * bit c set when the segment from the leaf's centre to its corner c is clear. */
-static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene, size_t n, uint32_t *leaf_masks,
+ * Then, in `leaf_vis` (leaf_count × 64 bytes, octree grids in order), each octree leaf's table of the
+ * continuous visibility field (pb_cotree_pair_visibility, pb_interp.h): 56 segments between its corners. */
+static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene, size_t n, uint8_t *leaf_vis,
                                   size_t leaf_count)
 {
     uint32_t *masks = malloc((n ? n : 1) * sizeof(uint32_t));
     if (!masks) return NULL;
     for (size_t i = 0; i < n; ++i) masks[i] = (1u << 27) - 1u;
-    for (size_t i = 0; i < leaf_count; ++i) leaf_masks[i] = 0xFFu;
+    memset(leaf_vis, PB_VIS_CLEAR, leaf_count * 64);
     if (!scene || !scene->object_count) return masks;
     double t0 = sv_now_ms();
     RTCDevice dev = new_embree_device();
@@ -893,16 +901,17 @@ static uint32_t *visibility_masks(const sv_probes *probes, const sv_scene *scene
     for (uint32_t g = 0; g < probes->grid_count && tris; ++g) {
         const pb_shprobe *f = probes->grids[g].file;
         if (probes->grids[g].tree) {
-            for (uint32_t i = 0; i < f->element_count; ++i) {
-                const uint32_t *l = f->leaves + 4u * i;
-                double sz = (double)(1u << l[3]);
-                float centre[3], corner[3];
-                lattice_point(f, l[0] + 0.5 * sz, l[1] + 0.5 * sz, l[2] + 0.5 * sz, centre);
-                for (uint32_t c = 0; c < 8; ++c) {
-                    lattice_point(f, l[0] + (c & 1 ? sz : 0), l[1] + (c & 2 ? sz : 0), l[2] + (c & 4 ? sz : 0), corner);
-                    ++rays;
-                    if (segment_blocked(rs, centre, corner)) leaf_masks[loff + i] &= ~(1u << c);
-                }
+            const pb_cotree *tree = probes->grids[g].tree;
+            /* The tree was built from the file's leaves, which are in the same (Morton) order. */
+            if (pb_cotree_leaf_count(tree) == f->element_count &&
+                memcmp(pb_cotree_leaves(tree), f->leaves, 16u * (size_t)f->element_count) == 0) {
+                (void)pb_cotree_pair_visibility(tree, segment_first_hit, rs, leaf_vis + 64u * loff, NULL);
+                rays += 56u * (size_t)f->element_count;
+            } else {
+                fprintf(stderr,
+                        "schnee-view: warning: grid %u: octree leaves out of file order; per pixel without "
+                        "its visibility field\n",
+                        g);
             }
             loff += f->element_count;
             continue;
@@ -955,14 +964,14 @@ bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_
     *grids_out = NULL;
     *cells_out = NULL;
     *cell_count = 0;
-    size_t ints = 2 * n + (SV_LEAF_INTS + 1) * leaves;
+    size_t ints = 2 * n + (SV_LEAF_INTS + SV_LEAF_VIS_INTS) * leaves;
     if (ints > INT32_MAX) {
         fprintf(stderr, "schnee-view: error: probe grids have more than 2^31 cell and leaf entries in total\n");
         return false;
     }
     sv_gpu_grid *grids = calloc(probes->grid_count ? probes->grid_count : 1, sizeof(*grids));
     int32_t *cells = calloc(ints ? ints : 1, sizeof(int32_t));
-    uint32_t *leaf_masks = malloc((leaves ? leaves : 1) * sizeof(uint32_t));
+    uint8_t *leaf_masks = malloc((leaves ? leaves : 1) * 64);
     uint32_t *masks = leaf_masks ? visibility_masks(probes, scene, n, leaf_masks, leaves) : NULL;
     if (!grids || !cells || !masks || !leaf_masks) {
         free(grids);
@@ -993,13 +1002,13 @@ bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_
             d->base[2] |= SV_GRID_OCTREE;
             d->base[3] = f->element_count;
             d->dims[3] = (uint32_t)(leaf_base + SV_LEAF_INTS * loff);
-            d->base[1] = (uint32_t)(mask_base + loff);
+            d->base[1] = (uint32_t)(mask_base + SV_LEAF_VIS_INTS * loff);
             for (uint32_t i = 0; i < f->element_count; ++i) {
                 const uint32_t *l = f->leaves + 4u * i;
                 int32_t *o = cells + leaf_base + SV_LEAF_INTS * (loff + i);
                 memcpy(o, l, 4 * sizeof(uint32_t)); /* x, y, z, level; ints 4..7 reserved (0) */
                 memcpy(o + 8, f->leaf_corners + 8u * i, 8 * sizeof(int32_t));
-                cells[mask_base + loff + i] = (int32_t)leaf_masks[loff + i];
+                memcpy(cells + mask_base + SV_LEAF_VIS_INTS * (loff + i), leaf_masks + 64u * (loff + i), 64);
             }
             loff += f->element_count;
             continue;

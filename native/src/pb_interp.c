@@ -677,17 +677,20 @@ pb_result pb_interp_query_cotree_leaf(const pb_cotree *t, uint32_t leaf, const d
     return PB_SUCCESS;
 }
 
-static void leaf_weights(const pb_cotree *t, int32_t li, const double u[3], const double point[3],
-                         const pb_interp_options *opt, pb_interp_weights *out)
+/* smoothstep(1/2, 1/2 + PB_VIS_RAMP, v): GLSL's smoothstep, as shading.glsl's octree_irradiance. */
+static double vis_ramp(double v)
+{
+    double x = (v - 0.5) / PB_VIS_RAMP;
+    x = x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x);
+    return x * x * (3.0 - 2.0 * x);
+}
+
+/* The corner weights w8 of leaf li expanded over the probes (hanging corners through their rules),
+ * then validity / visibility dropped and renormalised (finish_weights). */
+static void expand_weights(const pb_cotree *t, int32_t li, const double w8[8], const double point[3],
+                           const pb_interp_options *opt, pb_interp_weights *out)
 {
     out->count = 0;
-    const uint32_t *l = t->leaves + 4u * (uint32_t)li;
-    double s = (double)(1u << l[3]), tt[3], w8[8];
-    for (int k = 0; k < 3; k++) {
-        tt[k] = (u[k] - l[k]) / s;
-        tt[k] = tt[k] < 0.0 ? 0.0 : (tt[k] > 1.0 ? 1.0 : tt[k]);
-    }
-    trilinear8(tt, w8);
     for (uint32_t c = 0; c < 8; c++) {
         if (w8[c] <= 0.0) continue;
         uint32_t node = (uint32_t)t->corners[8u * (uint32_t)li + c];
@@ -701,6 +704,72 @@ static void leaf_weights(const pb_cotree *t, int32_t li, const double u[3], cons
         }
     }
     finish_weights(out, point, opt);
+}
+
+static void leaf_weights(const pb_cotree *t, int32_t li, const double u[3], const double point[3],
+                         const pb_interp_options *opt, pb_interp_weights *out)
+{
+    const uint32_t *l = t->leaves + 4u * (uint32_t)li;
+    double s = (double)(1u << l[3]), tt[3], w8[8];
+    for (int k = 0; k < 3; k++) {
+        tt[k] = (u[k] - l[k]) / s;
+        tt[k] = tt[k] < 0.0 ? 0.0 : (tt[k] > 1.0 ? 1.0 : tt[k]);
+    }
+    trilinear8(tt, w8);
+    if (opt && opt->pair_visibility) {
+        /* The visibility field (pb_interp.h): each corner's weight times the ramp of its blended
+         * visibility; when that leaves nothing, the plain weights below. */
+        const uint8_t *pv = opt->pair_visibility + 64u * (uint32_t)li;
+        double wv[8];
+        for (uint32_t c = 0; c < 8; c++) {
+            double v = 0.0;
+            for (uint32_t k = 0; k < 8; k++) v += w8[k] * pb_vis_pair_value(pv[8u * k + c]);
+            wv[c] = w8[c] > 0.0 ? w8[c] * vis_ramp(v) : 0.0;
+        }
+        expand_weights(t, li, wv, point, opt, out);
+        if (out->count) return;
+    }
+    expand_weights(t, li, w8, point, opt, out);
+}
+
+pb_result pb_cotree_pair_visibility(const pb_cotree *t, pb_segment_fn segment, void *user, uint8_t *out, pb_error *err)
+{
+    if (!t || !segment || (!out && t->leaf_count))
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_pair_visibility: NULL argument");
+    for (uint32_t i = 0; i < t->leaf_count; i++) {
+        const uint32_t *l = t->leaves + 4u * i;
+        double s = (double)(1u << l[3]), p[8][3];
+        for (uint32_t c = 0; c < 8; c++)
+            for (int k = 0; k < 3; k++) p[c][k] = t->origin[k] + ((double)l[k] + ((c >> k) & 1u ? s : 0.0)) * t->h;
+        uint8_t *o = out + 64u * i;
+        for (uint32_t k = 0; k < 8; k++)
+            for (uint32_t c = 0; c < 8; c++) {
+                double f = 1.0;
+                /* A segment along a leaf edge or face lies in the faces of the leaves around it, where
+                 * walls and ceilings modelled on the lattice planes lie too (hit or missed by rounding):
+                 * it is traced once moved by PB_VIS_SHIFT min cells to each side across every axis on
+                 * which its ends agree, and the first hit of any counts. The same rays from every leaf
+                 * sharing the segment: the table, and so the field, stays continuous across leaves. */
+                uint32_t flat = 7u & ~(k ^ c); /* axes on which the two corners agree */
+                uint32_t combos = 1u << ((flat & 1u) + ((flat >> 1) & 1u) + ((flat >> 2) & 1u));
+                for (uint32_t m = 0; k != c && m < combos; m++) {
+                    double a[3], b[3];
+                    uint32_t bit = 0;
+                    for (int ax = 0; ax < 3; ax++) {
+                        double d = 0.0;
+                        if ((flat >> ax) & 1u) d = ((m >> bit++) & 1u ? PB_VIS_SHIFT : -PB_VIS_SHIFT) * t->h;
+                        a[ax] = p[c][ax] + d;
+                        b[ax] = p[k][ax] + d;
+                    }
+                    double fm = segment(user, a, b);
+                    if (fm < f) f = fm;
+                }
+                /* NaN or beyond the ends: clear; a hit at the very start still leaves 1/255. */
+                long q = !(f < 1.0) ? (long)PB_VIS_CLEAR : lround(255.0 * (f > 0.0 ? f : 0.0));
+                o[8u * k + c] = (uint8_t)(q < 1 ? 1 : (q > (long)PB_VIS_CLEAR ? (long)PB_VIS_CLEAR : q));
+            }
+    }
+    return PB_SUCCESS;
 }
 
 /* ---- tetrahedra -------------------------------------------------------------------------------------- */

@@ -61,6 +61,18 @@ static inline void pb_rtc_intersect16(const int *valid, RTCScene scene, struct R
 #endif
 }
 
+/* One ray with the default settings: rayhit->ray.tfar becomes the nearest hit's distance. */
+static inline void pb_rtc_intersect1(RTCScene scene, struct RTCRayHit *rayhit)
+{
+#if RTC_VERSION_MAJOR >= 4
+    rtcIntersect1(scene, rayhit, NULL);
+#else
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcIntersect1(scene, &ctx, rayhit);
+#endif
+}
+
 /* One occlusion ray with the default settings; ray->tfar becomes -inf when something is hit. */
 static inline void pb_rtc_occluded1(RTCScene scene, struct RTCRay *ray)
 {

@@ -53,9 +53,37 @@ typedef bool (*pb_visible_fn)(void *user, uint32_t probe, const double point[3])
 typedef struct pb_interp_options {
     pb_visible_fn visible; /* NULL = every probe visible */
     void *visible_user;
-    const float *validity; /* NULL = all valid; else per probe, a probe with validity <= 0 is dropped
-                              (probes inside solid geometry) */
+    /* NULL = all valid; else per probe, a probe with validity <= 0 is dropped (inside solid geometry) */
+    const float *validity;
+    /* Corner octrees only. NULL = none; else leaf_count × 64 from pb_cotree_pair_visibility(): the
+     * continuous visibility field below. */
+    const uint8_t *pair_visibility;
 } pb_interp_options;
+
+/* ---- the visibility field of a corner octree (docs/placement.md "Visibility field") ---------------
+ * Which corner probes of a leaf light a point p, decided continuously in p. For each ordered pair of a
+ * leaf's corners (k, c) the bake-free static geometry gives t = the fraction of the way from corner c
+ * towards corner k at which that segment first meets a surface (1: clear). Along the edge k -> c the
+ * linear function f(x) = V + (1 - V) x with V = 1 - 1/(2t) equals 1/2 exactly at that surface, the one
+ * nearest c. In 3D, c's visibility at p is the trilinear blend v_c(p) = sum_k w_k(p) V(k, c) (V(c, c) = 1)
+ * and its weight is w_c(p) * smoothstep(1/2, 1/2 + PB_VIS_RAMP, v_c(p)): 0 on the far side of a wall,
+ * 1 away from walls. On a face shared by two leaves only the face's corners carry weight in both, with
+ * the same segments, so the field is continuous across leaf borders (conforming faces; at a T-junction
+ * the hanging corner's own segments are used, continuous up to that difference). When no corner keeps
+ * weight the plain weights are used. t is stored as round(255 t) in [1, 255], 255 = clear. The engine's
+ * per-pixel shader mirrors this (shaders/shading.glsl octree_irradiance); on the static surfaces of the
+ * bake it also weighs the corners by the back-face weight, in the blend of v_c too. */
+#define PB_VIS_RAMP  0.25
+#define PB_VIS_SHIFT 1e-3 /* min cells: segments on leaf edges/faces are traced this far to each side */
+#define PB_VIS_CLEAR 255u
+/* First meeting of the segment a -> b with the occluders, as a fraction of its length in [0, 1];
+ * >= 1 = clear. Called once per ordered corner pair. */
+typedef double (*pb_segment_fn)(void *user, const double a[3], const double b[3]);
+/* V(k, c) from a stored byte (exact mirror of the GLSL's pair_vis()). */
+static inline double pb_vis_pair_value(uint8_t q)
+{
+    return q >= PB_VIS_CLEAR ? 1.0 : 1.0 - 127.5 / (double)(q ? q : 1u);
+}
 
 /* ---- corner octree ------------------------------------------------------------------------------ */
 
@@ -98,6 +126,13 @@ void pb_cotree_hanging_rules(const pb_cotree *tree, uint32_t *sources, float *we
 int32_t pb_cotree_find_probe(const pb_cotree *tree, const uint32_t lattice[3]);
 /* Leaf holding the point (closed on the lattice's max faces), or −1. */
 int32_t pb_cotree_locate(const pb_cotree *tree, const double point[3]);
+/* The visibility field's table (above): out[64 i + 8 k + c] for leaf i (leaves in pb_cotree_leaves()
+ * order), corner k looking at corner c (bit 0 = +x, 1 = +y, 2 = +z), from segment(c, k); the diagonal is
+ * PB_VIS_CLEAR. A segment on a leaf edge (face) is traced 4 (2) times, moved by ±PB_VIS_SHIFT min cells
+ * across the axes on which its ends agree, and its first hit kept: 152 calls of `segment` per leaf.
+ * Needs no finalize. */
+pb_result pb_cotree_pair_visibility(const pb_cotree *tree, pb_segment_fn segment, void *user, uint8_t *out,
+                                    pb_error *err);
 
 /* Weights of leaf `leaf`'s own field at `point` (clamped into the leaf): for a point on a face shared
  * by two leaves the field is the same from both sides (C0), this picks one. Requires finalize. */
