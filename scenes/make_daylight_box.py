@@ -53,7 +53,7 @@ CAM_DISTANCE = 1.2
 # "lit" (every surface point in the sun), "edge" (some are), "shadow" (none is; checked by sun_lit).
 SPHERES = (
     ("beam", (-0.45, 0.45, 0.75), (1.0, -0.5, 0.3), "lit"),           # wholly in the sunbeam
-    ("beam_edge", (0.33, 0.45, 0.75), (1.0, -0.6, 0.2), "edge"),      # across the beam's east side
+    ("beam_edge", (0.33, 0.45, 0.75), (0.0, 0.2, 1.0), "edge"),       # across the beam's east side, from above
     ("below_beam", (-0.3, 1.15, 0.40), (0.0, -1.0, 0.6), "shadow"),   # under the beam by the window
     ("floor_patch", (0.62, -0.45, 0.32), (-0.4, -0.6, 0.6), "shadow"),  # beside the sunlit floor patch
     ("deep", (1.35, -0.9, 1.3), (-1.0, 0.5, 0.0), "shadow"),          # the far corner from the window
