@@ -218,7 +218,8 @@ def sky_sun(world: np.ndarray) -> Optional["native.Lamp"]:
     w = np.asarray(world)
     if w.ndim != 3 or w.shape[2] < 3 or w.shape[0] < 1 or w.shape[1] < 1:
         raise ValueError(f"world image of shape {w.shape}: expected (H, W, >=3)")
-    split = native.sky_sun_split(np.ascontiguousarray(w[:, :, :3], dtype=np.float32))
+    # Negative texels (the HDRIs hold -1e-5 ones) clamped at 0, as the bake reads a world.
+    split = native.sky_sun_split(np.ascontiguousarray(np.clip(w[:, :, :3], 0.0, None), dtype=np.float32))
     return None if split.sun is None else split.sun.lamp()
 
 

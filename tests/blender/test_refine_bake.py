@@ -169,10 +169,14 @@ def test_export_writes_the_v3_entry_and_the_validator_is_clean(scenes, tmp_path)
 
 
 def test_direct_check_takes_the_sun_of_a_world_image(scenes, tmp_path):
-    """Under sunrise.exr (strength 2) the direct-light check gets one Sun lamp standing in for the
-    image's sun (adaptive.sky_sun of the pixels Blender holds; the same as of the file read by OIIO),
-    none under a constant world or with Lamps Seen by Probes off (no shadow geometry then)."""
+    """Under sunrise.exr (strength 2) with Sky Sun "baked" the direct-light check gets one Sun lamp
+    standing in for the image's sun (adaptive.sky_sun of the pixels Blender holds; the same as of
+    the file read by OIIO), none under a constant world or with Lamps Seen by Probes off (no shadow
+    geometry then). With "mixed" (the default) the check has none and the engine lamps (judged with
+    the probes, like a mixed Sun lamp) have that sun."""
     r = run_case(scenes, "open", "skysun", tmp_path)
+    assert r["mixed_check"] == []
+    assert len(r["mixed_engine"]) == 1 and r["mixed_engine"][0] == r["image"][0]
     assert len(r["image"]) == 1 and r["image"][0]["kind"] == "SUN"
     lamp, own = r["image"][0], r["oiio"]
     assert np.allclose(lamp["color"], own["color"], rtol=1e-5)

@@ -206,17 +206,27 @@ elif CASE == "skysun":
                     for lp in b._check_lamps()]
         finally:
             b.cancel()
-    results["image"] = check_lamps()
+    # Sky Sun "baked": the probes keep the sun, so the check stands in for it; "mixed" (the
+    # default): the sun is the engine's (ProbeBake._engine_lamps), the check leaves it out.
+    results["image"] = check_lamps(sky_sun="baked")
+    results["mixed_check"] = check_lamps()
+    b = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings(), log=print)
+    try:
+        b.prepare()
+        results["mixed_engine"] = [dict(kind=lp.kind, color=list(lp.color), direction=list(lp.direction),
+                                        angle=lp.radius) for lp in b._engine_lamps()]
+    finally:
+        b.cancel()
     # The same image read by OIIO (not Blender's pixels), times the Background strength.
     own = adaptive.sky_sun(native.read_image(scene_lib.studiolight_path("sunrise.exr")) * 2.0)
     results["oiio"] = dict(color=list(own.color), direction=list(own.direction), angle=own.radius)
-    results["lamps_off"] = check_lamps(lights_visible=False)
+    results["lamps_off"] = check_lamps(lights_visible=False, sky_sun="baked")
     world = bpy.context.scene.world
     world.node_tree.nodes.clear()
     out_node = world.node_tree.nodes.new("ShaderNodeOutputWorld")
     bg = world.node_tree.nodes.new("ShaderNodeBackground")
     world.node_tree.links.new(bg.outputs["Background"], out_node.inputs["Surface"])
-    results["constant"] = check_lamps()
+    results["constant"] = check_lamps(sky_sun="baked")
     emit(**results)
 else:
     raise SystemExit(f"unknown case {CASE}")
