@@ -200,6 +200,21 @@ def test_light_mode_defaults_and_choices(session):
     assert np.abs(np.array(r["sun_bake"])).max() > 0.5  # the baked one is not (the check can fail)
 
 
+def test_gltf_export_carries_each_lamps_resolved_mode(session):
+    # scripts/version_checks.py: a Sun at its default (mixed), a point lamp chosen baked through
+    # Object.schnee_light.mode, a spot with the legacy custom property "realtime", a 0.5 m point
+    # lamp at its default (baked).
+    r = session["result"]
+    assert "error" not in r, r.get("error")
+    assert r["export_lights"] == ["FINISHED"]
+    doc = json.loads((session["host"] / "export_lights" / "scene.gltf").read_text())
+    lights = doc["extensions"]["KHR_lights_punctual"]["lights"]
+    modes = {n["name"]: lights[n["extensions"]["KHR_lights_punctual"]["light"]]["extensions"]
+             ["VULKAN_SCHNEE_light"]["mode"]
+             for n in doc["nodes"] if "KHR_lights_punctual" in n.get("extensions", {})}
+    assert modes == {"DefaultSun": "mixed", "ChosenPoint": "baked", "LegacySpot": "realtime", "BigPoint": "baked"}
+
+
 def test_bake_cursor_and_cancel(session):
     r = session["result"]
     assert "error" not in r, r.get("error")

@@ -162,6 +162,30 @@ def main():
         res = bpy.ops.export_scene.gltf(filepath=path, export_format='GLTF_SEPARATE')
         out["export_" + ("on" if enabled else "off")] = sorted(res)
     scene.schnee_gltf_export.enabled = True
+
+    # --- light modes in the export: each lamp's resolved mode (light_modes.py), in a third file
+    # with Punctual Lights on; the lamps go again before the save (the later bakes use the file).
+    lamps = []
+    for lamp_name, kind, how in (("DefaultSun", 'SUN', None), ("ChosenPoint", 'POINT', 'BAKED'),
+                                 ("LegacySpot", 'SPOT', "realtime"), ("BigPoint", 'POINT', None)):
+        ob = bpy.data.objects.new(lamp_name, bpy.data.lights.new(lamp_name, kind))
+        ob.location = (0.0, 0.0, 3.0)
+        if lamp_name == "BigPoint":
+            ob.data.shadow_soft_size = 0.5
+        if how is not None and how.isupper():
+            ob.schnee_light.mode = how
+        elif how is not None:
+            ob["schnee_light_mode"] = how
+        scene.collection.objects.link(ob)
+        lamps.append(ob)
+    lights = os.path.join(work, "export_lights", "scene.gltf")
+    os.makedirs(os.path.dirname(lights), exist_ok=True)
+    out["export_lights"] = sorted(bpy.ops.export_scene.gltf(filepath=lights, export_format='GLTF_SEPARATE',
+                                                            export_lights=True))
+    for ob in lamps:
+        data = ob.data
+        bpy.data.objects.remove(ob)
+        bpy.data.lights.remove(data)
     bpy.ops.wm.save_mainfile()
 
 
