@@ -22,6 +22,8 @@ import numpy as np
 
 import bpy
 
+from . import light_modes
+
 # UI-only properties: moving a node in the editor or selecting an object does not change the light.
 _IGNORED = frozenset({
     "rna_type", "name_full", "select", "location", "width", "width_hidden", "height", "dimensions",
@@ -153,8 +155,15 @@ def parts(scene, view_layer, settings) -> Dict[str, str]:
                                                                      set())])
         elif ob.type == "LIGHT":
             light = ob.data
+            # The lamp's light mode decides whether its direct light is in the probes: a resumed bake
+            # must not mix probes of two modes (the mode is a custom property or a pointer property,
+            # which _simple leaves out; a bad value is the bake's error to report).
+            try:
+                mode = light_modes.light_mode(ob)
+            except light_modes.LightModeError:
+                mode = repr(ob.get(light_modes.PROPERTY))
             lights.append([placed, _simple(light), getattr(light, "cycles", None) and _simple(light.cycles),
-                           _tree(light.node_tree if light.use_nodes else None, set())])
+                           _tree(light.node_tree if light.use_nodes else None, set()), mode])
     world = scene.world
     world_data = ["none"] if world is None else [_simple(world), _tree(world.node_tree if world.use_nodes else None,
                                                                         set())]

@@ -162,7 +162,7 @@ def test_fingerprint_names_what_changed(scenes):
     changed = json.loads([l for l in proc.stdout.splitlines() if l.startswith("RESULT ")][-1][7:])["changed"]
     assert changed == {
         "nothing": [], "node moved in the editor": [], "material colour": ["materials"], "wall moved": ["geometry"],
-        "world strength": ["world"], "bounces": ["render"], "lamp added": ["lights"],
+        "world strength": ["world"], "bounces": ["render"], "lamp added": ["lights"], "lamp mode": ["lights"],
         "samples setting": ["settings"], "output path only": [], "probe representation only": [],
     }
 

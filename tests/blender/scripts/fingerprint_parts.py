@@ -53,6 +53,14 @@ check("bounces", lambda: setattr(scene.cycles, "max_bounces", scene.cycles.max_b
       lambda: setattr(scene.cycles, "max_bounces", scene.cycles.max_bounces - 1))
 light = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", 'POINT'))
 check("lamp added", lambda: scene.collection.objects.link(light), lambda: scene.collection.objects.unlink(light))
+# A lamp's light mode (mixed by type for this 0.25 m point lamp, realtime by the legacy property):
+# its direct light leaves or enters the probes, so a journal of the other mode must not resume.
+scene.collection.objects.link(light)
+base = parts(base_settings)
+check("lamp mode", lambda: light.__setitem__("schnee_light_mode", "realtime"), lambda: light.pop("schnee_light_mode"))
+scene.collection.objects.unlink(light)
+bpy.context.view_layer.update()
+base = parts(base_settings)
 import dataclasses  # noqa: E402
 check("samples setting", lambda: None, lambda: None, dataclasses.replace(base_settings, samples=base_settings.samples + 1))
 check("output path only", lambda: None, lambda: None, dataclasses.replace(base_settings, output_path="//elsewhere.shprobe"))
