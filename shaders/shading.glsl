@@ -157,31 +157,42 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, bool m
     float s = float(1u << uint(cell_probe[lb + 3u]));
     vec3 tt = clamp((u - l) / s, vec3(0.0), vec3(1.0));
     uint vb = gr.base.y + SV_LEAF_VIS_INTS * uint(li);
-    float w8[8], wb[8]; // trilinear; times the back-face weight (static objects)
-    float wbsum = 0.0;
-    for (uint c = 0u; c < 8u; ++c) {
-        vec3 o = vec3(uvec3(c & 1u, (c >> 1) & 1u, (c >> 2) & 1u));
-        vec3 w3 = mix(1.0 - tt, tt, o);
-        w8[c] = w3.x * w3.y * w3.z;
-        vec3 corner = gr.origin_spacing.xyz + (l + o * s) * h;
-        wb[c] = movable ? w8[c] : w8[c] * smoothstep(-0.1, 0.1, dot(corner - p_surface, n) / (s * h));
-        wbsum += wb[c];
+    // Corner c's trilinear weight (w8) and that times its back-face weight (wb, static objects), as
+    // two vec4 each (corners 0-3, 4-7): registers, not a local array.
+    vec2 fx = vec2(1.0 - tt.x, tt.x), fy = vec2(1.0 - tt.y, tt.y), fz = vec2(1.0 - tt.z, tt.z);
+    vec4 xy = vec4(fx.x * fy.x, fx.y * fy.x, fx.x * fy.y, fx.y * fy.y);
+    vec4 w8a = xy * fz.x, w8b = xy * fz.y;
+    vec4 wba = w8a, wbb = w8b;
+    if (!movable) {
+        // dot(corner - p_surface, n) / (s h) = dot(l + o s - u_surface, n) / s, u_surface in lattice units
+        float d0 = dot(l - (p_surface - gr.origin_spacing.xyz) / h, n) / s;
+        vec4 dxy = vec4(0.0, n.x, n.y, n.x + n.y);
+        wba *= smoothstep(-0.1, 0.1, d0 + dxy);
+        wbb *= smoothstep(-0.1, 0.1, d0 + n.z + dxy);
     }
+    float wbsum = dot(wba, vec4(1.0)) + dot(wbb, vec4(1.0));
     uint band = 0u;
     float AY[25]; // A_l Y_i(n) (sh_lambert_basis)
     bool have_basis = false;
+    bool blocked = cell_probe[lb + 4u] != 0; // else every V(k, c) = 1: v_c = 1, a ramp of exactly 1
     for (int pass = wbsum > 0.0 ? 0 : 1; pass < 2; ++pass) { // 0: visibility field and back faces; 1: plain
         vec3 e = vec3(0.0);
         float wsum = 0.0;
         for (uint c = 0u; c < 8u; ++c) {
-            float w = w8[c];
+            float w = c < 4u ? w8a[c] : w8b[c - 4u];
             if (w <= 0.0) continue;
             if (pass == 0) {
                 // The field blended over the corners in front of the surface (a static surface's own
                 // corners behind it would put its front probes' wall on the surface itself).
-                float v = 0.0;
-                for (uint k = 0u; k < 8u; ++k) v += wb[k] * pair_vis(vb, k, c);
-                w = wb[c] * smoothstep(0.5, 0.5 + SV_VIS_RAMP, v / wbsum);
+                w = c < 4u ? wba[c] : wbb[c - 4u];
+                if (blocked) {
+                    float v = 0.0;
+                    for (uint k = 0u; k < 8u; ++k) {
+                        float wk = k < 4u ? wba[k] : wbb[k - 4u];
+                        if (wk > 0.0) v += wk * pair_vis(vb, k, c);
+                    }
+                    w *= smoothstep(0.5, 0.5 + SV_VIS_RAMP, v / wbsum);
+                }
             }
             uint pi = gr.base.x + uint(cell_probe[lb + 8u + c]);
             w *= cube ? cube_validity(pi) : probe_validity(pi);

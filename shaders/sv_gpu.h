@@ -122,8 +122,9 @@
 #define SV_GRID_OCTREE    1u /* corner octree (.shprobe v3 structure 1): leaves in the cell buffer */
 #define SV_GRID_CUBE_ONLY 2u /* the grid's file holds ambient cubes only (representation 1) */
 #define SV_GRID_TETRA     4u /* tetrahedra: not sampled per pixel (objects use their per-object probe) */
-/* Ints per octree leaf in the cell buffer: x, y, z (lattice min corner), level, 4 reserved (0), then
- * the 8 corner nodes (corner bit 0 = +x, 1 = +y, 2 = +z; node = probe-buffer index - base.x). */
+/* Ints per octree leaf in the cell buffer: x, y, z (lattice min corner), level, blocked (1 when its
+ * visibility field's table holds a surface, else 0: the field is then 1 everywhere), 3 reserved (0),
+ * then the 8 corner nodes (corner bit 0 = +x, 1 = +y, 2 = +z; node = probe-buffer index - base.x). */
 #define SV_LEAF_INTS 16u
 /* Ints per octree leaf of its visibility field (pb_cotree_pair_visibility, pb_interp.h): 64 bytes,
  * byte 8k + c (little-endian within each int) = corner k looking at corner c, round(255 t). */

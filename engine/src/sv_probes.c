@@ -1006,9 +1006,14 @@ bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_
             for (uint32_t i = 0; i < f->element_count; ++i) {
                 const uint32_t *l = f->leaves + 4u * i;
                 int32_t *o = cells + leaf_base + SV_LEAF_INTS * (loff + i);
-                memcpy(o, l, 4 * sizeof(uint32_t)); /* x, y, z, level; ints 4..7 reserved (0) */
+                memcpy(o, l, 4 * sizeof(uint32_t)); /* x, y, z, level; ints 5..7 reserved (0) */
                 memcpy(o + 8, f->leaf_corners + 8u * i, 8 * sizeof(int32_t));
-                memcpy(cells + mask_base + SV_LEAF_VIS_INTS * (loff + i), leaf_masks + 64u * (loff + i), 64);
+                const uint8_t *vis = leaf_masks + 64u * (loff + i);
+                memcpy(cells + mask_base + SV_LEAF_VIS_INTS * (loff + i), vis, 64);
+                /* SV_LEAF_BLOCKED: the shader reads the table only where a surface crosses the leaf
+                 * (everywhere else v_c = 1 and the weights are the plain ones, exactly). */
+                for (int b = 0; b < 64; ++b)
+                    if (vis[b] != PB_VIS_CLEAR) o[4] = 1;
             }
             loff += f->element_count;
             continue;
