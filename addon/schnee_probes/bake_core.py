@@ -860,7 +860,7 @@ class ProbeBake:
         d = self._direct
         if d is None or not d.sky or self.settings.sky_sun != "mixed":
             return None
-        d.world(self)
+        d.sun_lamp(self)         # splits the world if no panorama needed it yet (a bake resumed whole)
         return d.sun
 
     def _remove_sun_from(self, path, sun):

@@ -134,7 +134,8 @@ class DirectLightPlan:
     # "baked", or no sun in the world). The probes' directly seen sky is then the rest of the world.
     sun: Optional[native.SkySun] = None
     sun_verdict: str = ""             # the split's verdict ("found", "wide", "faint", "black")
-    _world: Optional[np.ndarray] = None
+    _world: Optional[np.ndarray] = None    # held only until the sky table is built (an 8k HDRI: 400 MB)
+    _split_done: bool = False
     _table: Optional[np.ndarray] = None
 
     def project(self, positions: np.ndarray, max_band: int, lamps: Optional[list] = None) -> np.ndarray:
@@ -160,7 +161,8 @@ class DirectLightPlan:
         if self._world is None:
             t0 = time.perf_counter()
             world = world_radiance(bake, bake.settings.panorama_resolution)
-            if bake.settings.sky_sun == "mixed" and not self.sky_source.startswith("constant"):
+            if (bake.settings.sky_sun == "mixed" and not self.sky_source.startswith("constant")
+                    and not self._split_done):
                 split = native.sky_sun_split(world)
                 self.sun_verdict = split.verdict
                 if split.sun is not None:
@@ -169,13 +171,16 @@ class DirectLightPlan:
                              "Mixed): the probes see the rest of the sky, the engine adds the sun")
                 else:
                     bake.log(f"Schnee: no sun split off the world ({SUN_VERDICTS.get(split.verdict, split.verdict)})")
+            elif self.sun is not None:     # read again after the table freed it: the same split
+                world = native.sky_sun_split(world).rest
+            self._split_done = True
             self._world = world
             bake.timings["sky_world"] = time.perf_counter() - t0
         return self._world
 
     def sun_lamp(self, bake) -> Optional[native.Lamp]:
         """The split sun as a Sun lamp (the engine's light), or None; splits the world if not yet."""
-        if self.sky:
+        if self.sky and not self._split_done:
             self.world(bake)
         return None if self.sun is None else self.sun.lamp()
 
@@ -189,6 +194,7 @@ class DirectLightPlan:
         w, h = s.panorama_resolution, s.panorama_resolution // 2
         if self._table is None:          # once per bake: the world read or captured, binned
             self._table = sky_table(bake, w, h)
+            self._world = None           # binned: the image is not needed any more
             bake.timings["sky_table"] = time.perf_counter() - t0
             t0 = time.perf_counter()
         vis = 1.0 - read_alpha(exr_path, w, h)

@@ -38,6 +38,7 @@ def results(tmp_path_factory):
             r = json.loads(line[7:])
             rows[r["case"]] = r
     assert set(rows) == {"sky", "scene", "nishita"}, proc.stdout[-3000:] + proc.stderr[-2000:]
+    rows["stdout"] = proc.stdout
     return rows
 
 
@@ -89,6 +90,12 @@ def test_baked_keeps_the_whole_sky_and_removes_the_stale_sun(results):
     assert _irr_error(native, r["coeffs"], exact) < 1e-5
 
 
+def test_a_changed_sky_sun_does_not_resume_the_journal(results):
+    fp = results["sky"]["fingerprint"]
+    assert fp["mixed"] != fp["baked"]       # the journal's manifest differs: not resumed
+    assert fp["baked"] == fp["legacy"]      # as before Sky Sun existed: earlier journals resume
+
+
 def test_sky_exr_loses_the_sun_the_probes_left_out(results):
     from schnee_probes import native
     mixed, baked = (np.load(results["sky"][m]["sky_path"]) for m in ("mixed", "baked"))
@@ -111,6 +118,8 @@ def test_sky_exr_loses_the_sun_the_probes_left_out(results):
 def test_gltf_holds_the_mixed_directional_light(results):
     r = results["scene"]
     assert r["files"] == ["probes.shprobe", "sky.exr", "sun.json"]
+    # A 128 px capture at 1 spp misses most of the sun: its sky.exr is clamped near the world's sun.
+    assert any("the sun removed from sky.exr too (clamped near the world's sun)" in line for line in r["logs"])
     doc = json.loads(Path(r["gltf"]).read_text())
     nodes = [n for n in doc["nodes"] if n.get("name") == "Schnee Sky Sun"]
     assert len(nodes) == 1
@@ -134,6 +143,15 @@ def test_gltf_holds_the_mixed_directional_light(results):
     np.testing.assert_allclose(rotated, sun["direction"], atol=1e-6)
     assert "KHR_lights_punctual" in doc["extensionsUsed"] and "VULKAN_SCHNEE_light" in doc["extensionsUsed"]
     assert "KHR_lights_punctual" not in doc.get("extensionsRequired", [])
+
+
+def test_a_broken_sun_json_is_skipped_with_a_warning(results):
+    doc = json.loads(Path(results["scene"]["bad_gltf"]).read_text())
+    assert not any(n.get("name") == "Schnee Sky Sun" for n in doc["nodes"])
+    assert "KHR_lights_punctual" not in doc.get("extensionsUsed", [])
+    assert "skipped the sky's sun" in results["stdout"] and "direction is not a unit vector" in results["stdout"]
+    # The probe grids and the sky are still exported.
+    assert doc["scenes"][0]["extensions"]["VULKAN_SCHNEE_engine_properties"]["shProbeGrids"]
 
 
 def test_khronos_validator_is_clean(results):

@@ -8,7 +8,8 @@ Under Blender's bundled sunrise.exr (strength 1, read as it is):
 - ``scene``: a 10 m ground (albedo 0.8/0.7/0.6, roughness 1) with a 1 m box (0.15..0.65 m up) placed towards the
   sun so its shadow crosses the ground's centre, an orthographic camera 10 m above looking down
   (8 m wide, 160x160 px), one probe volume above the ground; a mixed bake, the .blend saved, then a
-  glTF export (cameras on, Punctual Lights off: the sky's sun is added all the same).
+  glTF export (cameras on, Punctual Lights off: the sky's sun is added all the same); one more
+  export with a broken sun.json.
 - ``nishita``: a Nishita sky (sun 25° up, 60° around), captured by Cycles, baked mixed.
 
 Emits one RESULT line per case.
@@ -82,6 +83,15 @@ def sky_case():
                          sky_sh=native.sky_table(np.ascontiguousarray(sky), 1, 1, 2)[0, 0].tolist(),
                          sky_path=os.path.join(OUT, f"sky_{mode}.npy"), logs=logs)
         np.save(out[mode]["sky_path"], sky)
+    # The journal's fingerprint (fingerprint.parts): mixed and baked differ; baked is the digest of
+    # the settings as they were before Sky Sun existed (a journal of an earlier bake resumes).
+    from dataclasses import asdict
+    from schnee_probes import fingerprint
+    fp = {m: fingerprint.parts(bpy.context.scene, bpy.context.view_layer, settings(folder, sky_sun=m))["settings"]
+          for m in ("mixed", "baked")}
+    legacy = fingerprint._digest(sorted((k, v) for k, v in asdict(settings(folder)).items()
+                                        if k not in fingerprint._NOT_VALUES and k != "sky_sun"))
+    out["fingerprint"] = dict(fp, legacy=legacy)
     # The world as the bake reads it (Blender's pixels x strength 1), for the expected values.
     world = np.clip(native.read_image(lib.studiolight_path(HDRI))[:, :, :3], 0.0, None).astype(np.float32)
     np.save(os.path.join(OUT, "world.npy"), world)
@@ -122,9 +132,19 @@ def scene_case():
     os.makedirs(os.path.dirname(gltf), exist_ok=True)
     bpy.ops.export_scene.gltf(filepath=gltf, export_format='GLTF_SEPARATE', export_cameras=True,
                               export_lights=False)
+    # A broken sun.json (direction not a unit vector): the export warns and writes no light.
+    sun_path = os.path.join(folder, "sh_coeffs", "sun.json")
+    good = read_json(sun_path)
+    with open(sun_path, "w", encoding="utf-8") as fh:
+        json.dump(dict(good, direction=[0.0, 2.0, 0.0]), fh, indent=2)
+    bad_gltf = os.path.join(folder, "export_bad", "scene.gltf")
+    os.makedirs(os.path.dirname(bad_gltf), exist_ok=True)
+    bpy.ops.export_scene.gltf(filepath=bad_gltf, export_format='GLTF_SEPARATE', export_lights=False)
+    with open(sun_path, "w", encoding="utf-8") as fh:
+        json.dump(good, fh, indent=2)
     box_lo = (c[0] - 0.5, 0.15, -(c[1] + 0.5))   # engine (x, z, -y)
     box_hi = (c[0] + 0.5, 0.65, -(c[1] - 0.5))
-    common.emit(case="scene", gltf=gltf, sun=read_json(os.path.join(folder, "sh_coeffs", "sun.json")),
+    common.emit(case="scene", gltf=gltf, bad_gltf=bad_gltf, sun=read_json(os.path.join(folder, "sh_coeffs", "sun.json")),
                 box=[list(box_lo), list(box_hi)], files=sorted(os.path.basename(f) for f in result.files), logs=logs)
 
 
