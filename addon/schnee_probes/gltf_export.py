@@ -483,6 +483,26 @@ def collect_sun(export_settings):
     return sun
 
 
+def _sun_strength(data):
+    """The irradiance (W/m²) Cycles renders for Sun lamp ``data``: Strength x the constant Strength
+    of the Emission node at its light output x 2^exposure; None when nodes drive it. Blender's
+    exporter writes a Sun with an Emission node at the node's Strength alone, without the lamp's
+    own (io_scene_gltf2 lights.py __gather_intensity, 3.4 - 5.2); from 5.0 every new lamp has such a
+    node tree, so every Sun exported at 1 W/m² (683 lux) whatever its strength."""
+    s = 1.0
+    tree = data.node_tree if getattr(data, "use_nodes", True) else None
+    if tree is not None:
+        outs = [n for n in tree.nodes if n.type == 'OUTPUT_LIGHT' and getattr(n, "is_active_output", True)]
+        surface = outs[0].inputs.get("Surface") if outs else None
+        if surface is None or not surface.is_linked:
+            return None   # no emission at all: the exporter's value stays
+        node = surface.links[0].from_node
+        if node.type != 'EMISSION' or node.inputs["Strength"].is_linked:
+            return None
+        s = float(node.inputs["Strength"].default_value)
+    return float(data.energy) * s * 2.0 ** float(getattr(data, "exposure", 0.0))
+
+
 def _sun_node(sun):
     """A new glTF node holding the sky's sun as a directional light (KHR_lights_punctual, the light
     itself a child of the root list like the exporter's own lamps)."""
@@ -602,6 +622,10 @@ class glTF2ExportUserExtension:
         extensions = dict(light.get("extensions") or {})
         scale = light_intensity_scale(light.get("type"), export_settings)
         extensions[EXT_LIGHT] = _make_extension(EXT_LIGHT, {"mode": mode, "intensityScale": scale})
+        if light.get("type") == "directional":
+            strength = _sun_strength(blender_object.data)
+            if strength is not None:
+                light["intensity"] = strength / scale
         light["extensions"] = extensions
         ref.extension = light
 
