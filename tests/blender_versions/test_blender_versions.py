@@ -383,8 +383,8 @@ def test_sky_sun_gltf_export_directional_mixed_light(session, mode, scale):
     hook: one root node "Schnee Sky Sun" whose -Z is sun.json's direction, a directional light of
     mode "mixed", source "sky", color x intensity x intensityScale = sun.json's irradiance with
     intensityScale 1/683 in the Standard lighting mode (Punctual Lights off: written all the same)
-    and 1 in Raw (Punctual Lights on, next to the exporter's own Sun lamp); clean under the Khronos
-    validator."""
+    and 1 in Raw (Punctual Lights on, next to the exporter's own Sun lamps, which carry the
+    irradiance Cycles renders); clean under the Khronos validator."""
     r = _sky_sun(session)
     assert r["export_" + mode] == ["FINISHED"]
     gltf = session["host_sky_sun"] / f"export_{mode}" / "scene.gltf"
@@ -409,13 +409,18 @@ def test_sky_sun_gltf_export_directional_mixed_light(session, mode, scale):
         assert len(lights) == 1
         assert "KHR_lights_punctual" not in doc.get("extensionsRequired", [])
     else:
-        # The exporter's own Sun (strength 2 W/m², default mode mixed) beside it, its own light.
-        lamp_nodes = [n for n in doc["nodes"] if n.get("name") == "LampSun"]
-        assert len(lamp_nodes) == 1 and len(lights) == 2
-        own = lights[lamp_nodes[0]["extensions"]["KHR_lights_punctual"]["light"]]
-        assert own is not light and own["type"] == "directional"
-        assert own["intensity"] * own["extensions"]["VULKAN_SCHNEE_light"]["intensityScale"] == \
-            pytest.approx(2.0, rel=1e-6)
+        # The exporter's own Suns beside it, each its own light at the irradiance Cycles renders:
+        # Strength 2 W/m², and 2 x an Emission node of Strength 1.5 (5.2's exporter wrote 1 and
+        # 1.5: the node's Strength alone, gltf_export._sun_strength).
+        assert len(lights) == 3
+        for name, irradiance in (("LampSun", 2.0), ("NodeSun", 3.0)):
+            lamp_nodes = [n for n in doc["nodes"] if n.get("name") == name]
+            assert len(lamp_nodes) == 1
+            own = lights[lamp_nodes[0]["extensions"]["KHR_lights_punctual"]["light"]]
+            assert own is not light and own["type"] == "directional"
+            assert own["extensions"]["VULKAN_SCHNEE_light"]["mode"] == "mixed"
+            assert own["intensity"] * own["extensions"]["VULKAN_SCHNEE_light"]["intensityScale"] == \
+                pytest.approx(irradiance, rel=1e-6), name
     if shutil.which("node") is None or not (REPO / "node_modules" / "gltf-validator").is_dir():
         pytest.skip("node or node_modules/gltf-validator missing (scripts/deps.sh installs them)")
     proc = subprocess.run(["node", str(VALIDATOR), str(gltf)], capture_output=True, text=True, timeout=120)

@@ -8,8 +8,9 @@ the world (Environment Texture, strength 1) and nothing else a probe can see: a 
 2 m cells (8 probes) and one small plane hidden from renders (so the glTF has a mesh node). Bake
 SH in Volumes through the operator at Sky Sun's default (mixed), 16 px panoramas, 1 spp, a 128 px
 sky.exr; then two glTF exports through the add-on's hook: the exporter's default lighting mode
-(Standard) with Punctual Lights off, and Raw with Punctual Lights on and a Sun lamp of its own
-added after the bake (the hook's light next to the exporter's).
+(Standard) with Punctual Lights off, and Raw with Punctual Lights on and two Sun lamps of its own
+added after the bake (the hook's light next to the exporter's; one with an Emission node of
+Strength 1.5).
 """
 import importlib
 import json
@@ -98,6 +99,13 @@ def main():
     data.energy = 2.0
     lamp = bpy.data.objects.new("LampSun", data)
     lamp.location = (0.0, 0.0, 4.0)
+    scene.collection.objects.link(lamp)
+    # One more with the Emission node's Strength at 1.5 (Cycles renders 2 x 1.5 W/m²).
+    data = bpy.data.lights.new("NodeSun", 'SUN')
+    data.energy = 2.0
+    data.use_nodes = True   # 4.3: creates the node tree; 5.x: every lamp has one
+    next(n for n in data.node_tree.nodes if n.type == 'EMISSION').inputs["Strength"].default_value = 1.5
+    lamp = bpy.data.objects.new("NodeSun", data)
     scene.collection.objects.link(lamp)
     raw = os.path.join(work, "export_raw", "scene.gltf")
     os.makedirs(os.path.dirname(raw), exist_ok=True)
