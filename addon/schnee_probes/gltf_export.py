@@ -373,20 +373,30 @@ def collect_probe_grids(export_settings):
     return entries
 
 
+def _sidecar(export_settings, key, file_name, what):
+    """(path, its checked stat) of the regular file ``file_name`` in the bake's sh_coeffs/ next to
+    the .blend, or (None, None): absent, or not a regular file (warned, naming ``what``). Marks
+    ``key`` done (None) in the export's cache first, so a failed file is looked at once."""
+    export_settings[key] = None
+    src_dir = _blend_sh_dir()
+    src = os.path.join(src_dir, file_name) if src_dir else None
+    if src is None or not os.path.lexists(src):
+        return None, None
+    checked, why = _regular_stat(src)
+    if checked is None:
+        _warn(export_settings, f"skipped {what} {src}: {why}")
+        return None, None
+    return src, checked
+
+
 def collect_sky(export_settings):
     """The ``sky`` member (or None): ``sh_coeffs/sky.exr`` next to the .blend, projected to L2
     radiance SH by the native code (negative texels clamped, as the bake does) and copied next to
     the export. Cached per export like the grids."""
     if _KEY_SKY in export_settings:
         return export_settings[_KEY_SKY]
-    export_settings[_KEY_SKY] = None
-    src_dir = _blend_sh_dir()
-    src = os.path.join(src_dir, SKY_FILE) if src_dir else None
-    if src is None or not os.path.lexists(src):
-        return None
-    checked, why = _regular_stat(src)
-    if checked is None:
-        _warn(export_settings, f"skipped the sky {src}: {why}")
+    src, checked = _sidecar(export_settings, _KEY_SKY, SKY_FILE, "the sky")
+    if src is None:
         return None
     try:
         from . import native
@@ -455,14 +465,8 @@ def collect_sun(export_settings):
     dict(name, color, intensity, intensity_scale, angle, rotation). Cached per export."""
     if _KEY_SUN in export_settings:
         return export_settings[_KEY_SUN]
-    export_settings[_KEY_SUN] = None
-    src_dir = _blend_sh_dir()
-    src = os.path.join(src_dir, SUN_FILE) if src_dir else None
-    if src is None or not os.path.lexists(src):
-        return None
-    checked, why = _regular_stat(src)
-    if checked is None:
-        _warn(export_settings, f"skipped the sky's sun {src}: {why}")
+    src, _ = _sidecar(export_settings, _KEY_SUN, SUN_FILE, "the sky's sun")
+    if src is None:
         return None
     try:
         import json
