@@ -410,7 +410,9 @@ float shadow_visibility(sv_gpu_light light, vec3 p, vec3 n, vec3 l) {
 }
 
 // Direct light of the KHR_lights_punctual lights: Lambert diffuse plus a normalised Blinn-Phong
-// lobe (exponent from roughness, Schlick-free F0 = mix(0.04, albedo, metallic)).
+// lobe (exponent from roughness, Schlick-free F0 = mix(0.04, albedo, metallic)); without the lobe
+// under --no-specular (SV_FRAME_NO_SPECULAR: diffuse only, as the sky's reflections are left out; the
+// benchmarks compare Cycles' diffuse spheres with it).
 // probe_lit: the surface's probe term came from a baked probe (not the fallback probe 0). The bake
 // rendered a baked light (VULKAN_SCHNEE_light.mode "baked") into those probes, direct and bounced,
 // so adding its direct term there would count it twice: it is skipped. Where the fallback lights
@@ -423,6 +425,7 @@ vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, 
     float r = clamp(roughness, 0.05, 1.0);
     float s = max(2.0 / (r * r * r * r) - 2.0, 1.0);
     vec3 sum = vec3(0.0);
+    float specular = (frame.flags & SV_FRAME_NO_SPECULAR) != 0u ? 0.0 : 1.0;
     for (uint i = 0u; i < frame.light_count; ++i) {
         sv_gpu_light light = lights[i];
         if (probe_lit && abs(light.spot.z - float(SV_LIGHT_BAKED)) < 0.5) continue;
@@ -453,7 +456,7 @@ vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, 
         float spec = (s + 8.0) / (8.0 * SH_PI) * pow(max(dot(n, h), 0.0), s);
         if (light.spot.w > -0.5 && atten > 0.0) atten *= shadow_visibility(light, p, n, l);
         vec3 radiance = light.color.rgb * atten;
-        sum += ((1.0 - metallic) * albedo / SH_PI + f0 * spec) * radiance * nl;
+        sum += ((1.0 - metallic) * albedo / SH_PI + specular * f0 * spec) * radiance * nl;
     }
     return sum;
 }

@@ -134,7 +134,7 @@
 /* Frame flags (sv_gpu_frame.flags). */
 #define SV_FRAME_NO_DIRECT   1u /* skip KHR_lights_punctual direct light */
 #define SV_FRAME_SKY         2u /* a sky is loaded: background + image-based specular */
-#define SV_FRAME_NO_SPECULAR 4u /* skip the sky's specular reflections (--no-specular) */
+#define SV_FRAME_NO_SPECULAR 4u /* no specular: the sky's reflections and the lights' lobe (--no-specular) */
 #define SV_FRAME_NO_RENORM   8u /* do not scale sky specular by probe / sky irradiance */
 
 /* VULKAN_SCHNEE_light.mode on the GPU (sv_gpu_light.spot.z, as a float). */

@@ -45,7 +45,7 @@ static void usage(FILE *f)
         "  --shadow-cascades N      shadow map layers (cascades) per mixed/realtime sun, each around a slice of\n"
         "                           the view's depth (1..%u, default %u; 1 = one map over the whole scene)\n"
         "  --no-sky                 ignore the scene's sky (no background, no specular, constant fallback)\n"
-        "  --no-specular            no sky reflections (image-based specular)\n"
+        "  --no-specular            no specular: no sky reflections, no lights' lobe (diffuse only)\n"
         "  --no-renorm              do not scale sky reflections by probe / sky irradiance\n"
         "  --look FX FY FZ AX AY AZ  camera at F looking at A (0.8 rad vertical fov) instead of the scene's\n"
         "  --write-brdf-lut PATH    write the engine's split-sum BRDF LUT (R = A, G = B) to PATH and exit\n"

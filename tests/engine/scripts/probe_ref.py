@@ -151,14 +151,14 @@ def project_l2(img):
 
 
 def point_light_direct(p, n, cam, albedo, light_pos, radiance, metallic=0.0, roughness=1.0, range_=0.0,
-                       spot=None):
+                       spot=None, specular=True):
     """docs/engine.md "Shading": [(1 - metallic) base/pi + F0 (s+8)/(8 pi) (n.h)^s] * radiance * atten * (n.l)
     for a point light of intensity*colour `radiance` (candela) at light_pos; atten = 1/d^2 times the
     range window clamp(1 - (d/range)^4, 0, 1); s = max(2/r^4 - 2, 1), r = max(roughness, 0.05);
     F0 = mix(0.04, base, metallic). p, n: (..., 3) positions and unit normals; cam: eye position.
     spot = (unit direction the light points to, inner, outer cone angles): a spot light, atten times
     clamp(cos·scale + offset, 0, 1)² with KHR_lights_punctual's scale = 1 / max(0.001, cos(inner) -
-    cos(outer)), offset = -cos(outer)·scale."""
+    cos(outer)), offset = -cos(outer)·scale. specular=False: the Lambert term alone (--no-specular)."""
     p, n = np.asarray(p, float), np.asarray(n, float)
     albedo, radiance = np.asarray(albedo, float), np.asarray(radiance, float)
     d = np.asarray(light_pos, float) - p
@@ -181,7 +181,7 @@ def point_light_direct(p, n, cam, albedo, light_pos, radiance, metallic=0.0, rou
     f0 = 0.04 * (1 - metallic) + albedo * metallic
     nl = np.maximum((n * l).sum(-1), 0.0)
     spec = (s + 8) / (8 * np.pi) * np.maximum((n * h).sum(-1), 0.0) ** s
-    brdf = (1 - metallic) * albedo / np.pi + f0 * spec[..., None]
+    brdf = (1 - metallic) * albedo / np.pi + (f0 * spec[..., None] if specular else 0.0)
     return brdf * radiance * (atten * nl)[..., None]
 
 
