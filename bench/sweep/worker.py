@@ -66,8 +66,18 @@ def _stepped(bake, seed=0):
     return rows
 
 
+# The sweep measures probes against references holding every light (converged bakes, the HDRIs' own
+# projections): the sky's sun stays in the probes (Sky Sun "baked", as when the sweep was measured;
+# since issue 27 the add-on's default splits it off for the engine to add), unless a job says otherwise.
+SWEEP_SETTINGS = {"sky_sun": "baked"}
+
+
+def _settings(job, output_path):
+    return bake_core.BakeSettings(output_path=output_path, **dict(SWEEP_SETTINGS, **job["settings"]))
+
+
 def run_fixed(job, spec, tmp):
-    s = bake_core.BakeSettings(output_path=os.path.join(tmp, "fixed.shprobe"), **job["settings"])
+    s = _settings(job, os.path.join(tmp, "fixed.shprobe"))
     pts = {"probes": spec.probes, "samples": spec.samples,
            "both": list(spec.probes) + list(spec.samples)}[job.get("points", "probes")]
     eng = scene_export.blender_to_engine(np.array(pts, dtype=np.float64))
@@ -94,7 +104,7 @@ def run_fixed(job, spec, tmp):
 
 def run_placement(job, spec, tmp):
     out = os.path.join(tmp, job["id"] + ".shprobe")
-    s = bake_core.BakeSettings(output_path=out, **job["settings"])
+    s = _settings(job, out)
     bake = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, s, log=lambda line: None)
     t0 = time.perf_counter()
     try:
