@@ -2,6 +2,7 @@
 
 All positions are Blender world space (Z-up), metres.
 """
+import math
 import os
 
 import bmesh
@@ -87,6 +88,24 @@ def hdri_world(name="interior.exr", strength=1.0):
     bg.inputs["Strength"].default_value = strength
     out = nt.nodes.new("ShaderNodeOutputWorld")
     nt.links.new(env.outputs["Color"], bg.inputs["Color"])
+    nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
+    return world
+
+
+def nishita_world(elevation_deg=25.0, rotation_deg=60.0):
+    """World lit by Blender's Nishita Sky Texture (its sun included) at the given sun elevation and
+    rotation: a procedural world, which the bake captures with Cycles (docs/direct-light.md)."""
+    world = bpy.context.scene.world
+    world.use_nodes = True
+    nt = world.node_tree
+    nt.nodes.clear()
+    sky = nt.nodes.new("ShaderNodeTexSky")
+    sky.sky_type = 'NISHITA'
+    sky.sun_elevation = math.radians(elevation_deg)
+    sky.sun_rotation = math.radians(rotation_deg)
+    bg = nt.nodes.new("ShaderNodeBackground")
+    out = nt.nodes.new("ShaderNodeOutputWorld")
+    nt.links.new(sky.outputs["Color"], bg.inputs["Color"])
     nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
     return world
 

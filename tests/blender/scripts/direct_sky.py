@@ -22,21 +22,6 @@ import schnee_probes  # noqa: E402
 from schnee_probes import bake_core, compat, native  # noqa: E402
 
 
-def nishita_world():
-    world = bpy.context.scene.world
-    world.use_nodes = True
-    nt = world.node_tree
-    nt.nodes.clear()
-    sky = nt.nodes.new("ShaderNodeTexSky")
-    sky.sky_type = 'NISHITA'
-    sky.sun_elevation = math.radians(25.0)
-    sky.sun_rotation = math.radians(60.0)
-    bg = nt.nodes.new("ShaderNodeBackground")
-    out = nt.nodes.new("ShaderNodeOutputWorld")
-    nt.links.new(sky.outputs["Color"], bg.inputs["Color"])
-    nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
-
-
 def reference_capture(out):
     """The world alone at 4096x2048, 16 spp, seed 7, from the DESIGN.md §3 camera."""
     scene = bpy.context.scene
@@ -91,7 +76,7 @@ def main():
         lib.clear_scene()
         lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 4.0))
         if name == "nishita":
-            nishita_world()
+            lib.nishita_world()
             reference = reference_capture(out)
         else:
             lib.hdri_world(name)

@@ -15,7 +15,6 @@ Under Blender's bundled sunrise.exr (strength 1, read as it is):
 Emits one RESULT line per case.
 """
 import json
-import math
 import os
 import sys
 
@@ -150,18 +149,7 @@ def scene_case():
 
 def nishita_case():
     lib.clear_scene()
-    world = bpy.context.scene.world
-    world.use_nodes = True
-    nt = world.node_tree
-    nt.nodes.clear()
-    sky = nt.nodes.new("ShaderNodeTexSky")
-    sky.sky_type = 'NISHITA'
-    sky.sun_elevation = math.radians(25.0)
-    sky.sun_rotation = math.radians(60.0)
-    bg = nt.nodes.new("ShaderNodeBackground")
-    out = nt.nodes.new("ShaderNodeOutputWorld")
-    nt.links.new(sky.outputs["Color"], bg.inputs["Color"])
-    nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
+    lib.nishita_world(25.0, 60.0)
     lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 4.0))
     folder = os.path.join(OUT, "nishita")
     job, result, logs = bake(settings(folder, capture_sky=False))
