@@ -693,14 +693,7 @@ def build_scene(spheres, size, nodes):
     mat = nodes.make_movable_diffuse_material("TestGrey", base_color=(ALBEDO, ALBEDO, ALBEDO, 1.0),
                                               sh_scale=1.0, ambient=0.0)
     for name, centre, cam_dir in spheres:
-        bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=RADIUS, location=centre)
-        ob = bpy.context.active_object
-        ob.name = ob.data.name = "Sphere_" + name
-        bpy.ops.object.shade_smooth()
-        ob.data.materials.append(mat)
-        for c in list(ob.users_collection):
-            c.objects.unlink(ob)
-        movable.objects.link(ob)
+        lib.movable_sphere(name, centre, RADIUS, mat, movable)
         add_camera(scene, name, centre, cam_dir)
     scene.render.resolution_x = scene.render.resolution_y = size  # also the exported cameras' aspect
     scene.render.resolution_percentage = 100

@@ -218,7 +218,6 @@ def build(case="sun", spheres=SPHERES, make_material=None):
     (after the scene is emptied; default: :func:`movable_material`)."""
     if case not in CASES:
         raise ValueError(f"case {case!r} is not one of {', '.join(CASES)}")
-    import bpy
     sys.path.insert(0, _HERE)
     import scene_lib as lib
     scene = lib.clear_scene()
@@ -239,14 +238,7 @@ def build(case="sun", spheres=SPHERES, make_material=None):
     movable = lib.collection("Movable")
     mat = (make_material or movable_material)()
     for name, centre, _cam, _cls in spheres:
-        bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=RADIUS, location=centre)
-        ob = bpy.context.active_object
-        ob.name = ob.data.name = "Sphere_" + name
-        bpy.ops.object.shade_smooth()
-        ob.data.materials.append(mat)
-        for c in list(ob.users_collection):
-            c.objects.unlink(ob)
-        movable.objects.link(ob)
+        lib.movable_sphere(name, centre, RADIUS, mat, movable)
     scene["daylight_case"] = case
     scene.render.engine = 'CYCLES'
     scene.cycles.use_denoising = False          # Debian's Blender has no OpenImageDenoise

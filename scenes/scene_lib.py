@@ -135,6 +135,20 @@ def room_walls(bmin, bmax, thickness=0.2, coll=None, material=None, window=None)
     return [box(n, a, b, coll, material) for n, a, b in parts]
 
 
+def movable_sphere(name, centre, radius, material, coll):
+    """A smooth UV sphere (64 x 32) "Sphere_<name>" of `radius` at `centre` with `material`, linked to
+    collection `coll` only (the sphere benchmarks' movable test objects)."""
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=radius, location=centre)
+    ob = bpy.context.active_object
+    ob.name = ob.data.name = "Sphere_" + name
+    bpy.ops.object.shade_smooth()
+    ob.data.materials.append(material)
+    for c in list(ob.users_collection):
+        c.objects.unlink(ob)
+    coll.objects.link(ob)
+    return ob
+
+
 def probe_volume(name, bmin, bmax, collection_name="ProbeVolumes"):
     """A closed box in the probe-volume collection, shown as wireframe in the viewport."""
     ob = box(name, bmin, bmax, collection(collection_name))
