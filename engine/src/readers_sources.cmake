@@ -1,0 +1,5 @@
+# The viewer's file readers (no Vulkan): sv_readers and sv_readers_noimage (engine/CMakeLists.txt).
+set(SV_READER_SOURCES
+  src/sv_probes.c
+  src/sv_sky.c
+)

@@ -1,0 +1,10 @@
+# The viewer schnee-view (and schnee-view-noimage) (engine/CMakeLists.txt).
+set(SV_VIEW_SOURCES
+  src/main.c
+  src/sv_app.c
+  src/sv_vk.c
+  src/sv_scene.c
+  src/sv_renderer.c
+  src/sv_headless.c
+  src/sv_window.c
+)

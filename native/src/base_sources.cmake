@@ -1,0 +1,10 @@
+# The bake core's sources that need neither Embree nor an image library (native/CMakeLists.txt).
+set(PB_BASE_SOURCES
+  src/pb_common.c
+  src/pb_sh.c
+  src/pb_shprobe.c
+  src/pb_ambient_cube.c
+  src/pb_interp.c
+  src/pb_refine.c
+  src/pb_sky_sun.c
+)
