@@ -35,6 +35,7 @@ from typing import Callable, List, Optional, Tuple
 import numpy as np
 
 from . import native
+from .metric import _rel, irradiance_error, irradiance_norm  # noqa: F401 (re-exported)
 
 SOLID_RATIO = 0.25          # the placement's default back-face ratio (docs/placement.md)
 RENDER_INSET = 0.01         # m: nodes on or beyond the volumes' bounding box render this far inside it
@@ -84,35 +85,6 @@ _RELOCATE_DIRS = np.array(sorted(((i, j, k) for i in (-1, 0, 1) for j in (-1, 0,
 _RELOCATE_DIRS /= np.linalg.norm(_RELOCATE_DIRS, axis=1)[:, None]
 # leaf_tests columns adjacent to child octant bit b of an axis: −face for b = 0, +face for b = 1.
 _FACE_COL = ((1, 2), (3, 4), (5, 6))
-# Lambert band factors A_l (irradiance = Σ A_l L_lm Y_lm), l = 0..4.
-_LAMBERT = (math.pi, 2.0 * math.pi / 3.0, math.pi / 4.0, 0.0, -math.pi / 24.0)
-
-
-def _band_weights(count: int) -> np.ndarray:
-    band = int(round(math.sqrt(count))) - 1
-    return np.concatenate([np.full(2 * l + 1, _LAMBERT[l]) for l in range(band + 1)])
-
-
-def irradiance_norm(c: np.ndarray) -> np.ndarray:
-    """‖A·c‖ over the coefficients and RGB of radiance SH ``c`` ((..., C, 3)): the irradiance's RMS
-    over directions (times √(4π)), the norm of the refinement's metric."""
-    c = np.asarray(c, dtype=np.float64)
-    w = _band_weights(c.shape[-2])[:, None]
-    return np.sqrt(np.sum((w * c) ** 2, axis=(-2, -1)))
-
-
-def irradiance_error(a: np.ndarray, ref: np.ndarray) -> np.ndarray:
-    """Relative irradiance error, RMS over directions and RGB, of radiance SH ``a`` against ``ref``
-    ((..., C, 3) each): ‖A·(a − ref)‖ / ‖A·ref‖ (the metric of pb_refine_irradiance_error); 0 where
-    both are 0, 1 where only ref is."""
-    a = np.asarray(a, dtype=np.float64)
-    ref = np.asarray(ref, dtype=np.float64)
-    num, den = irradiance_norm(a - ref), irradiance_norm(ref)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        out = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num > 0, 1.0, 0.0))
-    return out
-
-
 def split_samples(samples: int):
     """Samples of the two half renders of one point: (s1, s2), s1 + s2 = samples, at least 1 each."""
     s1 = max(1, samples // 2)
@@ -141,11 +113,6 @@ def combine_retest(a: np.ndarray, noise_a: float, b: np.ndarray, noise_b: float,
     mean = (a + factor * b) / (1.0 + factor)
     var = (noise_a * noise_a + factor * noise_b * noise_b) / (2.0 * (1.0 + factor))
     return mean, math.sqrt(var)
-
-
-def _rel(d: np.ndarray, ref: np.ndarray) -> float:
-    den, num = float(irradiance_norm(ref)), float(irradiance_norm(d))
-    return num / den if den > 0 else 0.0
 
 
 def lattice_frame(volume_vertices: np.ndarray, min_cell: float, max_cell: float):
