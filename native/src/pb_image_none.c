@@ -25,6 +25,17 @@ pb_result pb_image_read(const char *path, pb_image *out, pb_error *err)
                         path ? path : "(null)");
 }
 
+pb_result pb_image_read_memory(const void *data, size_t size, const char *name, pb_image *out, pb_error *err)
+{
+    (void)data;
+    (void)size;
+    if (out) memset(out, 0, sizeof *out);
+    return pb_error_set(err, PB_ERROR_IO,
+                        "%s: this build of the bake core has no image reader (no OpenImageIO); cannot decode an image "
+                        "from memory",
+                        name && *name ? name : "(image in memory)");
+}
+
 pb_result pb_image_write(const char *path, uint32_t width, uint32_t height, uint32_t channels, const float *pixels,
                          pb_error *err)
 {

@@ -101,19 +101,32 @@ bool pfm_header_size(const unsigned char *head, size_t got, uint64_t *w, uint64_
     return true;
 }
 
-// Reads n bytes at offset off, or fewer only at end of file; EINTR is retried.
-bool pread_full(int fd, uint64_t off, unsigned char *buf, size_t n, size_t *got)
-{
-    *got = 0;
-    while (*got < n) {
-        const ssize_t r = pread(fd, buf + *got, n - *got, (off_t)(off + *got));
-        if (r < 0 && errno == EINTR) continue;
-        if (r < 0) return false;
-        if (r == 0) break;
-        *got += (size_t)r;
+// The bytes of an image, a file (read with pread through a checked descriptor) or a buffer in
+// memory: the header walks below read through it, so both readers apply the same checks.
+struct byte_source {
+    int fd = -1;                        // the file, or -1 for memory
+    const unsigned char *mem = nullptr; // the buffer when fd < 0
+    uint64_t size = 0;                  // bytes in the file or buffer
+
+    // Reads n bytes at offset off, or fewer only at the end; EINTR is retried.
+    bool read(uint64_t off, unsigned char *buf, size_t n, size_t *got) const
+    {
+        *got = 0;
+        if (fd < 0) {
+            if (off < size) *got = (size_t)std::min<uint64_t>(n, size - off);
+            if (*got) std::memcpy(buf, mem + off, *got);
+            return true;
+        }
+        while (*got < n) {
+            const ssize_t r = pread(fd, buf + *got, n - *got, (off_t)(off + *got));
+            if (r < 0 && errno == EINTR) continue;
+            if (r < 0) return false;
+            if (r == 0) break;
+            *got += (size_t)r;
+        }
+        return true;
     }
-    return true;
-}
+};
 
 uint32_t le32(const unsigned char *p)
 {
@@ -126,7 +139,8 @@ uint32_t le32(const unsigned char *p)
 // a declared size that disagrees would make OpenEXR read the rest of the header somewhere else than
 // this walk does (a fuzzer file did exactly that to reach a 1.6 GB "attribute"). nullptr when it
 // agrees, else the reason.
-const char *exr_attribute_mismatch(int fd, const char *type, uint64_t at, uint64_t size, size_t max_name)
+const char *exr_attribute_mismatch(const byte_source &src, const char *type, uint64_t at, uint64_t size,
+                                   size_t max_name)
 {
     static const struct {
         const char *type;
@@ -165,7 +179,7 @@ const char *exr_attribute_mismatch(int fd, const char *type, uint64_t at, uint64
     if (size > (1u << 20) && !preview) return "its value is larger than 1 MiB";
     std::string v((size_t)(preview ? std::min<uint64_t>(size, 8) : size), '\0');
     size_t got = 0;
-    if (!pread_full(fd, at, (unsigned char *)&v[0], v.size(), &got) || got != v.size()) return "it is truncated";
+    if (!src.read(at, (unsigned char *)&v[0], v.size(), &got) || got != v.size()) return "it is truncated";
     const unsigned char *b = (const unsigned char *)v.data();
     if (preview) {
         if (size < 8) return "its preview has no size";
@@ -198,12 +212,13 @@ const char *exr_attribute_mismatch(int fd, const char *type, uint64_t at, uint64
 // long names, 0x800 non-image / deep, 0x1000 multi-part), then headers of attributes
 // (name\0 type\0 int32 size, value) each ended by an empty name; multi-part files end the list of
 // headers with an empty header.
-pb_result exr_check_header(int fd, const char *path, uint64_t size, pb_error *err)
+pb_result exr_check_header(const byte_source &src, const char *path, pb_error *err)
 {
+    const uint64_t size = src.size;
     const uint64_t max_attributes = 1u << 16;
     unsigned char v[8];
     size_t got = 0;
-    if (!pread_full(fd, 0, v, sizeof v, &got)) return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
+    if (!src.read(0, v, sizeof v, &got)) return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
     if (got < sizeof v) return pb_error_set(err, PB_ERROR_FORMAT, "%s: truncated OpenEXR header", path);
     const uint32_t flags = (uint32_t)v[5] << 8 | (uint32_t)v[6] << 16 | (uint32_t)v[7] << 24;
     if (v[4] != 2)
@@ -221,7 +236,7 @@ pb_result exr_check_header(int fd, const char *path, uint64_t size, pb_error *er
         for (;;) {
             // name\0 type\0 size: at most 2 * max_name + 4 bytes.
             unsigned char buf[2 * 256 + 4];
-            if (!pread_full(fd, off, buf, 2 * max_name + 4, &got))
+            if (!src.read(off, buf, 2 * max_name + 4, &got))
                 return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
             if (got == 0) return pb_error_set(err, PB_ERROR_FORMAT, "%s: truncated OpenEXR header", path);
             if (buf[0] == 0) { // end of this header
@@ -251,14 +266,14 @@ pb_result exr_check_header(int fd, const char *path, uint64_t size, pb_error *er
                                     path, (unsigned long long)off, (long long)asize, (unsigned long long)size);
             const char *name = (const char *)buf;
             const char *type = (const char *)buf + type_at;
-            if (const char *why = exr_attribute_mismatch(fd, type, value_at, (uint64_t)asize, max_name))
+            if (const char *why = exr_attribute_mismatch(src, type, value_at, (uint64_t)asize, max_name))
                 return pb_error_set(err, PB_ERROR_FORMAT,
                                     "%s: OpenEXR attribute at offset %llu (type %.32s, %lld bytes) is malformed: %s",
                                     path, (unsigned long long)off, type, (long long)asize, why);
             unsigned char value[16];
             if ((std::strcmp(name, "dataWindow") == 0 && std::strcmp(type, "box2i") == 0 && asize == 16) ||
                 (std::strcmp(name, "tiles") == 0 && std::strcmp(type, "tiledesc") == 0 && asize == 9)) {
-                if (!pread_full(fd, value_at, value, (size_t)asize, &got) || got != (size_t)asize)
+                if (!src.read(value_at, value, (size_t)asize, &got) || got != (size_t)asize)
                     return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
                 int32_t f[4] = {0, 0, 0, 0};
                 for (int i = 0; i < 4 && 4 * i + 4 <= asize; i++) f[i] = (int32_t)le32(value + 4 * i);
@@ -302,14 +317,15 @@ pb_result exr_check_header(int fd, const char *path, uint64_t size, pb_error *er
 // The PNG chunk list (length, type, data, CRC), walked before libpng sees it: libpng allocates a
 // chunk's announced length before reading it (a 619-byte file announcing a 1.9 GB tEXt chunk made
 // the sky fuzzer run out of memory), so every chunk must fit in the file.
-pb_result png_check_chunks(int fd, const char *path, uint64_t size, pb_error *err)
+pb_result png_check_chunks(const byte_source &src, const char *path, pb_error *err)
 {
+    const uint64_t size = src.size;
     uint64_t off = 8;
     for (uint32_t n = 0; off < size; n++) {
         unsigned char h[8];
         size_t got = 0;
         if (n >= (1u << 20)) return pb_error_set(err, PB_ERROR_FORMAT, "%s: more than %u PNG chunks", path, 1u << 20);
-        if (!pread_full(fd, off, h, sizeof h, &got)) return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
+        if (!src.read(off, h, sizeof h, &got)) return pb_error_set(err, PB_ERROR_IO, "%s: cannot read", path);
         if (got < sizeof h) return pb_error_set(err, PB_ERROR_FORMAT, "%s: truncated PNG chunk", path);
         const uint64_t len = (uint64_t)h[0] << 24 | (uint64_t)h[1] << 16 | (uint64_t)h[2] << 8 | h[3];
         if (len > 0x7fffffffu || off + 12 + len > size)
@@ -336,43 +352,35 @@ struct file_guard {
     }
 };
 
-pb_result read_impl(const char *path, pb_image *out, pb_error *err)
+// The checks both readers share, before OpenImageIO sees a byte: the size, the format (by content,
+// else by the extension of `path`), and the header walks of EXR, PNG and PFM. `path` names the
+// image in messages (a file's path, or the caller's name for a buffer).
+pb_result check_source(const byte_source &src, const char *path, std::string *format, pb_error *err)
 {
-    // 1. The file: a regular file opened without blocking, of a plausible size.
-    file_guard g;
-    uint64_t size = 0;
-    pb_result r = pb_open_regular_(path, "an image", &g.fd, &size, err);
-    if (r != PB_SUCCESS) return r;
-    if (size == 0) return pb_error_set(err, PB_ERROR_FORMAT, "%s: empty file, not an image", path);
-    if (size > PB_IMAGE_MAX_FILE_BYTES)
+    if (src.size == 0) return pb_error_set(err, PB_ERROR_FORMAT, "%s: empty file, not an image", path);
+    if (src.size > PB_IMAGE_MAX_FILE_BYTES)
         return pb_error_set(err, PB_ERROR_TOO_LARGE, "%s: %llu bytes is above the image file limit of %llu bytes", path,
-                            (unsigned long long)size, (unsigned long long)PB_IMAGE_MAX_FILE_BYTES);
+                            (unsigned long long)src.size, (unsigned long long)PB_IMAGE_MAX_FILE_BYTES);
     unsigned char head[64] = {0};
     size_t got = 0;
-    r = pb_read_full_(g.fd, path, head, sizeof head, &got, err);
-    if (r != PB_SUCCESS) return r;
-    if (lseek(g.fd, 0, SEEK_SET) != 0)
-        return pb_error_set(err, PB_ERROR_IO, "%s: cannot seek: %s", path, std::strerror(errno));
-    const std::string format = format_for(path, head, got);
+    if (!src.read(0, head, sizeof head, &got))
+        return pb_error_set(err, PB_ERROR_IO, "%s: cannot read: %s", path, std::strerror(errno));
+    *format = format_for(path, head, got);
+    pb_result r = PB_SUCCESS;
     uint64_t pfm_w, pfm_h, pfm_c;
-    if (format == "openexr") {
-        r = exr_check_header(g.fd, path, size, err);
-        if (r != PB_SUCCESS) return r;
-    }
-    if (format == "png") {
-        r = png_check_chunks(g.fd, path, size, err);
-        if (r != PB_SUCCESS) return r;
-    }
-    if (format == "pnm" && pfm_header_size(head, got, &pfm_w, &pfm_h, &pfm_c)) {
+    if (*format == "openexr") r = exr_check_header(src, path, err);
+    if (*format == "png") r = png_check_chunks(src, path, err);
+    if (*format == "pnm" && pfm_header_size(head, got, &pfm_w, &pfm_h, &pfm_c))
         r = check_limits(path, pfm_w, pfm_h, pfm_c, err);
-        if (r != PB_SUCCESS) return r;
-    }
-    // 2. OpenImageIO reads through our checked descriptor where the reader supports it (all the
-    // formats above do), so the file cannot be swapped for a FIFO or device after the check. The
-    // proxy outlives the reader (declared before it), the FILE outlives both.
-    g.file = fdopen(g.fd, "rb");
-    if (!g.file) return pb_error_set(err, PB_ERROR_IO, "%s: cannot read: %s", path, std::strerror(errno));
-    OIIO::Filesystem::IOFile proxy(g.file, OIIO::Filesystem::IOProxy::Read);
+    return r;
+}
+
+// Decodes the checked image through `proxy` (where the format's reader takes one; a file's reader
+// that does not opens `path` itself, a buffer's fails), checking the spec against the documented
+// limits before any pixel is read or allocated.
+pb_result decode(const char *path, const std::string &format, OIIO::Filesystem::IOProxy *proxy, bool proxy_only,
+                 pb_image *out, pb_error *err)
+{
     auto in = format.empty() ? nullptr : OIIO::ImageInput::create(format, false);
     if (!in) {
         (void)OIIO::geterror(); // clear OpenImageIO's per-thread error
@@ -381,7 +389,10 @@ pb_result read_impl(const char *path, pb_image *out, pb_error *err)
                             "and OpenImageIO has no reader for the extension '%s')",
                             path, format.c_str());
     }
-    if (in->supports("ioproxy") && !in->set_ioproxy(&proxy))
+    if (proxy_only && !in->supports("ioproxy"))
+        return pb_error_set(err, PB_ERROR_FORMAT, "%s: OpenImageIO's %s reader cannot read from memory", path,
+                            format.c_str());
+    if (in->supports("ioproxy") && !in->set_ioproxy(proxy))
         return pb_error_set(err, PB_ERROR_IO, "%s: cannot read through OpenImageIO", path);
     OIIO::ImageSpec spec;
     if (!in->open(path, spec)) {
@@ -389,14 +400,13 @@ pb_result read_impl(const char *path, pb_image *out, pb_error *err)
         return pb_error_set(err, PB_ERROR_FORMAT, "%s: cannot read as %s: %s", path, format.c_str(),
                             msg.empty() ? "unknown OpenImageIO error" : msg.c_str());
     }
-    // 3. The spec against the documented limits, before any pixel is read or allocated.
     if (spec.deep)
         return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' is a deep image; flat pixels are required", path);
     if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
         return pb_error_set(err, PB_ERROR_FORMAT, "image '%s' has unsupported size %dx%dx%d with %d channel(s)", path,
                             spec.width, spec.height, spec.depth, spec.nchannels);
     const uint64_t w = (uint64_t)spec.width, h = (uint64_t)spec.height, c = (uint64_t)spec.nchannels;
-    r = check_limits(path, w, h, c, err);
+    pb_result r = check_limits(path, w, h, c, err);
     if (r != PB_SUCCESS) return r;
     const size_t count = (size_t)(w * h * c);
     float *data = static_cast<float *>(std::malloc(count * sizeof(float)));
@@ -415,6 +425,40 @@ pb_result read_impl(const char *path, pb_image *out, pb_error *err)
     out->channels = (uint32_t)spec.nchannels;
     out->pixels = data;
     return PB_SUCCESS;
+}
+
+pb_result read_impl(const char *path, pb_image *out, pb_error *err)
+{
+    // 1. The file: a regular file opened without blocking, of a plausible size, its header checked.
+    file_guard g;
+    byte_source src;
+    pb_result r = pb_open_regular_(path, "an image", &g.fd, &src.size, err);
+    if (r != PB_SUCCESS) return r;
+    src.fd = g.fd;
+    std::string format;
+    r = check_source(src, path, &format, err);
+    if (r != PB_SUCCESS) return r;
+    if (lseek(g.fd, 0, SEEK_SET) != 0)
+        return pb_error_set(err, PB_ERROR_IO, "%s: cannot seek: %s", path, std::strerror(errno));
+    // 2. OpenImageIO reads through our checked descriptor where the reader supports it (all the
+    // formats above do), so the file cannot be swapped for a FIFO or device after the check. The
+    // proxy outlives the reader (declared before it), the FILE outlives both.
+    g.file = fdopen(g.fd, "rb");
+    if (!g.file) return pb_error_set(err, PB_ERROR_IO, "%s: cannot read: %s", path, std::strerror(errno));
+    OIIO::Filesystem::IOFile proxy(g.file, OIIO::Filesystem::IOProxy::Read);
+    return decode(path, format, &proxy, false, out, err);
+}
+
+pb_result read_memory_impl(const void *data, size_t size, const char *name, pb_image *out, pb_error *err)
+{
+    byte_source src;
+    src.mem = static_cast<const unsigned char *>(data);
+    src.size = size;
+    std::string format;
+    pb_result r = check_source(src, name, &format, err);
+    if (r != PB_SUCCESS) return r;
+    OIIO::Filesystem::IOMemReader proxy(data, size);
+    return decode(name, format, &proxy, true, out, err);
 }
 
 pb_result write_impl(const char *path, uint32_t width, uint32_t height, uint32_t channels, const float *pixels,
@@ -476,6 +520,23 @@ extern "C" pb_result pb_image_read(const char *path, pb_image *out, pb_error *er
         return pb_error_set(err, PB_ERROR_IO, "cannot read image '%s': %s", path, e.what());
     } catch (...) {
         return pb_error_set(err, PB_ERROR_IO, "cannot read image '%s': unknown exception", path);
+    }
+}
+
+extern "C" pb_result pb_image_read_memory(const void *data, size_t size, const char *name, pb_image *out, pb_error *err)
+{
+    if (!out) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_image_read_memory: out is NULL");
+    *out = pb_image{};
+    if (!name || !*name) name = "(image in memory)";
+    if (!data && size) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "%s: data is NULL", name);
+    try {
+        return read_memory_impl(data, size, name, out, err);
+    } catch (const std::bad_alloc &) {
+        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory reading '%s'", name);
+    } catch (const std::exception &e) {
+        return pb_error_set(err, PB_ERROR_IO, "cannot read image '%s': %s", name, e.what());
+    } catch (...) {
+        return pb_error_set(err, PB_ERROR_IO, "cannot read image '%s': unknown exception", name);
     }
 }
 

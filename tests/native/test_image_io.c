@@ -1,4 +1,5 @@
-/* Image I/O through OpenImageIO: float round trips, 8-bit quantisation, atomic writes, errors. */
+/* Image I/O through OpenImageIO: float round trips, 8-bit quantisation, atomic writes, errors, and the
+ * in-memory reader (the same bytes from memory and from a file give the same pixels). */
 #include "schnee/pb_image.h"
 #include "testutil.h"
 
@@ -175,6 +176,98 @@ static void test_errors(void)
     TU_CHECK_EQ_INT(temps, 0);
 }
 
+/* The whole file at `path` in a malloc'ed buffer (*size bytes), or NULL. */
+static unsigned char *slurp(const char *path, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    unsigned char *buf = NULL;
+    if (fseek(f, 0, SEEK_END) == 0) {
+        long n = ftell(f);
+        buf = n > 0 ? malloc((size_t)n) : NULL;
+        if (buf && (fseek(f, 0, SEEK_SET) != 0 || fread(buf, 1, (size_t)n, f) != (size_t)n)) {
+            free(buf);
+            buf = NULL;
+        }
+        *size = buf ? (size_t)n : 0;
+    }
+    fclose(f);
+    return buf;
+}
+
+/* pb_image_read_memory on a file's bytes gives pb_image_read's pixels bit for bit (EXR float, PNG
+ * 8-bit); truncated bytes, garbage and nothing fail with the image's name in the message. */
+static void test_memory_matches_file(void)
+{
+    const char *names[2] = {"mem.exr", "mem.png"};
+    const uint32_t w = 13, h = 7, ch = 4;
+    float px[13 * 7 * 4];
+    for (uint32_t i = 0; i < w * h * ch; i++) px[i] = (float)(i % 17) / 16.0f; /* in [0, 1] for the PNG */
+    for (int k = 0; k < 2; k++) {
+        char path[128];
+        join(path, sizeof path, names[k]);
+        pb_error err = {0};
+        TU_REQUIRE(pb_image_write(path, w, h, ch, px, &err) == PB_SUCCESS);
+        size_t size = 0;
+        unsigned char *bytes = slurp(path, &size);
+        TU_REQUIRE(bytes);
+        pb_image from_file = {0}, from_memory = {0};
+        TU_CHECK_EQ_INT(pb_image_read(path, &from_file, &err), PB_SUCCESS);
+        TU_CHECK_EQ_INT(pb_image_read_memory(bytes, size, names[k], &from_memory, &err), PB_SUCCESS);
+        if (err.code) fprintf(stderr, "  %s\n", err.message);
+        TU_CHECK_EQ_INT(from_memory.width, w);
+        TU_CHECK_EQ_INT(from_memory.height, h);
+        TU_CHECK_EQ_INT(from_memory.channels, ch);
+        TU_CHECK_EQ_INT(from_file.channels, ch);
+        if (from_file.pixels && from_memory.pixels && from_memory.width == w && from_memory.height == h &&
+            from_memory.channels == ch && from_file.channels == ch)
+            TU_CHECK(memcmp(from_file.pixels, from_memory.pixels, sizeof(float) * w * h * ch) == 0);
+        pb_image_free(&from_file);
+        pb_image_free(&from_memory);
+        /* the first half of the bytes: a clear error naming the image, no pixels */
+        err = (pb_error){0};
+        TU_CHECK(pb_image_read_memory(bytes, size / 2, "half.bin", &from_memory, &err) != PB_SUCCESS);
+        TU_CHECK_CONTAINS(err.message, "half.bin");
+        TU_CHECK(from_memory.pixels == NULL);
+        free(bytes);
+        unlink(path);
+    }
+    pb_image img = {0};
+    pb_error err = {0};
+    const char garbage[] = "this is not an image";
+    TU_CHECK_EQ_INT(pb_image_read_memory(garbage, sizeof garbage, "garbage.png", &img, &err), PB_ERROR_FORMAT);
+    TU_CHECK_CONTAINS(err.message, "garbage.png");
+    err = (pb_error){0};
+    TU_CHECK_EQ_INT(pb_image_read_memory(garbage, sizeof garbage, NULL, &img, &err), PB_ERROR_FORMAT);
+    TU_CHECK_CONTAINS(err.message, "not a known image format");
+    err = (pb_error){0};
+    TU_CHECK_EQ_INT(pb_image_read_memory(garbage, 0, "empty.png", &img, &err), PB_ERROR_FORMAT);
+    TU_CHECK_CONTAINS(err.message, "empty");
+    err = (pb_error){0};
+    TU_CHECK_EQ_INT(pb_image_read_memory(NULL, 4, "null.png", &img, &err), PB_ERROR_INVALID_ARGUMENT);
+    err = (pb_error){0};
+    TU_CHECK_EQ_INT(pb_image_read_memory(garbage, sizeof garbage, "x.png", NULL, &err), PB_ERROR_INVALID_ARGUMENT);
+    TU_CHECK(img.pixels == NULL);
+}
+
+/* The size limits of pb_image.h hold for buffers as for files, checked before any pixel is
+ * allocated: a PFM header announcing 100000 x 100000 (above PB_IMAGE_MAX_DIM) and a buffer above
+ * PB_IMAGE_MAX_FILE_BYTES (its size alone is checked: not one byte of it is read) fail with
+ * PB_ERROR_TOO_LARGE. */
+static void test_memory_limits(void)
+{
+    const char pfm[] = "PF\n100000 100000\n-1.0\n\0\0\0\0\0\0\0\0\0\0\0\0";
+    pb_image img = {0};
+    pb_error err = {0};
+    TU_CHECK_EQ_INT(pb_image_read_memory(pfm, sizeof pfm, "huge.pfm", &img, &err), PB_ERROR_TOO_LARGE);
+    TU_CHECK_CONTAINS(err.message, "too large");
+    TU_CHECK(img.pixels == NULL);
+    err = (pb_error){0};
+    TU_CHECK_EQ_INT(pb_image_read_memory(pfm, (size_t)PB_IMAGE_MAX_FILE_BYTES + 1, "huge.exr", &img, &err),
+                    PB_ERROR_TOO_LARGE);
+    TU_CHECK_CONTAINS(err.message, "huge.exr");
+}
+
 int main(void)
 {
     snprintf(g_dir, sizeof g_dir, "/tmp/schnee_test_image_XXXXXX");
@@ -186,6 +279,8 @@ int main(void)
     TU_RUN(test_png_quantisation);
     TU_RUN(test_atomic_write);
     TU_RUN(test_errors);
+    TU_RUN(test_memory_matches_file);
+    TU_RUN(test_memory_limits);
     char path[128];
     join(path, sizeof path, "rt.exr");
     unlink(path);

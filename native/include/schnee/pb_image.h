@@ -27,6 +27,13 @@ typedef struct pb_image {
  * fails at once with PB_ERROR_IO), and checks the limits above before reading pixels. */
 pb_result pb_image_read(const char *path, pb_image *out, pb_error *err);
 
+/* Reads an image held in memory (`size` bytes at `data`, e.g. a glTF bufferView or data: URI), with
+ * the checks and limits of pb_image_read: the format by content, else by the extension of `name`;
+ * `name` (NULL: "(image in memory)") names the image in messages. Truncated or garbage bytes fail
+ * with PB_ERROR_FORMAT; the buffer is only read, and may be freed once this returns. Builds
+ * without OpenImageIO fail with PB_ERROR_IO, as pb_image_read does. */
+pb_result pb_image_read_memory(const void *data, size_t size, const char *name, pb_image *out, pb_error *err);
+
 /* Writes `pixels` (row 0 at the top). The format follows the extension: .exr keeps float values;
  * 8-bit formats (.png, ...) take values already in display encoding [0, 1]. Atomic: temp + rename. */
 pb_result pb_image_write(const char *path, uint32_t width, uint32_t height, uint32_t channels, const float *pixels,
