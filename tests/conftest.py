@@ -1,5 +1,9 @@
-"""Shared pytest helpers: repository paths and running scripts in real headless Blender."""
+"""Shared pytest helpers: repository paths, running scripts in real headless Blender, and the test
+tiers (markers assigned here by folder and by what a test launches; registered in pyproject.toml)."""
+import functools
+import inspect
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -73,3 +77,60 @@ def pytest_runtest_makereport(item, call):
         reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
         report.outcome = "failed"
         report.longrepr = f"skipped under ./test.sh (SCHNEE_STRICT_SKIPS=1), which installs and builds everything: {reason}"
+
+
+# --- Test tiers ------------------------------------------------------------------------------------
+# Markers are assigned here, not in the test files: by folder, by the `blender` fixture or an imported
+# run_blender, and by the lists below for tests that launch Blender or the engine some other way.
+# `./test.sh fast` runs -m "not (blender or chroot or engine or slow)"; plain ./test.sh runs all.
+MARKER_FOLDERS = {
+    "tests/blender/": ("blender",),
+    # Blender 4.3 / 5.2 in chroots, then the host's engine on their export.
+    "tests/blender_versions/": ("chroot", "blender", "engine"),
+    "tests/build_versions/": ("chroot",),
+    "tests/engine/": ("engine",),
+    "tests/farm/": ("farm",),
+    "tests/bench/": ("bench",),
+}
+# Modules (path) and single tests (node id) that start Blender or the engine through a script or a
+# subprocess rather than run_blender, and tests too slow for the fast tier on their own.
+MARKER_TESTS = {
+    "tests/test_main_job.py": ("blender", "engine"),  # scripts/main_job.py: generate, bake, export, render
+    "tests/bench/test_sweep_reduced.py": ("blender",),  # bench/sweep/run.py bakes in Blender
+    "tests/python/test_packaging.py": ("slow",),  # pip builds the wheel: a CMake build of the module
+}
+
+
+def _markers_of(item):
+    path = Path(str(item.fspath)).resolve().relative_to(REPO).as_posix()
+    names = set()
+    for folder, marks in MARKER_FOLDERS.items():
+        if path.startswith(folder):
+            names.update(marks)
+    for key, marks in MARKER_TESTS.items():
+        if key in (path, item.nodeid) or item.nodeid.startswith(key + "["):
+            names.update(marks)
+    if "blender" in getattr(item, "fixturenames", ()) or _launches_blender(getattr(item, "function", None)):
+        names.add("blender")
+    fixtures = getattr(getattr(item, "_fixtureinfo", None), "name2fixturedefs", {})
+    if any(_launches_blender(d.func) for defs in fixtures.values() for d in defs):
+        names.add("blender")
+    return names
+
+
+_BLENDER_CALL = re.compile(r'run_blender\(|\[\s*"blender",')
+
+
+@functools.lru_cache(maxsize=None)
+def _launches_blender(func):
+    """True when a test or fixture function calls run_blender or runs ["blender", ...] itself."""
+    try:
+        return bool(_BLENDER_CALL.search(inspect.getsource(func)))
+    except (TypeError, OSError):
+        return False
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        for name in sorted(_markers_of(item)):
+            item.add_marker(name)
