@@ -3,8 +3,14 @@ set(PB_BASE_SOURCES
   src/pb_common.c
   src/pb_sh.c
   src/pb_shprobe.c
+  src/pb_shprobe_read.c
+  src/pb_shprobe_v3.c
+  src/pb_shprobe_write.c
   src/pb_ambient_cube.c
   src/pb_interp.c
+  src/pb_cotree.c
+  src/pb_tetra.c
+  src/pb_interp_v3.c
   src/pb_refine.c
   src/pb_sky_sun.c
 )

@@ -12,11 +12,13 @@ work="${SCHNEE_FUZZ_DIR:-build/fuzz-shprobe}"
 mkdir -p "$work/corpus" "$work/artifacts"
 CC="${CLANG:-clang}"
 flags=(-std=c11 -g -O1 -Inative/include -Wall -Wextra -Werror -Wno-unused-parameter)
+# The core's sources that the readers need (the .shprobe files, the interpolation, errors).
+core=(native/src/pb_shprobe.c native/src/pb_shprobe_read.c native/src/pb_shprobe_v3.c native/src/pb_shprobe_write.c
+  native/src/pb_interp.c native/src/pb_cotree.c native/src/pb_tetra.c native/src/pb_interp_v3.c native/src/pb_common.c)
 san=(-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer)
 
 for target in fuzz_shprobe fuzz_shprobe_file; do
-  "$CC" "${flags[@]}" "${san[@]}" "native/fuzz/$target.c" native/src/pb_shprobe.c \
-    native/src/pb_interp.c native/src/pb_common.c -lqhull_r -lm -o "$work/$target"
+  "$CC" "${flags[@]}" "${san[@]}" "native/fuzz/$target.c" "${core[@]}" -lqhull_r -lm -o "$work/$target"
 done
 
 # Seeds: a v1 (band 2) and a v2 (band 4, positions, rotated axes, validity) written by the writer, and
@@ -79,8 +81,7 @@ int main(int argc, char **argv)
     return 0;
 }
 SEED
-"$CC" "${flags[@]}" -fsanitize=address,undefined "$work/make_seeds.c" native/src/pb_shprobe.c \
-  native/src/pb_interp.c native/src/pb_common.c -lqhull_r -lm -o "$work/make_seeds"
+"$CC" "${flags[@]}" -fsanitize=address,undefined "$work/make_seeds.c" "${core[@]}" -lqhull_r -lm -o "$work/make_seeds"
 "$work/make_seeds" "$work/corpus"
 
 # run_target NAME SECONDS: fuzzes on a copy of the seed corpus; exits non-zero on any finding.

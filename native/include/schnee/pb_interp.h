@@ -20,20 +20,23 @@
  *   3. *_destroy().
  * Coordinates: engine space, metres, double. Lattice coordinates are integers in units of the min
  * cell size, relative to the origin. Nothing here allocates per query; queries are thread-safe.
+ *
+ * Layout: this header holds the query (point location and weights, native/src/pb_interp.c) and
+ * includes the structures and the files: pb_cotree.h (pb_cotree.c), pb_tetra.h (pb_tetra.c),
+ * pb_interp_v3.h (pb_interp_v3.c). Private to native/src: pb_interp_internal.h.
  */
 #ifndef SCHNEE_PB_INTERP_H
 #define SCHNEE_PB_INTERP_H
 
 #include "schnee/pb_common.h"
+#include "schnee/pb_cotree.h"
 #include "schnee/pb_shprobe.h"
+#include "schnee/pb_tetra.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-#define PB_COTREE_MAX_LEVEL  20u                 /* leaves are at most 2^20 min cells wide */
-#define PB_COTREE_MAX_AXIS   (UINT32_C(1) << 20) /* lattice extent per axis, in min cells */
-#define PB_COTREE_MAX_LEAVES (UINT32_C(1) << 26)
 /* Most probes one query can weight: 8 corners, hanging ones expanded and merged. */
 #define PB_INTERP_MAX_WEIGHTS 64u
 
@@ -56,84 +59,14 @@ typedef struct pb_interp_options {
     /* NULL = all valid; else per probe, a probe with validity <= 0 is dropped (inside solid geometry) */
     const float *validity;
     /* Corner octrees only. NULL = none; else leaf_count × 64 from pb_cotree_pair_visibility(): the
-     * continuous visibility field below. */
+     * continuous visibility field (pb_cotree.h). */
     const uint8_t *pair_visibility;
 } pb_interp_options;
 
-/* ---- the visibility field of a corner octree (docs/placement.md "Visibility field") ---------------
- * Which corner probes of a leaf light a point p, decided continuously in p. For each ordered pair of a
- * leaf's corners (k, c) the bake-free static geometry gives t = the fraction of the way from corner c
- * towards corner k at which that segment first meets a surface (1: clear). Along the edge k -> c the
- * linear function f(x) = V + (1 - V) x with V = 1 - 1/(2t) equals 1/2 exactly at that surface, the one
- * nearest c. In 3D, c's visibility at p is the trilinear blend v_c(p) = sum_k w_k(p) V(k, c) (V(c, c) = 1)
- * and its weight is w_c(p) * smoothstep(1/2, 1/2 + PB_VIS_RAMP, v_c(p)): 0 on the far side of a wall,
- * 1 away from walls. On a face shared by two leaves only the face's corners carry weight in both, with
- * the same segments, so the field is continuous across leaf borders (conforming faces; at a T-junction
- * the hanging corner's own segments are used, continuous up to that difference). When no corner keeps
- * weight the plain weights are used. t is stored as round(255 t) in [1, 255], 255 = clear. The engine's
- * per-pixel shader mirrors this (shaders/shading.glsl octree_irradiance); on the static surfaces of the
- * bake it also weighs the corners by the back-face weight, in the blend of v_c too. */
-#define PB_VIS_RAMP  0.25
-#define PB_VIS_SHIFT 1e-3 /* min cells: segments on leaf edges/faces are traced this far to each side */
-#define PB_VIS_CLEAR 255u
-/* First meeting of the segment a -> b with the occluders, as a fraction of its length in [0, 1];
- * >= 1 = clear. Called once per ordered corner pair. */
-typedef double (*pb_segment_fn)(void *user, const double a[3], const double b[3]);
-/* V(k, c) from a stored byte (exact mirror of the GLSL's pair_vis()). */
-static inline double pb_vis_pair_value(uint8_t q)
-{
-    return q >= PB_VIS_CLEAR ? 1.0 : 1.0 - 127.5 / (double)(q ? q : 1u);
-}
+/* ---- point location and weights ------------------------------------------------------------------ */
 
-/* ---- corner octree ------------------------------------------------------------------------------ */
-
-typedef struct pb_cotree pb_cotree;
-
-/* A uniform layer of leaves of 2^root_level min cells, root_dims leaves per axis, min corner at
- * `origin`. Lattice extent = root_dims · 2^root_level min cells per axis (≤ 2^20). */
-pb_result pb_cotree_create(const double origin[3], double min_cell, uint32_t root_level, const uint32_t root_dims[3],
-                           pb_cotree **out, pb_error *err);
-/* A tree from explicit leaves (4 uint32 each: x, y, z lattice min corner, level), e.g. a file's.
- * Leaves must be aligned (x, y, z multiples of 2^level), inside `dims`, and not overlap. */
-pb_result pb_cotree_create_leaves(const double origin[3], double min_cell, const uint32_t dims[3],
-                                  const uint32_t *leaves, uint32_t leaf_count, pb_cotree **out, pb_error *err);
-/* Drops leaves whose flag is nonzero (e.g. outside the probe volumes); not finalized afterwards. */
-pb_result pb_cotree_drop(pb_cotree *tree, const uint8_t *drop, pb_error *err);
-/* Replaces every leaf whose flag is nonzero and whose level is > 0 by its 8 children (flags of
- * level-0 leaves are ignored: Min Cell Size is the limit). Leaf order: Morton order of min corners.
- * The tree must be finalized again afterwards. *split_count (optional) = leaves split. */
-pb_result pb_cotree_split(pb_cotree *tree, const uint8_t *split, uint32_t *split_count, pb_error *err);
-/* Numbers the probes (non-hanging corner nodes, in Morton order of their lattice point) and builds
- * the hanging rules. Fails (PB_ERROR_TOO_LARGE) if a hanging node would depend on more than 32 probes
- * (only in pathologically unbalanced trees). */
-pb_result pb_cotree_finalize(pb_cotree *tree, pb_error *err);
-void pb_cotree_destroy(pb_cotree *tree);
-
-uint32_t pb_cotree_leaf_count(const pb_cotree *tree);
-const uint32_t *pb_cotree_leaves(const pb_cotree *tree); /* leaf_count × (x, y, z, level) */
-void pb_cotree_frame(const pb_cotree *tree, double origin[3], double *min_cell, uint32_t dims[3]);
-/* After finalize: */
-uint32_t pb_cotree_probe_count(const pb_cotree *tree);
-const uint32_t *pb_cotree_probe_lattice(const pb_cotree *tree);     /* probe_count × (x, y, z) */
-void pb_cotree_probe_positions(const pb_cotree *tree, double *out); /* probe_count × 3, engine space */
-/* Node numbering for a file: nodes [0, P) are probes, [P, P+H) hanging nodes. leaf_corners gets
- * leaf_count × 8 node indices (corner bit 0 = +x, bit 1 = +y, bit 2 = +z). */
-uint32_t pb_cotree_hanging_count(const pb_cotree *tree);
-void pb_cotree_leaf_corners(const pb_cotree *tree, int32_t *leaf_corners);
-/* hanging_count × 4 sources (node indices: probes or earlier hanging nodes) and weights (0 unused). */
-void pb_cotree_hanging_rules(const pb_cotree *tree, uint32_t *sources, float *weights);
-/* Probe index of a lattice point, or −1 if it is not a probe. */
-int32_t pb_cotree_find_probe(const pb_cotree *tree, const uint32_t lattice[3]);
 /* Leaf holding the point (closed on the lattice's max faces), or −1. */
 int32_t pb_cotree_locate(const pb_cotree *tree, const double point[3]);
-/* The visibility field's table (above): out[64 i + 8 k + c] for leaf i (leaves in pb_cotree_leaves()
- * order), corner k looking at corner c (bit 0 = +x, 1 = +y, 2 = +z), from segment(c, k); the diagonal is
- * PB_VIS_CLEAR. A segment on a leaf edge (face) is traced 4 (2) times, moved by ±PB_VIS_SHIFT min cells
- * across the axes on which its ends agree, and its first hit kept: 152 calls of `segment` per leaf.
- * Needs no finalize. */
-pb_result pb_cotree_pair_visibility(const pb_cotree *tree, pb_segment_fn segment, void *user, uint8_t *out,
-                                    pb_error *err);
-
 /* Weights of leaf `leaf`'s own field at `point` (clamped into the leaf): for a point on a face shared
  * by two leaves the field is the same from both sides (C0), this picks one. Requires finalize. */
 pb_result pb_interp_query_cotree_leaf(const pb_cotree *tree, uint32_t leaf, const double point[3],
@@ -141,55 +74,14 @@ pb_result pb_interp_query_cotree_leaf(const pb_cotree *tree, uint32_t leaf, cons
 /* Weights of the probes at `point` (engine space); requires finalize. */
 pb_result pb_interp_query_cotree(const pb_cotree *tree, const double point[3], const pb_interp_options *opt,
                                  pb_interp_weights *out);
-
-/* ---- tetrahedra ----------------------------------------------------------------------------------- */
-
-typedef struct pb_tetra pb_tetra;
-
-/* Delaunay tetrahedralisation of `count` positions (count × 3) with qhull ("d Qt Qbb Qz"; lattice
- * points are cospherical, Qt triangulates and zero-volume tetrahedra are dropped from point location).
- * Fails with a message for fewer than 4 points or coplanar input. */
-pb_result pb_tetra_create(const double *positions, uint32_t count, pb_tetra **out, pb_error *err);
-/* A structure from explicit tetrahedra (a file's): 4 vertex indices each; neighbours are rebuilt. */
-pb_result pb_tetra_create_from(const double *positions, uint32_t count, const uint32_t *tets, uint32_t tet_count,
-                               pb_tetra **out, pb_error *err);
-void pb_tetra_destroy(pb_tetra *tetra);
-uint32_t pb_tetra_count(const pb_tetra *tetra);
-uint32_t pb_tetra_point_count(const pb_tetra *tetra);      /* probes it was built from */
-const uint32_t *pb_tetra_tets(const pb_tetra *tetra);      /* tet_count × 4 probe indices */
-const int32_t *pb_tetra_neighbours(const pb_tetra *tetra); /* tet_count × 4: neighbour opposite vertex i, or −1 */
 /* Tetrahedron holding the point, or −1 (outside the convex hull). */
 int32_t pb_tetra_locate(const pb_tetra *tetra, const double point[3]);
 pb_result pb_interp_query_tetra(const pb_tetra *tetra, const double point[3], const pb_interp_options *opt,
                                 pb_interp_weights *out);
 
-/* ---- files (.shprobe version 3) --------------------------------------------------------------------- */
-
-/* A version 3 octree file image of a finalized tree: positions, leaves (Morton order), corners and
- * hanging rules filled, lattice frame in grid_origin/grid_spacing/grid_dims; the caller fills the
- * probe records (coeffs: pb_shprobe_colour_count colours per probe) and writes it. */
-pb_result pb_shprobe_from_cotree(const pb_cotree *tree, uint32_t representation, uint32_t max_band, pb_shprobe **out,
-                                 pb_error *err);
-/* A version 3 tetrahedra file image (positions, tetrahedra, neighbours); records left to the caller. */
-pb_result pb_shprobe_from_tetra(const pb_tetra *tetra, const double *positions, uint32_t representation,
-                                uint32_t max_band, pb_shprobe **out, pb_error *err);
-/* The interpolation structure a file holds, with the file's own probe numbering: *tree for an
- * octree (built from its leaves, corners and hanging rules), *tetra for tetrahedra; the other is NULL.
- * Octree frames must have identity axes (a rotated frame is refused with a message). */
-pb_result pb_interp_from_shprobe(const pb_shprobe *file, pb_cotree **tree, pb_tetra **tetra, pb_error *err);
-/* Resamples a version 3 file's field onto a dense grid (the seed's version 1 layout, DESIGN.md §4):
- * every grid cell whose centre the structure covers becomes a probe holding the interpolated record
- * (coefficients, scale, ambient; validity-weighted as the query), others −1. spacing 0 = the octree's
- * min cell (required > 0 for tetrahedra); the grid covers the lattice (octree) or the probes' bounds.
- * SH only (version 1 cannot hold cubes); write the result with version 1 (L ≤ 2) or 0. */
-pb_result pb_interp_resample_dense(const pb_shprobe *file, double spacing, pb_shprobe **out, pb_error *err);
-/* The writer's option for engines that only read the seed's format: resamples `file` (version 3,
- * SH) as pb_interp_resample_dense and writes the dense grid atomically as `version` (1, or 0 = the
- * smallest that holds it: 1 for L <= 2, else 2). */
-pb_result pb_shprobe_write_resampled(const char *path, const pb_shprobe *file, double spacing, uint32_t version,
-                                     pb_error *err);
-
 #ifdef __cplusplus
 }
 #endif
+
+#include "schnee/pb_interp_v3.h" /* pb_shprobe_from_cotree, _from_tetra, pb_interp_from_shprobe, ... */
 #endif

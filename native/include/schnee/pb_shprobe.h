@@ -9,6 +9,11 @@
  * The reader validates everything (magic 0x52485053, version, sizes and their overflow, truncation,
  * grid entries in [−1, probe_count), finite coefficients) and never crashes on malformed input.
  * The bake and the engine link this same code. All data is in engine space (Y-up).
+ *
+ * Layout: this header holds the file image (struct pb_shprobe, limits, create, lookup, destroy) and
+ * includes the rest: pb_shprobe_read.h, pb_shprobe_write.h, pb_shprobe_v3.h. The sources follow the
+ * same cut: native/src/pb_shprobe.c (layout and validation shared by every version), pb_shprobe_read.c,
+ * pb_shprobe_write.c, pb_shprobe_v3.c (version 3's structures), pb_shprobe_internal.h (what they share).
  */
 #ifndef SCHNEE_PB_SHPROBE_H
 #define SCHNEE_PB_SHPROBE_H
@@ -89,35 +94,11 @@ typedef struct pb_shprobe {
 /* Colours per probe record: pb_sh_count(max_band) for SH, 6 for an ambient cube. */
 uint32_t pb_shprobe_colour_count(const pb_shprobe *probes);
 
-/* A version 3 file image with positions, structure arrays sized by element/hanging counts (zeroed),
- * scales 1, ambients 0.1, validity 1, identity axes. grid_dims: the grid (structure GRID, grid
- * filled with −1), the lattice extent (OCTREE), ignored (TETRA, stored as 0). */
-pb_result pb_shprobe_create_v3(uint32_t probe_count, uint32_t representation, uint32_t max_band, uint32_t structure,
-                               const uint32_t grid_dims[3], uint32_t element_count, uint32_t hanging_count,
-                               pb_shprobe **out, pb_error *err);
-
 /* Allocates a zeroed file image (grid filled with −1, scales 1, ambients = default 0.1, validity 1,
  * identity axes, positions allocated only if with_positions). grid_spacing is 0 and must be set
  * before writing. Free with pb_shprobe_destroy. */
 pb_result pb_shprobe_create(uint32_t probe_count, uint32_t max_band, const uint32_t grid_dims[3], bool with_positions,
                             pb_shprobe **out, pb_error *err);
-
-/* Validates like the reader (finite values, grid entries in [−1, count), spacing > 0, ...), then
- * writes atomically. NULL probe_scale = all 1, NULL probe_ambient = all default_ambient.
- * Never replaces what is not a .shprobe: when `path` exists it must be a regular file whose first
- * 4 bytes are the magic; a directory, device, FIFO, socket, symbolic link (decided: refused, not
- * followed — rename would replace the link itself) or any other file is refused with
- * PB_ERROR_INVALID_ARGUMENT naming the path, and nothing is written. */
-pb_result pb_shprobe_write(const char *path, const pb_shprobe *probes, pb_error *err);
-pb_result pb_shprobe_read(const char *path, pb_shprobe **out, pb_error *err);
-pb_result pb_shprobe_read_memory(const void *data, size_t size, pb_shprobe **out, pb_error *err);
-
-/* The file readers open without blocking and read regular files only (a FIFO, device, directory or
- * symbolic-link loop fails at once with PB_ERROR_IO), check the header first and then read exactly
- * the size it implies (limits above). Errors never quote the content of a file that is not ours. */
-
-/* Reads and validates only the header (for exporters): fills every scalar field, array pointers NULL. */
-pb_result pb_shprobe_read_header(const char *path, pb_shprobe *out_header, pb_error *err);
 
 /* Probe index for an engine-space point: the grid cell holding it, −1 if outside or empty. */
 int32_t pb_shprobe_lookup(const pb_shprobe *probes, const float point[3]);
@@ -127,4 +108,9 @@ void pb_shprobe_destroy(pb_shprobe *probes);
 #ifdef __cplusplus
 }
 #endif
+
+/* The rest of the API, one header per concern (pb_shprobe.h includes them all): */
+#include "schnee/pb_shprobe_read.h"  /* pb_shprobe_read, _read_memory, _read_header */
+#include "schnee/pb_shprobe_v3.h"    /* pb_shprobe_create_v3 */
+#include "schnee/pb_shprobe_write.h" /* pb_shprobe_write */
 #endif
