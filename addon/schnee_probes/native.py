@@ -15,7 +15,6 @@ re-checks every buffer's format and length. See docs/python-api.md.
 from __future__ import annotations
 
 import os
-import re
 import sys
 from dataclasses import dataclass
 from typing import Callable, Optional, Sequence, Tuple
@@ -209,15 +208,14 @@ def project_equirect(pixels: np.ndarray, max_band: int = 2, rotation: Optional[n
 
 def project_file(path: str, max_band: int = 2, rotation: Optional[np.ndarray] = None,
                  negative: str = "error") -> np.ndarray:
-    """Same as :func:`project_equirect` for an image file. Single-part scanline EXR (uncompressed,
-    RLE, ZIP: what Cycles' ``save_render`` writes) is read by the add-on's own reader (``exr.py``);
-    any other format or codec is read through Blender's image API (inside Blender only). Errors are
-    SchneeError: "I/O error" (missing/unreadable file), "malformed file". Outside Blender, other
-    images are read through OpenImageIO's ``oiiotool`` when it is installed (benchmarks, tools)."""
+    """Same as :func:`project_equirect` for an image file, read by :func:`images.read_image` (the
+    bake's own EXR files by exr.py, other images through Blender, or oiiotool outside Blender).
+    Errors are SchneeError: "I/O error" (missing/unreadable file), "malformed file"."""
     band = _check_band(max_band)
     rot = _rotation(rotation)
     policy = _choice(negative, _NEGATIVE, "negative")
-    pixels = read_image(path)
+    from . import images
+    pixels = images.read_image(path)
     h, w, c = pixels.shape
     try:
         raw = _lib().project_equirect(pixels, w, h, c, band, rot, policy)
@@ -226,110 +224,11 @@ def project_file(path: str, max_band: int = 2, rotation: Optional[np.ndarray] = 
     return np.frombuffer(raw, dtype=np.float64).reshape(sh_count(band), 3)
 
 
-# Limits of image files read for projection: the native readers' (native/include/schnee/pb_image.h).
-IMAGE_MAX_FILE_BYTES = 1 << 32
-IMAGE_MAX_SIDE = 65536
-IMAGE_MAX_CHANNELS = 64
-IMAGE_MAX_VALUES = 1 << 29
-# First bytes of the image formats read through Blender or oiiotool: Radiance HDR, PFM, PNG, JPEG, TIFF.
-_IMAGE_SIGNATURES = (b"#?", b"PF", b"Pf", b"\x89PNG", b"\xff\xd8\xff", b"II*\0", b"MM\0*")
-
-
 def read_image(path: str) -> np.ndarray:
-    """Float32 pixels (H, W, C), row 0 at the top, of an EXR the add-on reads itself or (inside
-    Blender) any image Blender reads. The file is opened as the native readers open theirs: without
-    blocking, regular files only, at most IMAGE_MAX_FILE_BYTES, the header checked before the
-    pixels. SchneeError on failure; messages never quote the file's content."""
-    from . import exr, safe_open
-    path = os.fspath(path)
-    try:
-        f, size = safe_open.open_regular(path, "an image", IMAGE_MAX_FILE_BYTES)
-    except safe_open.RefusedFile as exc:
-        raise SchneeError(str(exc), exc.code) from None
-    with f:
-        head = f.read(4)
-        if exr.has_magic(head):
-            f.seek(0)
-            try:
-                return exr.read_file(f, size)
-            except OSError as exc:
-                raise SchneeError(f"{path}: cannot read: {exc.strerror or exc}", "I/O error") from None
-            except exr.Malformed as exc:
-                raise SchneeError(f"{path}: cannot read as exr: {exc}", "malformed file") from None
-            except exr.Unsupported:
-                pass  # e.g. DWAB-compressed HDRIs: Blender (or oiiotool) reads those
-        elif path.lower().endswith(".exr"):
-            raise SchneeError(f"{path}: cannot read as exr: not an OpenEXR file (bad magic number)", "malformed file")
-        elif not head.startswith(_IMAGE_SIGNATURES):
-            # Never hand an unknown file to a library that tries every reader on it (OpenImageIO
-            # took minutes on a 2 GiB sparse file): only files that announce an image format.
-            raise SchneeError(f"{path}: not an image (no EXR, HDR, PFM, PNG, JPEG or TIFF signature)",
-                              "malformed file")
-    return _read_with_blender(path)
-
-
-def _check_image_size(path: str, w: int, h: int, c: int):
-    if w > IMAGE_MAX_SIDE or h > IMAGE_MAX_SIDE or c > IMAGE_MAX_CHANNELS or w * h * c > IMAGE_MAX_VALUES:
-        raise SchneeError(f"image '{path}' is too large: {w}x{h} with {c} channel(s); the limits are "
-                          f"{IMAGE_MAX_SIDE} pixels per side, {IMAGE_MAX_CHANNELS} channels and {IMAGE_MAX_VALUES} "
-                          "values (width x height x channels)", "input too large")
-
-
-def _read_with_oiiotool(path: str) -> np.ndarray:
-    """Outside Blender (benchmarks, tools on a development machine): OpenImageIO's command-line tool,
-    when installed, rewrites the image as an uncompressed float EXR, which exr.py reads exactly."""
-    import shutil
-    import subprocess
-    import tempfile
-    from . import exr
-    tool = shutil.which("oiiotool")
-    if tool is None:
-        raise SchneeError(f"{path}: outside Blender only uncompressed/RLE/ZIP scanline EXR files are read "
-                          "(or any image when OpenImageIO's oiiotool is installed)", "I/O error")
-    if not os.path.isfile(path):
-        raise SchneeError(f"cannot read {path}: no such file", "I/O error")
-    # The header first (oiiotool --info reads no pixels), so a file that claims gigabytes is refused
-    # before anything is decoded.
-    info = subprocess.run([tool, "--info", path], capture_output=True, text=True)
-    m = re.search(r"(\d+)\s+x\s+(\d+)(?:\s+x\s+\d+)?,\s+(\d+) channel", info.stdout)
-    if info.returncode != 0 or m is None:
-        raise SchneeError(f"cannot read {path}: OpenImageIO does not recognise it as an image", "I/O error")
-    _check_image_size(path, int(m.group(1)), int(m.group(2)), int(m.group(3)))
-    with tempfile.TemporaryDirectory(prefix="schnee-img-") as tmp:
-        out = os.path.join(tmp, "image.exr")
-        proc = subprocess.run([tool, path, "-d", "float", "--compression", "none", "-o", out],
-                              capture_output=True, text=True)
-        if proc.returncode != 0 or not os.path.isfile(out):
-            raise SchneeError(f"cannot read {path}: {proc.stderr.strip() or 'oiiotool failed'}", "I/O error")
-        try:
-            return exr.read(out)
-        except (exr.Malformed, exr.Unsupported) as exc:
-            raise SchneeError(f"cannot read {path}: {exc}", "I/O error") from None
-
-
-def _read_with_blender(path: str) -> np.ndarray:
-    try:
-        import bpy
-    except ImportError:
-        return _read_with_oiiotool(path)
-    if not os.path.isfile(path):
-        raise SchneeError(f"cannot read {path}: no such file", "I/O error")
-    try:
-        image = bpy.data.images.load(path, check_existing=False)
-    except RuntimeError as exc:
-        raise SchneeError(f"cannot read {path}: {exc}", "I/O error") from None
-    try:
-        w, h = image.size
-        c = image.channels
-        _check_image_size(path, w, h, c)
-        if w <= 0 or h <= 0 or c < 3:
-            raise SchneeError(f"cannot read {path}: Blender loaded {w} x {h} x {c}", "I/O error")
-        buf = np.empty(w * h * c, np.float32)
-        image.pixels.foreach_get(buf)
-    finally:
-        bpy.data.images.remove(image)
-    # Blender's Image.pixels is bottom-up; the projection wants row 0 at the top.
-    return np.ascontiguousarray(buf.reshape(h, w, c)[::-1])
+    """Float32 pixels (H, W, C) of an image file, row 0 at the top: :func:`images.read_image`, the
+    add-on's one image reader (kept here for callers of the earlier name)."""
+    from . import images
+    return images.read_image(path)
 
 
 def irradiance(coeffs: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -752,6 +651,30 @@ class CornerOctree(_Interpolation):
             tolerance=float(tolerance), noise_k=float(noise_k))
         return (np.frombuffer(split, dtype=np.uint8).astype(bool), np.frombuffer(err, dtype=np.float64),
                 np.frombuffer(thr, dtype=np.float64))
+
+
+def refine_error(a: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """The refinement's metric (pb_refine_irradiance_error) of radiance SH ``a`` against ``ref``, both
+    (..., sh_count, 3) of one shape: an array of shape (...) (0-d for one point). metric.py's
+    irradiance_error is the add-on's entry point."""
+    av = _array(a, "a", np.float64, _FLOAT_KINDS)
+    rv = _array(ref, "ref", np.float64, _FLOAT_KINDS)
+    if av.ndim < 2 or av.shape[-1] != 3:
+        raise _shape_error("a", "(..., sh_count, 3)", av)
+    if rv.shape != av.shape:
+        raise _shape_error("ref", str(av.shape), rv)
+    raw = _lib().refine_error(av, rv, _band_of(av.shape[-2], "a"))
+    return np.frombuffer(raw, dtype=np.float64).reshape(av.shape[:-2])
+
+
+def refine_norm(c: np.ndarray) -> np.ndarray:
+    """‖A·c‖ of radiance SH ``c`` (..., sh_count, 3), summed as the metric sums (shape (...); a
+    float64 scalar for one point)."""
+    cv = _array(c, "c", np.float64, _FLOAT_KINDS)
+    if cv.ndim < 2 or cv.shape[-1] != 3:
+        raise _shape_error("c", "(..., sh_count, 3)", cv)
+    raw = _lib().refine_norm(cv, _band_of(cv.shape[-2], "c"))
+    return np.frombuffer(raw, dtype=np.float64).reshape(cv.shape[:-2])[()]
 
 
 class Tetrahedra(_Interpolation):

@@ -115,6 +115,30 @@ double pb_refine_irradiance_error(uint32_t max_band, const double *a, const doub
     return sqrt(num / den);
 }
 
+void pb_refine_irradiance_error_many(uint32_t max_band, size_t count, const double *a, const double *ref, double *out)
+{
+    size_t n = (size_t)pb_sh_count(max_band) * 3u;
+    for (size_t p = 0; p < count; p++) out[p] = pb_refine_irradiance_error(max_band, a + p * n, ref + p * n);
+}
+
+void pb_refine_irradiance_norm_many(uint32_t max_band, size_t count, const double *c, double *out)
+{
+    size_t n = (size_t)pb_sh_count(max_band) * 3u;
+    for (size_t p = 0; p < count; p++) {
+        const double *v = c + p * n;
+        double sum = 0.0; /* the order of pb_refine_irradiance_error's `den` */
+        for (uint32_t l = 0; l <= max_band; l++) {
+            double A = pb_sh_lambert_band(l);
+            for (uint32_t i = l * l; i < (l + 1) * (l + 1); i++)
+                for (uint32_t ch = 0; ch < 3; ch++) {
+                    double r = A * v[3 * i + ch];
+                    sum += r * r;
+                }
+        }
+        out[p] = sqrt(sum);
+    }
+}
+
 pb_result pb_refine_decide(const pb_cotree *tree, const pb_refine_tests *tests, const pb_refine_desc *d, uint8_t *split,
                            double *leaf_error, double *leaf_threshold, pb_error *err)
 {

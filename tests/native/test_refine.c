@@ -280,9 +280,29 @@ static void test_error_metric(void)
     TU_CHECK(pb_refine_irradiance_error(BAND, a, zero) == 1.0);
 }
 
+static void test_error_metric_many(void)
+{
+    /* The vectorised forms are the single-point arithmetic, bit for bit: errors of three points (the
+     * last against a zero reference), and norms whose squared ratio is the same error. */
+    double a[3 * NC * 3], ref[3 * NC * 3] = {0}, err[3], norm[3];
+    for (int m = 0; m < 3 * NC * 3; m++) a[m] = sin(0.7 * m) + 0.1;
+    for (int m = 0; m < 2 * NC * 3; m++) ref[m] = cos(0.3 * m);
+    pb_refine_irradiance_error_many(BAND, 3, a, ref, err);
+    for (int p = 0; p < 3; p++) TU_CHECK(err[p] == pb_refine_irradiance_error(BAND, a + p * NC * 3, ref + p * NC * 3));
+    TU_CHECK(err[2] == 1.0);
+    pb_refine_irradiance_norm_many(BAND, 3, ref, norm);
+    TU_CHECK(norm[2] == 0.0);
+    double one[NC * 3] = {0};
+    one[0] = 2.0;          /* L0, red: ‖A0 · 2‖ */
+    one[3 * 3 + 2] = -1.0; /* L1, blue */
+    pb_refine_irradiance_norm_many(BAND, 1, one, norm);
+    TU_CHECK_NEAR(norm[0], sqrt(pow(2.0 * M_PI, 2) + pow(2.0 * M_PI / 3.0, 2)), 1e-14);
+}
+
 int main(void)
 {
     TU_RUN(test_error_metric);
+    TU_RUN(test_error_metric_many);
     TU_RUN(test_linear_field_refines_nothing);
     TU_RUN(test_noise_accounted);
     TU_RUN(test_noise_threshold_adds_in_quadrature);

@@ -1,4 +1,4 @@
-"""The ambient cube through the Python module (native/python/module.c: ambient_cube_from_sh,
+"""The ambient cube through the Python module (native/python/mod_sh.c: ambient_cube_from_sh,
 ambient_cube_irradiance) against an independent numpy least-squares fit, closed forms
 (docs/ambient-cube.md §3) and a real HDRI; error codes and argument checks."""
 import math

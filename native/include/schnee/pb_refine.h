@@ -65,6 +65,15 @@ pb_result pb_refine_decide(const pb_cotree *tree, const pb_refine_tests *tests, 
  * the orthonormality of the basis). 0 when both are 0; `a` ≠ 0 against ref 0 gives 1. */
 double pb_refine_irradiance_error(uint32_t max_band, const double *a, const double *ref);
 
+/* The same for `count` points: a, ref hold count × pb_sh_count(max_band) × 3 values, out count errors
+ * (the refinement's metric for the add-on: addon/schnee_probes/metric.py calls it). */
+void pb_refine_irradiance_error_many(uint32_t max_band, size_t count, const double *a, const double *ref, double *out);
+
+/* ‖A·c‖ of each of `count` radiance SH c (count × pb_sh_count(max_band) × 3 values): the irradiance's
+ * RMS over directions times √(4π), summed in the order of pb_refine_irradiance_error (whose error is
+ * the ratio of two such norms, squared then divided). */
+void pb_refine_irradiance_norm_many(uint32_t max_band, size_t count, const double *c, double *out);
+
 #ifdef __cplusplus
 }
 #endif
