@@ -3,6 +3,14 @@
  *   scene pass  -> HDR target (RGBA32F, linear scene-referred radiance) + depth
  *   tonemap pass -> output image (exposure, operator, sRGB)
  * The headless path reads back either image; the window passes swapchain images.
+ *
+ * The renderer lives in rooms (docs/engine.md "Architecture"), each its own .c and header:
+ *   sv_renderer.c     this driver: create over the rooms, render targets, the frame recorder
+ *                     (frame uniform, shadow pass, scene pass, tone-map pass), destroy
+ *   sv_upload.c       scene and probe data to GPU buffers and images; per-frame slot/mask updates
+ *   sv_shadows.c      shadow layers, the shadow map array and its depth-only pass
+ *   sv_shadow_math.c  the light-space fitting (cascades, spot, cube faces): pure math, no Vulkan
+ *   sv_pipelines.c    samplers, descriptor sets, and every pipeline from one table of descriptions
  */
 #ifndef SV_RENDERER_H
 #define SV_RENDERER_H
@@ -10,6 +18,7 @@
 #include "sv_gpu.h"
 #include "sv_probes.h"
 #include "sv_scene.h"
+#include "sv_shadow_math.h"
 #include "sv_sky.h"
 #include "sv_vk.h"
 
@@ -53,14 +62,16 @@ typedef struct sv_renderer_desc {
         .shadow_res = SV_SHADOW_DEFAULT_RES, .shadow_cascades = SV_SHADOW_DEFAULT_CASCADES                             \
     }
 
-/* One layer of the shadow map array: what the frame's projection of it is fitted to. */
-typedef struct sv_shadow_layer {
-    uint32_t kind;  /* SV_SHADOW_ORTHO, _SPOT or _CUBE */
-    float pos[3];   /* world position of the light (spot, cube) */
-    float dir[3];   /* world direction of the layer's axis: where the light (sun, spot) or the cube face points */
-    float tan_half; /* spot, cube: tan(half field of view) before the filter's margin */
-    uint32_t cascade, cascades; /* ortho: this layer's cascade (0 = nearest) of the light's `cascades` */
-} sv_shadow_layer;
+/* The graphics pipelines, one per row of the table in sv_pipelines.c. */
+typedef enum sv_pipeline_id {
+    SV_PIPELINE_MESH,    /* the scene's objects into the HDR target */
+    SV_PIPELINE_CELLS,   /* probe view: a sphere per probe */
+    SV_PIPELINE_OUTLINE, /* probe view: grid cell outlines */
+    SV_PIPELINE_SKY,     /* the background, behind everything */
+    SV_PIPELINE_TONEMAP, /* HDR target -> output image */
+    SV_PIPELINE_SHADOW,  /* depth only, into a shadow map layer (only with shadowed lights) */
+    SV_PIPELINE_COUNT
+} sv_pipeline_id;
 
 typedef struct sv_renderer {
     sv_context *ctx;
@@ -97,7 +108,7 @@ typedef struct sv_renderer {
     VkDescriptorSet *material_sets; /* set 1 per material, the glTF default material last */
     uint32_t material_count;
     VkPipelineLayout scene_layout, tonemap_layout;
-    VkPipeline mesh_pipeline, cells_pipeline, outline_pipeline, sky_pipeline, tonemap_pipeline;
+    VkPipeline pipelines[SV_PIPELINE_COUNT]; /* by sv_pipeline_id; VK_NULL_HANDLE where not made */
 
     sv_image hdr, depth;
     uint32_t width, height;
@@ -108,8 +119,7 @@ typedef struct sv_renderer {
     sv_image shadow;
     VkImageView shadow_layer_views[SV_MAX_SHADOW_LAYERS]; /* per layer, the depth attachment of the shadow pass */
     VkSampler shadow_sampler;                             /* LESS_OR_EQUAL compare, white border (lit outside) */
-    VkPipelineLayout shadow_layout;
-    VkPipeline shadow_pipeline;
+    VkPipelineLayout shadow_layout; /* with pipelines[SV_PIPELINE_SHADOW]: made only when shadow_count > 0 */
     VkFormat shadow_format;
     uint32_t shadow_res;      /* texels per side of a layer */
     uint32_t shadow_count;    /* layers rendered, 0..SV_MAX_SHADOW_LAYERS */

@@ -454,3 +454,17 @@ VkShaderModule sv_shader_module(sv_context *ctx, const uint32_t *code, size_t si
 fail:
     return VK_NULL_HANDLE;
 }
+
+VkSamplerCreateInfo sv_sampler_info(VkFilter filter, VkSamplerAddressMode address)
+{
+    return (VkSamplerCreateInfo){
+        .sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
+        .magFilter = filter,
+        .minFilter = filter,
+        .mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST,
+        .addressModeU = address,
+        .addressModeV = address,
+        .addressModeW = address,
+        .maxLod = 0.0f,
+    };
+}

@@ -102,6 +102,9 @@ void sv_image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags asp
                       VkImageLayout to, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
                       VkPipelineStageFlags dst_stage, VkAccessFlags dst_access);
 
+/* The create-info every sampler of the renderer starts from: `filter` for magnification and
+ * minification, `address` on all three axes, one mip level, no comparison; callers set what differs. */
+VkSamplerCreateInfo sv_sampler_info(VkFilter filter, VkSamplerAddressMode address);
 VkShaderModule sv_shader_module(sv_context *ctx, const uint32_t *code, size_t size_bytes);
 
 #endif

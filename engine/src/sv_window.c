@@ -1,5 +1,6 @@
-/* Window front end: GLFW window, swapchain, free-flying camera, debug toggles, frame time in the
- * title. Scene, probes and every draw go through the same sv_renderer as the headless path. */
+/* Window front end: GLFW window, swapchain, frame loop, frame time in the title, the screenshot of
+ * --frames/--screenshot. Keyboard and mouse are sv_input.c's; scene, probes and every draw go through
+ * the same sv_renderer as the headless path. */
 #define _DEFAULT_SOURCE /* clock_gettime, mkstemps, strcasecmp under -std=c11 */
 #include <math.h>
 #include <stdlib.h>
@@ -11,7 +12,7 @@
 #include "schnee/pb_image.h"
 #include "sv_app.h"
 #include "sv_clock.h"
-#include "sv_math.h"
+#include "sv_input.h"
 
 #define SV_MAX_SWAPCHAIN_IMAGES 8
 
@@ -119,28 +120,6 @@ fail:
     return false;
 }
 
-/* Free-flying camera: position, yaw (about +Y, 0 = looking along -Z), pitch. */
-typedef struct fly_camera {
-    float pos[3];
-    float yaw, pitch;
-} fly_camera;
-
-static void fly_forward(const fly_camera *c, float f[3])
-{
-    f[0] = sinf(c->yaw) * cosf(c->pitch);
-    f[1] = sinf(c->pitch);
-    f[2] = -cosf(c->yaw) * cosf(c->pitch);
-}
-
-static void fly_to_view(const fly_camera *c, sv_view *v)
-{
-    float f[3], target[3], up[3] = {0, 1, 0};
-    fly_forward(c, f);
-    for (int k = 0; k < 3; ++k) target[k] = c->pos[k] + f[k];
-    sv_mat4_look_at(c->pos, target, up, v->view);
-    memcpy(v->camera_pos, c->pos, sizeof(c->pos));
-}
-
 static bool write_screenshot(const char *path, const uint8_t *bgra_or_rgba, bool bgra, uint32_t w, uint32_t h)
 {
     float *px = malloc((size_t)w * h * 3 * sizeof(float));
@@ -165,266 +144,236 @@ fail:
     return false;
 }
 
+/* The window's state across frames. */
+typedef struct sv_window {
+    GLFWwindow *win;
+    sv_app_gpu gpu;
+    sv_swapchain sc;
+    sv_buffer shot; /* host-visible copy of the last frame (--screenshot) */
+    VkSemaphore acquired;
+    VkColorSpaceKHR space;
+    sv_input input;
+    sv_view view;
+    uint32_t frame;                           /* frames presented */
+    double last, title_time, ms_avg, gpu_avg; /* gpu_avg: timestamps, 0 = none */
+} sv_window;
+
+/* The window, the Vulkan context on its surface, the swapchain and the renderer. False with a message. */
+static bool open_window(sv_window *w, const sv_options *opt, const sv_scene *scene, const sv_probes *probes,
+                        const sv_sky *sky)
+{
+    sv_context *ctx = &w->gpu.ctx;
+    if (!glfwVulkanSupported()) {
+        fprintf(stderr, "schnee-view: error: GLFW found no Vulkan loader\n");
+        return false;
+    }
+    glfwWindowHint(GLFW_CLIENT_API, GLFW_NO_API);
+    w->win = glfwCreateWindow((int)opt->width, (int)opt->height, "schnee-view", NULL, NULL);
+    if (!w->win) {
+        fprintf(stderr, "schnee-view: error: cannot create a window\n");
+        return false;
+    }
+    uint32_t ext_count = 0;
+    const char **exts = glfwGetRequiredInstanceExtensions(&ext_count);
+    if (!exts || !sv_app_gpu_init(&w->gpu, opt, exts, ext_count, make_surface, w->win, true)) return false;
+    w->sc.format = pick_surface_format(ctx, &w->space);
+    if (w->sc.format == VK_FORMAT_UNDEFINED) {
+        fprintf(stderr, "schnee-view: error: the window surface reports no formats\n");
+        return false;
+    }
+    if (!create_swapchain(ctx, w->win, w->space, &w->sc) ||
+        !sv_app_gpu_renderer(&w->gpu, opt, scene, probes, sky, w->sc.format, w->sc.extent.width, w->sc.extent.height))
+        return false;
+    VkSemaphoreCreateInfo si = {.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
+    VK_CHECK(vkCreateSemaphore(ctx->device, &si, NULL, &w->acquired));
+    return true;
+fail:
+    return false;
+}
+
+/* Frame time, GPU time, shading and probe modes and the selected object in the title, 4 times a second. */
+static void update_title(sv_window *w, const sv_scene *scene, double now)
+{
+    if (now - w->title_time <= 250.0 || !scene->object_count) return;
+    char title[256];
+    const sv_object *o = &scene->objects[w->input.selected];
+    const char *mode = sv_probe_mode_name(w->view.probe_mode);
+    char gpu_ms[32] = "";
+    if (w->gpu_avg > 0.0) snprintf(gpu_ms, sizeof gpu_ms, ", GPU %.2f ms", w->gpu_avg);
+    snprintf(title, sizeof(title), "schnee-view - %.2f ms (%.0f fps%s) - %s%s, probe mode %s - object '%s' probe %u",
+             w->ms_avg, 1000.0 / w->ms_avg, gpu_ms,
+             w->view.debug_mode == SV_DEBUG_PROBE_COLOR ? "probe colours" : "shaded",
+             w->view.show_cells ? " + probe view" : "", mode ? mode : "?", o->name, o->probe);
+    glfwSetWindowTitle(w->win, title);
+    w->title_time = now;
+}
+
+/* After a resize: the swapchain again and the renderer's targets at its size; false when minimised. */
+static bool recreate_swapchain(sv_window *w)
+{
+    sv_context *ctx = &w->gpu.ctx;
+    vkDeviceWaitIdle(ctx->device);
+    destroy_swapchain(ctx, &w->sc);
+    return create_swapchain(ctx, w->win, w->space, &w->sc) &&
+           sv_renderer_resize(&w->gpu.renderer, w->sc.extent.width, w->sc.extent.height);
+}
+
+/* Records the frame into swapchain image `image`, and its copy into w->shot when `take_shot`. */
+static bool record_frame(sv_window *w, sv_scene *scene, uint32_t image, bool take_shot)
+{
+    VkCommandBuffer cmd = w->gpu.cmd;
+    sv_swapchain *sc = &w->sc;
+    VkCommandBufferBeginInfo begin = {.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
+                                      .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
+    VK_CHECK(vkResetCommandBuffer(cmd, 0));
+    VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
+    sv_renderer_record(&w->gpu.renderer, cmd, scene, &w->view, sc->images[image], sc->views[image],
+                       take_shot ? VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL : VK_IMAGE_LAYOUT_PRESENT_SRC_KHR);
+    if (take_shot) {
+        VkBufferImageCopy region = {.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
+                                    .imageExtent = {sc->extent.width, sc->extent.height, 1}};
+        vkCmdCopyImageToBuffer(cmd, sc->images[image], VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, w->shot.buffer, 1,
+                               &region);
+        sv_image_barrier(cmd, sc->images[image], VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                         VK_IMAGE_LAYOUT_PRESENT_SRC_KHR, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT,
+                         VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0);
+        VkBufferMemoryBarrier hb = {
+            .sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER,
+            .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+            .dstAccessMask = VK_ACCESS_HOST_READ_BIT,
+            .srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
+            .dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
+            .buffer = w->shot.buffer,
+            .size = VK_WHOLE_SIZE,
+        };
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 0, NULL, 1, &hb, 0,
+                             NULL);
+    }
+    VK_CHECK(vkEndCommandBuffer(cmd));
+    return true;
+fail:
+    return false;
+}
+
+/* Submits the recorded frame (after the image is acquired) and presents it; an out-of-date or
+ * suboptimal swapchain is made again. */
+static bool submit_and_present(sv_window *w, uint32_t image)
+{
+    sv_context *ctx = &w->gpu.ctx;
+    VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
+    VkSubmitInfo submit = {
+        .sType = VK_STRUCTURE_TYPE_SUBMIT_INFO,
+        .waitSemaphoreCount = 1,
+        .pWaitSemaphores = &w->acquired,
+        .pWaitDstStageMask = &wait_stage,
+        .commandBufferCount = 1,
+        .pCommandBuffers = &w->gpu.cmd,
+        .signalSemaphoreCount = 1,
+        .pSignalSemaphores = &w->sc.render_done[image],
+    };
+    VK_CHECK(vkQueueSubmit(ctx->queue, 1, &submit, w->gpu.fence));
+    VkPresentInfoKHR present = {
+        .sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR,
+        .waitSemaphoreCount = 1,
+        .pWaitSemaphores = &w->sc.render_done[image],
+        .swapchainCount = 1,
+        .pSwapchains = &w->sc.handle,
+        .pImageIndices = &image,
+    };
+    VkResult pres = vkQueuePresentKHR(ctx->queue, &present);
+    if (pres == VK_ERROR_OUT_OF_DATE_KHR || pres == VK_SUBOPTIMAL_KHR) {
+        if (!recreate_swapchain(w)) glfwWaitEvents();
+    } else {
+        VK_CHECK(pres);
+    }
+    return true;
+fail:
+    return false;
+}
+
+/* After the last frame of --frames: its screenshot written (waiting for the frame first). */
+static bool finish_screenshot(sv_window *w, const sv_options *opt, bool take_shot)
+{
+    if (take_shot) {
+        VK_CHECK(vkWaitForFences(w->gpu.ctx.device, 1, &w->gpu.fence, VK_TRUE, UINT64_MAX));
+        return write_screenshot(opt->screenshot, w->shot.mapped,
+                                w->sc.format == VK_FORMAT_B8G8R8A8_SRGB || w->sc.format == VK_FORMAT_B8G8R8A8_UNORM,
+                                w->sc.extent.width, w->sc.extent.height);
+    }
+    fprintf(stderr, "schnee-view: error: the swapchain cannot be copied (no TRANSFER_SRC usage); no screenshot\n");
+fail:
+    return false;
+}
+
+enum { FRAME_ERROR, FRAME_NEXT, FRAME_LAST };
+
+/* One turn of the loop: input, title, the previous frame's GPU time, acquire, record, present. */
+static int draw_frame(sv_window *w, const sv_options *opt, sv_scene *scene, sv_probes *probes)
+{
+    sv_context *ctx = &w->gpu.ctx;
+    glfwPollEvents();
+    double now = sv_now_ms();
+    float dt = (float)((now - w->last) * 1e-3);
+    w->last = now;
+    w->ms_avg = w->ms_avg == 0.0 ? dt * 1e3 : 0.9 * w->ms_avg + 0.1 * dt * 1e3;
+    sv_input_update(&w->input, dt, &w->view, scene, probes);
+    update_title(w, scene, now);
+    VK_CHECK(vkWaitForFences(ctx->device, 1, &w->gpu.fence, VK_TRUE, UINT64_MAX));
+    double stage[3]; /* the previous frame is done: its GPU time, smoothed like the frame time */
+    if (w->frame > 0 && sv_renderer_gpu_times(&w->gpu.renderer, stage)) {
+        double g = stage[0] + stage[1] + stage[2];
+        w->gpu_avg = w->gpu_avg > 0.0 ? 0.9 * w->gpu_avg + 0.1 * g : g;
+    }
+    uint32_t image = 0;
+    VkResult acq = vkAcquireNextImageKHR(ctx->device, w->sc.handle, UINT64_MAX, w->acquired, VK_NULL_HANDLE, &image);
+    if (acq == VK_ERROR_OUT_OF_DATE_KHR) {
+        if (!recreate_swapchain(w)) glfwWaitEvents(); /* minimised: wait for a usable size */
+        return FRAME_NEXT;
+    }
+    if (acq != VK_SUBOPTIMAL_KHR) VK_CHECK(acq);
+    VK_CHECK(vkResetFences(ctx->device, 1, &w->gpu.fence));
+    bool last_frame = opt->frames && w->frame + 1 >= opt->frames;
+    bool take_shot = last_frame && opt->screenshot && w->sc.can_copy;
+    if (take_shot && !w->shot.buffer &&
+        !sv_buffer_create(ctx, (VkDeviceSize)w->sc.extent.width * w->sc.extent.height * 4,
+                          VK_BUFFER_USAGE_TRANSFER_DST_BIT, true, &w->shot))
+        return FRAME_ERROR;
+    if (!record_frame(w, scene, image, take_shot) || !submit_and_present(w, image)) return FRAME_ERROR;
+    w->frame++;
+    if (last_frame && opt->screenshot && !finish_screenshot(w, opt, take_shot)) return FRAME_ERROR;
+    return last_frame ? FRAME_LAST : FRAME_NEXT;
+fail:
+    return FRAME_ERROR;
+}
+
 int sv_run_window(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky)
 {
     int rc = 1;
-    sv_app_gpu gpu = {0};
-    sv_context *ctx = &gpu.ctx;
-    sv_swapchain sc = {0};
-    sv_buffer shot = {0};
-    GLFWwindow *win = NULL;
-    VkSemaphore acquired = VK_NULL_HANDLE;
-    VkColorSpaceKHR space = VK_COLOR_SPACE_SRGB_NONLINEAR_KHR;
-
+    sv_window w = {.space = VK_COLOR_SPACE_SRGB_NONLINEAR_KHR};
+    sv_context *ctx = &w.gpu.ctx;
     if (!glfwInit()) {
         fprintf(stderr, "schnee-view: error: cannot open a window (no display?); use --headless --output PATH\n");
         return 1;
     }
-    if (!glfwVulkanSupported()) {
-        fprintf(stderr, "schnee-view: error: GLFW found no Vulkan loader\n");
-        goto done;
+    if (open_window(&w, opt, scene, probes, sky)) {
+        w.view = w.gpu.view;
+        sv_input_init(&w.input, w.win, &w.view, scene);
+        w.last = w.title_time = sv_now_ms();
+        int step = FRAME_NEXT;
+        while (step == FRAME_NEXT && !glfwWindowShouldClose(w.win)) step = draw_frame(&w, opt, scene, probes);
+        if (step != FRAME_ERROR) {
+            fprintf(stderr, "schnee-view: %u frame(s) presented, last mean frame time %.2f ms\n", w.frame, w.ms_avg);
+            rc = 0;
+        }
     }
-    glfwWindowHint(GLFW_CLIENT_API, GLFW_NO_API);
-    win = glfwCreateWindow((int)opt->width, (int)opt->height, "schnee-view", NULL, NULL);
-    if (!win) {
-        fprintf(stderr, "schnee-view: error: cannot create a window\n");
-        goto done;
-    }
-    uint32_t ext_count = 0;
-    const char **exts = glfwGetRequiredInstanceExtensions(&ext_count);
-    if (!exts || !sv_app_gpu_init(&gpu, opt, exts, ext_count, make_surface, win, true)) goto done;
-    sc.format = pick_surface_format(ctx, &space);
-    if (sc.format == VK_FORMAT_UNDEFINED) {
-        fprintf(stderr, "schnee-view: error: the window surface reports no formats\n");
-        goto done;
-    }
-    if (!create_swapchain(ctx, win, space, &sc) ||
-        !sv_app_gpu_renderer(&gpu, opt, scene, probes, sky, sc.format, sc.extent.width, sc.extent.height))
-        goto done;
-    VkSemaphoreCreateInfo si = {.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
-    VK_CHECK(vkCreateSemaphore(ctx->device, &si, NULL, &acquired));
-    sv_renderer *r = &gpu.renderer;
-    VkCommandBuffer cmd = gpu.cmd;
-    VkFence fence = gpu.fence;
-    sv_view view = gpu.view;
-    fly_camera cam;
-    memcpy(cam.pos, view.camera_pos, sizeof(cam.pos));
-    /* view rows: row 2 = -forward */
-    float fwd[3] = {-view.view[2], -view.view[6], -view.view[10]};
-    cam.pitch = asinf(fmaxf(-1.0f, fminf(1.0f, fwd[1])));
-    cam.yaw = atan2f(fwd[0], -fwd[2]);
-    float speed = 1.0f;
-    if (scene->aabb_min[0] <= scene->aabb_max[0])
-        speed = fmaxf(0.5f,
-                      0.25f * fmaxf(scene->aabb_max[0] - scene->aabb_min[0], scene->aabb_max[2] - scene->aabb_min[2]));
-
-    uint32_t selected = 0, frame = 0;
-    double last = sv_now_ms(), title_time = last, ms_avg = 0.0, gpu_avg = 0.0; /* gpu_avg: timestamps, 0 = none */
-    double mouse_x = 0, mouse_y = 0;
-    bool dragging = false, prev_p = false, prev_c = false, prev_n = false, prev_m = false;
-    while (!glfwWindowShouldClose(win)) {
-        glfwPollEvents();
-        double now = sv_now_ms();
-        float dt = (float)((now - last) * 1e-3);
-        last = now;
-        ms_avg = ms_avg == 0.0 ? dt * 1e3 : 0.9 * ms_avg + 0.1 * dt * 1e3;
-        if (glfwGetKey(win, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(win, 1);
-
-        /* Toggles on key press edges. */
-        bool p = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS, c = glfwGetKey(win, GLFW_KEY_C) == GLFW_PRESS;
-        bool n = glfwGetKey(win, GLFW_KEY_N) == GLFW_PRESS, m = glfwGetKey(win, GLFW_KEY_M) == GLFW_PRESS;
-        /* M cycles the probe mode: per material -> object -> pixel -> (any later mode) -> off -> per
-         * material, through the values of sv_gpu.h (MATERIAL is the last, OFF the first). */
-        if (m && !prev_m)
-            view.probe_mode = view.probe_mode == SV_PROBE_MODE_MATERIAL        ? SV_PROBE_MODE_OFF + 1u
-                              : view.probe_mode == SV_PROBE_MODE_OFF           ? SV_PROBE_MODE_MATERIAL
-                              : view.probe_mode + 1u == SV_PROBE_MODE_MATERIAL ? SV_PROBE_MODE_OFF
-                                                                               : view.probe_mode + 1u;
-        prev_m = m;
-        if (p && !prev_p)
-            view.debug_mode = view.debug_mode == SV_DEBUG_PROBE_COLOR ? SV_DEBUG_NONE : SV_DEBUG_PROBE_COLOR;
-        if (c && !prev_c) view.show_cells = !view.show_cells;
-        if (n && !prev_n && scene->object_count) selected = (selected + 1) % scene->object_count;
-        prev_p = p;
-        prev_c = c;
-        prev_n = n;
-
-        /* Free-fly camera: right mouse drag looks, WASD/QE moves. */
-        double mx, my;
-        glfwGetCursorPos(win, &mx, &my);
-        bool rmb = glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
-        bool moved = false;
-        if (rmb && dragging) {
-            cam.yaw += (float)(mx - mouse_x) * 0.004f;
-            cam.pitch = fmaxf(-1.55f, fminf(1.55f, cam.pitch - (float)(my - mouse_y) * 0.004f));
-            moved = mx != mouse_x || my != mouse_y;
-        }
-        dragging = rmb;
-        mouse_x = mx;
-        mouse_y = my;
-        float f[3], right[3];
-        fly_forward(&cam, f);
-        right[0] = cosf(cam.yaw);
-        right[1] = 0.0f;
-        right[2] = sinf(cam.yaw);
-        float step = speed * dt * (glfwGetKey(win, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ? 4.0f : 1.0f);
-        struct {
-            int key;
-            const float *dir;
-            float sign;
-        } keys[] = {
-            {GLFW_KEY_W, f, 1},
-            {GLFW_KEY_S, f, -1},
-            {GLFW_KEY_D, right, 1},
-            {GLFW_KEY_A, right, -1},
-        };
-        for (size_t k = 0; k < sizeof(keys) / sizeof(keys[0]); ++k)
-            if (glfwGetKey(win, keys[k].key) == GLFW_PRESS) {
-                for (int j = 0; j < 3; ++j) cam.pos[j] += keys[k].sign * step * keys[k].dir[j];
-                moved = true;
-            }
-        if (glfwGetKey(win, GLFW_KEY_E) == GLFW_PRESS) cam.pos[1] += step, moved = true;
-        if (glfwGetKey(win, GLFW_KEY_Q) == GLFW_PRESS) cam.pos[1] -= step, moved = true;
-        if (moved) fly_to_view(&cam, &view);
-
-        /* Move the selected object; its probe is re-queried by sv_probes_assign. */
-        if (scene->object_count) {
-            int move_keys[6] = {GLFW_KEY_J, GLFW_KEY_L, GLFW_KEY_K, GLFW_KEY_I, GLFW_KEY_U, GLFW_KEY_O};
-            float delta[3] = {0, 0, 0};
-            for (int k = 0; k < 6; ++k)
-                if (glfwGetKey(win, move_keys[k]) == GLFW_PRESS)
-                    delta[k / 2 == 0 ? 0 : k / 2 == 1 ? 2 : 1] += (k % 2 ? 1.0f : -1.0f) * step;
-            if (delta[0] != 0 || delta[1] != 0 || delta[2] != 0) {
-                uint32_t node = scene->objects[selected].node;
-                float t[3];
-                const float *local = scene->node_local + 16 * node;
-                for (int k = 0; k < 3; ++k) t[k] = local[12 + k] + delta[k];
-                sv_scene_set_translation(scene, node, t);
-            }
-            sv_probes_assign(probes, scene);
-        }
-
-        if (now - title_time > 250.0 && scene->object_count) {
-            char title[256];
-            const sv_object *o = &scene->objects[selected];
-            const char *mode = sv_probe_mode_name(view.probe_mode);
-            char gpu_ms[32] = "";
-            if (gpu_avg > 0.0) snprintf(gpu_ms, sizeof gpu_ms, ", GPU %.2f ms", gpu_avg);
-            snprintf(title, sizeof(title),
-                     "schnee-view - %.2f ms (%.0f fps%s) - %s%s, probe mode %s - object '%s' probe %u", ms_avg,
-                     1000.0 / ms_avg, gpu_ms, view.debug_mode == SV_DEBUG_PROBE_COLOR ? "probe colours" : "shaded",
-                     view.show_cells ? " + probe view" : "", mode ? mode : "?", o->name, o->probe);
-            glfwSetWindowTitle(win, title);
-            title_time = now;
-        }
-
-        VK_CHECK(vkWaitForFences(ctx->device, 1, &fence, VK_TRUE, UINT64_MAX));
-        double stage[3]; /* the previous frame is done: its GPU time, smoothed like the frame time */
-        if (frame > 0 && sv_renderer_gpu_times(r, stage)) {
-            double g = stage[0] + stage[1] + stage[2];
-            gpu_avg = gpu_avg > 0.0 ? 0.9 * gpu_avg + 0.1 * g : g;
-        }
-        uint32_t image = 0;
-        VkResult acq = vkAcquireNextImageKHR(ctx->device, sc.handle, UINT64_MAX, acquired, VK_NULL_HANDLE, &image);
-        if (acq == VK_ERROR_OUT_OF_DATE_KHR) {
-            vkDeviceWaitIdle(ctx->device);
-            destroy_swapchain(ctx, &sc);
-            if (create_swapchain(ctx, win, space, &sc) && sv_renderer_resize(r, sc.extent.width, sc.extent.height))
-                continue;
-            glfwWaitEvents(); /* minimised: wait for a usable size */
-            continue;
-        }
-        if (acq != VK_SUBOPTIMAL_KHR) VK_CHECK(acq);
-        VK_CHECK(vkResetFences(ctx->device, 1, &fence));
-
-        bool last_frame = opt->frames && frame + 1 >= opt->frames;
-        bool take_shot = last_frame && opt->screenshot && sc.can_copy;
-        if (take_shot && !shot.buffer &&
-            !sv_buffer_create(ctx, (VkDeviceSize)sc.extent.width * sc.extent.height * 4,
-                              VK_BUFFER_USAGE_TRANSFER_DST_BIT, true, &shot))
-            goto done;
-        VkCommandBufferBeginInfo begin = {.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
-                                          .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
-        VK_CHECK(vkResetCommandBuffer(cmd, 0));
-        VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
-        sv_renderer_record(r, cmd, scene, &view, sc.images[image], sc.views[image],
-                           take_shot ? VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL : VK_IMAGE_LAYOUT_PRESENT_SRC_KHR);
-        if (take_shot) {
-            VkBufferImageCopy region = {.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
-                                        .imageExtent = {sc.extent.width, sc.extent.height, 1}};
-            vkCmdCopyImageToBuffer(cmd, sc.images[image], VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, shot.buffer, 1,
-                                   &region);
-            sv_image_barrier(cmd, sc.images[image], VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                             VK_IMAGE_LAYOUT_PRESENT_SRC_KHR, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                             VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0);
-            VkBufferMemoryBarrier hb = {
-                .sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER,
-                .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
-                .dstAccessMask = VK_ACCESS_HOST_READ_BIT,
-                .srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
-                .dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
-                .buffer = shot.buffer,
-                .size = VK_WHOLE_SIZE,
-            };
-            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 0, NULL, 1, &hb, 0,
-                                 NULL);
-        }
-        VK_CHECK(vkEndCommandBuffer(cmd));
-        VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
-        VkSubmitInfo submit = {
-            .sType = VK_STRUCTURE_TYPE_SUBMIT_INFO,
-            .waitSemaphoreCount = 1,
-            .pWaitSemaphores = &acquired,
-            .pWaitDstStageMask = &wait_stage,
-            .commandBufferCount = 1,
-            .pCommandBuffers = &cmd,
-            .signalSemaphoreCount = 1,
-            .pSignalSemaphores = &sc.render_done[image],
-        };
-        VK_CHECK(vkQueueSubmit(ctx->queue, 1, &submit, fence));
-        VkPresentInfoKHR present = {
-            .sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR,
-            .waitSemaphoreCount = 1,
-            .pWaitSemaphores = &sc.render_done[image],
-            .swapchainCount = 1,
-            .pSwapchains = &sc.handle,
-            .pImageIndices = &image,
-        };
-        VkResult pres = vkQueuePresentKHR(ctx->queue, &present);
-        if (pres == VK_ERROR_OUT_OF_DATE_KHR || pres == VK_SUBOPTIMAL_KHR) {
-            vkDeviceWaitIdle(ctx->device);
-            destroy_swapchain(ctx, &sc);
-            if (!create_swapchain(ctx, win, space, &sc) || !sv_renderer_resize(r, sc.extent.width, sc.extent.height))
-                glfwWaitEvents();
-        } else {
-            VK_CHECK(pres);
-        }
-        frame++;
-        if (take_shot) {
-            VK_CHECK(vkWaitForFences(ctx->device, 1, &fence, VK_TRUE, UINT64_MAX));
-            if (!write_screenshot(opt->screenshot, shot.mapped,
-                                  sc.format == VK_FORMAT_B8G8R8A8_SRGB || sc.format == VK_FORMAT_B8G8R8A8_UNORM,
-                                  sc.extent.width, sc.extent.height))
-                goto done;
-        } else if (last_frame && opt->screenshot) {
-            fprintf(stderr,
-                    "schnee-view: error: the swapchain cannot be copied (no TRANSFER_SRC usage); no screenshot\n");
-            goto done;
-        }
-        if (last_frame) break;
-    }
-    fprintf(stderr, "schnee-view: %u frame(s) presented, last mean frame time %.2f ms\n", frame, ms_avg);
-    rc = 0;
-done:
-fail:
     if (ctx->device) {
         vkDeviceWaitIdle(ctx->device);
-        if (acquired) vkDestroySemaphore(ctx->device, acquired, NULL);
-        sv_buffer_destroy(ctx, &shot);
-        destroy_swapchain(ctx, &sc);
+        if (w.acquired) vkDestroySemaphore(ctx->device, w.acquired, NULL);
+        sv_buffer_destroy(ctx, &w.shot);
+        destroy_swapchain(ctx, &w.sc);
     }
-    rc = sv_app_gpu_destroy(&gpu, rc);
-    if (win) glfwDestroyWindow(win);
+    rc = sv_app_gpu_destroy(&w.gpu, rc);
+    if (w.win) glfwDestroyWindow(w.win);
     glfwTerminate();
     return rc;
 }

@@ -5,6 +5,11 @@ set(SV_VIEW_SOURCES
   src/sv_vk.c
   src/sv_scene.c
   src/sv_renderer.c
+  src/sv_upload.c
+  src/sv_shadows.c
+  src/sv_shadow_math.c
+  src/sv_pipelines.c
+  src/sv_input.c
   src/sv_headless.c
   src/sv_window.c
 )
