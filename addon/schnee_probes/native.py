@@ -8,9 +8,14 @@ All geometry and SH data are in engine space (Y-up, DESIGN.md §2) unless a docs
 SH coefficient arrays have shape ``(sh_count(max_band), 3)`` (coefficient-major, RGB), the
 radiance projection ``L_i = ∫ L(ω) Y_i(ω) dω`` of DESIGN.md §3.
 
-Inputs are validated here (shape -> ValueError, dtype kind -> TypeError, both naming the
-argument) and converted to C-contiguous arrays of the dtype the core wants; the C module
-re-checks every buffer's format and length. See docs/python-api.md.
+The sections below map 1:1 to the module's files (native/python/mod_*.c, one per area of the core):
+one wrapper per C function. Each value is validated once. Here: arguments are converted to
+C-contiguous arrays of the dtype the core wants (a dtype kind that cannot convert -> TypeError,
+integers that would not fit -> ValueError), shapes the C cannot see in a flat buffer are checked
+(ValueError), and names of choices ("clamp", "sinc4") become the C's numbers. The C module checks
+the rest, once, naming the argument: buffer formats and item counts, max_band (0..4), sizes,
+versions, callables and mesh tuples (native/python/mod_common.h). Images are read by images.py.
+See docs/python-api.md.
 """
 from __future__ import annotations
 
@@ -94,7 +99,6 @@ def sh_count(max_band: int) -> int:
     return (max_band + 1) ** 2
 
 
-
 # ---- argument conversion ----------------------------------------------------------------------
 
 _FLOAT_KINDS = "fiu"   # float targets accept float and integer input
@@ -128,14 +132,6 @@ def _vectors(x, name: str, dtype=np.float64) -> Tuple[np.ndarray, bool]:
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise _shape_error(name, "(N, 3) or (3,)", arr)
     return arr, False
-
-
-def _check_band(max_band: int) -> int:
-    if isinstance(max_band, bool) or not isinstance(max_band, (int, np.integer)):
-        raise TypeError(f"max_band must be an int, got {type(max_band).__name__}")
-    if not 0 <= int(max_band) <= 4:
-        raise ValueError(f"max_band {max_band} is out of range 0..4")
-    return int(max_band)
 
 
 def _band_of(count: int, name: str) -> int:
@@ -173,20 +169,20 @@ def _choice(value: str, table: dict, name: str) -> int:
         raise ValueError(f"{name} must be one of {', '.join(map(repr, table))}; got {value!r}") from None
 
 
-# ---- SH -----------------------------------------------------------------------------------------
+# ---- SH and ambient cubes (native/python/mod_sh.c) ------------------------------------------------
 
 def sh_basis(dirs: np.ndarray, max_band: int) -> np.ndarray:
     """Basis values, shape (N, sh_count), at unit directions ``dirs`` (N, 3) in engine space.
     A single direction (3,) gives shape (sh_count,)."""
-    band = _check_band(max_band)
     d, single = _vectors(dirs, "dirs")
-    out = np.frombuffer(_lib().sh_basis(d, band), dtype=np.float64).reshape(len(d), sh_count(band))
+    raw = _lib().sh_basis(d, max_band)  # the C checks max_band (0..4)
+    out = np.frombuffer(raw, dtype=np.float64).reshape(len(d), sh_count(int(max_band)))
     return out[0] if single else out
 
 
 def min_panorama_size(max_band: int) -> Tuple[int, int]:
     """Smallest (width, height) panorama that can represent ``max_band``."""
-    return tuple(_lib().min_panorama_size(_check_band(max_band)))
+    return tuple(_lib().min_panorama_size(max_band))
 
 
 def project_equirect(pixels: np.ndarray, max_band: int = 2, rotation: Optional[np.ndarray] = None,
@@ -196,14 +192,13 @@ def project_equirect(pixels: np.ndarray, max_band: int = 2, rotation: Optional[n
     canonical Cycles panorama direction (Blender world space, camera rotated (90°, 0, −90°)) to the
     output space; None = BLENDER_TO_ENGINE. ``negative``: "error" | "clamp" | "allow" (NaN/Inf is
     always an error). Returns (sh_count, 3) float64. Runs with the GIL released."""
-    band = _check_band(max_band)
     pix = _array(pixels, "pixels", np.float32, _FLOAT_KINDS)
     if pix.ndim != 3 or pix.shape[2] < 3:
         raise _shape_error("pixels", "(H, W, C) with C >= 3", pix)
     h, w, c = pix.shape
-    raw = _lib().project_equirect(pix, w, h, c, band, _rotation(rotation),
+    raw = _lib().project_equirect(pix, w, h, c, max_band, _rotation(rotation),
                                   _choice(negative, _NEGATIVE, "negative"))
-    return np.frombuffer(raw, dtype=np.float64).reshape(sh_count(band), 3)
+    return np.frombuffer(raw, dtype=np.float64).reshape(-1, 3)
 
 
 def project_file(path: str, max_band: int = 2, rotation: Optional[np.ndarray] = None,
@@ -211,17 +206,16 @@ def project_file(path: str, max_band: int = 2, rotation: Optional[np.ndarray] = 
     """Same as :func:`project_equirect` for an image file, read by :func:`images.read_image` (the
     bake's own EXR files by exr.py, other images through Blender, or oiiotool outside Blender).
     Errors are SchneeError: "I/O error" (missing/unreadable file), "malformed file"."""
-    band = _check_band(max_band)
     rot = _rotation(rotation)
     policy = _choice(negative, _NEGATIVE, "negative")
     from . import images
     pixels = images.read_image(path)
     h, w, c = pixels.shape
     try:
-        raw = _lib().project_equirect(pixels, w, h, c, band, rot, policy)
+        raw = _lib().project_equirect(pixels, w, h, c, max_band, rot, policy)
     except SchneeError as exc:
         raise SchneeError(f"{os.fspath(path)}: {exc}", exc.code) from None
-    return np.frombuffer(raw, dtype=np.float64).reshape(sh_count(band), 3)
+    return np.frombuffer(raw, dtype=np.float64).reshape(-1, 3)
 
 
 def read_image(path: str) -> np.ndarray:
@@ -248,7 +242,18 @@ def window(coeffs: np.ndarray, kind: str = "none", strength: float = 0.0) -> Tup
     return np.frombuffer(raw, dtype=np.float64).reshape(c.shape), np.array(min_e, dtype=np.float64)
 
 
-# ---- placement ----------------------------------------------------------------------------------
+def ambient_cube_from_sh(coeffs: np.ndarray) -> np.ndarray:
+    """Ambient cubes (P, 6, 3) (irradiance +X, −X, +Y, −Y, +Z, −Z; the shipped least-squares fit,
+    docs/ambient-cube.md) of radiance SH ``coeffs`` (P, sh_count, 3)."""
+    c = _array(coeffs, "coeffs", np.float64, _FLOAT_KINDS)
+    if c.ndim != 3 or c.shape[2] != 3:
+        raise _shape_error("coeffs", "(P, sh_count, 3)", c)
+    band = _band_of(c.shape[1], "coeffs")
+    raw = _lib().ambient_cube_from_sh(c.reshape(-1), band, 0)
+    return np.frombuffer(raw, dtype=np.float64).reshape(-1, 6, 3)
+
+
+# ---- placement (native/python/mod_placement.c) ----------------------------------------------------
 
 @dataclass
 class Placement:
@@ -268,12 +273,15 @@ Mesh = Tuple[str, np.ndarray, np.ndarray]  # (name, vertices (V, 3) float64, tri
 
 
 def _meshes(meshes: Sequence[Mesh], what: str) -> list:
+    """Each (name, vertices, triangles) with its arrays converted and shapes checked; an item that
+    is not such a triple is passed on for the C to refuse ("volumes[0] must be a (name, ...) tuple")."""
     out = []
     for i, mesh in enumerate(meshes):
         try:
             name, verts, tris = mesh
         except (TypeError, ValueError):
-            raise TypeError(f"{what}[{i}] must be a (name, vertices, triangles) tuple") from None
+            out.append(mesh)
+            continue
         v = _array(verts, f"{what}[{i}] vertices", np.float64, _FLOAT_KINDS)
         if v.ndim != 2 or v.shape[1] != 3:
             raise _shape_error(f"{what}[{i}] vertices", "(V, 3)", v)
@@ -294,8 +302,6 @@ def place_probes(volumes: Sequence[Mesh], geometry: Sequence[Mesh], min_cell_siz
     "cancelled"); returning None continues; an exception raised in it cancels and propagates.
     Open volume meshes raise SchneeError code "open mesh" naming the mesh. Runs with the GIL
     released (the callback takes it back)."""
-    if progress is not None and not callable(progress):
-        raise TypeError("progress must be callable(fraction, stage) or None")
     d = _lib().place_probes(_meshes(volumes, "volumes"), _meshes(geometry, "geometry"),
                             float(min_cell_size), float(max_cell_size), int(threads), progress,
                             int(solid_ray_count), float(solid_backface_ratio), int(max_grid_cells))
@@ -309,7 +315,30 @@ def place_probes(volumes: Sequence[Mesh], geometry: Sequence[Mesh], min_cell_siz
         grid_spacing=d["grid_spacing"], leaf_count=d["leaf_count"], pruned_count=d["pruned_count"])
 
 
-# ---- .shprobe -----------------------------------------------------------------------------------
+def classify_placement(volumes: Sequence[Mesh], geometry: Sequence[Mesh], points: Optional[np.ndarray] = None,
+                       boxes: Optional[np.ndarray] = None, *, min_cell_size: float = 0.0,
+                       max_cell_size: float = 0.0, threads: int = 0, solid_ray_count: int = 0,
+                       solid_backface_ratio: float = 0.0) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Inside/solid/box classification with :func:`place_probes`' rules (Embree), for the corner
+    octree: (inside (N,) bool, backface_ratio (N,) float32, box_class (M,) uint8) for engine-space
+    ``points`` (N, 3) and ``boxes`` (M, 4) = centre x, y, z and half edge. box_class: 0 outside the
+    volumes, 1 inside, 2 crossed by a volume surface. A probe with backface_ratio > the solid ratio
+    (default 0.25) is inside solid geometry: give it validity 0 (it is then left out of the
+    interpolation) — see docs/placement.md."""
+    p = None if points is None else _vectors(points, "points")[0]
+    b = None
+    if boxes is not None:
+        b = _array(boxes, "boxes", np.float64, _FLOAT_KINDS)
+        if b.ndim != 2 or b.shape[1] != 4:
+            raise _shape_error("boxes", "(M, 4)", b)
+    inside, ratio, cls = _lib().placement_classify(
+        _meshes(volumes, "volumes"), _meshes(geometry, "geometry"), p, b, float(min_cell_size),
+        float(max_cell_size), int(threads), int(solid_ray_count), float(solid_backface_ratio))
+    return (np.frombuffer(inside, dtype=np.uint8).astype(bool), np.frombuffer(ratio, dtype=np.float32),
+            np.frombuffer(cls, dtype=np.uint8))
+
+
+# ---- .shprobe, versions 1 to 3 (native/python/mod_shprobe.c) --------------------------------------
 
 _IDENTITY_AXES = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
@@ -418,16 +447,11 @@ def write_shprobe(path: str, coeffs: np.ndarray, grid: np.ndarray, grid_dims: Se
         raise _shape_error("coeffs", "(P, sh_count, 3)", c)
     band = _band_of(c.shape[1], "coeffs")
     n = c.shape[0]
-    dims = tuple(int(v) for v in grid_dims)
-    if len(dims) != 3 or min(dims) < 0:
-        raise ValueError(f"grid_dims must be 3 non-negative ints (X, Y, Z), got {tuple(grid_dims)}")
+    dims = tuple(int(v) for v in grid_dims)     # the C checks 3 entries, each 0..2**32-1
     g = _array(grid, "grid", np.int32, _INT_KINDS)
-    x, y, z = dims
-    if g.shape not in ((x * y * z,), (z, y, x)):
-        raise _shape_error("grid", f"({x * y * z},) or (Z, Y, X) = ({z}, {y}, {x})", g)
+    if g.ndim != 1 and g.shape != dims[::-1]:    # a flat grid's length is the C's to check
+        raise _shape_error("grid", f"({int(np.prod(dims))},) or (Z, Y, X) = {dims[::-1]}", g)
     origin = tuple(float(v) for v in grid_origin)
-    if len(origin) != 3:
-        raise ValueError(f"grid_origin must be 3 floats, got {tuple(grid_origin)}")
     pos = None
     if positions is not None:
         pos = _array(positions, "positions", np.float32, _FLOAT_KINDS)
@@ -438,8 +462,6 @@ def write_shprobe(path: str, coeffs: np.ndarray, grid: np.ndarray, grid_dims: Se
         axes = _array(grid_axes, "grid_axes", np.float32, _FLOAT_KINDS)
         if axes.shape != (3, 3):
             raise _shape_error("grid_axes", "(3, 3)", axes)
-    if int(version) not in (0, 1, 2):
-        raise ValueError(f"version must be 0 (auto), 1 or 2, got {version}")
     return _lib().shprobe_write(
         path, c, band, g, dims, origin, float(grid_spacing),
         default_sh_scale=float(default_sh_scale), default_ambient=float(default_ambient),
@@ -476,7 +498,41 @@ def shprobe_lookup(probes: ShProbeFile, points: np.ndarray) -> np.ndarray:
     return out.reshape(()) if single else out
 
 
-# ---- interpolation on probe positions, error-driven refinement, .shprobe v3 (issue 12) ------------
+_REPRESENTATIONS = {"sh": 0, "ambientCube": 1}
+_STORAGES = {"float32": 0, "float16": 1}
+
+
+def write_shprobe_v3(path: str, structure: _Interpolation, coeffs: np.ndarray, *, representation: str = "sh",
+                     storage: str = "float32", probe_scale=None, probe_ambient=None, validity=None,
+                     default_sh_scale: float = 1.0, default_ambient: float = 0.1) -> int:
+    """Write a version 3 ``.shprobe`` of a finalized :class:`CornerOctree` or a :class:`Tetrahedra`
+    (positions from the structure). ``coeffs`` (P, sh_count, 3) for SH, (P, 6, 3) for an ambient
+    cube (its header's max band is then 2, informational). Returns the probe count."""
+    rep = _choice(representation, _REPRESENTATIONS, "representation")
+    sto = _choice(storage, _STORAGES, "storage")
+    c = _array(coeffs, "coeffs", np.float32, _FLOAT_KINDS)
+    if c.ndim != 3 or c.shape[2] != 3:
+        raise _shape_error("coeffs", "(P, colours, 3)", c)
+    if rep == 1 and c.shape[1] != 6:
+        raise _shape_error("coeffs", "(P, 6, 3) for an ambient cube", c)
+    band = 2 if rep == 1 else _band_of(c.shape[1], "coeffs")
+    n = c.shape[0]
+    return _lib().shprobe_write_v3(path, structure._handle, c.reshape(-1), rep, band, sto,
+                                   probe_scale=_per_probe(probe_scale, "probe_scale", n),
+                                   probe_ambient=_per_probe(probe_ambient, "probe_ambient", n),
+                                   validity=_per_probe(validity, "validity", n),
+                                   default_sh_scale=float(default_sh_scale),
+                                   default_ambient=float(default_ambient))
+
+
+def resample_shprobe_dense(path: str, spacing: float = 0.0) -> ShProbeFile:
+    """A version 3 SH file's field resampled onto a dense grid (each covered cell = one probe with the
+    value interpolated at its centre); write it with :func:`write_shprobe` (version 1 for L <= 2).
+    ``spacing`` 0 = the octree's min cell (required for tetrahedra)."""
+    return _shprobe_from_dict(_lib().shprobe_resample_dense(path, float(spacing)))
+
+
+# ---- interpolation on probe positions, error-driven refinement (issue 12, native/python/mod_interp.c)
 #
 # docs/placement.md ("Interpolation", "Error-driven refinement") and docs/shprobe-format.md
 # ("Version 3"). A bake drives the refinement pass by pass (bench/bench_interp.py does it on
@@ -493,9 +549,6 @@ def shprobe_lookup(probes: ShProbeFile, points: np.ndarray) -> np.ndarray:
 #         tree.split(split); tree.finalize()             # test points become probes
 #         values = old values by lattice point (tree.probe_lattice()); bake the new edge midpoints
 #     write_shprobe_v3(path, tree, values, ...)
-
-_REPRESENTATIONS = {"sh": 0, "ambientCube": 1}
-_STORAGES = {"float32": 0, "float16": 1}
 
 
 @dataclass
@@ -520,12 +573,8 @@ class _Interpolation:
         (255 = clear): the continuous visibility field of pb_interp.h / docs/placement.md."""
         p, _ = _vectors(points, "points")
         val = None if validity is None else _array(validity, "validity", np.float32, _FLOAT_KINDS)
-        pv = None
-        if pair_visibility is not None:
-            pv = np.asarray(pair_visibility)
-            if pv.dtype != np.uint8:
-                raise TypeError(f"pair_visibility must be uint8, got {pv.dtype}")
-            pv = np.ascontiguousarray(pv).reshape(-1)
+        # uint8 as it is (no conversion of other dtypes: the C refuses them, naming the format)
+        pv = None if pair_visibility is None else np.ascontiguousarray(pair_visibility).reshape(-1)
         pr, wt, k = _lib().interp_query(self._handle, p, val, pv)
         return (np.frombuffer(pr, dtype=np.int32).reshape(-1, k),
                 np.frombuffer(wt, dtype=np.float64).reshape(-1, k))
@@ -695,77 +744,13 @@ class Tetrahedra(_Interpolation):
                 "neighbours": np.frombuffer(d["neighbours"], dtype=np.int32).reshape(-1, 4)}
 
 
-def write_shprobe_v3(path: str, structure: _Interpolation, coeffs: np.ndarray, *, representation: str = "sh",
-                     storage: str = "float32", probe_scale=None, probe_ambient=None, validity=None,
-                     default_sh_scale: float = 1.0, default_ambient: float = 0.1) -> int:
-    """Write a version 3 ``.shprobe`` of a finalized :class:`CornerOctree` or a :class:`Tetrahedra`
-    (positions from the structure). ``coeffs`` (P, sh_count, 3) for SH, (P, 6, 3) for an ambient
-    cube (its header's max band is then 2, informational). Returns the probe count."""
-    rep = _choice(representation, _REPRESENTATIONS, "representation")
-    sto = _choice(storage, _STORAGES, "storage")
-    c = _array(coeffs, "coeffs", np.float32, _FLOAT_KINDS)
-    if c.ndim != 3 or c.shape[2] != 3:
-        raise _shape_error("coeffs", "(P, colours, 3)", c)
-    if rep == 1 and c.shape[1] != 6:
-        raise _shape_error("coeffs", "(P, 6, 3) for an ambient cube", c)
-    band = 2 if rep == 1 else _band_of(c.shape[1], "coeffs")
-    n = c.shape[0]
-    return _lib().shprobe_write_v3(path, structure._handle, c.reshape(-1), rep, band, sto,
-                                   probe_scale=_per_probe(probe_scale, "probe_scale", n),
-                                   probe_ambient=_per_probe(probe_ambient, "probe_ambient", n),
-                                   validity=_per_probe(validity, "validity", n),
-                                   default_sh_scale=float(default_sh_scale),
-                                   default_ambient=float(default_ambient))
-
-
-def ambient_cube_from_sh(coeffs: np.ndarray) -> np.ndarray:
-    """Ambient cubes (P, 6, 3) (irradiance +X, −X, +Y, −Y, +Z, −Z; the shipped least-squares fit,
-    docs/ambient-cube.md) of radiance SH ``coeffs`` (P, sh_count, 3)."""
-    c = _array(coeffs, "coeffs", np.float64, _FLOAT_KINDS)
-    if c.ndim != 3 or c.shape[2] != 3:
-        raise _shape_error("coeffs", "(P, sh_count, 3)", c)
-    band = _band_of(c.shape[1], "coeffs")
-    raw = _lib().ambient_cube_from_sh(c.reshape(-1), band, 0)
-    return np.frombuffer(raw, dtype=np.float64).reshape(-1, 6, 3)
-
-
 def interpolation_from_file(path: str) -> _Interpolation:
     """The interpolation structure of a version 3 file, with the file's own probe numbering."""
     h = _lib().interp_from_file(path)
     return CornerOctree(h) if "cotree" in repr(h) else Tetrahedra(h)
 
 
-def resample_shprobe_dense(path: str, spacing: float = 0.0) -> ShProbeFile:
-    """A version 3 SH file's field resampled onto a dense grid (each covered cell = one probe with the
-    value interpolated at its centre); write it with :func:`write_shprobe` (version 1 for L <= 2).
-    ``spacing`` 0 = the octree's min cell (required for tetrahedra)."""
-    return _shprobe_from_dict(_lib().shprobe_resample_dense(path, float(spacing)))
-
-
-def classify_placement(volumes: Sequence[Mesh], geometry: Sequence[Mesh], points: Optional[np.ndarray] = None,
-                       boxes: Optional[np.ndarray] = None, *, min_cell_size: float = 0.0,
-                       max_cell_size: float = 0.0, threads: int = 0, solid_ray_count: int = 0,
-                       solid_backface_ratio: float = 0.0) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Inside/solid/box classification with :func:`place_probes`' rules (Embree), for the corner
-    octree: (inside (N,) bool, backface_ratio (N,) float32, box_class (M,) uint8) for engine-space
-    ``points`` (N, 3) and ``boxes`` (M, 4) = centre x, y, z and half edge. box_class: 0 outside the
-    volumes, 1 inside, 2 crossed by a volume surface. A probe with backface_ratio > the solid ratio
-    (default 0.25) is inside solid geometry: give it validity 0 (it is then left out of the
-    interpolation) — see docs/placement.md."""
-    p = None if points is None else _vectors(points, "points")[0]
-    b = None
-    if boxes is not None:
-        b = _array(boxes, "boxes", np.float64, _FLOAT_KINDS)
-        if b.ndim != 2 or b.shape[1] != 4:
-            raise _shape_error("boxes", "(M, 4)", b)
-    inside, ratio, cls = _lib().placement_classify(
-        _meshes(volumes, "volumes"), _meshes(geometry, "geometry"), p, b, float(min_cell_size),
-        float(max_cell_size), int(threads), int(solid_ray_count), float(solid_backface_ratio))
-    return (np.frombuffer(inside, dtype=np.uint8).astype(bool), np.frombuffer(ratio, dtype=np.float32),
-            np.frombuffer(cls, dtype=np.uint8))
-
-
-# ---- direct light (issue 11, docs/direct-light.md) ---------------------------------------------
+# ---- direct light (issue 11, docs/direct-light.md; native/python/mod_direct.c) --------------------
 
 LIGHT_TYPES = {"SUN": 0, "POINT": 1, "SPOT": 2, "AREA_RECT": 3, "AREA_ELLIPSE": 4}
 LIGHT_RECORD = 20  # float64 per lamp: type, position[3], direction[3], axis_u[3], rgb[3], radius,
@@ -809,12 +794,11 @@ def direct_project(lamps: Sequence[Lamp], probes: np.ndarray, max_band: int = 2,
     """Radiance projection of the lamps' direct light at each probe (engine space), shadowed by
     ``geometry`` (opaque triangles; None = nothing occludes). ``samples``: quadrature cells and
     shadow rays per lamp (0 = 256). Returns (P, sh_count, 3) float64. GIL released."""
-    band = _check_band(max_band)
     p, _ = _vectors(probes, "probes")
     rec = np.ascontiguousarray(np.array([lamp.record() for lamp in lamps], dtype=np.float64).reshape(-1))
     geo = None if geometry is None else _meshes(geometry, "geometry")
-    out = _lib().direct_project(rec, p, band, int(samples), geo, float(ray_offset))
-    return np.frombuffer(out, dtype=np.float64).reshape(len(p), sh_count(band), 3)
+    out = _lib().direct_project(rec, p, max_band, int(samples), geo, float(ray_offset))
+    return np.frombuffer(out, dtype=np.float64).reshape(len(p), sh_count(int(max_band)), 3)
 
 
 def sky_table(world: np.ndarray, pano_width: int, pano_height: int, max_band: int = 2,
@@ -823,17 +807,16 @@ def sky_table(world: np.ndarray, pano_width: int, pano_height: int, max_band: in
     texels whose centres fall into it: ``world`` (H, W, C>=3) float32 equirect, same mapping, any
     resolution. Returns (pano_height, pano_width, sh_count, 3) float64; the sum over all cells is
     the world's projection (project_equirect)."""
-    band = _check_band(max_band)
     arr = _array(world, "world", np.float32, _FLOAT_KINDS)
     if arr.ndim != 3 or arr.shape[2] < 3:
         raise _shape_error("world", "(H, W, C>=3)", arr)
     rot = _rotation(rotation)
     out = _lib().sky_table(arr, arr.shape[1], arr.shape[0], arr.shape[2], int(pano_width), int(pano_height),
-                           band, rot)
-    return np.frombuffer(out, dtype=np.float64).reshape(int(pano_height), int(pano_width), sh_count(band), 3)
+                           max_band, rot)
+    return np.frombuffer(out, dtype=np.float64).reshape(int(pano_height), int(pano_width), sh_count(int(max_band)), 3)
 
 
-# ---- the sky's sun (issue 27, docs/direct-light.md "The sky's sun") ------------------------------
+# ---- the sky's sun (issue 27, docs/direct-light.md "The sky's sun"; native/python/mod_direct.c) ---
 
 @dataclass
 class SkySun:
