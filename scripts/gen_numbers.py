@@ -89,20 +89,16 @@ NUMBERS = {
     "room_defaults_cpu_s": lambda: f"{row(ROOM_DEFAULTS)['cpu_seconds']:.0f}",
     "room_defaults_minutes": lambda: minutes(room_defaults_alone_seconds()),
     "room_defaults_error_mean": lambda: pct(row(ROOM_DEFAULTS)["error"]["mean"], 2),
-    "room_defaults_floor_mean": lambda: pct(load(ROOM_DEFAULTS)["floor"]["mean"]),
     # The same room and render settings at 4 spp (placement_room_4spp_quad.json, noise in quadrature).
     "room_4spp_error_mean": lambda: pct(row("placement_room_4spp_quad")["error"]["mean"]),
     "room_4spp_minutes": lambda: minutes(row("placement_room_4spp_quad")["seconds"]),
-    # Reduced quality (64×32 px, 16 spp, 16 bounces): Error Tolerance 0.05 and 0.03 with prediction
-    # (placement_room_predict.json, placement_room_reloc.json), 0.03 with the rates through noise
-    # (placement_room_pnoise.json, the reduced table's default) and 0.05 without prediction
-    # (placement_room.json).
-    "room_reduced_005_probes": lambda: str(row("placement_room_predict")["probes"]),
+    # Reduced quality (64×32 px, 16 spp, 16 bounces): Error Tolerance 0.05 with prediction
+    # (placement_room_predict.json), 0.03 with the rates through noise (placement_room_pnoise.json,
+    # the reduced table's default) and 0.05 without prediction (placement_room.json).
+    # The guide's settings table is generated from addon/schnee_probes/settings.py
+    # (scripts/gen_settings_table.py): its figures are not marked here.
     "room_reduced_005_points": lambda: str(row("placement_room_predict")["renders"]),
     "room_reduced_005_error_mean": lambda: pct(row("placement_room_predict")["error"]["mean"]),
-    "room_reduced_003_probes": lambda: str(row("placement_room_reloc")["probes"]),
-    "room_reduced_003_points": lambda: str(row("placement_room_reloc")["renders"]),
-    "room_reduced_003_error_mean": lambda: pct(row("placement_room_reloc")["error"]["mean"]),
     "room_reduced_points": lambda: str(row("placement_room_pnoise")["renders"]),
     "room_reduced_error_mean": lambda: pct(row("placement_room_pnoise")["error"]["mean"]),
     "room_reduced_nopredict_points": lambda: str(row("placement_room")["renders"]),
