@@ -2,6 +2,9 @@
  * reader (pb_shprobe_read), packed into one GPU buffer whose index 0 is the fallback probe and
  * whose grids follow in glTF order; and the per-object query (first grid holding the point with a
  * valid cell wins, else 0).
+ *
+ * Files: sv_probes.c loading and lookup (this header), sv_probe_query.c the per-object queries,
+ * sv_probe_vis.c the visibility through the static scene, sv_probe_pack.c the GPU packing.
  */
 #ifndef SV_PROBES_H
 #define SV_PROBES_H
@@ -19,8 +22,8 @@
  * ambientTerm). The value is a neutral mid-dark grey; --fallback-radiance overrides it. */
 #define SV_FALLBACK_RADIANCE 0.2f
 
-/* Threads of the Embree device that computes the per-pixel visibility masks at load
- * (rtcNewDevice "threads=N"): min(online CPUs, this). */
+/* Threads of the occluders' BVH builds (the static scene, the per-pixel visibility masks at load;
+ * pb_occluder_desc.thread_count): min(online CPUs, this). */
 #define SV_EMBREE_MAX_THREADS 4u
 
 /* A .shprobe file larger than this is refused before it is read (1 GiB: about 2.5 M probes at
@@ -61,8 +64,8 @@ typedef struct sv_probes {
      * / SV_PROBE_REP_MATERIAL = each material's own) and which (material, grid) pairs were named. */
     uint32_t probe_mode_override, probe_rep_override;
     uint8_t *warned;       /* (material_count + 1) x grid_count */
-    sv_static_vis *vis;    /* Embree scene of every object, built at the first v3 query; hits on moved
-                              objects are ignored (docs/engine.md "Static scene") */
+    sv_static_vis *vis;    /* occluder of every object (sv_probe_vis.h), built at the first v3 query;
+                              hits on moved objects are ignored (docs/engine.md "Static scene") */
     uint32_t movable_seen; /* movable objects at the last assignment (a change re-queries every object) */
 } sv_probes;
 
@@ -79,56 +82,10 @@ void sv_cell_centre(const pb_shprobe *file, int x, int y, int z, float out[3]);
 /* Buffer index for a world-space point (DESIGN.md §7). */
 uint32_t sv_probes_lookup(const sv_probes *probes, const float point[3]);
 
-/* Re-queries every object flagged needs_probe (centre of its world bounds); returns how many.
- * Dense grids (v1/v2, v3 structure 0): the probe of the cell holding the centre. Octree and
- * tetrahedra grids: pb_interp_query_cotree / _tetra at the centre with the file's validity and a
- * visibility judge that traces probe -> centre through the static scene (objects never moved,
- * without the queried object itself); the weighted probes are blended into the object's slot. */
-uint32_t sv_probes_assign(sv_probes *probes, sv_scene *scene);
-
-/* GPU buffer contents: total entries, caller frees. Probe 0 (the fallback) is `sky_sh` (band
- * `sky_band`, radiance SH) when sky_sh is not NULL, else uniform `fallback_radiance`. */
-sv_gpu_probe *sv_probes_pack(const sv_probes *probes, float fallback_radiance, const float (*sky_sh)[3],
-                             uint32_t sky_band);
-/* The same entries in half storage (packHalf2x16 layout of sv_gpu_probe_half). Caller frees. */
-sv_gpu_probe_half *sv_probes_pack_half(const sv_gpu_probe *packed, uint32_t count);
-/* True when every coefficient and scale of the packed probes fits half floats (|v| <= 65504, the
- * largest finite binary16); else false with a message naming the first grid and probe that does
- * not (or the fallback probe, the sky's SH) and the value. */
-#define SV_HALF_MAX 65504.0f
-bool sv_probes_fit_half(const sv_probes *probes, const sv_gpu_probe *packed, char *msg, size_t cap);
-/* IEEE 754 binary16 of a float (round to nearest even), as GLSL's packHalf2x16 stores it. */
-uint16_t sv_half_from_float(float f);
-
-/* Ambient cubes of the packed probes (docs/ambient-cube.md §5): each probe's SH fitted by
- * pb_ambient_cube_from_sh (PB_AMBIENT_CUBE_LEAST_SQUARES), params copied (band, scale, validity).
- * Same indexing as `packed` (0 = the fallback, from the sky's SH or the constant). Caller frees. */
-sv_gpu_cube *sv_probes_pack_cubes(const sv_gpu_probe *packed, uint32_t count);
-/* As sv_probes_pack_cubes for `probes->total` entries, with the entries of grids whose file holds
- * ambient cubes (v3 representation 1) taken from the file (hanging nodes resolved as for the SH). */
-sv_gpu_cube *sv_probes_pack_all_cubes(const sv_probes *probes, const sv_gpu_probe *packed);
-/* One entry in half storage (the layouts of sv_probes_pack_half / _cubes_half). */
-void sv_probe_to_half(const sv_gpu_probe *in, sv_gpu_probe_half *out);
-void sv_cube_to_half(const sv_gpu_cube *in, sv_gpu_cube_half *out);
-/* True when some grid's file holds ambient cubes only. */
-bool sv_probes_have_cube_grids(const sv_probes *probes);
-/* The same cubes in half storage (packHalf2x16 layout of sv_gpu_cube_half). Caller frees. */
-sv_gpu_cube_half *sv_probes_pack_cubes_half(const sv_gpu_cube *cubes, uint32_t count);
-/* As sv_probes_fit_half for the cube colours (a cube colour can exceed the SH coefficients it came
- * from: C = 0.886 L0 + ...). */
-bool sv_probes_cubes_fit_half(const sv_probes *probes, const sv_gpu_cube *cubes, char *msg, size_t cap);
-
-/* Per-pixel sampling data: one sv_gpu_grid per grid and the concatenated occupancy grids (n
- * int32 cell -> probe indices) followed by one neighbour-visibility mask per cell (n uint32, grid
- * g's at base[1]; *cell_count = 2n). The masks come from Embree occlusion rays between cell centres
- * through `scene`'s triangles at their current transforms (NULL: every neighbour visible); see
- * docs/engine.md "Per-pixel probes". Caller frees both. */
-bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_grid **grids, int32_t **cells,
-                         uint32_t *cell_count);
-
-/* One sphere per probe (at its v2 position, else the mean centre of the cells that map to it;
- * radius 0.1 x the grid spacing), then one entry per occupied cell (its centre, for the
- * outlines). Caller frees. */
-sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, uint32_t *cell_count);
+/* The rest of the probe API, one header per concern (included here so that sv_probes.h still
+ * declares all of it): */
+#include "sv_probe_pack.h"  /* GPU buffers: SH, ambient cubes, half storage, per-pixel grids */
+#include "sv_probe_query.h" /* per-object queries (sv_probes_assign) */
+#include "sv_probe_vis.h"   /* visibility through the static scene (occluders of the core) */
 
 #endif

@@ -3,4 +3,5 @@
 set(PB_EMBREE_SOURCES
   src/pb_octree.c
   src/pb_direct.c
+  src/pb_occluder.c
 )

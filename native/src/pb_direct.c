@@ -1,7 +1,7 @@
 /* Direct light of lamps and sky projected onto SH by stratified quadrature (docs/direct-light.md). */
 #include "schnee/pb_direct.h"
 
-#include "schnee/pb_embree_compat.h"
+#include "schnee/pb_occluder.h"
 #include "schnee/pb_sh.h"
 
 #include <float.h>
@@ -12,23 +12,14 @@
 #define PB_PI 3.14159265358979323846
 
 struct pb_direct_scene {
-    RTCDevice device;
-    RTCScene scene;   /* NULL when there is no geometry */
-    double centre[3]; /* geometry is stored relative to this point (float precision far away) */
+    pb_occluder *occluder; /* NULL when there is no geometry */
+    double centre[3];      /* geometry is stored relative to this point (float precision far away) */
 };
-
-static void dscene_error_fn(void *user, enum RTCError code, const char *str)
-{
-    (void)user;
-    (void)code;
-    (void)str;
-}
 
 void pb_direct_scene_destroy(pb_direct_scene *s)
 {
     if (!s) return;
-    if (s->scene) rtcReleaseScene(s->scene);
-    if (s->device) rtcReleaseDevice(s->device);
+    pb_occluder_destroy(s->occluder);
     free(s);
 }
 
@@ -62,50 +53,38 @@ pb_result pb_direct_scene_create(const pb_mesh_desc *geometry, uint32_t count, p
         tris += m->triangle_count;
     }
     pb_direct_scene *s = calloc(1, sizeof *s);
-    if (!s) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating the occluder scene");
-    if (tris == 0) {
-        *out = s;
-        return PB_SUCCESS;
-    }
-    for (int a = 0; a < 3; a++) s->centre[a] = 0.5 * (lo[a] + hi[a]);
-    s->device = rtcNewDevice("threads=1");
-    if (!s->device) {
+    pb_occluder_mesh *om = calloc((size_t)count + 1, sizeof *om);
+    if (!s || !om) {
         free(s);
-        return pb_error_set(err, PB_ERROR_EMBREE, "Embree could not create a device (error %d)",
-                            (int)rtcGetDeviceError(NULL));
+        free(om);
+        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating the occluder scene");
     }
-    rtcSetDeviceErrorFunction(s->device, dscene_error_fn, NULL);
-    s->scene = rtcNewScene(s->device);
-    if (!s->scene) goto embree_fail;
-    rtcSetSceneBuildQuality(s->scene, RTC_BUILD_QUALITY_MEDIUM);
-    for (uint32_t i = 0; i < count; i++) {
-        const pb_mesh_desc *m = &geometry[i];
-        if (m->triangle_count == 0) continue;
-        RTCGeometry g = rtcNewGeometry(s->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        if (!g) goto embree_fail;
-        float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                            m->vertex_count);
-        unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-                                               m->triangle_count);
-        if (!vb || !ib) {
-            rtcReleaseGeometry(g);
-            goto embree_fail;
+    pb_result r = PB_SUCCESS;
+    if (tris > 0) {
+        for (int a = 0; a < 3; a++) s->centre[a] = 0.5 * (lo[a] + hi[a]);
+        for (uint32_t i = 0; i < count; i++) {
+            om[i].positions = geometry[i].positions;
+            om[i].indices = geometry[i].indices;
+            om[i].vertex_count = geometry[i].vertex_count;
+            om[i].triangle_count = geometry[i].triangle_count;
         }
-        for (size_t v = 0; v < m->vertex_count; v++)
-            for (int a = 0; a < 3; a++) vb[3 * v + a] = (float)(m->positions[3 * v + a] - s->centre[a]);
-        memcpy(ib, m->indices, 3 * sizeof(unsigned) * (size_t)m->triangle_count);
-        rtcCommitGeometry(g);
-        rtcAttachGeometry(s->scene, g);
-        rtcReleaseGeometry(g);
+        /* One thread: the bake asks for one probe at a time. */
+        pb_occluder_desc d = {0};
+        d.meshes = om;
+        d.mesh_count = count;
+        memcpy(d.origin, s->centre, sizeof d.origin);
+        d.thread_count = 1;
+        d.flags = PB_OCCLUDER_BUILD_MEDIUM;
+        d.what = "direct-light occluder";
+        r = pb_occluder_create(&d, &s->occluder, err);
     }
-    rtcCommitScene(s->scene);
-    if (rtcGetDeviceError(s->device) != RTC_ERROR_NONE) goto embree_fail;
+    free(om);
+    if (r) {
+        pb_direct_scene_destroy(s);
+        return r;
+    }
     *out = s;
     return PB_SUCCESS;
-embree_fail:;
-    const int code = s->device ? (int)rtcGetDeviceError(s->device) : -1;
-    pb_direct_scene_destroy(s);
-    return pb_error_set(err, PB_ERROR_EMBREE, "Embree could not build the occluder scene (error %d)", code);
 }
 
 /* ---------------------------------------------------------------------------------------------- */
@@ -121,23 +100,16 @@ typedef struct accum {
 /* 1 when the segment probe → probe + dir·dist (dist = INFINITY for a sun) is free of occluders. */
 static bool visible(const accum *a, const double dir[3], double dist)
 {
-    if (!a->scene || !a->scene->scene) return true;
-    struct RTCRayHit rh;
-    struct RTCRay *ray = &rh.ray;
-    memset(&rh, 0, sizeof rh);
-    ray->org_x = (float)(a->probe[0] - a->scene->centre[0]);
-    ray->org_y = (float)(a->probe[1] - a->scene->centre[1]);
-    ray->org_z = (float)(a->probe[2] - a->scene->centre[2]);
-    ray->dir_x = (float)dir[0];
-    ray->dir_y = (float)dir[1];
-    ray->dir_z = (float)dir[2];
-    ray->tnear = (float)a->offset;
-    ray->tfar = isfinite(dist) ? (float)(dist - a->offset) : INFINITY;
-    if (!(ray->tfar > ray->tnear)) return true;
-    ray->mask = 0xFFFFFFFFu;
-    ray->flags = 0;
-    pb_rtc_occluded1(a->scene->scene, ray);
-    return !(ray->tfar < 0.0f); /* Embree sets tfar = -inf on a hit */
+    if (!a->scene || !a->scene->occluder) return true;
+    pb_occluder_ray ray;
+    for (int k = 0; k < 3; k++) {
+        ray.org[k] = (float)(a->probe[k] - a->scene->centre[k]);
+        ray.dir[k] = (float)dir[k];
+    }
+    ray.tnear = (float)a->offset;
+    ray.tfar = isfinite(dist) ? (float)(dist - a->offset) : INFINITY;
+    if (!(ray.tfar > ray.tnear)) return true;
+    return !pb_occluder_occluded(a->scene->occluder, &ray);
 }
 
 /* Adds weight_rgb · Y(dir) when the lamp point at `dist` along dir is visible. */

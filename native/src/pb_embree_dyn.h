@@ -10,7 +10,7 @@
 #ifndef SCHNEE_PB_EMBREE_DYN_H
 #define SCHNEE_PB_EMBREE_DYN_H
 
-#include "schnee/pb_embree.h"
+#include "pb_embree.h"
 #include <stddef.h>
 
 /* Every exported Embree function pb_octree.c and pb_direct.c call (the rtcInit* helpers are inline), in Embree 3

@@ -26,7 +26,7 @@
  */
 #include "schnee/pb_octree.h"
 
-#include "schnee/pb_embree_compat.h"
+#include "schnee/pb_occluder.h"
 #include "schnee/pb_shprobe.h"
 
 #include "pb_file.h"
@@ -100,14 +100,10 @@ typedef struct oct_ctx {
     uint32_t root_lg; /* root cell edge = 2^root_lg grid units */
     double eps;       /* PB_BOX_EPS · min_cell, metres */
 
-    /* Embree. */
-    RTCDevice device;
-    RTCScene vol_scene, geo_scene, probe_scene;
-    uint32_t *vol_mesh_of_geom, *geo_mesh_of_geom; /* geomID → mesh index */
-    pthread_mutex_t embree_lock;
-    bool embree_lock_ok;
-    bool embree_failed;
-    char embree_message[256];
+    /* Occluders (pb_occluder.h): the volumes, the scene geometry (NULL without triangles) and,
+     * for the last stage, the probe points. */
+    pb_occluder *vol, *geo;
+    pb_point_index *probe_index;
 
     float (*ray_dirs)[3];
 
@@ -149,23 +145,13 @@ static pb_result cancelled(oct_ctx *c, const char *stage)
     return pb_error_set(c->err, PB_ERROR_CANCELLED, "probe placement cancelled during %s", stage);
 }
 
-static void embree_error_fn(void *user, enum RTCError code, const char *str)
-{
-    oct_ctx *c = (oct_ctx *)user;
-    if (code == RTC_ERROR_NONE) return;
-    if (c->embree_lock_ok) pthread_mutex_lock(&c->embree_lock);
-    if (!c->embree_failed) {
-        c->embree_failed = true;
-        snprintf(c->embree_message, sizeof c->embree_message, "Embree error %d: %s", (int)code,
-                 str ? str : "(no detail)");
-    }
-    if (c->embree_lock_ok) pthread_mutex_unlock(&c->embree_lock);
-}
-
+/* The first Embree error any occluder of the call met, as a pb_error. */
 static pb_result embree_check(oct_ctx *c, const char *what)
 {
-    if (!c->embree_failed) return PB_SUCCESS;
-    return pb_error_set(c->err, PB_ERROR_EMBREE, "%s while %s", c->embree_message, what);
+    pb_result r = pb_occluder_error(c->vol, c->err, what);
+    if (!r) r = pb_occluder_error(c->geo, c->err, what);
+    if (!r) r = pb_point_index_error(c->probe_index, c->err, what);
+    return r;
 }
 
 /* ---------------------------------------------------------------------------------------------- */
@@ -232,138 +218,16 @@ static bool parallel_for(oct_ctx *c, uint64_t count, uint64_t chunk, range_fn fn
 }
 
 /* ---------------------------------------------------------------------------------------------- */
-/* Exact triangle–box overlap (Akenine-Möller's separating-axis test), in double.                  */
-
-static inline void sub3(double r[3], const double a[3], const double b[3])
-{
-    r[0] = a[0] - b[0];
-    r[1] = a[1] - b[1];
-    r[2] = a[2] - b[2];
-}
-
-static inline void cross3(double r[3], const double a[3], const double b[3])
-{
-    r[0] = a[1] * b[2] - a[2] * b[1];
-    r[1] = a[2] * b[0] - a[0] * b[2];
-    r[2] = a[0] * b[1] - a[1] * b[0];
-}
-
-static inline double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
-/* Projection of the triangle (v0, v1, v2, relative to the box centre) and of the box (half size h)
- * on axis a; returns true when they are separated. */
-static inline bool sat_separated(const double a[3], const double v0[3], const double v1[3], const double v2[3],
-                                 double h)
-{
-    double p0 = dot3(a, v0), p1 = dot3(a, v1), p2 = dot3(a, v2);
-    double mn = fmin(p0, fmin(p1, p2)), mx = fmax(p0, fmax(p1, p2));
-    double r = h * (fabs(a[0]) + fabs(a[1]) + fabs(a[2]));
-    return mn > r || mx < -r;
-}
-
-/* Closed overlap of the cube (centre bc, half edge h) and triangle (t0, t1, t2). */
-static bool tri_box_overlap(const double bc[3], double h, const double t0[3], const double t1[3], const double t2[3])
-{
-    double v0[3], v1[3], v2[3];
-    sub3(v0, t0, bc);
-    sub3(v1, t1, bc);
-    sub3(v2, t2, bc);
-    /* 1. the box's face normals (= the triangle's bounding box against the box) */
-    for (int k = 0; k < 3; k++) {
-        double mn = fmin(v0[k], fmin(v1[k], v2[k])), mx = fmax(v0[k], fmax(v1[k], v2[k]));
-        if (mn > h || mx < -h) return false;
-    }
-    double e[3][3];
-    sub3(e[0], v1, v0);
-    sub3(e[1], v2, v1);
-    sub3(e[2], v0, v2);
-    /* 2. the triangle's plane */
-    double n[3];
-    cross3(n, e[0], e[1]);
-    if (sat_separated(n, v0, v0, v0, h)) return false;
-    /* 3. the nine edge × box-axis cross products */
-    for (int i = 0; i < 3; i++) {
-        for (int k = 0; k < 3; k++) {
-            double axis[3] = {0, 0, 0}, a[3];
-            axis[k] = 1.0;
-            cross3(a, e[i], axis);
-            if (a[0] == 0 && a[1] == 0 && a[2] == 0) continue;
-            if (sat_separated(a, v0, v1, v2, h)) return false;
-        }
-    }
-    return true;
-}
-
-/* ---------------------------------------------------------------------------------------------- */
 /* Queries                                                                                          */
-
-static inline void mesh_vertex_rel(const oct_ctx *c, const pb_mesh_desc *m, uint32_t v, double out[3])
-{
-    out[0] = m->positions[3 * (size_t)v + 0] - c->centre[0];
-    out[1] = m->positions[3 * (size_t)v + 1] - c->centre[1];
-    out[2] = m->positions[3 * (size_t)v + 2] - c->centre[2];
-}
-
-typedef struct box_query {
-    const oct_ctx *c;
-    const pb_mesh_desc *meshes;
-    const uint32_t *mesh_of_geom;
-    double centre[3];
-    double h;
-    bool found;
-} box_query;
-
-static bool box_query_fn(struct RTCPointQueryFunctionArguments *args)
-{
-    box_query *q = (box_query *)args->userPtr;
-    if (q->found) return false;
-    const pb_mesh_desc *m = &q->meshes[q->mesh_of_geom[args->geomID]];
-    const uint32_t *tri = &m->indices[3 * (size_t)args->primID];
-    double t0[3], t1[3], t2[3];
-    mesh_vertex_rel(q->c, m, tri[0], t0);
-    mesh_vertex_rel(q->c, m, tri[1], t1);
-    mesh_vertex_rel(q->c, m, tri[2], t2);
-    if (!tri_box_overlap(q->centre, q->h, t0, t1, t2)) return false;
-    q->found = true;
-    args->query->radius = 0.0f; /* nothing more to find: shrink the query to stop early */
-    return true;
-}
-
-/* Whether the cube (relative centre, half edge h) overlaps any triangle of the scene. */
-static bool box_overlaps(const oct_ctx *c, RTCScene scene, const pb_mesh_desc *meshes, const uint32_t *mesh_of_geom,
-                         const double centre[3], double h)
-{
-    if (!scene || h <= 0) return false;
-    box_query q;
-    q.c = c;
-    q.meshes = meshes;
-    q.mesh_of_geom = mesh_of_geom;
-    memcpy(q.centre, centre, sizeof q.centre);
-    q.h = h;
-    q.found = false;
-    struct RTCPointQuery pq;
-    pq.x = (float)centre[0];
-    pq.y = (float)centre[1];
-    pq.z = (float)centre[2];
-    pq.time = 0.0f;
-    /* Bounding sphere of the cube, widened for the float rounding of the centre and of Embree's
-     * bounds (relative 1e-5 of the coordinates is far above float's 6e-8). */
-    double mag = fmax(fabs(centre[0]), fmax(fabs(centre[1]), fabs(centre[2])));
-    pq.radius = (float)(h * 1.7320508075688772 * (1.0 + 1e-5) + 1e-5 * mag + c->eps);
-    struct RTCPointQueryContext pctx;
-    rtcInitPointQueryContext(&pctx);
-    rtcPointQuery(scene, &pq, &pctx, box_query_fn, &q);
-    return q.found;
-}
 
 static bool box_touches_geometry(const oct_ctx *c, const double centre[3], double h)
 {
-    return box_overlaps(c, c->geo_scene, c->desc->geometry, c->geo_mesh_of_geom, centre, h + c->eps);
+    return pb_occluder_box_overlaps(c->geo, centre, h + c->eps, c->eps);
 }
 
 static bool box_straddles_volumes(const oct_ctx *c, const double centre[3], double h)
 {
-    return box_overlaps(c, c->vol_scene, c->desc->volumes, c->vol_mesh_of_geom, centre, h - c->eps);
+    return pb_occluder_box_overlaps(c->vol, centre, h - c->eps, c->eps);
 }
 
 /* Inside test: for each of three fixed directions, a ray from the point collects every volume
@@ -373,41 +237,12 @@ static bool box_straddles_volumes(const oct_ctx *c, const double centre[3], doub
  * count a crossing twice or not at all) is outvoted. */
 #define INSIDE_MAX_HITS 512
 
-typedef struct inside_ray_ctx {
-    pb_rtc_context ctx; /* first member: Embree passes this pointer to the filter */
+/* The crossings of one ray (pb_occluder_crossings): mesh and triangle of each. */
+typedef struct inside_ray {
     uint32_t count;
-    bool overflow;
-    uint32_t geom[INSIDE_MAX_HITS];
+    uint32_t mesh[INSIDE_MAX_HITS];
     uint32_t prim[INSIDE_MAX_HITS];
-} inside_ray_ctx;
-
-static void inside_filter(const struct RTCFilterFunctionNArguments *args)
-{
-    inside_ray_ctx *r = (inside_ray_ctx *)args->context;
-    for (unsigned i = 0; i < args->N; i++) {
-        if (!args->valid[i]) continue;
-        unsigned prim = ((unsigned *)args->hit)[5 * args->N + i];
-        unsigned geom = ((unsigned *)args->hit)[6 * args->N + i];
-        bool dup = false;
-        /* A primitive referenced from two BVH leaves may be reported twice: count it once. */
-        for (uint32_t k = 0; k < r->count; k++) {
-            if (r->geom[k] == geom && r->prim[k] == prim) {
-                dup = true;
-                break;
-            }
-        }
-        if (!dup) {
-            if (r->count < INSIDE_MAX_HITS) {
-                r->geom[r->count] = geom;
-                r->prim[r->count] = prim;
-                r->count++;
-            } else {
-                r->overflow = true;
-            }
-        }
-        args->valid[i] = 0; /* reject: keep traversing to see every crossing */
-    }
-}
+} inside_ray;
 
 static const double inside_dirs[3][3] = {
     {0.26726124191242440, 0.53452248382484879, 0.80178372573727319},  /* (1,2,3)/√14 */
@@ -416,30 +251,15 @@ static const double inside_dirs[3][3] = {
 };
 
 /* Returns 1 inside, 0 outside, −1 unknown (too many crossings recorded). */
-static int inside_one_dir(const oct_ctx *c, const double p[3], const double d[3], inside_ray_ctx *r)
+static int inside_one_dir(const oct_ctx *c, const double p[3], const double d[3], inside_ray *r)
 {
-    r->count = 0;
-    r->overflow = false;
-    struct RTCRayHit rh;
-    memset(&rh, 0, sizeof rh);
-    rh.ray.org_x = (float)p[0];
-    rh.ray.org_y = (float)p[1];
-    rh.ray.org_z = (float)p[2];
-    rh.ray.dir_x = (float)d[0];
-    rh.ray.dir_y = (float)d[1];
-    rh.ray.dir_z = (float)d[2];
-    rh.ray.tnear = 0.0f;
-    rh.ray.tfar = INFINITY;
-    rh.ray.mask = 0xFFFFFFFFu;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    pb_rtc_intersect1_filtered(c->vol_scene, &r->ctx, inside_filter, &rh);
-    if (r->overflow) return -1;
+    if (!pb_occluder_crossings(c->vol, p, d, INSIDE_MAX_HITS, r->mesh, r->prim, &r->count)) return -1;
     /* Some volume crossed an odd number of times? */
     for (uint32_t k = 0; k < r->count; k++) {
-        uint32_t g = r->geom[k], n = 0;
+        uint32_t g = r->mesh[k], n = 0;
         bool seen_before = false;
         for (uint32_t i = 0; i < r->count; i++) {
-            if (r->geom[i] == g) {
+            if (r->mesh[i] == g) {
                 if (i < k) {
                     seen_before = true;
                     break;
@@ -454,8 +274,8 @@ static int inside_one_dir(const oct_ctx *c, const double p[3], const double d[3]
 
 static bool point_inside(const oct_ctx *c, const double p[3])
 {
-    inside_ray_ctx rc; /* ~4 KiB, fine on any thread's stack */
-    inside_ray_ctx *r = &rc;
+    inside_ray rc; /* ~4 KiB, fine on any thread's stack */
+    inside_ray *r = &rc;
     int votes_in = 0, votes = 0;
     for (int k = 0; k < 3; k++) {
         int v = inside_one_dir(c, p, inside_dirs[k], r);
@@ -705,58 +525,30 @@ static pb_result setup(oct_ctx *c)
 }
 
 /* ---------------------------------------------------------------------------------------------- */
-/* Stage 2: Embree scenes                                                                          */
+/* Stage 2: occluders                                                                              */
 
-static pb_result build_mesh_scene(oct_ctx *c, const pb_mesh_desc *meshes, uint32_t count, enum RTCSceneFlags flags,
-                                  RTCScene *out_scene, uint32_t **out_map)
+/* An occluder of `count` meshes, positions relative to the volumes' centre. */
+static pb_result build_occluder(oct_ctx *c, const pb_mesh_desc *meshes, uint32_t count, uint32_t flags,
+                                const char *what, pb_occluder **out)
 {
-    RTCScene scene = rtcNewScene(c->device);
-    uint32_t *map = malloc(sizeof(uint32_t) * ((size_t)count + 1));
-    if (!scene || !map) {
-        if (scene) rtcReleaseScene(scene);
-        free(map);
-        pb_result r = embree_check(c, "creating a scene");
-        return r ? r : pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating a scene");
+    pb_occluder_mesh *om = calloc((size_t)count + 1, sizeof *om);
+    if (!om) return pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating a scene");
+    for (uint32_t i = 0; i < count; i++) {
+        om[i].positions = meshes[i].positions;
+        om[i].indices = meshes[i].indices;
+        om[i].vertex_count = meshes[i].vertex_count;
+        om[i].triangle_count = meshes[i].triangle_count;
     }
-    *out_scene = scene;
-    *out_map = map;
-    rtcSetSceneFlags(scene, flags);
-    bool failed = false;
-    for (uint32_t i = 0; i < count && !failed; i++) {
-        const pb_mesh_desc *m = &meshes[i];
-        if (m->triangle_count == 0 || m->vertex_count == 0) continue;
-        RTCGeometry g = rtcNewGeometry(c->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        if (!g) {
-            failed = true;
-            break;
-        }
-        float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                            m->vertex_count);
-        unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-                                               m->triangle_count);
-        if (!vb || !ib) {
-            rtcReleaseGeometry(g);
-            failed = true;
-            break;
-        }
-        for (size_t v = 0; v < m->vertex_count; v++) {
-            for (int a = 0; a < 3; a++) vb[3 * v + a] = (float)(m->positions[3 * v + a] - c->centre[a]);
-        }
-        memcpy(ib, m->indices, 3 * sizeof(unsigned) * (size_t)m->triangle_count);
-        rtcCommitGeometry(g);
-        unsigned id = rtcAttachGeometry(scene, g);
-        rtcReleaseGeometry(g);
-        if (id >= count) {
-            failed = true;
-            break;
-        }
-        map[id] = i;
-    }
-    pb_result r = embree_check(c, "building the ray-tracing scenes");
-    if (r) return r;
-    if (failed) return pb_error_set(c->err, PB_ERROR_EMBREE, "Embree could not create a triangle mesh");
-    rtcCommitScene(scene);
-    return embree_check(c, "building the ray-tracing scenes");
+    pb_occluder_desc d = {0};
+    d.meshes = om;
+    d.mesh_count = count;
+    memcpy(d.origin, c->centre, sizeof d.origin);
+    d.thread_count = c->threads;
+    d.flags = flags;
+    d.what = what;
+    pb_result r = pb_occluder_create(&d, out, c->err);
+    free(om);
+    return r;
 }
 
 /* ---------------------------------------------------------------------------------------------- */
@@ -941,57 +733,10 @@ typedef struct solid_job {
     float *ratio;
 } solid_job;
 
-/* Rays go out in packets of 16 from the same origin (Embree's packet traversal is ~1.5× faster
- * than single rays here). */
 /* Back-face hits and hits of the solid test's rays from `ctr` (relative coordinates). */
 static void solid_count(oct_ctx *c, const double ctr[3], uint32_t *hits_out, uint32_t *back_out)
 {
-    struct RTCRayHit16 rh;
-    _Alignas(64) int valid[16]; /* Embree requires the 16-wide valid mask 64-byte aligned */
-    {
-        uint32_t hits = 0, back = 0;
-        for (uint32_t k0 = 0; k0 < c->solid_rays; k0 += 16) {
-            for (uint32_t l = 0; l < 16; l++) {
-                uint32_t k = k0 + l;
-                valid[l] = k < c->solid_rays ? -1 : 0;
-                rh.ray.org_x[l] = (float)ctr[0];
-                rh.ray.org_y[l] = (float)ctr[1];
-                rh.ray.org_z[l] = (float)ctr[2];
-                rh.ray.dir_x[l] = valid[l] ? c->ray_dirs[k][0] : 0.0f;
-                rh.ray.dir_y[l] = valid[l] ? c->ray_dirs[k][1] : 0.0f;
-                rh.ray.dir_z[l] = valid[l] ? c->ray_dirs[k][2] : 1.0f;
-                rh.ray.tnear[l] = 0.0f;
-                rh.ray.tfar[l] = INFINITY;
-                rh.ray.time[l] = 0.0f;
-                rh.ray.mask[l] = 0xFFFFFFFFu;
-                rh.ray.id[l] = l;
-                rh.ray.flags[l] = 0;
-                rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
-            }
-            pb_rtc_intersect16(valid, c->geo_scene, &rh);
-            for (uint32_t l = 0; l < 16; l++) {
-                if (!valid[l] || rh.hit.geomID[l] == RTC_INVALID_GEOMETRY_ID) continue;
-                uint32_t k = k0 + l;
-                hits++;
-                /* Front = the side the counter-clockwise normal (v1−v0)×(v2−v0) points to (glTF's
-                 * and Blender's convention), computed in double from the input rather than from
-                 * Embree's float normal. */
-                const pb_mesh_desc *m = &c->desc->geometry[c->geo_mesh_of_geom[rh.hit.geomID[l]]];
-                const uint32_t *tri = &m->indices[3 * (size_t)rh.hit.primID[l]];
-                double a[3], b[3], e1[3], e2[3], n[3];
-                double dir[3] = {c->ray_dirs[k][0], c->ray_dirs[k][1], c->ray_dirs[k][2]};
-                mesh_vertex_rel(c, m, tri[0], a);
-                mesh_vertex_rel(c, m, tri[1], b);
-                sub3(e1, b, a);
-                mesh_vertex_rel(c, m, tri[2], b);
-                sub3(e2, b, a);
-                cross3(n, e1, e2);
-                if (dot3(n, dir) > 0) back++;
-            }
-        }
-        *hits_out = hits;
-        *back_out = back;
-    }
+    pb_occluder_backface_count(c->geo, ctr, (const float(*)[3])c->ray_dirs, c->solid_rays, hits_out, back_out);
 }
 
 static void solid_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
@@ -1000,7 +745,7 @@ static void solid_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
     for (uint64_t i = begin; i < end; i++) {
         oct_cell *leaf = &j->leaves[i];
         j->ratio[i] = 0.0f;
-        if (!(leaf->flags & CELL_CENTRE_IN) || !c->geo_scene) continue;
+        if (!(leaf->flags & CELL_CENTRE_IN) || !c->geo) continue;
         double ctr[3], h;
         cell_geometry(c, leaf->x, leaf->y, leaf->z, leaf->lg, ctr, &h);
         uint32_t hits = 0, back = 0;
@@ -1071,54 +816,9 @@ static void grid_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
 /* ---------------------------------------------------------------------------------------------- */
 /* Stage 6: nearest valid probe                                                                    */
 
-typedef struct probe_points {
-    const double *rel; /* probe_count * 3, relative to the centre */
-    double pad;
-} probe_points;
-
-static void probe_bounds_fn(const struct RTCBoundsFunctionArguments *args)
-{
-    const probe_points *pp = (const probe_points *)args->geometryUserPtr;
-    const double *p = &pp->rel[3 * (size_t)args->primID];
-    double pad = pp->pad + 1e-6 * fmax(fabs(p[0]), fmax(fabs(p[1]), fabs(p[2])));
-    args->bounds_o->lower_x = (float)(p[0] - pad);
-    args->bounds_o->lower_y = (float)(p[1] - pad);
-    args->bounds_o->lower_z = (float)(p[2] - pad);
-    args->bounds_o->upper_x = (float)(p[0] + pad);
-    args->bounds_o->upper_y = (float)(p[1] + pad);
-    args->bounds_o->upper_z = (float)(p[2] + pad);
-}
-
-typedef struct nearest_query {
-    const double *rel;
-    double p[3];
-    double best_d2;
-    int32_t best;
-    double slack;
-} nearest_query;
-
-static bool nearest_fn(struct RTCPointQueryFunctionArguments *args)
-{
-    nearest_query *q = (nearest_query *)args->userPtr;
-    const double *s = &q->rel[3 * (size_t)args->primID];
-    double d[3];
-    sub3(d, s, q->p);
-    double d2 = dot3(d, d);
-    int32_t idx = (int32_t)args->primID;
-    if (q->best < 0 || d2 < q->best_d2 || (d2 == q->best_d2 && idx < q->best)) {
-        q->best = idx;
-        q->best_d2 = d2;
-        /* Keep a margin so probes at the same distance are still visited (ties → smaller index). */
-        args->query->radius = (float)(sqrt(d2) * (1.0 + 1e-5) + q->slack);
-        return true;
-    }
-    return false;
-}
-
 typedef struct nearest_job {
     const uint64_t *cells; /* flat grid indices */
     int32_t *grid;
-    const double *probe_rel;
     double slack;
 } nearest_job;
 
@@ -1129,23 +829,10 @@ static void nearest_range(oct_ctx *c, void *user, uint64_t begin, uint64_t end)
     for (uint64_t i = begin; i < end; i++) {
         uint64_t g = j->cells[i];
         uint64_t z = g / XY, y = (g % XY) / X, x = g % X;
-        nearest_query q;
-        double h;
-        cell_geometry(c, x, y, z, 0, q.p, &h);
-        q.rel = j->probe_rel;
-        q.best = -1;
-        q.best_d2 = INFINITY;
-        q.slack = j->slack + 1e-6 * fmax(fabs(q.p[0]), fmax(fabs(q.p[1]), fabs(q.p[2])));
-        struct RTCPointQuery pq;
-        pq.x = (float)q.p[0];
-        pq.y = (float)q.p[1];
-        pq.z = (float)q.p[2];
-        pq.time = 0.0f;
-        pq.radius = INFINITY;
-        struct RTCPointQueryContext pctx;
-        rtcInitPointQueryContext(&pctx);
-        rtcPointQuery(c->probe_scene, &pq, &pctx, nearest_fn, &q);
-        j->grid[g] = q.best;
+        double p[3], h;
+        cell_geometry(c, x, y, z, 0, p, &h);
+        double slack = j->slack + 1e-6 * fmax(fabs(p[0]), fmax(fabs(p[1]), fabs(p[2])));
+        j->grid[g] = pb_point_index_nearest(c->probe_index, p, slack);
     }
 }
 
@@ -1162,27 +849,18 @@ void pb_placement_destroy(pb_placement *placement)
     free(placement);
 }
 
-/* Embree device, the volumes' scene (robust, context filter for the inside test) and the
- * geometry's scene (when there is any). */
+/* The volumes' occluder (robust, with the crossings of the inside test) and the geometry's (when
+ * there is any). */
 static pb_result build_scenes(oct_ctx *c)
 {
     if (!report(c, 0.05, "building BVH", true)) return cancelled(c, "building BVH");
-    char config[64];
-    snprintf(config, sizeof config, "threads=%u,verbose=0", c->threads);
-    c->device = rtcNewDevice(config);
-    if (!c->device)
-        return pb_error_set(c->err, PB_ERROR_EMBREE, "could not create an Embree device (error %d)",
-                            (int)rtcGetDeviceError(NULL));
-    rtcSetDeviceErrorFunction(c->device, embree_error_fn, c);
-    pb_result r =
-        build_mesh_scene(c, c->desc->volumes, c->desc->volume_count,
-                         PB_RTC_SCENE_FLAG_FILTER_IN_CALL | RTC_SCENE_FLAG_ROBUST, &c->vol_scene, &c->vol_mesh_of_geom);
+    pb_result r = build_occluder(c, c->desc->volumes, c->desc->volume_count,
+                                 PB_OCCLUDER_FILTERABLE | PB_OCCLUDER_ROBUST, "probe volume", &c->vol);
     if (r) return r;
     bool any_geometry = false;
     for (uint32_t i = 0; i < c->desc->geometry_count; i++) any_geometry |= c->desc->geometry[i].triangle_count > 0;
     if (any_geometry) {
-        r = build_mesh_scene(c, c->desc->geometry, c->desc->geometry_count, RTC_SCENE_FLAG_NONE, &c->geo_scene,
-                             &c->geo_mesh_of_geom);
+        r = build_occluder(c, c->desc->geometry, c->desc->geometry_count, 0, "scene geometry", &c->geo);
         if (r) return r;
     }
     if (!report(c, 0.10, "building BVH", true)) return cancelled(c, "building BVH");
@@ -1309,22 +987,9 @@ static pb_result place(oct_ctx *c, pb_placement *out)
         }
         for (size_t i = 0, k = 0; i < ncells; i++)
             if (out->grid[i] == GRID_NEAREST) nearest_cells[k++] = i;
-        probe_points pp = {probe_rel, c->eps};
-        c->probe_scene = rtcNewScene(c->device);
-        RTCGeometry g = c->probe_scene ? rtcNewGeometry(c->device, RTC_GEOMETRY_TYPE_USER) : NULL;
-        if (g) {
-            rtcSetGeometryUserPrimitiveCount(g, (unsigned)nprobe);
-            rtcSetGeometryUserData(g, &pp);
-            rtcSetGeometryBoundsFunction(g, probe_bounds_fn, &pp);
-            rtcCommitGeometry(g);
-            rtcAttachGeometry(c->probe_scene, g);
-            rtcReleaseGeometry(g);
-            rtcCommitScene(c->probe_scene);
-        }
-        r = embree_check(c, "indexing the probes");
-        if (!r && !g) r = pb_error_set(c->err, PB_ERROR_EMBREE, "could not create the probe index");
+        r = pb_point_index_create(probe_rel, (uint32_t)nprobe, c->eps, c->threads, &c->probe_index, c->err);
         if (r) goto done;
-        nearest_job nj = {nearest_cells, out->grid, probe_rel, c->eps};
+        nearest_job nj = {nearest_cells, out->grid, c->eps};
         if (!parallel_for(c, nnear, 1024, nearest_range, &nj, 0.95, 0.99, "nearest probe")) {
             r = cancelled(c, "the nearest-probe search");
             goto done;
@@ -1405,21 +1070,16 @@ static void ctx_init(oct_ctx *c, const pb_placement_desc *desc, pb_error *err)
 {
     c->desc = desc;
     c->err = err;
-    c->embree_lock_ok = pthread_mutex_init(&c->embree_lock, NULL) == 0;
     atomic_init(&c->cancel, false);
     c->last_report = -1e300;
 }
 
 static void ctx_free(oct_ctx *c)
 {
-    if (c->probe_scene) rtcReleaseScene(c->probe_scene);
-    if (c->geo_scene) rtcReleaseScene(c->geo_scene);
-    if (c->vol_scene) rtcReleaseScene(c->vol_scene);
-    if (c->device) rtcReleaseDevice(c->device);
-    free(c->vol_mesh_of_geom);
-    free(c->geo_mesh_of_geom);
+    pb_point_index_destroy(c->probe_index);
+    pb_occluder_destroy(c->geo);
+    pb_occluder_destroy(c->vol);
     free(c->ray_dirs);
-    if (c->embree_lock_ok) pthread_mutex_destroy(&c->embree_lock);
     free(c);
 }
 
@@ -1463,7 +1123,7 @@ static void classify_points_range(oct_ctx *c, void *user, uint64_t begin, uint64
         if (q->point_inside) q->point_inside[i] = point_inside(c, p) ? 1 : 0;
         if (q->backface_ratio) {
             uint32_t hits = 0, back = 0;
-            if (c->geo_scene) solid_count(c, p, &hits, &back);
+            if (c->geo) solid_count(c, p, &hits, &back);
             q->backface_ratio[i] = hits ? (float)back / (float)hits : 0.0f;
         }
     }

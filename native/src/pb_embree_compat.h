@@ -13,7 +13,7 @@
 #ifndef SCHNEE_PB_EMBREE_COMPAT_H
 #define SCHNEE_PB_EMBREE_COMPAT_H
 
-#include "schnee/pb_embree.h"
+#include "pb_embree.h"
 
 #include <stddef.h>
 
