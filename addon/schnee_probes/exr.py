@@ -4,7 +4,8 @@ library inside Blender.
 Reads single-part scanline EXR files with HALF, FLOAT or UINT channels, uncompressed (NONE), RLE,
 ZIPS or ZIP (zlib, from the standard library): Cycles' ``save_render`` output whatever the codec
 setting of those. Anything else (tiled, multi-part, deep, PIZ/DWA/..., subsampled channels) raises
-:class:`Unsupported`; the caller then reads the file through Blender (native.project_file).
+:class:`Unsupported`; images.read_image (the add-on's one image reader, which uses this module)
+then reads the file through Blender or oiiotool.
 
 Every size is checked against the file before use; a malformed file raises :class:`Malformed`.
 """

@@ -35,9 +35,10 @@ _IMAGE_SIGNATURES = (b"#?", b"PF", b"Pf", b"\x89PNG", b"\xff\xd8\xff", b"II*\0",
 
 def read_image(path: str) -> np.ndarray:
     """Float32 pixels (H, W, C), row 0 at the top, of an image file: an EXR the add-on reads itself,
-    else (inside Blender) any image Blender reads, else (outside) what oiiotool reads. The file is opened as the native readers open theirs: without
-    blocking, regular files only, at most IMAGE_MAX_FILE_BYTES, the header checked before the
-    pixels. SchneeError on failure; messages never quote the file's content."""
+    else (inside Blender) any image Blender reads, else (outside) what oiiotool reads. The file is
+    opened as the native readers open theirs: without blocking, regular files only, at most
+    IMAGE_MAX_FILE_BYTES, the header checked before the pixels. SchneeError on failure; messages
+    never quote the file's content."""
     path = os.fspath(path)
     try:
         f, size = safe_open.open_regular(path, "an image", IMAGE_MAX_FILE_BYTES)
