@@ -7,7 +7,7 @@
  * RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER (or a per-geometry switch) asks for it. Point queries, buffers, user
  * geometries, RTC_SCENE_FLAG_ROBUST and the RTCHitN layout the filter reads are the same in both.
  *
- * Used by the octree (native/src/pb_octree.c) and the engine's probe visibility (engine/src/sv_probes.c).
+ * Used by the occluders (native/src/pb_occluder.c), the only Embree caller; private to native/src.
  * Included after pb_embree_dyn.h when that is force-included (the Python module), so the calls
  * below go through its function pointers there as every other Embree call does. */
 #ifndef SCHNEE_PB_EMBREE_COMPAT_H

@@ -1,6 +1,7 @@
 /* Schnee probes — Embree reached through function pointers (the Python module only).
  *
- * Force-included (-include) into pb_octree.c and pb_direct.c when they are compiled for _schnee_native: every Embree
+ * Force-included (-include) into the Embree sources (embree_sources.cmake; pb_occluder.c is the only
+ * one that calls Embree) when they are compiled for _schnee_native: every Embree
  * call becomes a call through a pointer that pb_embree_load() fills with dlsym() from the Embree
  * the add-on package carries (lib/libembree3.so.3 next to the module; libembree4.so.4 when built
  * against Embree 4, PB_EMBREE_SONAME), opened RTLD_LOCAL. The module then has no undefined rtc*
@@ -13,7 +14,7 @@
 #include "pb_embree.h"
 #include <stddef.h>
 
-/* Every exported Embree function pb_octree.c and pb_direct.c call (the rtcInit* helpers are inline), in Embree 3
+/* Every exported Embree function pb_occluder.c calls (the rtcInit* helpers are inline), in Embree 3
  * and 4 alike (pb_embree_compat.h). */
 #define PB_EMBREE_FUNCTIONS(X)                                                                                         \
     X(rtcAttachGeometry)                                                                                               \
