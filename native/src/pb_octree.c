@@ -301,124 +301,65 @@ void pb_placement_destroy(pb_placement *placement)
     free(placement);
 }
 
-static pb_result place(oct_ctx *c, pb_placement *out)
+/* Probe numbers in leaf (Morton) order: leaf_probe[i] = the probe of leaf i, −1 for a leaf whose
+ * centre is outside the volumes or pruned (counted in *npruned). */
+static pb_result number_probes(oct_ctx *c, const cell_vec *leaves, int32_t *leaf_probe, uint64_t *nprobe_out,
+                               uint64_t *npruned_out)
 {
-    pb_result r;
-    cell_vec leaves = {0};
-    float *ratio = NULL;
-    int32_t *leaf_probe = NULL;
-    double *probe_rel = NULL;
-    uint64_t *nearest_cells = NULL;
-    int32_t *remap = NULL;
-    uint32_t *refs = NULL;
-
-    if (!pb_oct_report(c, 0.0, "checking meshes", true)) return pb_oct_cancelled(c, "checking meshes");
-    r = pb_oct_setup(c);
-    if (r) return r;
-    r = pb_oct_build_scenes(c);
-    if (r) return r;
-
-    /* Octree. */
-    r = build_octree(c, &leaves);
-    if (r) goto done;
-    r = pb_oct_occluder_check(c, "building the octree");
-    if (r) goto done;
-
-    /* Solid test. */
-    r = pb_oct_make_ray_dirs(c);
-    ratio = malloc(sizeof *ratio * (leaves.n + 1));
-    leaf_probe = malloc(sizeof *leaf_probe * (leaves.n + 1));
-    if (r || !ratio || !leaf_probe) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree leaves", leaves.n);
-        goto done;
-    }
-    solid_job sj = {leaves.v, ratio};
-    if (!pb_oct_parallel_for(c, leaves.n, 64, pb_oct_solid_range, &sj, 0.45, 0.80, "solid test")) {
-        r = pb_oct_cancelled(c, "the solid test");
-        goto done;
-    }
-
-    /* Number the probes in leaf (Morton) order. */
     uint64_t nprobe = 0, npruned = 0;
-    for (size_t i = 0; i < leaves.n; i++) {
+    for (size_t i = 0; i < leaves->n; i++) {
         leaf_probe[i] = -1;
-        if (!(leaves.v[i].flags & CELL_CENTRE_IN)) continue;
-        if (leaves.v[i].flags & CELL_PRUNED) {
+        if (!(leaves->v[i].flags & CELL_CENTRE_IN)) continue;
+        if (leaves->v[i].flags & CELL_PRUNED) {
             npruned++;
             continue;
         }
-        if (nprobe >= INT32_MAX) {
-            r = pb_error_set(c->err, PB_ERROR_TOO_LARGE, "more than %d probes", INT32_MAX);
-            goto done;
-        }
+        if (nprobe >= INT32_MAX) return pb_error_set(c->err, PB_ERROR_TOO_LARGE, "more than %d probes", INT32_MAX);
         leaf_probe[i] = (int32_t)nprobe++;
     }
+    *nprobe_out = nprobe;
+    *npruned_out = npruned;
+    return PB_SUCCESS;
+}
 
-    /* Occupancy grid. */
-    size_t ncells = (size_t)c->dims[0] * c->dims[1] * c->dims[2];
-    out->grid = malloc(sizeof(int32_t) * ncells);
-    if (!out->grid) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for the occupancy grid (%zu cells)", ncells);
-        goto done;
-    }
-    for (size_t i = 0; i < ncells; i++) out->grid[i] = -1;
-    grid_job gj = {leaves.v, leaf_probe, out->grid};
-    if (!pb_oct_parallel_for(c, leaves.n, 256, grid_range, &gj, 0.80, 0.95, "occupancy grid")) {
-        r = pb_oct_cancelled(c, "filling the occupancy grid");
-        goto done;
-    }
-
-    /* Probe positions (relative) in probe order. */
-    probe_rel = malloc(sizeof(double) * 3 * (nprobe + 1));
-    out->cell_sizes = malloc(sizeof(double) * (nprobe + 1));
-    out->backface_ratio = malloc(sizeof(float) * (nprobe + 1));
-    if (!probe_rel || !out->cell_sizes || !out->backface_ratio) {
-        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes", (unsigned long long)nprobe);
-        goto done;
-    }
-    for (size_t i = 0; i < leaves.n; i++) {
-        int32_t p = leaf_probe[i];
-        if (p < 0) continue;
-        double h;
-        cell_geometry(c, leaves.v[i].x, leaves.v[i].y, leaves.v[i].z, leaves.v[i].lg, &probe_rel[3 * (size_t)p], &h);
-        out->cell_sizes[p] = 2.0 * h;
-        out->backface_ratio[p] = ratio[i];
-    }
-
-    /* Cells whose leaf has no valid probe: nearest valid probe. */
+/* Stage 6 over the whole grid: cells marked GRID_NEAREST get the nearest of the nprobe probes. */
+static pb_result fill_nearest(oct_ctx *c, int32_t *grid, size_t ncells, const double *probe_rel, uint64_t nprobe,
+                              uint64_t npruned)
+{
     size_t nnear = 0;
-    for (size_t i = 0; i < ncells; i++) nnear += out->grid[i] == GRID_NEAREST;
-    if (nnear > 0) {
-        if (nprobe == 0) {
-            r = pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
-                             "no probe could be placed: all %llu candidate positions inside the "
-                             "probe volumes are inside solid geometry (more than %.0f %% of their "
-                             "rays hit back faces); check the volumes and the normals of the scene",
-                             (unsigned long long)npruned, 100.0 * c->solid_ratio);
-            goto done;
-        }
-        nearest_cells = malloc(sizeof *nearest_cells * nnear);
-        if (!nearest_cells) {
-            r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu grid cells", nnear);
-            goto done;
-        }
-        for (size_t i = 0, k = 0; i < ncells; i++)
-            if (out->grid[i] == GRID_NEAREST) nearest_cells[k++] = i;
-        r = pb_point_index_create(probe_rel, (uint32_t)nprobe, c->eps, c->threads, &c->probe_index, c->err);
-        if (r) goto done;
-        nearest_job nj = {nearest_cells, out->grid, c->eps};
-        if (!pb_oct_parallel_for(c, nnear, 1024, nearest_range, &nj, 0.95, 0.99, "nearest probe")) {
+    for (size_t i = 0; i < ncells; i++) nnear += grid[i] == GRID_NEAREST;
+    if (nnear == 0) return PB_SUCCESS;
+    if (nprobe == 0)
+        return pb_error_set(c->err, PB_ERROR_INVALID_ARGUMENT,
+                            "no probe could be placed: all %llu candidate positions inside the "
+                            "probe volumes are inside solid geometry (more than %.0f %% of their "
+                            "rays hit back faces); check the volumes and the normals of the scene",
+                            (unsigned long long)npruned, 100.0 * c->solid_ratio);
+    uint64_t *nearest_cells = malloc(sizeof *nearest_cells * nnear);
+    if (!nearest_cells) return pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu grid cells", nnear);
+    for (size_t i = 0, k = 0; i < ncells; i++)
+        if (grid[i] == GRID_NEAREST) nearest_cells[k++] = i;
+    pb_result r = pb_point_index_create(probe_rel, (uint32_t)nprobe, c->eps, c->threads, &c->probe_index, c->err);
+    if (!r) {
+        nearest_job nj = {nearest_cells, grid, c->eps};
+        if (!pb_oct_parallel_for(c, nnear, 1024, nearest_range, &nj, 0.95, 0.99, "nearest probe"))
             r = pb_oct_cancelled(c, "the nearest-probe search");
-            goto done;
-        }
-        r = pb_oct_occluder_check(c, "searching the nearest probes");
-        if (r) goto done;
+        else
+            r = pb_oct_occluder_check(c, "searching the nearest probes");
     }
+    free(nearest_cells);
+    return r;
+}
 
-    /* Every probe must be referenced by the grid; a probe whose leaf has no grid-cell centre inside
-     * the volumes (a sliver of volume thinner than a grid cell) is dropped. */
-    refs = calloc(nprobe + 1, sizeof *refs);
-    remap = malloc(sizeof *remap * (nprobe + 1));
+/* Every probe must be referenced by the grid; a probe whose leaf has no grid-cell centre inside
+ * the volumes (a sliver of volume thinner than a grid cell) is dropped: the probe arrays are
+ * compacted and the grid renumbered. *kept_out = the probes left. */
+static pb_result drop_unreferenced(oct_ctx *c, pb_placement *out, double *probe_rel, uint64_t nprobe, size_t ncells,
+                                   uint32_t *kept_out)
+{
+    uint32_t *refs = calloc(nprobe + 1, sizeof *refs);
+    int32_t *remap = malloc(sizeof *remap * (nprobe + 1));
+    pb_result r = PB_SUCCESS;
     if (!refs || !remap) {
         r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes", (unsigned long long)nprobe);
         goto done;
@@ -452,6 +393,87 @@ static pb_result place(oct_ctx *c, pb_placement *out)
     if (kept != nprobe)
         for (size_t i = 0; i < ncells; i++)
             if (out->grid[i] >= 0) out->grid[i] = remap[out->grid[i]];
+    *kept_out = kept;
+done:
+    free(refs);
+    free(remap);
+    return r;
+}
+
+static pb_result place(oct_ctx *c, pb_placement *out)
+{
+    pb_result r;
+    cell_vec leaves = {0};
+    float *ratio = NULL;
+    int32_t *leaf_probe = NULL;
+    double *probe_rel = NULL;
+
+    if (!pb_oct_report(c, 0.0, "checking meshes", true)) return pb_oct_cancelled(c, "checking meshes");
+    r = pb_oct_setup(c);
+    if (r) return r;
+    r = pb_oct_build_scenes(c);
+    if (r) return r;
+
+    /* Octree. */
+    r = build_octree(c, &leaves);
+    if (r) goto done;
+    r = pb_oct_occluder_check(c, "building the octree");
+    if (r) goto done;
+
+    /* Solid test. */
+    r = pb_oct_make_ray_dirs(c);
+    ratio = malloc(sizeof *ratio * (leaves.n + 1));
+    leaf_probe = malloc(sizeof *leaf_probe * (leaves.n + 1));
+    if (r || !ratio || !leaf_probe) {
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %zu octree leaves", leaves.n);
+        goto done;
+    }
+    solid_job sj = {leaves.v, ratio};
+    if (!pb_oct_parallel_for(c, leaves.n, 64, pb_oct_solid_range, &sj, 0.45, 0.80, "solid test")) {
+        r = pb_oct_cancelled(c, "the solid test");
+        goto done;
+    }
+    uint64_t nprobe = 0, npruned = 0;
+    r = number_probes(c, &leaves, leaf_probe, &nprobe, &npruned);
+    if (r) goto done;
+
+    /* Occupancy grid. */
+    size_t ncells = (size_t)c->dims[0] * c->dims[1] * c->dims[2];
+    out->grid = malloc(sizeof(int32_t) * ncells);
+    if (!out->grid) {
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for the occupancy grid (%zu cells)", ncells);
+        goto done;
+    }
+    for (size_t i = 0; i < ncells; i++) out->grid[i] = -1;
+    grid_job gj = {leaves.v, leaf_probe, out->grid};
+    if (!pb_oct_parallel_for(c, leaves.n, 256, grid_range, &gj, 0.80, 0.95, "occupancy grid")) {
+        r = pb_oct_cancelled(c, "filling the occupancy grid");
+        goto done;
+    }
+
+    /* Probe positions (relative) in probe order. */
+    probe_rel = malloc(sizeof(double) * 3 * (nprobe + 1));
+    out->cell_sizes = malloc(sizeof(double) * (nprobe + 1));
+    out->backface_ratio = malloc(sizeof(float) * (nprobe + 1));
+    if (!probe_rel || !out->cell_sizes || !out->backface_ratio) {
+        r = pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu probes", (unsigned long long)nprobe);
+        goto done;
+    }
+    for (size_t i = 0; i < leaves.n; i++) {
+        int32_t p = leaf_probe[i];
+        if (p < 0) continue;
+        double h;
+        cell_geometry(c, leaves.v[i].x, leaves.v[i].y, leaves.v[i].z, leaves.v[i].lg, &probe_rel[3 * (size_t)p], &h);
+        out->cell_sizes[p] = 2.0 * h;
+        out->backface_ratio[p] = ratio[i];
+    }
+
+    /* Cells whose leaf has no valid probe: nearest valid probe; then only the referenced probes. */
+    r = fill_nearest(c, out->grid, ncells, probe_rel, nprobe, npruned);
+    if (r) goto done;
+    uint32_t kept = 0;
+    r = drop_unreferenced(c, out, probe_rel, nprobe, ncells, &kept);
+    if (r) goto done;
 
     out->positions = malloc(sizeof(double) * 3 * kept);
     if (!out->positions) {
@@ -475,9 +497,6 @@ done:
     free(ratio);
     free(leaf_probe);
     free(probe_rel);
-    free(nearest_cells);
-    free(remap);
-    free(refs);
     return r;
 }
 
