@@ -95,9 +95,19 @@ MARKER_FOLDERS = {
 # Modules (path) and single tests (node id) that start Blender or the engine through a script or a
 # subprocess rather than run_blender, and tests too slow for the fast tier on their own.
 MARKER_TESTS = {
-    "tests/test_main_job.py": ("blender", "engine"),  # scripts/main_job.py: generate, bake, export, render
-    "tests/bench/test_sweep_reduced.py": ("blender",),  # bench/sweep/run.py bakes in Blender
     "tests/python/test_packaging.py": ("slow",),  # pip builds the wheel: a CMake build of the module
+    # Over ~30 s on 2 cores by themselves (measured in earlier full runs, or their docstrings' runtime),
+    # so that -m "blender and not slow" is a quick pass over the add-on in real Blender.
+    "tests/blender/test_direct_sky.py": ("slow",),  # ~3 min: Nishita captures, a 4096x2048 reference
+    "tests/blender/test_sky_sun_bake.py": ("slow",),  # ~1-2.5 min: a Nishita capture
+    "tests/blender/test_resume.py": ("slow",),  # ~2 min: bakes killed and resumed, shards
+    "tests/blender/test_refine_bake.py": ("slow",),  # ~45-60 s
+    "tests/blender/test_addon_modal.py": ("slow",),  # ~30-40 s
+    "tests/blender/test_direct_light.py": ("slow",),  # ~35 s: seven 512x256 renders at 256 spp
+    "tests/blender/test_lights.py": ("slow",),  # ~45 s
+    "tests/farm/test_slurm.py": ("slow",),  # ~2 min: a Slurm cluster, 3 chained arrays
+    "tests/bench/test_sweep_reduced.py": ("blender", "slow"),  # ~1 min; bench/sweep/run.py bakes in Blender
+    "tests/test_main_job.py": ("blender", "engine", "slow"),  # scripts/main_job.py: generate, bake, export, render
 }
 
 
