@@ -16,7 +16,10 @@
 #include "schnee/pb_sh.h"
 #include "schnee/pb_shprobe.h"
 #ifdef SCHNEE_EMBREE_DYN
-#include "pb_embree_dyn.h"
+/* Opens the Embree the package carries and fills the occluder module's function pointers
+ * (native/src/pb_embree_dyn.h, private to native/src with the Embree headers): 0 on success, else
+ * the reason in msg. Declared here so that no Embree header reaches the module's files. */
+int pb_embree_load(char *msg, size_t msg_size);
 #endif
 
 #include <stdio.h>
