@@ -235,7 +235,7 @@ def _submit(args, bake_core, bake_settings):
     if bake_settings.placement == "ADAPTIVE":  # one job array per refinement stage
         stages = adaptive.stage_bound(bake_settings.min_cell_size, bake_settings.max_cell_size)
     try:
-        output = bake_core._abspath(bake_settings.output_path)
+        output = bake_core.abspath(bake_settings.output_path)
         ids = farm.submit_slurm(bpy.app.binary_path, os.path.abspath(bpy.data.filepath), os.path.abspath(__file__),
                                 farm.forwarded_args(_script_args(), output=output), args.shards, output,
                                 sbatch_options=args.sbatch_option, stages=stages)

@@ -80,7 +80,7 @@ def run(label, out):
     job = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings, log=lambda *_: None)
     result = job.run()
     t, n = result.timings, job.total
-    plan = job._direct
+    plan = job.direct
     # The lamps' projection again over many probes (the bake did all its probes in one call).
     rng = np.random.default_rng(1)
     pts = np.column_stack([rng.uniform(-2.5, 2.5, a.repeat_probes), rng.uniform(0.3, 2.7, a.repeat_probes),

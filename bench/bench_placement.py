@@ -16,6 +16,7 @@ cell's probe, as the engine's per-object lookup) against the reference. Writes O
 report is bench/results/placement.md (numbers copied by hand with the command line).
 """
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -55,11 +56,11 @@ def main():
                     help="Error Tolerance values of the adaptive bakes (none: only --old)")
     ap.add_argument("--tests", nargs="+", default=["CENTRE_FACES"], choices=["CENTRE_FACES", "CENTRE"],
                     help="Refinement Tests of the adaptive bakes (each tolerance is baked with each)")
-    ap.add_argument("--predict", type=float, nargs="+", default=[adaptive.PREDICT],
-                    help="adaptive.PREDICT factors of the adaptive bakes (default: the add-on's; 0 = every "
+    ap.add_argument("--predict", type=float, nargs="+", default=[adaptive.DEFAULT_POLICY.predict],
+                    help="adaptive.Policy.predict factors of the adaptive bakes (default: the add-on's; 0 = every "
                          "child tested; each tolerance x tests is baked with each)")
-    ap.add_argument("--retest", type=int, nargs="+", default=[adaptive.RETEST],
-                    help="adaptive.RETEST sample factors of the adaptive bakes (default: the add-on's; 1 = no "
+    ap.add_argument("--retest", type=int, nargs="+", default=[adaptive.DEFAULT_POLICY.retest],
+                    help="adaptive.Policy.retest sample factors of the adaptive bakes (default: the add-on's; 1 = no "
                          "re-tests; each tolerance x tests x predict is baked with each)")
     ap.add_argument("--points", type=int, default=64)
     ap.add_argument("--ref-samples", type=int, default=128)
@@ -108,7 +109,7 @@ def main():
     if a.sun_mode == "mixed":
         b = bake_core.ProbeBake(scene, layer, settings(), log=lambda s: None)
         b.prepare()
-        direct = b._mixed_at(engine_pts)
+        direct = b.plan.lamps.engine_at(engine_pts)
         b.cancel()
         if direct is None:
             sys.exit("bench_placement: --sun-mode mixed but the scene has no Sun lamp added analytically")
@@ -139,10 +140,10 @@ def main():
     for tol, tests, pred, rt in [(tol, tests, pred, rt) for tol in a.tolerance for tests in a.tests
                                  for pred in a.predict for rt in a.retest]:
         path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}_{pred:g}_{rt}.shprobe")
-        adaptive.PREDICT = pred
-        adaptive.RETEST = rt
+        policy = dataclasses.replace(adaptive.DEFAULT_POLICY, predict=pred, retest=rt)
         b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", error_tolerance=tol,
-                                                       refinement_tests=tests, output_path=path), log=print)
+                                                       refinement_tests=tests, output_path=path), log=print,
+                                policy=policy)
         t, cpu = time.perf_counter(), cpu_seconds()
         r = b.run()
         sec, cpu = time.perf_counter() - t, cpu_seconds() - cpu
@@ -176,7 +177,7 @@ def main():
         b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", min_cell_size=cell,
                                                        max_cell_size=cell), log=lambda s: None)
         b.prepare()
-        group, cache = b._groups[0], b._cache
+        group, cache = b.plan.groups[0], b.plan.cache
         pidx = group.probe_index
         validity = cache.validity(pidx)
         probes, w = group.tree.query(engine_pts, validity)

@@ -12,13 +12,13 @@ decides where. The algorithm is docs/placement.md, "Error-driven refinement"; th
    ``sqrt(tolerance² + (2σ)²)`` with σ the Monte-Carlo noise of the probes and tests involved; flagged leaves
    split; children entirely outside the volumes are dropped; the new corners (test points: already
    baked, edge midpoints: new) are baked; back to 2 until nothing splits or every leaf is at Min Cell
-   Size. Children predicted to pass (PREDICT: their parent's error next to them, over the rate the
+   Size. Children predicted to pass (Policy.predict: their parent's error next to them, over the rate the
    error was measured falling per halving; no rate where the noise sets the threshold,
-   PREDICT_NOISE) are never tested (docs/placement.md, step 4a). With RETEST > 1 (off by default), a
+   Policy.predict_noise) are never tested (docs/placement.md, step 4a). With Policy.retest > 1 (off by default), a
    leaf left unsplit only because the noise raised its threshold has its erring tests rendered again
-   with RETEST × the samples and is decided again (docs/placement.md, step 3a).
+   with Policy.retest × the samples and is decided again (docs/placement.md, step 3a).
 
-Points inside solid geometry (the placement's solid test: more than ``SOLID_RATIO`` of 64 rays hit
+Points inside solid geometry (the placement's solid test: more than ``Policy.solid_ratio`` of 64 rays hit
 back faces) are never rendered: as probes they get validity 0 (left out of the interpolation), as
 tests they are not compared.
 
@@ -37,45 +37,56 @@ import numpy as np
 from . import native
 from .metric import _rel, irradiance_error, irradiance_norm  # noqa: F401 (re-exported)
 
-SOLID_RATIO = 0.25          # the placement's default back-face ratio (docs/placement.md)
-RENDER_INSET = 0.01         # m: nodes on or beyond the volumes' bounding box render this far inside it
-# A node inside solid geometry (on a furniture face or edge, where the solid test is a coin toss, or
-# just inside it) renders at the nearest free point within this reach (at most a quarter of Min Cell
-# Size) instead of being left out: measured in bench/results/placement.md (docs/placement.md, step 2).
-RELOCATE = 0.05
 TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
-NOISE_K = 2.0               # refine only where error > sqrt(tolerance² + (NOISE_K · noise)²) (pb_refine's default)
-# Prediction of children that pass (saves their tests): a leaf's error falls by a measured rate per
-# halving — the ratio of its parent's error next to it to its own worst error, both over their
-# thresholds — and a smooth field's trilinear error falls as h², 4× per halving (exactly 4 for a
-# quadratic field), so the rate is capped at PREDICT. A child whose predicted error (its parent's
-# error next to it over that rate) is below 1 is not tested. Rates must have been measured at two
-# consecutive levels (the leaf's and its parent's halving): until then, and where the error did not
-# fall, a child passes untested only where its parent passed next to it (at coarse scales the light
-# is far from the h² regime). 0 = every child tested. Module-level so the benchmark can
-# compare factors (bench/bench_placement.py --predict); measured in bench/results/placement.md.
-PREDICT = 4.0
-# A rate is measured only where the leaf's threshold is at most PREDICT_NOISE × Error Tolerance:
-# above it the probes' noise dominates the threshold (2σ > 1.12 × tolerance), the measured errors
-# are mostly noise and their fall says nothing about h² convergence (in the hall at 16 spp, σ ≈ 2 %,
-# such rates settled children 3–5 % off; bench/results/placement.md). There a child passes
-# untested only where its parent passed next to it, as before a rate is known.
-PREDICT_NOISE = 1.5
-# Inconclusive tests are rendered again (docs/placement.md step 3a): where a leaf did not split but a
-# test of it erred by more than Error Tolerance, and the leaf's threshold sqrt(tol² + (2σ)²) is above
-# RETEST_NOISE × tol (the noise, not the light, let it pass), each such test point is rendered once
-# more with (RETEST − 1) × Samples (seeds Seed + 2, Seed + 3; journal flag RETEST_FLAG) and combined
-# with its first render: RETEST × the samples, half the noise at RETEST = 4. The leaf is then decided
-# again on the combined values (a split stays a split). 1 = no re-tests, the default: measured at 16 spp
-# (bench/results/placement.md) re-tests cost the room 37 % more CPU for the same error (2.10 vs
-# 2.11 %), re-tested nothing in the courtyard, and gave the hall 2.71 vs 3.02 % for 1.3× the points,
-# where testing every child gives 2.79 % for 1.1×; bench_placement.py --retest 4 measures them.
-RETEST = 1
-RETEST_NOISE = 1.2
 RETEST_FLAG = 1             # journal key flags of a re-test render (docs/farm.md "Journal file")
-# The direct-light check of a leaf (AdaptiveGroup.direct_check) samples the lamps' exact direct term
-# on this many steps per axis of the leaf (5³ − 8 points; fewer where that is finer than Min Cell).
-DIRECT_DIVISIONS = 4
+
+
+@dataclass(frozen=True)
+class Policy:
+    """The refinement's tuning knobs, measured in bench/results/placement.md. The defaults are
+    the add-on's; the bake passes one to :class:`AdaptiveGroup` and :class:`PointCache`
+    (``ProbeBake(policy=...)``), benchmarks compare others (``dataclasses.replace(DEFAULT_POLICY,
+    predict=2.0)``; bench/bench_placement.py --predict, --retest)."""
+    solid_ratio: float = 0.25   # the placement's default back-face ratio (docs/placement.md)
+    render_inset: float = 0.01  # m: nodes on or beyond the volumes' bounding box render this far inside it
+    # A node inside solid geometry (on a furniture face or edge, where the solid test is a coin toss,
+    # or just inside it) renders at the nearest free point within this reach (at most a quarter of
+    # Min Cell Size) instead of being left out (docs/placement.md, step 2).
+    relocate: float = 0.05
+    noise_k: float = 2.0        # refine only where error > sqrt(tolerance² + (noise_k · noise)²) (pb_refine's default)
+    # Prediction of children that pass (saves their tests): a leaf's error falls by a measured rate
+    # per halving — the ratio of its parent's error next to it to its own worst error, both over
+    # their thresholds — and a smooth field's trilinear error falls as h², 4× per halving (exactly 4
+    # for a quadratic field), so the rate is capped at ``predict``. A child whose predicted error
+    # (its parent's error next to it over that rate) is below 1 is not tested. Rates must have been
+    # measured at two consecutive levels (the leaf's and its parent's halving): until then, and
+    # where the error did not fall, a child passes untested only where its parent passed next to it
+    # (at coarse scales the light is far from the h² regime). 0 = every child tested.
+    predict: float = 4.0
+    # A rate is measured only where the leaf's threshold is at most predict_noise × Error Tolerance:
+    # above it the probes' noise dominates the threshold (2σ > 1.12 × tolerance), the measured
+    # errors are mostly noise and their fall says nothing about h² convergence (in the hall at 16
+    # spp, σ ≈ 2 %, such rates settled children 3–5 % off). There a child passes untested only where
+    # its parent passed next to it, as before a rate is known.
+    predict_noise: float = 1.5
+    # Inconclusive tests are rendered again (docs/placement.md step 3a): where a leaf did not split
+    # but a test of it erred by more than Error Tolerance, and the leaf's threshold sqrt(tol² +
+    # (2σ)²) is above retest_noise × tol (the noise, not the light, let it pass), each such test
+    # point is rendered once more with (retest − 1) × Samples (seeds Seed + 2, Seed + 3; journal
+    # flag RETEST_FLAG) and combined with its first render: retest × the samples, half the noise at
+    # retest = 4. The leaf is then decided again on the combined values (a split stays a split).
+    # 1 = no re-tests, the default: measured at 16 spp re-tests cost the room 37 % more CPU for the
+    # same error (2.10 vs 2.11 %), re-tested nothing in the courtyard, and gave the hall 2.71 vs
+    # 3.02 % for 1.3× the points, where testing every child gives 2.79 % for 1.1×.
+    retest: int = 1
+    retest_noise: float = 1.2
+    # The direct-light check of a leaf (AdaptiveGroup.direct_check) samples the lamps' exact direct
+    # term on this many steps per axis of the leaf (5³ − 8 points; fewer where that is finer than
+    # Min Cell).
+    direct_divisions: int = 4
+
+
+DEFAULT_POLICY = Policy()
 # A sun in the sky image (its light is in the panoramas, not a lamp's exact term) is checked like a
 # lamp (AdaptiveGroup.direct_check, docs/placement.md step 4b) through a stand-in Sun lamp: sky_sun,
 # the C split of native.sky_sun_split (its criteria: docs/direct-light.md "The sky's sun").
@@ -129,17 +140,17 @@ def lattice_frame(volume_vertices: np.ndarray, min_cell: float, max_cell: float)
 
 
 def stages_per_pass(retest: int) -> int:
-    """Stages of one refinement pass: its probes, its tests and, with re-tests (RETEST > 1), the
+    """Stages of one refinement pass: its probes, its tests and, with re-tests (Policy.retest > 1), the
     inconclusive tests again."""
     return 3 if retest > 1 else 2
 
 
-def stage_bound(min_cell: float, max_cell: float) -> int:
+def stage_bound(min_cell: float, max_cell: float, policy: Policy = DEFAULT_POLICY) -> int:
     """An upper bound of the stages (probe bakes, test bakes, re-test bakes) of any group's
     refinement with these cell sizes (AdaptiveGroup.stage_count before the group exists): the farm
     submits one job array per stage."""
     level = min(20, max(0, int(math.floor(math.log2(max_cell / min_cell) + 1e-9))))
-    return stages_per_pass(RETEST) * level + 1
+    return stages_per_pass(policy.retest) * level + 1
 
 
 def centre_only(tests: "native.RefineTests") -> "native.RefineTests":
@@ -193,9 +204,10 @@ def sky_sun(world: np.ndarray) -> Optional["native.Lamp"]:
 class PointCache:
     """Every point the bake needs a value at, keyed by position (1 µm): probes and test points of
     every group share renders. ``index(points)`` returns the cache index of each point, appending new
-    ones; new points inside solid geometry (``ratio > SOLID_RATIO``) are marked done with value 0."""
+    ones; new points inside solid geometry (``ratio > Policy.solid_ratio``) are marked done with value 0."""
 
-    def __init__(self, band: int):
+    def __init__(self, band: int, policy: Policy = DEFAULT_POLICY):
+        self.solid_ratio = policy.solid_ratio
         self.count_coeffs = native.sh_count(band)
         self._keys = {}
         self.positions = np.zeros((0, 3))
@@ -203,7 +215,7 @@ class PointCache:
         self.noise = np.zeros(0, dtype=np.float32)
         self.ratio = np.zeros(0, dtype=np.float32)       # solid test's back-face ratio
         self.rendered = np.zeros(0, dtype=bool)
-        # Re-tests (RETEST): entry k of a point renders factor[k] × Samples (0: the point's own
+        # Re-tests (Policy.retest): entry k of a point renders factor[k] × Samples (0: the point's own
         # render, Samples); retest_of maps a point's index to its re-test entry.
         self.factor = np.zeros(0, dtype=np.int32)
         self.retest_of = {}
@@ -236,7 +248,7 @@ class PointCache:
         new, ratio = locate(np.array(new_pts))
         ratio = np.asarray(ratio, dtype=np.float32)
         first = self._append(new, ratio, 0)
-        todo = [first + i for i in range(len(ratio)) if ratio[i] <= SOLID_RATIO]
+        todo = [first + i for i in range(len(ratio)) if ratio[i] <= self.solid_ratio]
         return out, todo
 
     def _append(self, positions, ratio, factor: int) -> int:
@@ -279,12 +291,12 @@ class PointCache:
         return coeffs, noise.astype(np.float32)
 
     def solid(self, idx) -> np.ndarray:
-        return self.ratio[idx] > SOLID_RATIO
+        return self.ratio[idx] > self.solid_ratio
 
     def validity(self, idx) -> np.ndarray:
         """1 − back-face ratio, 0 inside solid geometry (the interpolation leaves those out)."""
         r = self.ratio[idx]
-        return np.where(r > SOLID_RATIO, 0.0, np.clip(1.0 - r, 0.0, 1.0)).astype(np.float32)
+        return np.where(r > self.solid_ratio, 0.0, np.clip(1.0 - r, 0.0, 1.0)).astype(np.float32)
 
 
 @dataclass
@@ -296,24 +308,26 @@ class PassRecord:
     smallest_cell: float
     tests: int = 0
     split: int = 0
-    predicted: int = 0      # leaves not tested: predicted to pass from their parent's error (PREDICT)
-    retests: int = 0        # test points rendered again (RETEST)
+    predicted: int = 0      # leaves not tested: predicted to pass from their parent's error (Policy.predict)
+    retests: int = 0        # test points rendered again (Policy.retest)
     direct_split: int = 0   # leaves split by the lamps' exact direct light alone (no test flagged them)
 
 
 class AdaptiveGroup:
     """The corner octree of one output file (the union of the volumes, or one volume) and where its
     refinement stands: ``stage`` "probes" (the tree's probes are being baked), "tests" (test points
-    are being baked) or "retest" (inconclusive test points are being baked again, RETEST),
+    are being baked) or "retest" (inconclusive test points are being baked again, Policy.retest),
     ``finished`` when nothing splits any more."""
 
     def __init__(self, name: str, path: str, volumes, geometry, min_cell: float, max_cell: float,
                  tolerance: float, tests: str = "CENTRE_FACES",
                  direct: Optional[Callable[[np.ndarray], Optional[np.ndarray]]] = None,
-                 engine_direct: Optional[Callable[[np.ndarray], Optional[np.ndarray]]] = None):
+                 engine_direct: Optional[Callable[[np.ndarray], Optional[np.ndarray]]] = None,
+                 policy: Policy = DEFAULT_POLICY):
         if tests not in TEST_MODES:
             raise ValueError(f"refinement tests {tests!r}: expected one of {', '.join(TEST_MODES)}")
         self.name, self.path = name, path
+        self.policy = policy
         self.volumes, self.geometry = volumes, geometry
         self.min_cell = float(min_cell)
         self.tolerance = float(tolerance)
@@ -333,8 +347,8 @@ class AdaptiveGroup:
         self.test_index = None      # cache index per test point
         self.probe_index = None     # cache index per tree probe
         self.last_errors = None
-        self.predict = float(PREDICT)
-        self.retest = int(RETEST)   # samples factor of a re-test (1: none); bench_placement.py --retest
+        self.predict = float(policy.predict)
+        self.retest = int(policy.retest)   # samples factor of a re-test (1: none)
         self._first_split = None    # the split decided before this pass's re-tests
         self.settled = set()        # leaf keys (x, y, z, level) predicted to pass: never tested
         self.parent_ratio = {}      # leaf key -> its parent's error over threshold next to it
@@ -380,37 +394,37 @@ class AdaptiveGroup:
 
     def render_positions(self, nodes: np.ndarray) -> np.ndarray:
         """Where a node's panorama is rendered: the node, moved into the volumes' bounding box by
-        RENDER_INSET. The lattice starts at the volumes' min corner, so in a room whose volume is its
+        Policy.render_inset. The lattice starts at the volumes' min corner, so in a room whose volume is its
         interior the outer nodes lie exactly on the floor, walls and ceiling (a camera there sees
         half of the surface edge-on and the solid test is a coin toss) or beyond them (outside the
         building, seeing the exterior): rendered 1 cm inside, they hold the light at the room's
         boundary, which is what the interpolation next to it needs."""
-        return np.clip(nodes, self.box_min + RENDER_INSET, self.box_max - RENDER_INSET)
+        return np.clip(nodes, self.box_min + self.policy.render_inset, self.box_max - self.policy.render_inset)
 
     def locate(self, nodes: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """(positions (N, 3), back-face ratio (N,)): where each node's panorama is rendered and the
         solid test there (the PointCache's ``locate``). The node is moved into the volumes' box
         (:meth:`render_positions`); if the solid test puts it inside solid geometry (ratio >
-        SOLID_RATIO), it moves to the nearest free point within ``min(RELOCATE, Min Cell Size / 4)``,
+        Policy.solid_ratio), it moves to the nearest free point within ``min(Policy.relocate, Min Cell Size / 4)``,
         tried at a quarter, half and all of that reach along the 26 axis and diagonal directions
         (axes first; at one distance the lowest ratio wins); points deeper inside stay. A lattice
         node on a furniture face or at its edge with the floor is a coin toss for the solid test and,
         left out, makes its open neighbours take the light of probes a cell away (the hanging rules
         of a solid leaf next to them); rendered 1–5 cm outside, it holds the light there, as the
-        nodes on the volume's faces do (RENDER_INSET)."""
+        nodes on the volume's faces do (Policy.render_inset)."""
         at = self.render_positions(np.asarray(nodes, dtype=np.float64).reshape(-1, 3))
         ratio = np.asarray(self.classify_points(at), dtype=np.float32) if len(at) else np.zeros(0, np.float32)
-        reach = min(RELOCATE, 0.25 * self.min_cell)
-        solid = np.flatnonzero(ratio > SOLID_RATIO)
+        reach = min(self.policy.relocate, 0.25 * self.min_cell)
+        solid = np.flatnonzero(ratio > self.policy.solid_ratio)
         if len(solid) == 0 or reach <= 0:
             return at, ratio
         steps = reach * np.array([0.25, 0.5, 1.0])
         cand = at[solid, None, None, :] + steps[None, :, None, None] * _RELOCATE_DIRS[None, None]
-        cand = np.clip(cand, self.box_min + RENDER_INSET, self.box_max - RENDER_INSET)
+        cand = np.clip(cand, self.box_min + self.policy.render_inset, self.box_max - self.policy.render_inset)
         cr = np.asarray(self.classify_points(cand.reshape(-1, 3)), dtype=np.float32).reshape(cand.shape[:3])
         for i, s in enumerate(solid):
             for k in range(len(steps)):
-                free = np.flatnonzero(cr[i, k] <= SOLID_RATIO)
+                free = np.flatnonzero(cr[i, k] <= self.policy.solid_ratio)
                 if len(free):
                     j = free[np.argmin(cr[i, k, free])]
                     at[s], ratio[s] = cand[i, k, j], cr[i, k, j]
@@ -491,17 +505,17 @@ class AdaptiveGroup:
         split, err, thr = self.tree.refine_decide(
             tests, probe_coeffs, test_coeffs, probe_noise=probe_noise, test_noise=test_noise,
             probe_validity=cache.validity(pidx), test_valid=test_valid, tolerance=self.tolerance,
-            noise_k=NOISE_K)
+            noise_k=self.policy.noise_k)
         return split, err, thr, probe_coeffs, test_coeffs, test_valid
 
     def _retests(self, cache: PointCache, split, err, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
-        """Re-test entries to render (RETEST): the test points erring by more than the tolerance in
-        leaves that did not split only because the noise raised their threshold above RETEST_NOISE ×
+        """Re-test entries to render (Policy.retest): the test points erring by more than the tolerance in
+        leaves that did not split only because the noise raised their threshold above Policy.retest_noise ×
         the tolerance. The decision on the lamps' direct light needs no re-test."""
         leaves = self.tree.info()["leaves"]
         direct = self._direct_split if self._direct_split is not None else np.zeros(len(leaves), dtype=bool)
         doubt = (~split & ~direct & (leaves[:, 3] > 0) & (np.asarray(err) > self.tolerance)
-                 & (np.asarray(thr) > RETEST_NOISE * self.tolerance))
+                 & (np.asarray(thr) > self.policy.retest_noise * self.tolerance))
         if not doubt.any():
             return []
         tests = self.tests
@@ -574,7 +588,7 @@ class AdaptiveGroup:
 
     def direct_check(self, cache: PointCache) -> np.ndarray:
         """(L,) bool: leaves above Min Cell Size whose interpolation of the lamps' exact direct light
-        is off by more than the tolerance somewhere on a lattice of DIRECT_DIVISIONS steps per axis
+        is off by more than the tolerance somewhere on a lattice of Policy.direct_divisions steps per axis
         inside the leaf (at most one per Min Cell Size; the leaf's corners excluded), relative to the
         interpolated total light there. The direct term costs no render (shadow rays only), so a
         sunbeam's edge that passes between a leaf's test points, or crosses a leaf predicted to
@@ -589,7 +603,7 @@ class AdaptiveGroup:
             sel = np.flatnonzero(leaves[:, 3] == lv)
             if lv == 0 or len(sel) == 0:
                 continue
-            div = min(1 << lv, DIRECT_DIVISIONS)
+            div = min(1 << lv, self.policy.direct_divisions)
             r = range(div + 1)
             offs = np.array([(i, j, k) for i in r for j in r for k in r
                              if not (i in (0, div) and j in (0, div) and k in (0, div))], dtype=np.int64)
@@ -619,13 +633,13 @@ class AdaptiveGroup:
         with np.errstate(divide="ignore", invalid="ignore"):
             err = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
         err = np.nan_to_num(err)
-        err[np.asarray(self.classify_points(at)) > SOLID_RATIO] = 0.0
+        err[np.asarray(self.classify_points(at)) > self.policy.solid_ratio] = 0.0
         fail = err[inverse.reshape(-1)] > self.tolerance
         out[np.unique(leaf_of[fail])] = True
         return out
 
     def _settle_children(self, split, thr, probe_coeffs, validity, test_coeffs, test_valid):
-        """Mark the children of split leaves that are predicted to pass (see PREDICT). A child's
+        """Mark the children of split leaves that are predicted to pass (see Policy.predict). A child's
         parent ratio is the parent's worst error over its threshold at the test points next to the
         child (the parent's centre and the three face centres of the child's octant; where none of
         those was compared, inside solids, the parent's worst over all its tests)."""
@@ -655,8 +669,8 @@ class AdaptiveGroup:
             # bench/results/placement.md.)
             before = self.parent_ratio.get((x, y, z, lv))
             measured = None if before is None or not whole > 0 else min(self.predict, max(1.0, before / whole))
-            if float(thr[i]) > PREDICT_NOISE * self.tolerance:
-                measured = None     # the threshold is the noise's: no rate (PREDICT_NOISE)
+            if float(thr[i]) > self.policy.predict_noise * self.tolerance:
+                measured = None     # the threshold is the noise's: no rate (Policy.predict_noise)
             rate = 1.0 if measured is None or (x, y, z, lv) not in self.parent_rate else measured
             half = 1 << (lv - 1)
             for octant in range(8):

@@ -18,15 +18,15 @@ and not added (their bounced light only: the engine adds their direct light, sha
 ``lights_visible`` off no lamp is seen directly by the probes (the meaning of that setting is
 unchanged): nothing here runs.
 
-Use from the bake (bake_core.ProbeBake): ``plan = prepare(bake)`` once the render is set up (its
-changes — transparent film, lamps hidden from camera rays — go through the bake's StateGuard),
-``plan.add_sky(bake, i, exr)`` after each panorama, ``plan.add_to(bake)`` before the files are
-written.
+Use from the bake (bake_core.ProbeBake) through its render session (bake_session.RenderSession,
+never the bake itself): ``plan = prepare(session, realtime, mixed)`` once the render settings are
+applied (its changes — transparent film, lamps hidden from camera rays — go through
+``session.guard``), ``plan.sky_coeffs(session, exr)`` after each panorama (RenderSession.render
+does it), ``plan.add_to(coeffs, positions, max_band, timings)`` before the files are written.
 """
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import dataclass, field
 from typing import List, Optional, Tuple
@@ -147,60 +147,61 @@ class DirectLightPlan:
         return native.direct_project(lamps, np.asarray(positions, dtype=np.float64), max_band,
                                      self.samples, self.geometry)
 
-    def add_to(self, bake):
-        """Adds the direct light to ``bake.coeffs`` (all probes at once) and records the time."""
+    def add_to(self, coeffs: np.ndarray, positions: np.ndarray, max_band: int, timings: dict):
+        """Adds the direct light to ``coeffs`` (P, sh_count, 3) at ``positions`` (all probes at
+        once, in place) and records the time as ``timings["direct"]``."""
         t0 = time.perf_counter()
-        bake.coeffs += self.project(bake.positions, bake.settings.max_band)
-        bake.timings["direct"] = time.perf_counter() - t0
+        coeffs += self.project(positions, max_band)
+        timings["direct"] = time.perf_counter() - t0
 
 
-    def world(self, bake) -> np.ndarray:
+    def world(self, session) -> np.ndarray:
         """(H, W, 3) float32, rows top-down: the world the probes see directly, read or captured once
         per bake (world_radiance); with Sky Sun "mixed" and a sun in it, the rest without the sun
         (``self.sun``). Timed as "sky_world"."""
         if self._world is None:
             t0 = time.perf_counter()
-            world = world_radiance(bake, bake.settings.panorama_resolution)
-            if (bake.settings.sky_sun == "mixed" and not self.sky_source.startswith("constant")
+            world = world_radiance(session, self, session.settings.panorama_resolution)
+            if (session.settings.sky_sun == "mixed" and not self.sky_source.startswith("constant")
                     and not self._split_done):
                 split = native.sky_sun_split(world)
                 self.sun_verdict = split.verdict
                 if split.sun is not None:
                     self.sun, world = split.sun, split.rest
-                    bake.log("Schnee: " + sun_summary(split.sun) + ": split off as a mixed light (Sky Sun "
+                    session.log("Schnee: " + sun_summary(split.sun) + ": split off as a mixed light (Sky Sun "
                              "Mixed): the probes see the rest of the sky, the engine adds the sun")
                 else:
-                    bake.log(f"Schnee: no sun split off the world ({SUN_VERDICTS.get(split.verdict, split.verdict)})")
+                    session.log(f"Schnee: no sun split off the world ({SUN_VERDICTS.get(split.verdict, split.verdict)})")
             elif self.sun is not None:     # read again after the table freed it: the same split
                 world = native.sky_sun_split(world).rest
             self._split_done = True
             self._world = world
-            bake.timings["sky_world"] = time.perf_counter() - t0
+            session.timings["sky_world"] = time.perf_counter() - t0
         return self._world
 
-    def sun_lamp(self, bake) -> Optional[native.Lamp]:
+    def sun_lamp(self, session) -> Optional[native.Lamp]:
         """The split sun as a Sun lamp (the engine's light), or None; splits the world if not yet."""
         if self.sky and not self._split_done:
-            self.world(bake)
+            self.world(session)
         return None if self.sun is None else self.sun.lamp()
 
-    def sky_coeffs(self, bake, exr_path: str) -> Optional[np.ndarray]:
+    def sky_coeffs(self, session, exr_path: str) -> Optional[np.ndarray]:
         """Σ_cells vis(cell) · ∫_cell L_world Y dω for the panorama just rendered with a transparent
         film (the world hidden from camera rays): vis = 1 − alpha. None when the sky is path traced."""
         if not self.sky:
             return None
         t0 = time.perf_counter()
-        s = bake.settings
+        s = session.settings
         w, h = s.panorama_resolution, s.panorama_resolution // 2
         if self._table is None:          # once per bake: the world read or captured, binned
-            self._table = sky_table(bake, w, h)
+            self._table = native.sky_table(self.world(session), w, h, s.max_band)
             self._world = None           # binned: the image is not needed any more
-            bake.timings["sky_table"] = time.perf_counter() - t0
+            session.timings["sky_table"] = time.perf_counter() - t0
             t0 = time.perf_counter()
         vis = 1.0 - read_alpha(exr_path, w, h)
         np.clip(vis, 0.0, 1.0, out=vis)
         out = np.einsum("hw,hwic->ic", vis, self._table)
-        bake.timings["sky_direct"] = bake.timings.get("sky_direct", 0.0) + time.perf_counter() - t0
+        session.timings["sky_direct"] = session.timings.get("sky_direct", 0.0) + time.perf_counter() - t0
         return out
 
 
@@ -281,29 +282,11 @@ SKY_CAPTURE_WIDTH = 2048
 SKY_CAPTURE_SAMPLES = 32
 
 
-def capture_world(bake, width: int) -> np.ndarray:
+def capture_world(session, width: int) -> np.ndarray:
     """The world alone rendered by Cycles from the probe camera at the origin (every object hidden,
-    opaque film), width x width/2, (H, W, 4) float32 top-down. Every change goes through a
-    render_settings.StateGuard and is put back right after the render (also on error)."""
-    scene = bake.scene
-    cam = bake._camera
-    r = scene.render
-    path = os.path.join(bake._tmpdir, "schnee_world_capture.exr")
-    with render_settings.StateGuard() as state:
-        for ob in scene.objects:
-            if ob is not cam:
-                state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
-        state.set(r, "resolution_x", width, "render.resolution_x")
-        state.set(r, "resolution_y", width // 2, "render.resolution_y")
-        state.set(r, "film_transparent", False, "render.film_transparent")
-        state.set(scene.cycles, "samples", SKY_CAPTURE_SAMPLES, "cycles.samples")
-        location = tuple(cam.location)
-        state.on_restore(lambda: setattr(cam, "location", location), "the probe camera's location")
-        cam.location = (0.0, 0.0, 0.0)
-        bpy.ops.render.render(write_still=False, layer=bake.view_layer.name, scene=scene.name)
-        bpy.data.images["Render Result"].save_render(path, scene=scene)
-    if state.failed:
-        bake.log("Schnee: could not restore " + ", ".join(state.failed))
+    opaque film), width x width/2, (H, W, 4) float32 top-down (RenderSession.render_world: every
+    change is put back right after the render, also on error)."""
+    path = session.render_world("schnee_world_capture.exr", width, samples=SKY_CAPTURE_SAMPLES)
     img = bpy.data.images.load(path, check_existing=False)
     try:
         buf = np.empty(width * (width // 2) * 4, dtype=np.float32)
@@ -313,13 +296,12 @@ def capture_world(bake, width: int) -> np.ndarray:
     return np.ascontiguousarray(buf.reshape(width // 2, width, 4)[::-1])
 
 
-def world_radiance(bake, pano_w: int) -> np.ndarray:
+def world_radiance(session, plan: DirectLightPlan, pano_w: int) -> np.ndarray:
     """(H, W, 3) float32 >= 0, rows top-down: the world as the probes see it directly, read as it is
-    (a constant colour: pano_w x pano_w/2 of it; an image) or captured by Cycles; sets the plan's
+    (a constant colour: pano_w x pano_w/2 of it; an image) or captured by Cycles; sets ``plan``'s
     ``sky_source``."""
-    plan = bake._direct
-    src = world_image(bake.scene.world)
-    rgb = world_constant(bake.scene.world) if src is None else None
+    src = world_image(session.scene.world)
+    rgb = world_constant(session.scene.world) if src is None else None
     if rgb is not None:
         world = np.empty((pano_w // 2, pano_w, 3), dtype=np.float32)
         world[:] = np.clip(np.array(rgb, dtype=np.float32), 0.0, None)
@@ -330,16 +312,10 @@ def world_radiance(bake, pano_w: int) -> np.ndarray:
         plan.sky_source = f"image '{name}' {pixels.shape[1]}x{pixels.shape[0]}"
     else:
         width = max(SKY_CAPTURE_WIDTH, 8 * pano_w)
-        world = np.clip(capture_world(bake, width)[:, :, :3], 0.0, None)
+        world = np.clip(capture_world(session, width)[:, :, :3], 0.0, None)
         plan.sky_source = f"Cycles capture {width}x{width // 2}"
-    bake.log(f"Schnee: world seen directly from {plan.sky_source}")
+    session.log(f"Schnee: world seen directly from {plan.sky_source}")
     return np.ascontiguousarray(world, dtype=np.float32)
-
-
-def sky_table(bake, pano_w: int, pano_h: int) -> np.ndarray:
-    """(pano_h, pano_w, sh_count, 3): the world (the rest without its sun under Sky Sun "mixed")
-    pre-integrated per panorama cell (native.sky_table)."""
-    return native.sky_table(bake._direct.world(bake), pano_w, pano_h, bake.settings.max_band)
 
 
 # Why a world kept its sun (native.SkySplit.verdict), for the bake log.
@@ -411,20 +387,22 @@ def classify(light) -> Tuple[bool, Optional[Tuple[float, float, float]], str]:
     return True, factor, ""
 
 
-def prepare(bake) -> Optional[DirectLightPlan]:
+def prepare(session, realtime_lights=(), mixed_lights=frozenset()) -> Optional[DirectLightPlan]:
     """Decides every baked lamp's way, hides the analytic ones from camera rays and gathers the
-    shadow geometry. Every Blender setting it changes goes through the bake's
-    render_settings.StateGuard (``bake._state``), restored by finish and cancel."""
-    s = bake.settings
-    scene, view_layer, state = bake.scene, bake.view_layer, bake._state
+    shadow geometry. ``realtime_lights``: the lamp objects left out of the probes; ``mixed_lights``:
+    the names of the mixed lamps (light_modes.py). Every Blender setting it changes goes through
+    the session's render_settings.StateGuard (``session.guard``), restored by finish and cancel.
+    The plan's ``messages`` are for the user (the bake reports them)."""
+    s = session.settings
+    scene, view_layer, state = session.scene, session.view_layer, session.guard
     # The world seen directly: the panoramas get a transparent film (world hidden from camera rays,
     # alpha = coverage) and add_sky() adds the exact world projection weighted by 1 - alpha.
     state.set(scene.render, "film_transparent", True, "render.film_transparent")
     state.set(scene.render.image_settings, "color_mode", 'RGBA', "render.image_settings.color_mode")
     if not s.lights_visible:
         return DirectLightPlan(sky=True)
-    realtime = {ob.name for ob in bake._realtime_lights}
-    mixed = bake._mixed_lights
+    realtime = {ob.name for ob in realtime_lights}
+    mixed = mixed_lights
     coll = bpy.data.collections.get(s.volume_collection)
     volume_names = frozenset(ob.name for ob in coll.all_objects) if coll is not None else frozenset()
     plan = DirectLightPlan(sky=True)
@@ -464,5 +442,4 @@ def prepare(bake) -> Optional[DirectLightPlan]:
         ob = bpy.data.objects.get(name)
         if ob is not None and hasattr(ob, "visible_camera"):
             state.set(ob, "visible_camera", False, f"object[{ob.name}].visible_camera")
-    bake.messages.extend(plan.messages)
     return plan

@@ -92,11 +92,11 @@ def run_fixed(job, spec, tmp):
         # coefficients in ProbeBake.finish(), which a fixed-position bake does not reach: add them
         # here as finish() does, and report their time (all probes at once) on its own.
         direct = 0.0
-        if bake._direct is not None and bake._direct.lamps:
-            bake._direct.add_to(bake)
+        if bake.direct is not None and bake.direct.lamps:
+            bake.direct.add_to(bake.coeffs, bake.positions, s.max_band, bake.timings)
             direct = bake.timings["direct"]
         return {"coeffs": bake.coeffs.tolist(), "times": rows, "positions": eng.tolist(),
-                "direct_seconds": direct, "analytic_lamps": list(bake._direct.analytic) if bake._direct else [],
+                "direct_seconds": direct, "analytic_lamps": list(bake.direct.analytic) if bake.direct else [],
                 "settings_effective": dataclasses.asdict(s)}
     finally:
         bake.cancel()

@@ -1,5 +1,6 @@
 """The add-on's Adaptive placement loop (addon/schnee_probes/adaptive.py) without Blender: the same
 state machine the bake drives, fed with closed-form light fields instead of renders (< 2 s)."""
+import dataclasses
 import math
 
 import numpy as np
@@ -33,7 +34,7 @@ def sh_of(constant, sun):
 def drive(group, field, noise=0.0, jitter=None):
     """Run the refinement with ``field(points) -> (N, 9, 3)`` standing in for the renders, ``noise``
     the noise estimate of a render of Samples and ``jitter(points, scale)`` (optional) its actual
-    Monte-Carlo error. A re-test entry renders factor × the samples (adaptive.RETEST): its jitter
+    Monte-Carlo error. A re-test entry renders factor × the samples (adaptive.Policy.retest): its jitter
     and its estimate scale by 1/√factor."""
     cache = adaptive.PointCache(2)
 
@@ -109,16 +110,16 @@ def test_shadow_plane_refines_only_the_cells_it_crosses(tests):
 
 
 @pytest.mark.parametrize("tests", adaptive.TEST_MODES)
-def test_linear_field_and_bounded_noise_split_nothing(tests, monkeypatch):
+def test_linear_field_and_bounded_noise_split_nothing(tests):
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests)
     drive(group, lambda p: np.array([sh_of(1.0 + 0.2 * x, 0.5) for x in p[:, 0]]))
     assert len(group.passes) == 1 and group.passes[0].split == 0
     # ±8 % noise (above the 5 % tolerance) with its estimate passed in: no split either.
-    # The noise re-tests the leaves it lets pass (adaptive.RETEST), and they pass again: a re-test
+    # The noise re-tests the leaves it lets pass (adaptive.Policy.retest), and they pass again: a re-test
     # lowers the noise, it does not make noise split.
     rng = np.random.default_rng(5)
-    monkeypatch.setattr(adaptive, "RETEST", 4)
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests,
+                                   policy=adaptive.Policy(retest=4))
     drive(group, lambda p: np.array([sh_of(1.0, 0.0) for _ in p]), noise=0.05,
           jitter=lambda p, scale: np.array([sh_of(1.0, 0.0) * rng.uniform(-0.08, 0.08) * scale for _ in p]))
     assert group.passes[0].split == 0 and group.passes[0].retests > 0
@@ -136,7 +137,7 @@ def test_combine_retest_mean_and_pooled_noise():
     assert adaptive.combine_retest(a, 0.04, b, 0.04 / math.sqrt(3), 3.0)[1] == pytest.approx(0.02)
 
 
-def test_retest_finds_the_error_the_noise_hid(monkeypatch):
+def test_retest_finds_the_error_the_noise_hid():
     # A light error of 7 % at the centres of the 2 m leaves (f = 1 + 0.07·((x mod 2) − 1)²: the
     # corners hold 1.07, the centre 1.0), tolerance 5 %, renders with 3 % noise (estimated, not
     # drawn: the values are exact). The centre's threshold sqrt(tol² + (2σ)²) with σ² = 3² + 3²/8
@@ -147,8 +148,8 @@ def test_retest_finds_the_error_the_noise_hid(monkeypatch):
         return np.array([sh_of(1.0 + 0.07 * ((x % 2.0) - 1.0) ** 2, 0.0) for x in p[:, 0]])
 
     def run(retest):
-        monkeypatch.setattr(adaptive, "RETEST", retest)
-        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05,
+                                       policy=adaptive.Policy(retest=retest))
         drive(group, field, noise=0.03)
         return group
     plain = run(1)
@@ -159,14 +160,14 @@ def test_retest_finds_the_error_the_noise_hid(monkeypatch):
     assert found.passes[0].split == 4 and found.passes[0].retests > 0
     assert [p.split for p in found.passes[1:]] == [0] and found.passes[1].retests == 0
     # The stages: per pass probes, tests and re-tests (the farm submits one job array per stage).
-    assert found.stage_count() == 3 * found.root_level + 1 == adaptive.stage_bound(0.5, 2.0)
+    assert found.stage_count() == 3 * found.root_level + 1 == adaptive.stage_bound(0.5, 2.0, found.policy)
 
 
 def test_nodes_on_the_volume_boundary_render_just_inside_it():
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
     nodes = np.array([[0.0, 0.0, 0.0], [8.0, 2.0, 2.0], [4.0, 1.0, 1.0], [9.0, -1.0, 0.5]])
     got = group.render_positions(nodes)
-    inset = adaptive.RENDER_INSET
+    inset = adaptive.DEFAULT_POLICY.render_inset
     assert np.allclose(got, [[inset, inset, inset], [8 - inset, 2 - inset, 2 - inset], [4, 1, 1],
                              [8 - inset, inset, 0.5]])
 
@@ -202,11 +203,11 @@ def test_centre_tests_render_fewer_points_for_the_same_refinement():
         adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, "FACES")
 
 
-def _quadratic_hall(predict, monkeypatch):
-    """The hall at Min/Max Cell 0.125/2 m under f = 1 + x² (SH L0) with adaptive.PREDICT = predict:
+def _quadratic_hall(predict):
+    """The hall at Min/Max Cell 0.125/2 m under f = 1 + x² (SH L0) with Policy.predict = predict:
     (group, renders, error at 500 seeded points)."""
-    monkeypatch.setattr(adaptive, "PREDICT", predict)
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05,
+                                   policy=adaptive.Policy(predict=predict))
 
     def field(p):
         return np.array([sh_of(1.0 + x * x, 0.5) for x in p[:, 0]])
@@ -216,12 +217,12 @@ def _quadratic_hall(predict, monkeypatch):
     return group, int(cache.rendered.sum()), adaptive.irradiance_error(got, field(pts))
 
 
-def test_prediction_skips_the_tests_of_children_a_smooth_field_lets_pass(monkeypatch):
+def test_prediction_skips_the_tests_of_children_a_smooth_field_lets_pass():
     # Trilinear interpolation of a quadratic field errs by a quarter after each halving (error ∝ h²
     # f''). Once a leaf's error is seen falling that fast, its children whose parent erred by less
     # than 4× their threshold pass without a test: the same tree, the same error, fewer renders.
-    plain, renders_all, err_all = _quadratic_hall(0.0, monkeypatch)
-    group, renders, err = _quadratic_hall(4.0, monkeypatch)
+    plain, renders_all, err_all = _quadratic_hall(0.0)
+    group, renders, err = _quadratic_hall(4.0)
     assert sum(p.predicted for p in group.passes) > 0 and sum(p.predicted for p in plain.passes) == 0
     assert group.tree.info()["leaves"].tolist() == plain.tree.info()["leaves"].tolist()
     assert np.array_equal(err, err_all) and err.max() <= 0.05
@@ -229,29 +230,29 @@ def test_prediction_skips_the_tests_of_children_a_smooth_field_lets_pass(monkeyp
     assert renders < 0.5 * renders_all
 
 
-def test_prediction_needs_a_measured_rate(monkeypatch):
+def test_prediction_needs_a_measured_rate():
     # The first layer's children are always tested: at 16 m in a 10 m room nothing says the light
     # is in the h² regime yet. With Max Cell 2 m the quadratic field's first split leaves have no
     # rate; only their children's children are predicted.
-    monkeypatch.setattr(adaptive, "PREDICT", 4.0)
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05,
+                                   policy=adaptive.Policy(predict=4.0))
     drive(group, lambda p: np.array([sh_of(1.0 + x * x, 0.5) for x in p[:, 0]]))
     assert [p.predicted for p in group.passes][:2] == [0, 0]
 
 
-def test_prediction_needs_the_rate_measured_at_two_levels(monkeypatch):
+def test_prediction_needs_the_rate_measured_at_two_levels():
     # A smooth field whose error falls 4× from 2 m to 1 m leaves, plus a small bright spot that
     # only a 0.5 m leaf's centre test can see: predicted from that one rate, the spot's 0.5 m leaf
     # was never tested (measured in Cycles: the bundled room at 128×64 px, a 4 m leaf predicted
     # from the 16 m → 8 m rate, 15–28 % off at nine points). With both its own rate and its
     # parent's required, that leaf is tested and the spot refines.
-    monkeypatch.setattr(adaptive, "PREDICT", 4.0)
     spot = np.array([0.75, 0.25, 0.25])      # centre of a 0.5 m leaf, 0.43 m from its parent's tests
 
     def field(p):
         bump = 3.0 * np.exp(-np.sum((p - spot) ** 2, axis=1) / (2 * 0.06 ** 2))
         return np.array([sh_of(1.0 + 0.3 * x * x + b, 0.5) for x, b in zip(p[:, 0], bump)])
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05,
+                                   policy=adaptive.Policy(predict=4.0))
     cache = drive(group, field)
     got = group.tree.interpolate(spot[None], cache.coeffs[group.probe_index], cache.validity(group.probe_index))
     assert adaptive.irradiance_error(got, field(spot[None]))[0] < 0.05
@@ -261,33 +262,33 @@ def test_prediction_needs_the_rate_measured_at_two_levels(monkeypatch):
     assert size[holds].max() <= 0.25
 
 
-def test_prediction_measures_no_rate_where_the_noise_sets_the_threshold(monkeypatch):
+def test_prediction_measures_no_rate_where_the_noise_sets_the_threshold():
     # The threshold is sqrt(tol² + (2σ)²). Where the noise term dominates it (threshold above
-    # PREDICT_NOISE × tol) the measured errors are mostly noise and their fall is no h² rate (in the
+    # Policy.predict_noise × tol) the measured errors are mostly noise and their fall is no h² rate (in the
     # hall at 16 spp such rates settled children 3–5 % off): no rate is measured there, and a child
     # passes untested only where its parent passed next to it. The quadratic field at tol 0.05:
     # σ = 0.02 gives a threshold of 0.064 (< 0.075, rates measured), σ = 0.03 one of 0.078 (none).
-    monkeypatch.setattr(adaptive, "PREDICT", 4.0)
-    assert adaptive.RETEST == 1   # the default: re-tests would lower the thresholds looked at here
-    assert adaptive.PREDICT_NOISE == 1.5
+    policy = adaptive.Policy(predict=4.0)
+    assert policy.retest == 1   # the default: re-tests would lower the thresholds looked at here
+    assert policy.predict_noise == 1.5
 
     def run(noise):
-        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05)
+        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05, policy=policy)
         drive(group, lambda p: np.array([sh_of(1.0 + x * x, 0.5) for x in p[:, 0]]), noise=noise)
         return group
     assert len(run(0.02).parent_rate) > 0
     noisy = run(0.03)
     assert noisy.parent_rate == {}
     assert all(noisy.parent_ratio[c] < 1.0 for c in noisy.settled)
-    monkeypatch.setattr(adaptive, "PREDICT_NOISE", math.inf)   # the rule off: rates from noise
+    policy = dataclasses.replace(policy, predict_noise=math.inf)   # the rule off: rates from noise
     assert len(run(0.03).parent_rate) > 0
 
 
-def test_prediction_still_refines_a_shadow_edge_to_min_cell(monkeypatch):
+def test_prediction_still_refines_a_shadow_edge_to_min_cell():
     # A step is not smooth: the parent crossed by it errs by far more than 4× its threshold next to
     # the children that hold the edge, so they are tested and the edge refines to Min Cell Size.
-    monkeypatch.setattr(adaptive, "PREDICT", 4.0)
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05,
+                                   policy=adaptive.Policy(predict=4.0))
     drive(group, lambda p: np.array([sh_of(1.0, 3.0 if x > 3.3 else 0.0) for x in p[:, 0]]))
     leaves = group.tree.info()["leaves"].astype(float)
     size, lo = 0.5 * 2 ** leaves[:, 3], leaves[:, 0] * 0.5
@@ -387,7 +388,7 @@ def test_nodes_in_a_solid_surface_render_just_outside_it_and_deep_ones_stay_out(
     at the nearest free point within min(RELOCATE, Min Cell / 4); a node deep inside stays solid."""
     block = box_mesh("block", (3.0, 0.0, 0.0), (4.0, 1.0, 1.0))
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [block], 0.5, 2.0, 0.05)
-    reach = min(adaptive.RELOCATE, 0.25 * 0.5)
+    reach = min(adaptive.DEFAULT_POLICY.relocate, 0.25 * 0.5)
     nodes = np.array([[4.0, 0.5, 0.5],     # on the +x face
                       [4.0, 0.0, 0.5],     # the face's edge with the floor (rendered 1 cm up first)
                       [3.5, 0.5, 1.0],     # on the +z face
@@ -395,18 +396,18 @@ def test_nodes_in_a_solid_surface_render_just_outside_it_and_deep_ones_stay_out(
                       [6.0, 1.0, 1.0]])    # free
     at = group.render_positions(nodes)
     ratio_before = group.classify_points(at)
-    assert (ratio_before[:4] > adaptive.SOLID_RATIO).sum() >= 2 and ratio_before[3] > adaptive.SOLID_RATIO
+    assert (ratio_before[:4] > adaptive.DEFAULT_POLICY.solid_ratio).sum() >= 2 and ratio_before[3] > adaptive.DEFAULT_POLICY.solid_ratio
     got, ratio_got = group.locate(nodes)
     ratio = group.classify_points(got)
     assert np.array_equal(ratio_got, ratio.astype(np.float32))   # the ratio it returns is the one there
     for i in range(3):
         moved = np.linalg.norm(got[i] - at[i])
-        if ratio_before[i] > adaptive.SOLID_RATIO:
-            assert 0 < moved <= reach + 1e-12 and ratio[i] <= adaptive.SOLID_RATIO
+        if ratio_before[i] > adaptive.DEFAULT_POLICY.solid_ratio:
+            assert 0 < moved <= reach + 1e-12 and ratio[i] <= adaptive.DEFAULT_POLICY.solid_ratio
         else:
             assert moved == 0
     assert got[0][0] > 4.0 and got[1][0] > 4.0 and got[2][2] > 1.0   # outside the block, beside it
-    assert np.array_equal(got[3], at[3]) and ratio[3] > adaptive.SOLID_RATIO   # deep: stays, left out
+    assert np.array_equal(got[3], at[3]) and ratio[3] > adaptive.DEFAULT_POLICY.solid_ratio   # deep: stays, left out
     assert np.array_equal(got[4], nodes[4])
     # Through the bake loop: the relocated corners are rendered and valid, the deep one is not.
     cache = drive(group, lambda p: np.array([sh_of(1.0, 0.0)] * len(p)))

@@ -171,9 +171,9 @@ def bake_scene(out, name, kind, placement="OCTREE"):
         pass
     result = job.finish()
     if placement == "ADAPTIVE":  # every rendered point (probes and test points) of the refinement
-        done = job._cache.rendered
-        common.emit(case="bake", name=name, coeffs=job._cache.coeffs[done].tolist(),
-                    positions=job._cache.positions[done].tolist(), noise=job._cache.noise[done].tolist())
+        done = job.plan.cache.rendered
+        common.emit(case="bake", name=name, coeffs=job.plan.cache.coeffs[done].tolist(),
+                    positions=job.plan.cache.positions[done].tolist(), noise=job.plan.cache.noise[done].tolist())
         return
     common.emit(case="bake", name=name, coeffs=job.coeffs.tolist(), positions=job.positions.tolist(),
                 visible_camera=[before, during, bpy.data.objects["Lamp"].visible_camera],

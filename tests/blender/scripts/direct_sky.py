@@ -84,7 +84,7 @@ def main():
         for seed in (0, 1):
             job, result = bake(out, name, seed)
             common.emit(case="sky", name=name, seed=seed, coeffs=job.coeffs.tolist(),
-                        reference=reference.tolist(), source=job._direct.sky_source,
+                        reference=reference.tolist(), source=job.direct.sky_source,
                         timings=result.timings, probes=job.total)
 
 

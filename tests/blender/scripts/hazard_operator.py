@@ -58,7 +58,7 @@ for _ in range(4):
     bake.step()
 spent = bake.timings["render"] + bake.timings["write_exr"] + bake.timings["project"]
 results["spent_4"] = spent
-results["first_probe"] = bake._first_probe_seconds
+results["first_probe"] = bake.first_probe_seconds
 results["remaining_after_4"] = bake.remaining_seconds()
 results["model_after_4"] = estimate.estimate_seconds(bake.total - 4, s)
 results["line"] = bake.progress_line()

@@ -10,7 +10,7 @@ CASE:
            (an error while rendering): the first file must stay byte for byte, temp folders gone,
            the scene's settings back
   export   bake into //sh_coeffs of a saved copy, export glTF, report the entry
-  skysun   the lamps of the direct-light check (ProbeBake._check_lamps) under sunrise.exr (a sun
+  skysun   the lamps of the direct-light check (bake_plans.RefinementLamps.check_lamps) under sunrise.exr (a sun
            in the image), a constant world, and with Lamps Seen by Probes off (prepare only)
 Prints one RESULT line (addon_common.emit).
 """
@@ -106,7 +106,7 @@ elif CASE == "open":
     b, r = bake(settings())
     _, out = file_summary(r.files[0])
     out["passes"] = [vars(p) for p in r.passes]
-    out["noise"] = b._cache.noise.tolist()
+    out["noise"] = b.plan.cache.noise.tolist()
     b1, r1 = bake(settings(file_version="V1", output_path=os.path.join(OUT, "v1.shprobe")))
     f1, out1 = file_summary(r1.files[0])
     # The dense file's probe at each cell centre against the octree file's field there.
@@ -133,14 +133,14 @@ elif CASE == "cancel":
     try:
         b.prepare()
         while b.step():
-            if len(b._groups[0].passes) >= 2:
+            if len(b.plan.groups[0].passes) >= 2:
                 b.request_cancel()
         b.finish()
         results["cancel"] = "finished"
     except bake_core.BakeCancelled as exc:
         b.cancel()
         results["cancel"] = str(exc)
-    results["cancel_pass"] = len(b._groups[0].passes)
+    results["cancel_pass"] = len(b.plan.groups[0].passes)
     results["cancel_same_file"] = open(path, "rb").read() == before
     results["cancel_state"] = scene_state() == state0
     results["cancel_temp"] = temp_dirs()
@@ -162,7 +162,7 @@ elif CASE == "cancel":
         results["error"] = str(exc)
     finally:
         native.project_file = real
-    results["error_pass"] = len(b._groups[0].passes)
+    results["error_pass"] = len(b.plan.groups[0].passes)
     results["error_same_file"] = open(path, "rb").read() == before
     results["error_state"] = scene_state() == state0
     results["error_temp"] = temp_dirs()
@@ -203,18 +203,18 @@ elif CASE == "skysun":
         try:
             b.prepare()
             return [dict(kind=lp.kind, color=list(lp.color), direction=list(lp.direction), angle=lp.radius)
-                    for lp in b._check_lamps()]
+                    for lp in b.plan.lamps.check_lamps()]
         finally:
             b.cancel()
     # Sky Sun "baked": the probes keep the sun, so the check stands in for it; "mixed" (the
-    # default): the sun is the engine's (ProbeBake._engine_lamps), the check leaves it out.
+    # default): the sun is the engine's (bake_plans.RefinementLamps.engine_lamps), the check leaves it out.
     results["image"] = check_lamps(sky_sun="baked")
     results["mixed_check"] = check_lamps()
     b = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings(), log=print)
     try:
         b.prepare()
         results["mixed_engine"] = [dict(kind=lp.kind, color=list(lp.color), direction=list(lp.direction),
-                                        angle=lp.radius) for lp in b._engine_lamps()]
+                                        angle=lp.radius) for lp in b.plan.lamps.engine_lamps()]
     finally:
         b.cancel()
     # The same image read by OIIO (not Blender's pixels), times the Background strength.

@@ -154,7 +154,7 @@ def nishita_case():
     folder = os.path.join(OUT, "nishita")
     job, result, logs = bake(settings(folder, capture_sky=False))
     common.emit(case="nishita", sun=read_json(os.path.join(folder, "sh_coeffs", "sun.json")),
-                source=job._direct.sky_source, coeffs=job.coeffs[0].tolist(), logs=logs)
+                source=job.direct.sky_source, coeffs=job.coeffs[0].tolist(), logs=logs)
 
 
 sky_case()
