@@ -290,6 +290,72 @@ static const char *count_text(double v, char *buf, size_t n)
     return buf;
 }
 
+/* The frame (centre of the volumes' bounding box) and the occupancy grid, within max_grid_cells. */
+static pb_result setup_grid(oct_ctx *c)
+{
+    const pb_placement_desc *d = c->desc;
+    /* Bounding box of the volumes' referenced vertices. */
+    for (int a = 0; a < 3; a++) {
+        c->bbmin[a] = INFINITY;
+        c->centre[a] = -INFINITY; /* holds the max until the end of the loop */
+    }
+    for (uint32_t i = 0; i < d->volume_count; i++) {
+        const pb_mesh_desc *m = &d->volumes[i];
+        for (size_t t = 0; t < 3 * (size_t)m->triangle_count; t++) {
+            const double *p = &m->positions[3 * (size_t)m->indices[t]];
+            for (int a = 0; a < 3; a++) {
+                c->bbmin[a] = fmin(c->bbmin[a], p[a]);
+                c->centre[a] = fmax(c->centre[a], p[a]);
+            }
+        }
+    }
+    uint64_t total = 1;
+    bool overflow = false;
+    double want[3];
+    for (int a = 0; a < 3; a++) {
+        double extent = c->centre[a] - c->bbmin[a];
+        c->centre[a] = c->bbmin[a] + 0.5 * extent;
+        c->origin_rel[a] = c->bbmin[a] - c->centre[a];
+        /* ceil with a tolerance of 1e-6 cell so that 10 m / 0.5 m stays 20 cells after rounding */
+        want[a] = ceil(extent / c->min_cell - 1e-6);
+        if (want[a] < 1) want[a] = 1;
+        if (!(want[a] <= (double)PB_MAX_AXIS_CELLS)) {
+            overflow = true;
+            c->dims[a] = 0;
+        } else {
+            c->dims[a] = (uint32_t)want[a];
+            if (!overflow && total > UINT64_MAX / c->dims[a])
+                overflow = true;
+            else if (!overflow)
+                total *= c->dims[a];
+        }
+    }
+    c->eps = PB_BOX_EPS * c->min_cell;
+    if (overflow || total > c->max_cells || total > SIZE_MAX / sizeof(int32_t)) {
+        double cells = want[0] * want[1] * want[2]; /* may be inf for absurd sizes: printed as such */
+        /* min·cbrt(X·Y·Z / limit), factor by factor so that it does not overflow. */
+        double suggest =
+            c->min_cell * cbrt(want[0]) * cbrt(want[1]) * cbrt(want[2]) / cbrt((double)c->max_cells) * 1.01;
+        char dx[32], dy[32], dz[32], total_text[48], mib_text[48];
+        if (isfinite(cells)) {
+            snprintf(total_text, sizeof total_text, "%.4g", cells);
+            snprintf(mib_text, sizeof mib_text, "%.4g", cells * 4.0 / 1048576.0);
+        } else {
+            snprintf(total_text, sizeof total_text, "more than 1e308");
+            snprintf(mib_text, sizeof mib_text, "more than 1e302");
+        }
+        return pb_error_set(c->err, PB_ERROR_TOO_LARGE,
+                            "the occupancy grid would have %s x %s x %s = %s cells "
+                            "(%s MiB) at Min Cell Size %g m, above the limit of %llu cells "
+                            "(%.4g MiB); use a larger Min Cell Size (about %.3g m or more) or "
+                            "smaller probe volumes",
+                            count_text(want[0], dx, sizeof dx), count_text(want[1], dy, sizeof dy),
+                            count_text(want[2], dz, sizeof dz), total_text, mib_text, c->min_cell,
+                            (unsigned long long)c->max_cells, (double)c->max_cells * 4.0 / 1048576.0, suggest);
+    }
+    return PB_SUCCESS;
+}
+
 pb_result pb_oct_setup(oct_ctx *c)
 {
     const pb_placement_desc *d = c->desc;
@@ -354,67 +420,7 @@ pb_result pb_oct_setup(oct_ctx *c)
         if (!pb_oct_report(c, 0.05 * (i + 1) / d->volume_count, "checking meshes", false))
             return pb_oct_cancelled(c, "checking meshes");
     }
-
-    /* Bounding box of the volumes' referenced vertices. */
-    for (int a = 0; a < 3; a++) {
-        c->bbmin[a] = INFINITY;
-        c->centre[a] = -INFINITY; /* holds the max until the end of the loop */
-    }
-    for (uint32_t i = 0; i < d->volume_count; i++) {
-        const pb_mesh_desc *m = &d->volumes[i];
-        for (size_t t = 0; t < 3 * (size_t)m->triangle_count; t++) {
-            const double *p = &m->positions[3 * (size_t)m->indices[t]];
-            for (int a = 0; a < 3; a++) {
-                c->bbmin[a] = fmin(c->bbmin[a], p[a]);
-                c->centre[a] = fmax(c->centre[a], p[a]);
-            }
-        }
-    }
-    uint64_t total = 1;
-    bool overflow = false;
-    double want[3];
-    for (int a = 0; a < 3; a++) {
-        double extent = c->centre[a] - c->bbmin[a];
-        c->centre[a] = c->bbmin[a] + 0.5 * extent;
-        c->origin_rel[a] = c->bbmin[a] - c->centre[a];
-        /* ceil with a tolerance of 1e-6 cell so that 10 m / 0.5 m stays 20 cells after rounding */
-        want[a] = ceil(extent / c->min_cell - 1e-6);
-        if (want[a] < 1) want[a] = 1;
-        if (!(want[a] <= (double)PB_MAX_AXIS_CELLS)) {
-            overflow = true;
-            c->dims[a] = 0;
-        } else {
-            c->dims[a] = (uint32_t)want[a];
-            if (!overflow && total > UINT64_MAX / c->dims[a])
-                overflow = true;
-            else if (!overflow)
-                total *= c->dims[a];
-        }
-    }
-    c->eps = PB_BOX_EPS * c->min_cell;
-    if (overflow || total > c->max_cells || total > SIZE_MAX / sizeof(int32_t)) {
-        double cells = want[0] * want[1] * want[2]; /* may be inf for absurd sizes: printed as such */
-        /* min·cbrt(X·Y·Z / limit), factor by factor so that it does not overflow. */
-        double suggest =
-            c->min_cell * cbrt(want[0]) * cbrt(want[1]) * cbrt(want[2]) / cbrt((double)c->max_cells) * 1.01;
-        char dx[32], dy[32], dz[32], total_text[48], mib_text[48];
-        if (isfinite(cells)) {
-            snprintf(total_text, sizeof total_text, "%.4g", cells);
-            snprintf(mib_text, sizeof mib_text, "%.4g", cells * 4.0 / 1048576.0);
-        } else {
-            snprintf(total_text, sizeof total_text, "more than 1e308");
-            snprintf(mib_text, sizeof mib_text, "more than 1e302");
-        }
-        return pb_error_set(c->err, PB_ERROR_TOO_LARGE,
-                            "the occupancy grid would have %s x %s x %s = %s cells "
-                            "(%s MiB) at Min Cell Size %g m, above the limit of %llu cells "
-                            "(%.4g MiB); use a larger Min Cell Size (about %.3g m or more) or "
-                            "smaller probe volumes",
-                            count_text(want[0], dx, sizeof dx), count_text(want[1], dy, sizeof dy),
-                            count_text(want[2], dz, sizeof dz), total_text, mib_text, c->min_cell,
-                            (unsigned long long)c->max_cells, (double)c->max_cells * 4.0 / 1048576.0, suggest);
-    }
-    return PB_SUCCESS;
+    return setup_grid(c);
 }
 
 /* ---------------------------------------------------------------------------------------------- */
