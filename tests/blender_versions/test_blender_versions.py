@@ -10,8 +10,9 @@ run enables it and checks the operators, cancel and the glTF export (scripts/ver
 runs the headless bake through the bake.py shipped inside the installed package, with LD_DEBUG
 recording where the module's Embree calls bind, one bakes under the bundled sunrise.exr with Sky Sun
 mixed and exports it (scripts/sky_sun_checks.py: sun.json and the "Schnee Sky Sun" light, ~6 s). On
-the host: the Khronos validator and the engine on the export. Runtime: ~45 s per version (2 cores),
-plus the chroot's creation the first time (~2 min).
+the host: the Khronos validator and the engine on the export. The two releases run side by side
+(one thread each, fixture `sessions`). Runtime: ~45 s per version alone (2 cores), plus the chroot's
+creation the first time (~2 min).
 """
 import json
 import math
@@ -20,6 +21,7 @@ import shutil
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -69,12 +71,36 @@ def _result(proc):
     return json.loads(lines[-1])
 
 
+@pytest.fixture(scope="module")
+def sessions(request, tmp_path_factory):
+    """Both releases' runs (_run_session) started at once, each in its own thread: a release's runs
+    are one after the other, Blender starts are partly I/O, so the two chroots overlap on 2 cores
+    (the tests read the results in the same order as before). Only the releases selected run."""
+    wanted = [v for v in VERSIONS if any(getattr(item, "callspec", None) and item.callspec.params.get("session") == v
+                                         and item.module is request.module for item in request.session.items)]
+    ext = _extension_zip()  # once, on the host, before the threads (one build of build/)
+    hosts = {suite: tmp_path_factory.mktemp(suite) for suite in wanted}
+    pool = ThreadPoolExecutor(max_workers=max(1, len(wanted)))
+    futures = {suite: pool.submit(_run_session, suite, ext, hosts[suite]) for suite in wanted}
+    try:
+        yield futures
+    finally:
+        pool.shutdown(wait=True)
+        if not os.environ.get("SCHNEE_KEEP_CHROOT_WORK"):
+            for f in futures.values():
+                if f.exception() is None:
+                    shutil.rmtree(f.result()["outer"], ignore_errors=True)
+
+
 @pytest.fixture(scope="module", params=list(VERSIONS))
-def session(request, tmp_path_factory):
-    """Install into a fresh profile in the chroot, run the checks; the outputs copied to the host."""
-    suite = request.param
+def session(request, sessions):
+    """One release's results (a failure or skip of its runs is this fixture's)."""
+    return sessions[request.param].result()
+
+
+def _run_session(suite, ext, host):
+    """Install into a fresh profile in the chroot, run the checks; the outputs copied to `host`."""
     root = _chroot(suite)
-    ext = _extension_zip()
     if ext is None:
         pytest.skip("no extension package: cmake --build build --target schnee_extension")
     inner = Path("/tmp") / f"schnee-test-{os.getpid()}-{suite}"
@@ -115,7 +141,6 @@ def session(request, tmp_path_factory):
         # Blender 4.2+'s command-line entry the add-on registers: the same bake through a child Blender.
         s["cli"] = _run(suite, "blender", "--command", "schnee_bake", inner / "work" / "scene.blend", "--output",
                         "//cli/probes.shprobe", "--panorama-resolution", 16, "--samples", 1, "--quiet", env=env)
-        host = tmp_path_factory.mktemp(suite)
         shutil.copytree(outer / "work", host / "work")
         shutil.copytree(outer / "sky_sun", host / "sky_sun")
         s["host_sky_sun"] = host / "sky_sun"
@@ -126,10 +151,11 @@ def session(request, tmp_path_factory):
                            "--output", "//broken/probes.shprobe", env=env)
         s["bindings"] = [line for f in outer.glob("ld.*") for line in f.read_text(errors="replace").splitlines()
                          if "symbol `rtc" in line]
-        yield s
-    finally:
+        return s
+    except BaseException:
         if not os.environ.get("SCHNEE_KEEP_CHROOT_WORK"):
             shutil.rmtree(outer, ignore_errors=True)
+        raise
 
 
 def test_installs_and_enables_as_extension(session):
