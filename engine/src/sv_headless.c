@@ -54,13 +54,58 @@ fail:
     return false;
 }
 
+/* The median of v[0..n) (sorted in place). */
+static double median(double *v, uint32_t n)
+{
+    qsort(v, n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* The frames' wall times (mean, median when frame_ms, min) and, when gpu_ms (stage-major), the GPU's
+ * median time per stage (timestamps). */
+static void report_times(uint32_t frames, uint32_t w, uint32_t h, double *frame_ms, double frame_total,
+                         double frame_min, double *gpu_ms)
+{
+    double med = frame_ms ? median(frame_ms, frames) : 0.0;
+    fprintf(stderr,
+            "schnee-view: %u frame(s) at %ux%u: mean %.2f ms, median %.2f ms, min %.2f ms (submit to fence, incl. "
+            "readback on the last)\n",
+            frames, w, h, frame_total / frames, med, frame_min);
+    if (!gpu_ms) return;
+    double stage[3];
+    for (int k = 0; k < 3; ++k) stage[k] = median(gpu_ms + (size_t)k * frames, frames);
+    fprintf(stderr,
+            "schnee-view: GPU time per frame (timestamps, median): shadows %.3f ms, scene %.3f ms, tone map "
+            "%.3f ms, total %.3f ms\n",
+            stage[0], stage[1], stage[2], stage[0] + stage[1] + stage[2]);
+}
+
+/* Writes the read-back RGBA (float linear, or 8-bit sRGB-encoded bytes) as RGB to `path`. */
+static bool write_output(const char *path, const void *mapped, bool linear, uint32_t w, uint32_t h)
+{
+    /* Drop alpha: PNG/EXR outputs are RGB. 8-bit readback holds sRGB-encoded bytes already. */
+    float *pixels = malloc((size_t)w * h * 3 * sizeof(float));
+    if (!pixels) return false;
+    for (size_t i = 0; i < (size_t)w * h; ++i)
+        for (int c = 0; c < 3; ++c)
+            pixels[i * 3 + c] =
+                linear ? ((const float *)mapped)[i * 4 + c] : ((const uint8_t *)mapped)[i * 4 + c] / 255.0f;
+    pb_error err = {0};
+    bool ok = pb_image_write(path, w, h, 3, pixels, &err) == PB_SUCCESS;
+    if (ok)
+        fprintf(stderr, "schnee-view: wrote %s\n", path);
+    else
+        fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", path, err.message);
+    free(pixels);
+    return ok;
+}
+
 int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, const sv_sky *sky)
 {
     sv_app_gpu gpu;
     sv_context *ctx = &gpu.ctx;
     sv_image out = {0};
     sv_buffer readback = {0};
-    float *pixels = NULL;
     double *frame_ms = NULL, *gpu_ms = NULL; /* per frame: wall time; the GPU's per stage, stage-major */
     int rc = 1;
     const uint32_t w = opt->width, h = opt->height;
@@ -110,45 +155,11 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
         gpu_times = gpu_times && sv_renderer_gpu_times(&gpu.renderer, stage);
         for (int k = 0; gpu_times && k < 3; ++k) gpu_ms[(size_t)k * frames + f] = stage[k];
     }
-    double median = 0.0;
-    if (frame_ms) {
-        qsort(frame_ms, frames, sizeof *frame_ms, cmp_double);
-        median = frames % 2 ? frame_ms[frames / 2] : 0.5 * (frame_ms[frames / 2 - 1] + frame_ms[frames / 2]);
-    }
-    fprintf(stderr,
-            "schnee-view: %u frame(s) at %ux%u: mean %.2f ms, median %.2f ms, min %.2f ms (submit to fence, incl. "
-            "readback on the last)\n",
-            frames, w, h, frame_total / frames, median, frame_min);
-    if (gpu_times) { /* the GPU's own time per stage, the median over the frames (timestamps) */
-        double med[3];
-        for (int k = 0; k < 3; ++k) {
-            double *v = gpu_ms + (size_t)k * frames;
-            qsort(v, frames, sizeof *v, cmp_double);
-            med[k] = frames % 2 ? v[frames / 2] : 0.5 * (v[frames / 2 - 1] + v[frames / 2]);
-        }
-        fprintf(stderr,
-                "schnee-view: GPU time per frame (timestamps, median): shadows %.3f ms, scene %.3f ms, tone map "
-                "%.3f ms, total %.3f ms\n",
-                med[0], med[1], med[2], med[0] + med[1] + med[2]);
-    }
-
-    /* Drop alpha: PNG/EXR outputs are RGB. 8-bit readback holds sRGB-encoded bytes already. */
-    pixels = malloc((size_t)w * h * 3 * sizeof(float));
-    if (!pixels) goto done;
-    for (size_t i = 0; i < (size_t)w * h; ++i)
-        for (int c = 0; c < 3; ++c)
-            pixels[i * 3 + c] = linear ? ((const float *)readback.mapped)[i * 4 + c]
-                                       : ((const uint8_t *)readback.mapped)[i * 4 + c] / 255.0f;
-    pb_error err = {0};
-    if (pb_image_write(opt->output, w, h, 3, pixels, &err) != PB_SUCCESS) {
-        fprintf(stderr, "schnee-view: error: cannot write %s: %s\n", opt->output, err.message);
-        goto done;
-    }
-    fprintf(stderr, "schnee-view: wrote %s\n", opt->output);
+    report_times(frames, w, h, frame_ms, frame_total, frame_min, gpu_times ? gpu_ms : NULL);
+    if (!write_output(opt->output, readback.mapped, linear, w, h)) goto done;
     rc = 0;
 done:
 fail:
-    free(pixels);
     free(frame_ms);
     free(gpu_ms);
     if (ctx->device) {
