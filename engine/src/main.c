@@ -85,12 +85,163 @@ static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out)
     return true;
 }
 
-/* Returns 0 on success, 2 on a usage error (message printed). */
-/* write_sky_mips: --write-sky-mips PREFIX (a one-shot dump, kept out of sv_options), else NULL. */
-static int parse_args(int argc, char **argv, sv_options *o, const char **write_sky_mips)
+/* The command line's options that take values, and how many (the rest are flags, parse_flag). */
+static const struct {
+    const char *name;
+    int values;
+} value_options[] = {
+    {"--output", 1},         {"-o", 1},
+    {"--width", 1},          {"--height", 1},
+    {"--camera", 1},         {"--exposure", 1},
+    {"--tonemap", 1},        {"--debug", 1},
+    {"--probe-mode", 1},     {"--probe-representation", 1},
+    {"--probe-storage", 1},  {"--normal-bias", 1},
+    {"--shadow-res", 1},     {"--shadow-cascades", 1},
+    {"--look", 6},           {"--write-brdf-lut", 1},
+    {"--write-sky-mips", 1}, {"--fallback-radiance", 1},
+    {"--move", 4},           {"--frames", 1},
+    {"--screenshot", 1},
+};
+
+/* The values option `a` takes, 0 when it takes none or is not an option. */
+static int option_values(const char *a)
+{
+    for (size_t k = 0; k < sizeof(value_options) / sizeof(value_options[0]); ++k)
+        if (strcmp(a, value_options[k].name) == 0) return value_options[k].values;
+    return 0;
+}
+
+/* Sets the flag `a` names; false when `a` is not a flag. */
+static bool parse_flag(const char *a, sv_options *o)
+{
+    if (strcmp(a, "--headless") == 0)
+        o->headless = true;
+    else if (strcmp(a, "--no-tonemap") == 0)
+        o->tonemap = SV_TONEMAP_NONE;
+    else if (strcmp(a, "--no-direct") == 0)
+        o->no_direct = true;
+    else if (strcmp(a, "--probe-cells") == 0 || strcmp(a, "--probe-view") == 0)
+        o->show_cells = true;
+    else if (strcmp(a, "--no-sky") == 0)
+        o->no_sky = true;
+    else if (strcmp(a, "--no-specular") == 0)
+        o->no_specular = true;
+    else if (strcmp(a, "--no-renorm") == 0)
+        o->no_renorm = true;
+    else if (strcmp(a, "--print-assignments") == 0)
+        o->print_assignments = true;
+    else if (strcmp(a, "--allow-outside-paths") == 0)
+        o->allow_outside_paths = true;
+    else if (strcmp(a, "--validation") == 0)
+        o->validation = true;
+    else
+        return false;
+    return true;
+}
+
+/* Prints the usage error of a bad value and returns 2. */
+static int bad_value(const char *a, const char *v)
+{
+    fprintf(stderr, "schnee-view: error: bad value '%s' for %s\n", v, a);
+    return 2;
+}
+
+/* Options whose value is one of a few names; -1 when `a` is none of them, else 0 or 2 (bad value). */
+static int parse_choice(const char *a, const char *v, sv_options *o)
+{
+    int k;
+    if (strcmp(a, "--tonemap") == 0) {
+        static const uint32_t ops[] = {SV_TONEMAP_PBR_NEUTRAL, SV_TONEMAP_ACES, SV_TONEMAP_NONE};
+        static const char *const names[] = {"neutral", "aces", "none"};
+        for (k = 0; k < 3 && strcmp(v, names[k]) != 0; ++k) continue;
+        if (k == 3) return bad_value(a, v);
+        o->tonemap = ops[k];
+    } else if (strcmp(a, "--debug") == 0) {
+        static const uint32_t modes[] = {SV_DEBUG_NONE, SV_DEBUG_PROBE_COLOR, SV_DEBUG_PROBE_INDEX, SV_DEBUG_NORMALS};
+        static const char *const names[] = {"none", "probe-color", "probe-index", "normals"};
+        for (k = 0; k < 4 && strcmp(v, names[k]) != 0; ++k) continue;
+        if (k == 4) return bad_value(a, v);
+        o->debug_mode = modes[k];
+    } else if (strcmp(a, "--probe-mode") == 0) {
+        if ((k = sv_probe_mode_from_name(v, 1)) < 0) return bad_value(a, v);
+        o->probe_mode = (uint32_t)k;
+    } else if (strcmp(a, "--probe-representation") == 0) {
+        if ((k = sv_probe_representation_from_name(v, 1)) < 0) return bad_value(a, v);
+        o->probe_representation = (uint32_t)k;
+    } else if (strcmp(a, "--probe-storage") == 0) {
+        if (strcmp(v, "float") != 0 && strcmp(v, "half") != 0) return bad_value(a, v);
+        o->half_probes = strcmp(v, "half") == 0;
+    } else {
+        return -1;
+    }
+    return 0;
+}
+
+/* The shadow options, whose errors say what the value means. */
+static int parse_shadow_option(const char *a, const char *v, sv_options *o)
+{
+    if (strcmp(a, "--shadow-res") == 0 && !parse_u32(v, 0, SV_SHADOW_MAX_RES, &o->shadow_res)) {
+        fprintf(stderr,
+                "schnee-view: error: bad value '%s' for --shadow-res (shadow map size in texels, 0 = no shadows, "
+                "at most %u)\n",
+                v, SV_SHADOW_MAX_RES);
+        return 2;
+    }
+    if (strcmp(a, "--shadow-cascades") == 0 && !parse_u32(v, 1, SV_MAX_SHADOW_CASCADES, &o->shadow_cascades)) {
+        fprintf(stderr, "schnee-view: error: bad value '%s' for --shadow-cascades (shadow map layers per sun, 1..%u)\n",
+                v, SV_MAX_SHADOW_CASCADES);
+        return 2;
+    }
+    return 0;
+}
+
+/* An option with values v[0..option_values(a)): 0, or 2 on a usage error (message printed). */
+static int parse_value_option(const char *a, char **v, sv_options *o, const char **write_sky_mips)
+{
+    int rc = parse_choice(a, v[0], o);
+    if (rc >= 0) return rc;
+    if (strcmp(a, "--shadow-res") == 0 || strcmp(a, "--shadow-cascades") == 0) return parse_shadow_option(a, v[0], o);
+    if (strcmp(a, "--output") == 0 || strcmp(a, "-o") == 0) {
+        o->output = v[0];
+    } else if (strcmp(a, "--width") == 0 || strcmp(a, "--height") == 0) {
+        if (!parse_u32(v[0], 1, 16384, a[2] == 'w' ? &o->width : &o->height)) return bad_value(a, v[0]);
+    } else if (strcmp(a, "--camera") == 0) {
+        o->camera = v[0];
+    } else if (strcmp(a, "--exposure") == 0) {
+        if (!parse_float(v[0], &o->exposure) || o->exposure < 0) return bad_value(a, v[0]);
+    } else if (strcmp(a, "--normal-bias") == 0) {
+        if (!parse_float(v[0], &o->normal_bias) || o->normal_bias < 0 || o->normal_bias > 1) return bad_value(a, v[0]);
+    } else if (strcmp(a, "--look") == 0) {
+        for (int k = 0; k < 6; ++k)
+            if (!parse_float(v[k], k < 3 ? &o->look_from[k] : &o->look_at[k - 3])) return bad_value(a, v[k]);
+        o->look = true;
+    } else if (strcmp(a, "--write-brdf-lut") == 0) {
+        o->write_brdf_lut = v[0];
+    } else if (strcmp(a, "--write-sky-mips") == 0) {
+        *write_sky_mips = v[0];
+    } else if (strcmp(a, "--fallback-radiance") == 0) {
+        if (!parse_float(v[0], &o->fallback_radiance) || o->fallback_radiance < 0) return bad_value(a, v[0]);
+    } else if (strcmp(a, "--move") == 0) {
+        if (o->move_count == SV_MAX_MOVES) {
+            fprintf(stderr, "schnee-view: error: at most %d --move options\n", SV_MAX_MOVES);
+            return 2;
+        }
+        sv_move *m = &o->moves[o->move_count++];
+        m->node = v[0];
+        for (int k = 0; k < 3; ++k)
+            if (!parse_float(v[1 + k], &m->translation[k])) return bad_value(a, v[1 + k]);
+    } else if (strcmp(a, "--frames") == 0) {
+        if (!parse_u32(v[0], 1, 1000000, &o->frames)) return bad_value(a, v[0]);
+    } else if (strcmp(a, "--screenshot") == 0) {
+        o->screenshot = v[0];
+    }
+    return 0;
+}
+
+/* The defaults of every option (docs/engine.md "Command line"). */
+static void default_options(sv_options *o)
 {
     memset(o, 0, sizeof(*o));
-    *write_sky_mips = NULL;
     o->width = 960;
     o->height = 540;
     o->exposure = 1.0f;
@@ -100,164 +251,29 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
     o->probe_representation = SV_PROBE_REP_MATERIAL;
     o->shadow_res = SV_SHADOW_DEFAULT_RES;
     o->shadow_cascades = SV_SHADOW_DEFAULT_CASCADES;
+}
+
+/* Returns 0 on success, 2 on a usage error (message printed). */
+/* write_sky_mips: --write-sky-mips PREFIX (a one-shot dump, kept out of sv_options), else NULL. */
+static int parse_args(int argc, char **argv, sv_options *o, const char **write_sky_mips)
+{
+    default_options(o);
+    *write_sky_mips = NULL;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
-        const char *next = i + 1 < argc ? argv[i + 1] : NULL;
-#define NEED(n)                                                                                                        \
-    if (i + (n) >= argc) {                                                                                             \
-        fprintf(stderr, "schnee-view: error: %s needs %d value(s)\n", a, (n));                                         \
-        return 2;                                                                                                      \
-    }
-#define BAD_VALUE(v)                                                                                                   \
-    do {                                                                                                               \
-        fprintf(stderr, "schnee-view: error: bad value '%s' for %s\n", (v), a);                                        \
-        return 2;                                                                                                      \
-    } while (0)
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
             exit(0);
-        } else if (strcmp(a, "--headless") == 0) {
-            o->headless = true;
-        } else if (strcmp(a, "--output") == 0 || strcmp(a, "-o") == 0) {
-            NEED(1);
-            o->output = argv[++i];
-        } else if (strcmp(a, "--width") == 0) {
-            NEED(1);
-            if (!parse_u32(next, 1, 16384, &o->width)) BAD_VALUE(next);
-            ++i;
-        } else if (strcmp(a, "--height") == 0) {
-            NEED(1);
-            if (!parse_u32(next, 1, 16384, &o->height)) BAD_VALUE(next);
-            ++i;
-        } else if (strcmp(a, "--camera") == 0) {
-            NEED(1);
-            o->camera = argv[++i];
-        } else if (strcmp(a, "--exposure") == 0) {
-            NEED(1);
-            if (!parse_float(next, &o->exposure) || o->exposure < 0) BAD_VALUE(next);
-            ++i;
-        } else if (strcmp(a, "--tonemap") == 0) {
-            NEED(1);
-            ++i;
-            if (strcmp(next, "neutral") == 0)
-                o->tonemap = SV_TONEMAP_PBR_NEUTRAL;
-            else if (strcmp(next, "aces") == 0)
-                o->tonemap = SV_TONEMAP_ACES;
-            else if (strcmp(next, "none") == 0)
-                o->tonemap = SV_TONEMAP_NONE;
-            else
-                BAD_VALUE(next);
-        } else if (strcmp(a, "--no-tonemap") == 0) {
-            o->tonemap = SV_TONEMAP_NONE;
-        } else if (strcmp(a, "--debug") == 0) {
-            NEED(1);
-            ++i;
-            if (strcmp(next, "none") == 0)
-                o->debug_mode = SV_DEBUG_NONE;
-            else if (strcmp(next, "probe-color") == 0)
-                o->debug_mode = SV_DEBUG_PROBE_COLOR;
-            else if (strcmp(next, "probe-index") == 0)
-                o->debug_mode = SV_DEBUG_PROBE_INDEX;
-            else if (strcmp(next, "normals") == 0)
-                o->debug_mode = SV_DEBUG_NORMALS;
-            else
-                BAD_VALUE(next);
-        } else if (strcmp(a, "--no-direct") == 0) {
-            o->no_direct = true;
-        } else if (strcmp(a, "--probe-cells") == 0 || strcmp(a, "--probe-view") == 0) {
-            o->show_cells = true;
-        } else if (strcmp(a, "--probe-mode") == 0) {
-            NEED(1);
-            ++i;
-            int mode = sv_probe_mode_from_name(next, 1);
-            if (mode < 0) BAD_VALUE(next);
-            o->probe_mode = (uint32_t)mode;
-        } else if (strcmp(a, "--probe-representation") == 0) {
-            NEED(1);
-            ++i;
-            int rep = sv_probe_representation_from_name(next, 1);
-            if (rep < 0) BAD_VALUE(next);
-            o->probe_representation = (uint32_t)rep;
-        } else if (strcmp(a, "--probe-storage") == 0) {
-            NEED(1);
-            ++i;
-            if (strcmp(next, "float") == 0)
-                o->half_probes = false;
-            else if (strcmp(next, "half") == 0)
-                o->half_probes = true;
-            else
-                BAD_VALUE(next);
-        } else if (strcmp(a, "--normal-bias") == 0) {
-            NEED(1);
-            if (!parse_float(next, &o->normal_bias) || o->normal_bias < 0 || o->normal_bias > 1) BAD_VALUE(next);
-            ++i;
-        } else if (strcmp(a, "--shadow-res") == 0) {
-            NEED(1);
-            if (!parse_u32(next, 0, SV_SHADOW_MAX_RES, &o->shadow_res)) {
-                fprintf(
-                    stderr,
-                    "schnee-view: error: bad value '%s' for --shadow-res (shadow map size in texels, 0 = no shadows, "
-                    "at most %u)\n",
-                    next, SV_SHADOW_MAX_RES);
-                return 2;
-            }
-            ++i;
-        } else if (strcmp(a, "--shadow-cascades") == 0) {
-            NEED(1);
-            if (!parse_u32(next, 1, SV_MAX_SHADOW_CASCADES, &o->shadow_cascades)) {
-                fprintf(stderr,
-                        "schnee-view: error: bad value '%s' for --shadow-cascades (shadow map layers per sun, 1..%u)\n",
-                        next, SV_MAX_SHADOW_CASCADES);
-                return 2;
-            }
-            ++i;
-        } else if (strcmp(a, "--no-sky") == 0) {
-            o->no_sky = true;
-        } else if (strcmp(a, "--no-specular") == 0) {
-            o->no_specular = true;
-        } else if (strcmp(a, "--no-renorm") == 0) {
-            o->no_renorm = true;
-        } else if (strcmp(a, "--look") == 0) {
-            NEED(6);
-            for (int k = 0; k < 6; ++k)
-                if (!parse_float(argv[i + 1 + k], k < 3 ? &o->look_from[k] : &o->look_at[k - 3]))
-                    BAD_VALUE(argv[i + 1 + k]);
-            o->look = true;
-            i += 6;
-        } else if (strcmp(a, "--write-brdf-lut") == 0) {
-            NEED(1);
-            o->write_brdf_lut = argv[++i];
-        } else if (strcmp(a, "--write-sky-mips") == 0) {
-            NEED(1);
-            *write_sky_mips = argv[++i];
-        } else if (strcmp(a, "--fallback-radiance") == 0) {
-            NEED(1);
-            if (!parse_float(next, &o->fallback_radiance) || o->fallback_radiance < 0) BAD_VALUE(next);
-            ++i;
-        } else if (strcmp(a, "--move") == 0) {
-            NEED(4);
-            if (o->move_count == SV_MAX_MOVES) {
-                fprintf(stderr, "schnee-view: error: at most %d --move options\n", SV_MAX_MOVES);
-                return 2;
-            }
-            sv_move *m = &o->moves[o->move_count++];
-            m->node = argv[i + 1];
-            for (int k = 0; k < 3; ++k)
-                if (!parse_float(argv[i + 2 + k], &m->translation[k])) BAD_VALUE(argv[i + 2 + k]);
-            i += 4;
-        } else if (strcmp(a, "--print-assignments") == 0) {
-            o->print_assignments = true;
-        } else if (strcmp(a, "--allow-outside-paths") == 0) {
-            o->allow_outside_paths = true;
-        } else if (strcmp(a, "--validation") == 0) {
-            o->validation = true;
-        } else if (strcmp(a, "--frames") == 0) {
-            NEED(1);
-            if (!parse_u32(next, 1, 1000000, &o->frames)) BAD_VALUE(next);
-            ++i;
-        } else if (strcmp(a, "--screenshot") == 0) {
-            NEED(1);
-            o->screenshot = argv[++i];
+        }
+        if (parse_flag(a, o)) continue;
+        int n = option_values(a);
+        if (n && i + n >= argc) {
+            fprintf(stderr, "schnee-view: error: %s needs %d value(s)\n", a, n);
+            return 2;
+        }
+        if (n) {
+            if (parse_value_option(a, argv + i + 1, o, write_sky_mips)) return 2;
+            i += n;
         } else if (a[0] == '-' && a[1]) {
             fprintf(stderr, "schnee-view: error: unknown option '%s' (see --help)\n", a);
             return 2;
@@ -267,8 +283,6 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
             fprintf(stderr, "schnee-view: error: more than one scene given ('%s', '%s')\n", o->scene_path, a);
             return 2;
         }
-#undef NEED
-#undef BAD_VALUE
     }
     if (!o->scene_path && !o->write_brdf_lut) {
         usage(stderr);
