@@ -87,7 +87,8 @@ class ProbeBake:
     """One bake run. ``mode`` is "VOLUMES" (Bake SH in Volumes), "CURSOR" (Bake SH at Cursor,
     ``cursor`` = Blender-space position) or "POINTS" (``points``, engine space, nothing written).
     ``log`` receives human-readable lines. ``shard`` = (k, n) / ``merge_shards`` = n: farm bakes
-    (bake_points.py); ``policy``: the Adaptive refinement's adaptive.Policy."""
+    (bake_points.py); ``policy``: the Adaptive refinement's adaptive.Policy. The parts are public:
+    ``plan`` (Adaptive: ``plan.cache``, ``plan.groups``), ``session``, ``store``, ``direct``."""
 
     def __init__(self, scene, view_layer, settings: BakeSettings, mode: str = "VOLUMES",
                  cursor: Optional[Sequence[float]] = None, log=print, allow_large=False, points=None,
