@@ -2,7 +2,10 @@
 started and stopped by the test itself (docs/farm.md "Tested here"). Everything lives in one
 temporary folder: a fresh munge key and socket, slurm.conf with free ports, state and spool
 folders, logs. The daemons run as root (slurmd launches the jobs); job scripts inherit the test's
-environment (sbatch --export=ALL, Slurm's default)."""
+environment (sbatch --export=ALL, Slurm's default). The backfill scheduler passes every second
+(bf_interval=1, Slurm's default 30): a job whose dependency is met starts within about a second, not
+~3 s (measured: a chain of 3 two-task arrays and a merge job of `true` completes in 3.6 s, 11.8 s
+with the default)."""
 import getpass
 import os
 import shutil
@@ -58,6 +61,7 @@ JobRequeue=1
 MinJobAge=600
 KillWait=5
 SchedulerType=sched/backfill
+SchedulerParameters=bf_interval=1
 JobCompType=jobcomp/none
 AccountingStorageType=accounting_storage/none
 NodeName={host} NodeAddr=127.0.0.1 CPUs={self.cpus} State=UNKNOWN
