@@ -482,3 +482,16 @@ def test_a_surface_on_the_volumes_max_face_belongs_to_the_leaf_inside():
     assert got[0, 0, 0] == pytest.approx(28.0, rel=0.01)
     assert inside[0, 0, 0] < got[0, 0, 0]
     assert np.all(np.isnan(got[4]))
+
+
+def test_policy_is_frozen_and_defaults_to_the_measured_knobs():
+    # The tuning knobs are one frozen object passed in (issue 28), not module globals: the values
+    # measured in bench/results/placement.md, and a changed copy through dataclasses.replace.
+    p = adaptive.DEFAULT_POLICY
+    assert (p.solid_ratio, p.render_inset, p.relocate, p.noise_k, p.predict, p.predict_noise, p.retest,
+            p.retest_noise, p.direct_divisions) == (0.25, 0.01, 0.05, 2.0, 4.0, 1.5, 1, 1.2, 4)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.predict = 2.0
+    assert dataclasses.replace(p, retest=4).retest == 4 and p.retest == 1
+    assert adaptive.stage_bound(0.5, 2.0, dataclasses.replace(p, retest=4)) == 3 * 2 + 1
+    assert adaptive.stage_bound(0.5, 2.0) == 2 * 2 + 1
