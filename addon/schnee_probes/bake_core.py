@@ -147,6 +147,7 @@ class ProbeBake:
         return self.plan.renders_per_point
 
     positions = property(lambda self: self.plan.positions, doc="The unique render positions (engine space).")
+    targets = property(lambda self: self.plan.targets, doc="The output files and their probes (bake_plans.Target).")
     coeffs = property(lambda self: self.plan.coeffs,
                       doc="(P, sh_count, 3) radiance SH per position; None for Adaptive (see plan.cache).")
 
