@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Fuzzes the engine's sky/EXR path (engine/src/fuzz_sky.c: file checks, EXR/PNG header limits,
+# Fuzzes the engine's sky/EXR path (tests/fuzz/fuzz_sky.c: file checks, EXR/PNG header limits,
 # OpenImageIO decode through pb_image_read, GGX prefilter) with libFuzzer + ASan + UBSan for a
 # bounded time and prints one summary line. Non-zero exit when the fuzzer finds a crash, leak,
 # timeout or sanitizer report (the reproducer is kept as tests/fuzz/crash-sky-*).
@@ -22,7 +22,7 @@ san=(-g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined 
 warn=(-Wall -Wextra -Wshadow -Wno-unused-parameter -Werror)
 inc=(-Iengine/src -Iengine/gltf -Iengine/ext -Ishaders -Inative/include -I/usr/include/cjson)
 objs=()
-for src in engine/src/fuzz_sky.c engine/src/sv_sky.c engine/gltf/sv_gltf.c engine/gltf/sv_gltf_[bfjmnu]*.c \
+for src in tests/fuzz/fuzz_sky.c engine/src/sv_sky.c engine/gltf/sv_gltf.c engine/gltf/sv_gltf_[bfjmnu]*.c \
   native/src/pb_common.c; do
   obj="$out/sky-$(basename "$src" .c).o"
   clang -std=gnu11 "${san[@]}" "${warn[@]}" "${inc[@]}" -DSV_SKY_MAX_PIXELS=4096 -c "$src" -o "$obj"
@@ -43,7 +43,7 @@ oiiotool "$seeds/float.exr" -d uint8 -o "$seeds/sky.png" >/dev/null
 
 log="$out/fuzz_sky.log"
 set +e
-ASAN_OPTIONS=detect_leaks=1:fast_unwind_on_malloc=0 LSAN_OPTIONS=suppressions=tests/fuzz/sky_lsan.supp \
+SCHNEE_FUZZ_DIR="$out" ASAN_OPTIONS=detect_leaks=1:fast_unwind_on_malloc=0 LSAN_OPTIONS=suppressions=tests/fuzz/sky_lsan.supp \
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   "$out/fuzz_sky" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=65536 \
   -artifact_prefix=tests/fuzz/crash-sky- -print_final_stats=1 -close_fd_mask=2 \

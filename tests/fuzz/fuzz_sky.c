@@ -1,4 +1,5 @@
-/* libFuzzer entry over the engine's sky path (sv_sky_load): the input is written to a file that a
+/* libFuzzer entry over the engine's sky path (sv_sky_load): the input is written to a file (in the
+ * folder $SCHNEE_FUZZ_DIR, which run_sky_fuzz.sh sets to its build folder) that a
  * VULKAN_SCHNEE_engine_properties.sky entry names, then checked (regular file, size, image
  * signature, EXR dataWindow / PNG IHDR against the pixel limit), decoded by OpenImageIO through the
  * core's pb_image_read, and GGX-prefiltered into the mip chain. Built and run by
@@ -17,9 +18,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    static char path[64];
+    static char path[4096];
     if (!path[0]) {
-        snprintf(path, sizeof path, "/tmp/sv-fuzz-sky-XXXXXX.exr");
+        const char *dir = getenv("SCHNEE_FUZZ_DIR");
+        if (!dir || !*dir) {
+            fprintf(stderr, "fuzz_sky: set SCHNEE_FUZZ_DIR to a writable folder (run_sky_fuzz.sh does)\n");
+            abort();
+        }
+        if (snprintf(path, sizeof path, "%s/sv-fuzz-sky-XXXXXX.exr", dir) >= (int)sizeof path) abort();
         int fd = mkstemps(path, 4);
         if (fd < 0) abort();
         close(fd);
