@@ -16,12 +16,15 @@ sys.path.insert(0, str(REPO / "addon"))
 
 from schnee_probes import settings  # noqa: E402  (plain Python: settings.py needs no bpy)
 
+sys.path.insert(0, str(REPO / "scripts"))
+import gen_numbers  # noqa: E402  (the measured figures, from bench/results/*.json)
+
 
 def render(text):
     """``text`` with the block between the markers replaced by the generated table."""
     begin = text.index(settings.TABLE_BEGIN) + len(settings.TABLE_BEGIN)
     end = text.index(settings.TABLE_END)
-    return text[:begin] + "\n" + settings.guide_table() + "\n" + text[end:]
+    return text[:begin] + "\n" + settings.guide_table(gen_numbers.NUMBERS) + "\n" + text[end:]
 
 
 def main():

@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass
-from typing import Any, Optional, Tuple
+from typing import Any, Callable, Mapping, Optional, Tuple
 
 DEFAULT_OUTPUT = "//sh_coeffs/probes.shprobe"
 
@@ -176,8 +177,10 @@ SETTINGS: Tuple[Setting, ...] = (
                 "interpolation may show at its test points before it splits, on top of twice the "
                 "measured Monte-Carlo noise. Smaller = more probes near light changes; it does not add "
                 "probes where the light is smooth. Bundled room at the add-on's defaults "
-                "(bench/results/placement.md): 1571 probes, 2276 points rendered, 1.85 % mean error "
-                "between probes (floor 1.0 %), 12.2 min on 2 cores; at 4 spp 2.7 % in 5.5 min. The "
+                "(bench/results/placement.md): {num:room_defaults_probes} probes, {num:room_defaults_points} points "
+                "rendered, {num:room_defaults_error_mean} % mean error between probes (floor 1.0 %), "
+                "{num:room_defaults_minutes} min on 2 cores; at 4 spp {num:room_4spp_error_mean} % in "
+                "{num:room_4spp_minutes} min. The "
                 "noise is added in quadrature (sqrt(tolerance² + (2σ)²)), so the tolerance holds at "
                 "low Samples too; with the sum tolerance + 2σ used before, 0.03 gave 2.2 % and 0.02 "
                 "2.05 %. At reduced quality (64×32 px, 16 spp, that rule) 0.05 / 0.03 gave 712 / 1008 "
@@ -241,7 +244,7 @@ SETTINGS: Tuple[Setting, ...] = (
             doc="Cycles samples per pixel. Time is linear in it, noise falls as 1/√samples. In the "
                 "bright room at 32 bounces 8 / 16 / 32 / 64 / 128 spp give 0.81 / 0.57 / 0.42 / "
                 "0.33 / 0.28 % per probe (table below); between the probes of the bundled room the "
-                "default 8 spp bake is 1.85 % off, 32 spp take 4× as long for the 0.4 points per "
+                "default 8 spp bake is {num:room_defaults_error_mean} % off, 32 spp take 4× as long for the 0.4 points per "
                 "probe (*Placement: measured*). The sky and the lamps a probe sees directly are "
                 "added exactly (docs/direct-light.md), so a small bright sun in the sky or a Sun "
                 "lamp needs no more samples (sun scenes of the table); a sky seen through glass "
@@ -438,13 +441,21 @@ TABLE_BEGIN = "<!-- settings_table:begin -->"
 TABLE_END = "<!-- settings_table:end -->"
 
 
-def guide_table() -> str:
-    """The settings table of docs/user-guide.md (between TABLE_BEGIN and TABLE_END)."""
+_NUM = re.compile(r"\{num:(\w+)\}")
+
+
+def guide_table(numbers: Optional[Mapping[str, Callable[[], str]]] = None) -> str:
+    """The settings table of docs/user-guide.md (between TABLE_BEGIN and TABLE_END). A ``doc``'s
+    measured figures are ``{num:KEY}`` placeholders filled from ``numbers`` (scripts/gen_numbers.py's
+    NUMBERS, computed from bench/results/*.json); without it they stay as placeholders."""
     rows = ["<!-- generated from addon/schnee_probes/settings.py by scripts/gen_settings_table.py; "
             "do not edit -->",
             "| Setting (`bake.py` option) | Default | Limits | What it trades |",
             "|---|---|---|---|"]
     for s in SETTINGS:
         default = s.format_value(s.default) + (f" {s.suffix}" if s.suffix else "")
-        rows.append(f"| {s.label} (`{s.cli}`) | {default} | {s.limits_text()} | {s.doc or s.help} |")
+        text = s.doc or s.help
+        if numbers is not None:
+            text = _NUM.sub(lambda m: numbers[m[1]](), text)
+        rows.append(f"| {s.label} (`{s.cli}`) | {default} | {s.limits_text()} | {text} |")
     return "\n".join(rows)
