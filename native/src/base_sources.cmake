@@ -1,4 +1,5 @@
-# The bake core's sources that need neither Embree nor an image library (native/CMakeLists.txt).
+# The bake core's sources that need neither an image library nor Embree itself (only pb_occluder.c
+# calls Embree: embree_sources.cmake) (native/CMakeLists.txt).
 set(PB_BASE_SOURCES
   src/pb_common.c
   src/pb_sh.c
@@ -13,4 +14,9 @@ set(PB_BASE_SOURCES
   src/pb_interp_v3.c
   src/pb_refine.c
   src/pb_sky_sun.c
+  src/pb_placement_ctx.c
+  src/pb_octree.c
+  src/pb_solid.c
+  src/pb_classify.c
+  src/pb_direct.c
 )

@@ -1,10 +1,6 @@
-# The bake core's sources that call Embree (pb_occluder.c, the only one) and those built on it:
-# compiled twice, linked as usual and through pb_embree_dyn.c (native/CMakeLists.txt).
+# The bake core's one source that calls Embree, the occluder module (pb_occluder.h): compiled twice,
+# linked as usual and through pb_embree_dyn.c's dlsym pointers (native/CMakeLists.txt). Its users
+# (placement, solid test, classification, direct light) are in base_sources.cmake.
 set(PB_EMBREE_SOURCES
   src/pb_occluder.c
-  src/pb_placement_ctx.c
-  src/pb_octree.c
-  src/pb_solid.c
-  src/pb_classify.c
-  src/pb_direct.c
 )
