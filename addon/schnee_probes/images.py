@@ -5,7 +5,9 @@
   uncompressed, RLE, ZIPS or ZIP) are decoded by :mod:`exr`, in Python, with no image library.
 - Other EXR codecs (e.g. DWAB HDRIs) and Radiance HDR, PFM, PNG, JPEG or TIFF files are read through
   Blender's image API inside Blender, or through OpenImageIO's ``oiiotool`` outside it (benchmarks,
-  tools), which rewrites them as an uncompressed EXR that :mod:`exr` reads.
+  tools), which rewrites them as an uncompressed EXR that :mod:`exr` reads. Outside Blender a plain
+  RGB PFM (scale ±1, exact size) is read here in numpy, with the values oiiotool gives, and without its
+  seconds of start-up; any other PFM still goes to oiiotool.
 - Anything else is refused before any library sees it (a file must announce an image format).
 
 Files are opened as the native readers open theirs (:mod:`safe_open`: no blocking, regular files
@@ -46,6 +48,11 @@ def read_image(path: str) -> np.ndarray:
         raise SchneeError(str(exc), exc.code) from None
     with f:
         head = f.read(4)
+        if head.startswith(b"PF") and not _in_blender():
+            f.seek(0)
+            pixels = _read_pfm(f, size, path)
+            if pixels is not None:
+                return pixels
         if exr.has_magic(head):
             f.seek(0)
             try:
@@ -71,6 +78,44 @@ def _check_image_size(path: str, w: int, h: int, c: int):
         raise SchneeError(f"image '{path}' is too large: {w}x{h} with {c} channel(s); the limits are "
                           f"{IMAGE_MAX_SIDE} pixels per side, {IMAGE_MAX_CHANNELS} channels and {IMAGE_MAX_VALUES} "
                           "values (width x height x channels)", "input too large")
+
+
+def _in_blender() -> bool:
+    try:
+        import bpy  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+# An RGB PFM header: "PF", width, height, then the scale, whose sign is the byte order (negative:
+# little-endian), and one whitespace byte before the rows (stored bottom row first). Grey PFM ("Pf")
+# is left to oiiotool (whose one-channel EXR exr.py refuses, as before).
+_PFM_HEADER = re.compile(rb"PF\s+(\d{1,9})\s+(\d{1,9})\s+([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s")
+
+
+def _read_pfm(f, size: int, path: str):
+    """Pixels of a plain RGB PFM file (scale +1 or -1, no trailing bytes), as oiiotool reads it (the test
+    compares the two bit for bit); None for any other PFM, which oiiotool then reads or refuses.
+    A header that claims more than the limits is refused before the rows are read."""
+    m = _PFM_HEADER.match(f.read(64))
+    if m is None:
+        return None
+    c = 3
+    w, h, scale = int(m.group(1)), int(m.group(2)), float(m.group(3))
+    _check_image_size(path, w, h, c)
+    nbytes = w * h * c * 4
+    if w == 0 or h == 0 or abs(scale) != 1.0 or size != m.end() + nbytes:
+        return None
+    f.seek(m.end())
+    try:
+        data = f.read(nbytes)
+    except OSError as exc:
+        raise SchneeError(f"{path}: cannot read: {exc.strerror or exc}", "I/O error") from None
+    if len(data) != nbytes:
+        return None
+    rows = np.frombuffer(data, "<f4" if scale < 0 else ">f4").reshape(h, w, c)
+    return np.ascontiguousarray(rows[::-1], np.float32)  # row 0 at the top, native byte order
 
 
 def _read_with_oiiotool(path: str) -> np.ndarray:

@@ -3,6 +3,7 @@ Blender for the bake's panoramas: every codec it claims against OpenImageIO's re
 file (oiiotool --dumpdata, independent code), refusals for what it does not handle, and malformed
 input. Runtime: ~3 s."""
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -19,20 +20,45 @@ import viewer  # noqa: E402  (oiiotool-based reference reader)
 STUDIO = "/usr/share/blender/datafiles/studiolights/world/interior.exr"
 
 
-def _write(tmp_path, codec, dtype="float", alpha=False, name=None):
-    out = tmp_path / (name or f"{codec}-{dtype}-{int(alpha)}.exr")
-    cmd = ["oiiotool", STUDIO, "--cut", "40x20+500+250"]
-    if alpha:
-        cmd += ["--ch", "R,G,B,A=0.25"]
-    cmd += ["-d", dtype, "--compression", codec, "-o", str(out)]
+FLOAT_CODECS = ["none", "rle", "zips", "zip", "piz", "dwab", "b44"]  # the last three exr.py refuses
+HALF_CODECS = ["none", "rle", "zips", "zip"]
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    """{(codec, dtype): path} of a 40x20 cut of interior.exr written by OpenImageIO with each codec,
+    float RGB and half RGBA (alpha 0.25): one oiiotool run writes all eleven files (an oiiotool start
+    takes 1-3 s here, one per file before). Tests that change a file change a copy."""
+    tmp = tmp_path_factory.mktemp("exr")
+    cmd = ["oiiotool", STUDIO, "--cut", "40x20+500+250", "-d", "float"]
+    paths = {}
+    for codec in FLOAT_CODECS:
+        paths[codec, "float"] = tmp / f"{codec}-float-0.exr"
+        cmd += ["--compression", codec, "-o", str(paths[codec, "float"])]
+    cmd += ["--ch", "R,G,B,A=0.25", "-d", "half"]
+    for codec in HALF_CODECS:
+        paths[codec, "half"] = tmp / f"{codec}-half-1.exr"
+        cmd += ["--compression", codec, "-o", str(paths[codec, "half"])]
     subprocess.run(cmd, check=True)
+    # Each file carries its own codec (the header's compression attribute; OpenEXR's enum numbers).
+    code = {"none": 0, "rle": 1, "zips": 2, "zip": 3, "piz": 4, "b44": 6, "dwab": 9}
+    for (codec, _), path in paths.items():
+        head = path.read_bytes()[:4096]
+        at = head.index(b"compression\0compression\0") + 24
+        assert head[at:at + 5] == bytes([1, 0, 0, 0, code[codec]]), (path, head[at:at + 5])
+    return paths
+
+
+def _copy(written, tmp_path, codec, dtype="float"):
+    out = tmp_path / written[codec, dtype].name
+    shutil.copyfile(written[codec, dtype], out)
     return out
 
 
-@pytest.mark.parametrize("codec", ["none", "rle", "zips", "zip"])
+@pytest.mark.parametrize("codec", HALF_CODECS)
 @pytest.mark.parametrize("dtype", ["float", "half"])
-def test_codecs_match_openimageio(tmp_path, codec, dtype):
-    path = _write(tmp_path, codec, dtype, alpha=(dtype == "half"))
+def test_codecs_match_openimageio(written, codec, dtype):
+    path = written[codec, dtype]
     ours = exr.read(str(path))
     ref = viewer.read_image(path)  # 9 printed decimals
     assert ours.dtype == np.float32 and ours.shape == ref.shape == (20, 40, 4 if dtype == "half" else 3)
@@ -40,16 +66,16 @@ def test_codecs_match_openimageio(tmp_path, codec, dtype):
     assert np.ptp(ours[..., 0]) > 0.01  # a real image, not a constant
 
 
-def test_project_file_equals_projection_of_pixels(tmp_path):
-    path = _write(tmp_path, "zip")
+def test_project_file_equals_projection_of_pixels(written):
+    path = written["zip", "float"]
     pixels = viewer.read_image(path).astype(np.float32)
     np.testing.assert_array_equal(native.project_file(str(path), 1, negative="allow"),
                                   native.project_equirect(pixels, 1, negative="allow"))
 
 
 @pytest.mark.parametrize("codec", ["piz", "dwab", "b44"])
-def test_other_codecs_are_unsupported_not_misread(tmp_path, codec):
-    path = _write(tmp_path, codec)
+def test_other_codecs_are_unsupported_not_misread(written, codec):
+    path = written[codec, "float"]
     with pytest.raises(exr.Unsupported):
         exr.read(str(path))
     # Outside Blender, native.project_file falls back to oiiotool (development machines, benchmarks):
@@ -57,16 +83,25 @@ def test_other_codecs_are_unsupported_not_misread(tmp_path, codec):
     pixels = viewer.read_image(path).astype(np.float32)
     np.testing.assert_allclose(native.project_file(str(path), 1, negative="allow"),
                                native.project_equirect(pixels, 1, negative="allow"), rtol=0, atol=1e-6)
-    # Without oiiotool: a clear I/O error, not garbage.
+
+
+def test_other_codecs_without_oiiotool_are_an_io_error(written):
+    # Without oiiotool: a clear I/O error, not garbage (one interpreter tries the three files).
+    paths = [str(written[codec, "float"]) for codec in ("piz", "dwab", "b44")]
     code = ("import schnee_probes.native as n\n"
-            "try:\n    n.project_file(%r, 1)\nexcept n.SchneeError as e:\n    print(e.code, '|', e)\n" % str(path))
+            "for p in %r:\n"
+            "    try:\n        n.project_file(p, 1)\n        print('read |', p)\n"
+            "    except n.SchneeError as e:\n        print(e.code, '|', e)\n" % paths)
     env = dict(os.environ, PATH="/nonexistent", PYTHONPATH=str(REPO / "addon"))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout
-    assert out.startswith("I/O error |") and "outside Blender" in out and "oiiotool" in out, out
+    lines = out.splitlines()
+    assert len(lines) == 3, out
+    for line, path in zip(lines, paths):
+        assert line.startswith("I/O error |") and path in line and "outside Blender" in line and "oiiotool" in line, out
 
 
-def test_malformed_files(tmp_path):
-    data = _write(tmp_path, "zip").read_bytes()
+def test_malformed_files(tmp_path, written):
+    data = written["zip", "float"].read_bytes()
     bad = tmp_path / "bad.exr"
     for cut in (8, 60, len(data) // 2, len(data) - 3):
         bad.write_bytes(data[:cut])
@@ -86,12 +121,12 @@ def test_malformed_files(tmp_path):
     assert not exr.has_magic(bad.read_bytes()[:4])
 
 
-def test_reads_no_more_than_the_header_allows(tmp_path):
+def test_reads_no_more_than_the_header_allows(tmp_path, written):
     # A real 40x20 EXR padded to 2 GiB (sparse): its header allows at most a few kB, so the reader
     # refuses it after reading the header, without reading or allocating the rest (issue 14).
     import resource
     import time
-    path = _write(tmp_path, "none")
+    path = _copy(written, tmp_path, "none")
     size = path.stat().st_size
     with open(path, "r+b") as f:
         f.truncate(2 << 30)

@@ -67,17 +67,29 @@ def test_resume_appends(tmp_path):
     assert len(journal.read(path).values) == 10
 
 
+# One interpreter imports numpy and the journal once, then forks a fresh writer per round (a fork is a
+# new process with its own file descriptors: SIGKILL stops it at an arbitrary instant as it stopped a
+# freshly started interpreter, without the ~1 s of a new interpreter importing numpy each round).
+# The parent reaps each writer and reports how it ended.
 WRITER = textwrap.dedent("""
-    import sys, numpy as np
-    sys.path.insert(0, sys.argv[3])
+    import os, sys, numpy as np
+    sys.path.insert(0, sys.argv[2])
     from schnee_probes import journal
     m = journal.make_manifest({"settings": "a" * 64, "geometry": "b" * 64, "materials": "c" * 64}, scene="test")
-    rng = np.random.default_rng(int(sys.argv[2]))
-    with journal.Writer(sys.argv[1], m, 9) as w:
-        w.append(journal.key_of((-1, 0.5, -1.0)), np.full((9, 3), -1.0))  # the file exists from here
-        print("ready", flush=True)
-        for i in range(100000):
-            w.append(journal.key_of((i, 0.5, -1.0)), np.full((9, 3), float(i)))
+    for line in sys.stdin:
+        sys.stdout.flush()
+        pid = os.fork()
+        if pid == 0:
+            try:
+                with journal.Writer(sys.argv[1], m, 9) as w:
+                    w.append(journal.key_of((-1, 0.5, -1.0)), np.full((9, 3), -1.0))  # the file exists from here
+                    print("ready", os.getpid(), flush=True)
+                    for i in range(100000):
+                        w.append(journal.key_of((i, 0.5, -1.0)), np.full((9, 3), float(i)))
+            finally:
+                os._exit(0)
+        _, status = os.waitpid(pid, 0)
+        print("ended", os.WTERMSIG(status) if os.WIFSIGNALED(status) else -1, flush=True)
 """)
 
 
@@ -89,20 +101,27 @@ def test_kill_at_random_instants(tmp_path):
     script.write_text(WRITER)
     rnd = random.Random(12)
     total_seen = 0
-    for round_ in range(8):
-        p = subprocess.Popen([sys.executable, str(script), path, str(round_), str(ADDON_DIR)],
-                             stdout=subprocess.PIPE, text=True)
-        assert p.stdout.readline().strip() == "ready"
-        time.sleep(rnd.uniform(0.0, 0.15))
-        p.send_signal(signal.SIGKILL)
-        p.wait()
-        c = journal.read(path, expect_manifest=_manifest())
-        assert c.torn_bytes < journal.record_size(9)
-        for key, v in c.values.items():
-            x, y, z, _ = journal.KEY.unpack(key)
-            assert (y, z) == (0.5, -1.0) and np.all(v == x)
-        assert len(c.values) >= total_seen  # nothing already durable is lost
-        total_seen = len(c.values)
+    forker = subprocess.Popen([sys.executable, str(script), path, str(ADDON_DIR)],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        for round_ in range(8):
+            forker.stdin.write(f"{round_}\n")
+            forker.stdin.flush()
+            ready, pid = forker.stdout.readline().split()
+            assert ready == "ready"
+            time.sleep(rnd.uniform(0.0, 0.15))
+            os.kill(int(pid), signal.SIGKILL)
+            assert forker.stdout.readline().split() == ["ended", str(int(signal.SIGKILL))]  # killed, not done
+            c = journal.read(path, expect_manifest=_manifest())
+            assert c.torn_bytes < journal.record_size(9)
+            for key, v in c.values.items():
+                x, y, z, _ = journal.KEY.unpack(key)
+                assert (y, z) == (0.5, -1.0) and np.all(v == x)
+            assert len(c.values) >= total_seen  # nothing already durable is lost
+            total_seen = len(c.values)
+    finally:
+        forker.stdin.close()
+        assert forker.wait(timeout=30) == 0
     assert total_seen > 0
 
 

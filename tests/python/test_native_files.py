@@ -199,6 +199,32 @@ def test_project_file_names_the_non_finite_pixel(tmp_path):
                                   "channel 1 (G)")
 
 
+def test_pfm_read_in_numpy_as_oiiotool_reads_it(tmp_path):
+    """Outside Blender images.py reads a plain PFM itself; the reference is OpenImageIO, which read
+    every PFM before (oiiotool converts both files in one run, as images.py invoked it: float,
+    uncompressed EXR, read back by exr.py). Both byte orders; bits compared, with NaN payloads, -0, denormals, ±inf."""
+    import shutil
+    from schnee_probes import exr, images
+    oiiotool = shutil.which("oiiotool")
+    assert oiiotool, "OpenImageIO's oiiotool is the reference here"
+    rng = np.random.default_rng(7)
+    rgb = rng.standard_normal((5, 7, 3)).astype(np.float32) * 1e3
+    rgb[0, 0] = (np.inf, -np.inf, -0.0)
+    rgb[1, 2] = (np.float32(1e-42), np.nan, np.array([0xFFC01234], np.uint32).view(np.float32)[0])
+    files = {"le.pfm": (b"PF\n7 5\n-1.0\n", rgb, "<f4"), "be.pfm": (b"PF 7 5 1\n", rgb, ">f4")}
+    cmd = [oiiotool]
+    for name, (header, pix, order) in files.items():
+        (tmp_path / name).write_bytes(header + np.ascontiguousarray(pix[::-1], order).tobytes())
+        cmd += [str(tmp_path / name), "-d", "float", "--compression", "none", "-o", str(tmp_path / (name + ".exr"))]
+    subprocess.run(cmd, check=True, capture_output=True)
+    for name, (header, pix, order) in files.items():
+        ours = images.read_image(str(tmp_path / name))
+        ref = exr.read(str(tmp_path / (name + ".exr")))
+        assert ours.dtype == np.float32 and ours.shape == ref.shape == pix.shape, name
+        np.testing.assert_array_equal(ours.view(np.uint32), ref.view(np.uint32), err_msg=name)
+        np.testing.assert_array_equal(ours.view(np.uint32), pix.view(np.uint32), err_msg=name)
+
+
 def test_project_file_image_limits(tmp_path):
     p = tmp_path / "huge.pfm"
     p.write_bytes(b"PF\n65536 8193\n-1.0\n")  # 6 GiB of floats claimed by a 19-byte file

@@ -7,14 +7,16 @@ in tests/blender/test_direct_sky.py); the sun's projection is that of a Cycles S
 strength and angle (native.direct_project, checked against Cycles in
 tests/blender/test_direct_light.py): rest + sun must give the image's projection. The synthetic
 closed-form cases (a disc of known size, direction and radiance) are tests/native/test_sky_sun.c.
-Runtime: ~3 s (oiiotool reads the DWAB-compressed HDRIs)."""
+Runtime: ~7 s (one oiiotool run converts the eight DWAB-compressed HDRIs)."""
 import math
+import shutil
+import subprocess
 
 import numpy as np
 import pytest
 
 from conftest import STUDIOLIGHTS, requires_native
-from schnee_probes import adaptive, native
+from schnee_probes import adaptive, exr, native
 
 pytestmark = requires_native
 
@@ -26,10 +28,23 @@ WITH_SUN = {"city": (0.20, 0.26), "forest": (0.05, 0.08), "interior": (0.11, 0.1
 WITHOUT_SUN = ("courtyard", "studio")
 
 
-def _hdri(name):
-    img = native.read_image(str(STUDIOLIGHTS / f"{name}.exr"))
+@pytest.fixture(scope="module")
+def hdris(tmp_path_factory):
+    """The eight HDRIs, each read once for the module. They are DWAB-compressed, which images.py hands
+    to oiiotool outside Blender (two oiiotool starts of ~3 s each per image): one oiiotool run
+    converts all eight, as images.py does one (float, uncompressed EXR), and exr.py reads them back.
+    native.read_image on these files is test_native_sh.py::test_project_file_reads_exr."""
+    tool = shutil.which("oiiotool")
+    assert tool, "OpenImageIO's oiiotool reads the DWAB HDRIs outside Blender"
+    tmp = tmp_path_factory.mktemp("hdri")
+    names = sorted(WITH_SUN) + list(WITHOUT_SUN)
+    cmd = [tool]
+    for name in names:
+        cmd += [str(STUDIOLIGHTS / f"{name}.exr"), "-d", "float", "--compression", "none", "-o", str(tmp / f"{name}.exr")]
+    subprocess.run(cmd, check=True, capture_output=True)
     # As the bake reads a world: RGB, clamped at 0 (the HDRIs hold -1e-5 texels).
-    return np.ascontiguousarray(np.clip(img[:, :, :3], 0.0, None), dtype=np.float32)
+    return {name: np.ascontiguousarray(np.clip(exr.read(str(tmp / f"{name}.exr"))[:, :, :3], 0.0, None),
+                                       dtype=np.float32) for name in names}
 
 
 def _projection(world):
@@ -38,8 +53,8 @@ def _projection(world):
 
 
 @pytest.mark.parametrize("name", sorted(WITH_SUN))
-def test_sun_plus_rest_is_the_image(name):
-    world = _hdri(name)
+def test_sun_plus_rest_is_the_image(name, hdris):
+    world = hdris[name]
     split = native.sky_sun_split(world)
     assert split.verdict == "found" and split.sun is not None
     sun = split.sun
@@ -61,19 +76,19 @@ def test_sun_plus_rest_is_the_image(name):
 
 
 @pytest.mark.parametrize("name", WITHOUT_SUN)
-def test_soft_skies_keep_their_light(name):
-    world = _hdri(name)
+def test_soft_skies_keep_their_light(name, hdris):
+    world = hdris[name]
     split = native.sky_sun_split(world)
     assert split.sun is None and split.verdict == "wide"
     assert np.array_equal(split.rest, world)
     assert adaptive.sky_sun(world) is None
 
 
-def test_sunrise_sun_where_the_image_has_it():
+def test_sunrise_sun_where_the_image_has_it(hdris):
     """sunrise.exr's sun: about 8° above the horizon (docs/placement.md step 4b, measured from the
     image's brightest texel), holding more than half the sky's light; the brightest texel's own
     direction (independent of the split's centroid) is within one texel (0.35°) of the sun's."""
-    world = _hdri("sunrise")
+    world = hdris["sunrise"]
     sun = native.sky_sun_split(world).sun
     h, w = world.shape[:2]
     lum = world @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
