@@ -60,6 +60,24 @@ def sphere_scene(d, representation=None, probe_mode=None):
     return b.write(d / "sphere.gltf")
 
 
+@pytest.fixture(scope="module")
+def sphere_render(tmp_path_factory):
+    """render(sphere_scene(representation, probe_mode), *args), each distinct render done once for the
+    module: the float and half renders of the cube sphere are what test_sphere_per_object_equals_cpu_cube
+    checks against the closed form and what test_half_differs_from_float_by_the_rounding_only and
+    test_cli_overrides_the_material compare (the same scene file and arguments render the same pixels;
+    test_cli_overrides_the_material asserts that too, across files)."""
+    done = {}
+
+    def get(representation, *args, probe_mode=None):
+        key = (representation, probe_mode, args)
+        if key not in done:
+            d = tmp_path_factory.mktemp("sphere")
+            done[key] = render(sphere_scene(d, representation, probe_mode), d / "out.exr", *args)
+        return done[key]
+    return get
+
+
 def test_numpy_fit_matches_the_core_and_closed_forms():
     # Closed forms of docs/ambient-cube.md §3: a constant radiance c gives C = πc on every face; a
     # hemisphere sky (radiance 1 over y > 0, L2 projection) gives π/2 on ±x, ±z, 9π/8 on +y, −π/8 on −y.
@@ -84,9 +102,8 @@ def test_numpy_fit_matches_the_core_and_closed_forms():
 
 
 @pytest.mark.parametrize("storage", ["float", "half"])
-def test_sphere_per_object_equals_cpu_cube(tmp_path, storage):
-    scene = sphere_scene(tmp_path, "ambientCube")
-    img = render(scene, tmp_path / "cube.exr", "--probe-storage", storage)
+def test_sphere_per_object_equals_cpu_cube(sphere_render, storage):
+    img = sphere_render("ambientCube", "--probe-storage", storage)
     p, hit, facing = ref.sphere_normals(W, H, YFOV, CAM_Z)
     cube = cube_of(COEFFS, storage)
     e = ref.cube_irradiance(cube, p)
@@ -107,21 +124,20 @@ def test_sphere_per_object_equals_cpu_cube(tmp_path, storage):
     assert np.abs(sh[interior] - expected[interior]).max() > 0.02  # measured 0.0295
 
 
-def test_half_differs_from_float_by_the_rounding_only(tmp_path):
-    scene = sphere_scene(tmp_path, "ambientCube")
-    f = render(scene, tmp_path / "f.exr")
-    h = render(scene, tmp_path / "h.exr", "--probe-storage", "half")
+def test_half_differs_from_float_by_the_rounding_only(sphere_render):
+    f = sphere_render("ambientCube", "--probe-storage", "float")  # float is the default storage
+    h = sphere_render("ambientCube", "--probe-storage", "half")
     # binary16 keeps 11 significant bits: ≤ 4.9e-4 relative per colour.
     assert 0 < np.abs(h - f).max() <= 2e-3 * np.abs(f).max()
 
 
-def test_cli_overrides_the_material(tmp_path):
+def test_cli_overrides_the_material(tmp_path, sphere_render):
     for sub in "cse":
         (tmp_path / sub).mkdir()
     cube_scene = sphere_scene(tmp_path / "c", "ambientCube")
     sh_scene = sphere_scene(tmp_path / "s", None)
     explicit_sh = sphere_scene(tmp_path / "e", "sh")
-    by_material = render(cube_scene, tmp_path / "m.exr")
+    by_material = sphere_render("ambientCube", "--probe-storage", "float")  # float is the default storage
     forced_cube = render(sh_scene, tmp_path / "f.exr", "--probe-representation", "ambientCube")
     assert np.array_equal(by_material, forced_cube)
     plain = render(sh_scene, tmp_path / "p.exr")

@@ -92,7 +92,19 @@ def write_scene(path, modes):
     return b.write(path)
 
 
+_RENDERS = {}  # (modes, args) -> image: a scene and arguments render the same pixels (tests below assert it)
+
+
 def render(tmp_path, modes, *args):
+    """The sphere lit by the lamps in `modes` ({name: mode or (mode, intensity scale)}), rendered with
+    `args`; a render already done in this module is reused (the realtime KeyLamp's is used by two tests)."""
+    key = (tuple(modes.items()), args)  # in order: the order of the lamps in the file
+    if key not in _RENDERS:
+        _RENDERS[key] = _render(tmp_path, modes, *args)
+    return _RENDERS[key]
+
+
+def _render(tmp_path, modes, *args):
     tag = "_".join(f"{k}-{v}" for k, v in modes.items()) + "_".join(str(a) for a in args).replace("-", "")
     tag = "".join(ch for ch in tag if ch.isalnum() or ch in "_.")
     gltf = write_scene(tmp_path / f"{tag}.gltf", modes)

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).parent / "scripts"))
 import probe_ref as ref  # noqa: E402
@@ -66,12 +67,27 @@ def render(scene, out, *args):
     return viewer.read_image(out)
 
 
-def test_interpolation_equals_cpu_trilinear(tmp_path):
+@pytest.fixture(scope="module")
+def pixel_floor(tmp_path_factory):
+    """render(floor_scene(0.1, (2, 2), 5.0, mode="pixel"), *args), each distinct render once for the
+    module: its default render is the one test_interpolation_equals_cpu_trilinear checks against the CPU
+    model and the one the CLI-override and half-storage tests compare with."""
+    d = tmp_path_factory.mktemp("floor")
+    scene = floor_scene(d, 0.1, (2.0, 2.0), 5.0, mode="pixel")
+    done = {}
+
+    def get(*args):
+        if args not in done:
+            done[args] = render(scene, d / f"r{len(done)}.exr", *args)
+        return done[args]
+    return get
+
+
+def test_interpolation_equals_cpu_trilinear(pixel_floor):
     # Floor at y = 0.1 over the whole grid and 0.5 m beyond: holes, clamping at the faces, and the
     # fallback outside the grid. The bottom-layer centres (y = 0.5) are 0.4 spacings above the
     # floor: back-face weight 1, so this is the plain renormalised trilinear formula.
-    scene = floor_scene(tmp_path, 0.1, (2.0, 2.0), 5.0, mode="pixel")
-    img = render(scene, tmp_path / "pp.exr")
+    img = pixel_floor()
     p = down_camera_points(2.0, 2.0, 0.1, 2.5).reshape(-1, 3)
     n = np.tile([0.0, 1.0, 0.0], (len(p), 1))
     e, held = ref.grid_irradiance(p, n, GRID, (0, 0, 0), 1.0, COEFFS)
@@ -85,22 +101,20 @@ def test_interpolation_equals_cpu_trilinear(tmp_path):
     assert np.ptp(img[held.reshape(N, N)][:, 0]) > 0.3
 
 
-def test_material_mode_cli_override_and_off(tmp_path):
-    scene = floor_scene(tmp_path, 0.1, (2.0, 2.0), 5.0, mode="pixel")
-    by_material = render(scene, tmp_path / "m.exr")
-    forced = render(scene, tmp_path / "f.exr", "--probe-mode", "pixel")
+def test_material_mode_cli_override_and_off(pixel_floor):
+    by_material = pixel_floor()
+    forced = pixel_floor("--probe-mode", "pixel")
     assert np.array_equal(by_material, forced)
-    obj = render(scene, tmp_path / "o.exr", "--probe-mode", "object")
+    obj = pixel_floor("--probe-mode", "object")
     # Per object: one probe for the whole floor (its centre (2, 0.1, 2) is in cell (2, 0, 2)).
     assert np.ptp(obj[..., 0]) < 1e-5
-    off = render(scene, tmp_path / "off.exr", "--probe-mode", "off")
+    off = pixel_floor("--probe-mode", "off")
     assert np.allclose(off, FALLBACK, atol=1e-6)  # fallback probe: E/π = 0.2 everywhere
 
 
-def test_half_storage_matches_float(tmp_path):
-    scene = floor_scene(tmp_path, 0.1, (2.0, 2.0), 5.0, mode="pixel")
-    f = render(scene, tmp_path / "f.exr")
-    h = render(scene, tmp_path / "h.exr", "--probe-storage", "half")
+def test_half_storage_matches_float(pixel_floor):
+    f = pixel_floor()
+    h = pixel_floor("--probe-storage", "half")
     # binary16 keeps 11 significant bits: relative rounding <= 2^-11 = 4.9e-4 per coefficient.
     assert np.abs(h - f).max() <= 2e-3 * np.abs(f).max()
     assert np.abs(h - f).max() > 0  # it really is a different storage

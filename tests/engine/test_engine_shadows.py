@@ -195,6 +195,13 @@ def geometry():
     return p, n, plane
 
 
+@pytest.fixture(scope="module")
+def mixed_sun(tmp_path_factory):
+    """The plane and box under the mixed sun SUN_DIR, rendered once for the two tests that check it
+    (against the analytic shadow, and as what realtime and extension-less suns must equal)."""
+    return render(tmp_path_factory.mktemp("mixed"), "mixed", [(SUN_DIR, "mixed")])
+
+
 def analytic_shadow(p, d):
     return box_hit(p, -unit(d))
 
@@ -233,9 +240,9 @@ def assert_shadowed(img, base, lit, shadow, plane, what, edge=EDGE):
     return inside, outside
 
 
-def test_mixed_sun_is_shadowed_by_the_box(tmp_path, geometry):
+def test_mixed_sun_is_shadowed_by_the_box(tmp_path, geometry, mixed_sun):
     p, n, plane = geometry
-    img = render(tmp_path, "mixed", [(SUN_DIR, "mixed")])
+    img = mixed_sun
     shadow = analytic_shadow(p, SUN_DIR)
     base = probe_term(n)
     # Shadowed pixel count: the rendered pixels darker than halfway between lit and shadowed, against
@@ -266,12 +273,12 @@ def test_vertical_sun_shadow_hides_under_the_box(tmp_path, geometry):
     assert_close(img, probe_term(n) + sun_direct(p, n, (0, -1, 0)), plane, "vertical sun")
 
 
-def test_baked_sun_adds_nothing_mixed_adds_its_shadowed_direct_term(tmp_path, geometry):
+def test_baked_sun_adds_nothing_mixed_adds_its_shadowed_direct_term(tmp_path, geometry, mixed_sun):
     p, n, plane = geometry
     base = probe_term(n)
     baked = render(tmp_path, "baked", [(SUN_DIR, "baked")])
     assert_close(baked, base, plane, "baked sun on probe-lit surfaces")
-    mixed = render(tmp_path, "mixed2", [(SUN_DIR, "mixed")])
+    mixed = mixed_sun
     shadow = analytic_shadow(p, SUN_DIR)
     outside = plane & ~shadow & ~edge_band(shadow, EDGE)
     assert_close(mixed, base + sun_direct(p, n, SUN_DIR), outside, "mixed sun, lit")
