@@ -1,6 +1,7 @@
 """The world seen directly (issue 11): sky-only bakes at the add-on's defaults, seeds 0 and 1, for
-every HDRI Blender bundles and a Nishita Sky Texture (scripts/direct_sky.py, ~3 min here, most of it
-the Nishita captures and the 4096x2048 reference).
+every HDRI Blender bundles and a Nishita Sky Texture (scripts/direct_sky.py, ~100 CPU-s here, most of
+it the two Nishita captures; the 4096x2048 reference, ~50 CPU-s more, is rendered once per Blender,
+script, scene_lib and native module and then read from build/test-cache/).
 
 The panoramas are rendered with a transparent film and the world is added per panorama cell from
 its full resolution, weighted by 1 − alpha (docs/direct-light.md). For a plain HDRI world the bake

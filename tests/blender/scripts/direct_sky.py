@@ -5,11 +5,20 @@ Sky Texture world: one volume bake of 1 probe at the add-on's defaults (128x64, 
 box filter) with seeds 0 and 1. Reference: the HDRI file projected natively (project_file); for the
 Nishita sky, the world rendered alone at 4096x2048 with 16 spp and another seed (0.07 % from
 another seed's), projected the same way. Emits RESULT lines with the coefficients, the reference and the bake's sky source.
+
+The Nishita reference (a 4096x2048 16-spp render, about half this script's CPU time) is kept in
+build/test-cache/ under a key of everything that decides it: Blender's version and build, the render
+settings, this script, scenes/scene_lib.py (the world) and the native module (the projection). A
+changed input is a new key, so a cached reference is the render this run would make;
+SCHNEE_TEST_CACHE=0 renders it anyway.
 """
 import glob
+import hashlib
+import json
 import math
 import os
 import sys
+import time
 
 import bpy
 import numpy as np
@@ -20,6 +29,43 @@ from addon_common import scene_lib as lib  # noqa: E402
 
 import schnee_probes  # noqa: E402
 from schnee_probes import bake_core, compat, native  # noqa: E402
+
+
+REFERENCE = dict(width=4096, height=2048, samples=16, seed=7, filter="BOX", filter_width=1.0, band=2)
+
+
+def _file_digest(path):
+    with open(path, "rb") as fh:
+        return hashlib.sha256(fh.read()).hexdigest()
+
+
+def reference_key():
+    """The cache key of the Nishita reference: every input that decides its coefficients."""
+    parts = dict(REFERENCE, blender=bpy.app.version_string, build=bpy.app.build_hash.decode(errors="replace"),
+                 script=_file_digest(os.path.abspath(__file__)), scene_lib=_file_digest(lib.__file__),
+                 native=_file_digest(native._native.__file__), native_py=_file_digest(native.__file__))
+    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()[:32]
+
+
+def cached_reference(out):
+    """(coefficients, where from): the cached reference when its key matches, else a fresh
+    reference_capture (then stored)."""
+    folder = os.path.join(common.REPO, "build", "test-cache")
+    path = os.path.join(folder, f"direct_sky_nishita_ref-{reference_key()}.json")
+    use_cache = os.environ.get("SCHNEE_TEST_CACHE", "1") != "0"
+    if use_cache and os.path.exists(path):
+        with open(path, encoding="utf-8") as fh:
+            return np.array(json.load(fh)["coeffs"]), f"cached {os.path.basename(path)}"
+    t0 = time.perf_counter()
+    coeffs = reference_capture(out)
+    seconds = time.perf_counter() - t0
+    if use_cache:
+        os.makedirs(folder, exist_ok=True)
+        tmp = path + f".{os.getpid()}.tmp"
+        with open(tmp, "w", encoding="utf-8") as fh:
+            json.dump({"coeffs": coeffs.tolist(), "settings": REFERENCE, "seconds": seconds}, fh)
+        os.replace(tmp, path)
+    return coeffs, f"rendered in {seconds:.1f} s"
 
 
 def reference_capture(out):
@@ -37,14 +83,14 @@ def reference_capture(out):
         ob.hide_render = True
     r = scene.render
     r.engine = 'CYCLES'
-    r.resolution_x, r.resolution_y, r.resolution_percentage = 4096, 2048, 100
+    r.resolution_x, r.resolution_y, r.resolution_percentage = REFERENCE["width"], REFERENCE["height"], 100
     r.film_transparent = False
     r.image_settings.file_format = 'OPEN_EXR'
     r.image_settings.color_depth = '32'
-    scene.cycles.samples = 16
-    scene.cycles.seed = 7
-    scene.cycles.pixel_filter_type = 'BOX'
-    scene.cycles.filter_width = 1.0
+    scene.cycles.samples = REFERENCE["samples"]
+    scene.cycles.seed = REFERENCE["seed"]
+    scene.cycles.pixel_filter_type = REFERENCE["filter"]
+    scene.cycles.filter_width = REFERENCE["filter_width"]
     scene.cycles.use_denoising = False
     scene.cycles.use_adaptive_sampling = False
     path = os.path.join(out, "nishita_ref.exr")
@@ -54,7 +100,9 @@ def reference_capture(out):
         ob.hide_render = was
     scene.camera = old_cam
     bpy.data.objects.remove(cam, do_unlink=True)
-    return native.project_file(path, 2, negative="clamp")
+    coeffs = native.project_file(path, REFERENCE["band"], negative="clamp")
+    os.remove(path)  # 128 MB
+    return coeffs
 
 
 def bake(out, name, seed):
@@ -77,14 +125,15 @@ def main():
         lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 4.0))
         if name == "nishita":
             lib.nishita_world()
-            reference = reference_capture(out)
+            reference, origin = cached_reference(out)
         else:
             lib.hdri_world(name)
             reference = native.project_file(lib.studiolight_path(name), 2, negative="clamp")
+            origin = "native.project_file of the HDRI"
         for seed in (0, 1):
             job, result = bake(out, name, seed)
             common.emit(case="sky", name=name, seed=seed, coeffs=job.coeffs.tolist(),
-                        reference=reference.tolist(), source=job.direct.sky_source,
+                        reference=reference.tolist(), reference_origin=origin, source=job.direct.sky_source,
                         timings=result.timings, probes=job.total)
 
 
