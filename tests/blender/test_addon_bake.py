@@ -97,15 +97,30 @@ def _inside_any(points, boxes, margin=1e-6):
     return hit
 
 
+# The room's placements, all in one Blender (addon_placement.py takes several MIN MAX pairs): each
+# pair is placed and cancelled in turn, so each starts from the scene as the file holds it.
+ROOM_CELLS = ((1.0, 1.0), (0.5, 0.5), (0.5, 16.0))
+
+
+@pytest.fixture(scope="module")
+def room_placements(scenes):
+    proc = run_blender(SCRIPTS / "addon_placement.py", *(c for pair in ROOM_CELLS for c in pair),
+                       blend=scenes[0] / "room.blend")
+    rows = {(r["min_cell"], r["max_cell"]): r for r in parse_results(proc.stdout)}
+    assert set(rows) == set(ROOM_CELLS), f"{sorted(rows)}\n{proc.stdout[-3000:]}\n{proc.stderr[-2000:]}"
+    for r in rows.values():  # each placement put the scene back before the next one
+        assert r["state_after"] == r["state_before"]
+    return rows
+
+
 @pytest.mark.parametrize("cell,expected", [
     # Uniform cells (Min = Max Cell Size): every cell centre of the 4 x 4 x 2 m room is a probe
     # except those inside the two 1 m furniture boxes: (4/c)^2 (2/c) - 2 (1/c)^3.
     (1.0, 32 - 2),
     (0.5, 256 - 16),
 ])
-def test_room_probe_count_and_no_probe_in_furniture(scenes, cell, expected):
-    proc = run_blender(SCRIPTS / "addon_placement.py", cell, cell, blend=scenes[0] / "room.blend")
-    r = result_of(proc)
+def test_room_probe_count_and_no_probe_in_furniture(scenes, room_placements, cell, expected):
+    r = room_placements[(cell, cell)]
     assert r["count"] == expected
     pos = np.array(r["positions"])
     assert not _inside_any(pos, scenes[1]).any()
@@ -115,11 +130,10 @@ def test_room_probe_count_and_no_probe_in_furniture(scenes, cell, expected):
     assert r["grid_valid"] == r["grid_size"]  # every cell of the volume maps to a probe
 
 
-def test_room_default_octree_keeps_probes_out_of_furniture(scenes):
+def test_room_default_octree_keeps_probes_out_of_furniture(scenes, room_placements):
     # Default cells (0.5 .. 16 m): counts depend on the octree, but no probe may sit in a box, and
     # the adaptive tree cannot have more probes than the uniform 0.5 m grid (240).
-    proc = run_blender(SCRIPTS / "addon_placement.py", 0.5, 16.0, blend=scenes[0] / "room.blend")
-    r = result_of(proc)
+    r = room_placements[(0.5, 16.0)]
     pos = np.array(r["positions"])
     assert 0 < r["count"] <= 240
     assert not _inside_any(pos, scenes[1]).any()
