@@ -25,7 +25,7 @@ def test_modal_bake_finishes_and_esc_cancels(tmp_path):
     assert lines, proc.stdout[-3000:] + proc.stderr[-2000:]
     r = json.loads(lines[-1][7:])
     assert r["start"] == ["RUNNING_MODAL"] and r["running_after_start"]
-    assert r["finished_message"].startswith("Baked 32 probes"), r  # 4 x 4 x 2 m volume, 1 m cells
+    assert r["finished_message"].startswith("Baked 12 probes"), r  # 3 x 2 x 2 m volume, 1 m cells
     assert r["file"]
     assert r["engine_after"] == "BLENDER_EEVEE"  # the scene's engine, restored
     assert r["cancel_message"].startswith("Bake cancelled")
@@ -36,12 +36,12 @@ def test_modal_bake_finishes_and_esc_cancels(tmp_path):
     assert r["sigint_message"].startswith("Bake cancelled"), r["sigint_message"]
     assert r["sigint_file_unchanged"] and r["engine_after_sigint"] == "BLENDER_EEVEE"
     assert r["sigint_handler_after"]  # Python's Ctrl+C handler is back once the bake ends
-    # 32 probes above Confirm Above = 10: nothing baked until confirmed; confirmed, it bakes.
+    # 12 probes above Confirm Above = 10: nothing baked until confirmed; confirmed, it bakes.
     assert r["large_result"] == ["CANCELLED"] and not r["large_running"]
-    assert "32 probes" in r["large_message"] and "more than the limit of 10" in r["large_message"]
+    assert "12 probes" in r["large_message"] and "more than the limit of 10" in r["large_message"]
     assert r["large_file_unchanged"]
     assert r["confirmed_result"] == ["RUNNING_MODAL"]
-    assert r["confirmed_message"].startswith("Baked 32 probes"), r["confirmed_message"]
+    assert r["confirmed_message"].startswith("Baked 12 probes"), r["confirmed_message"]
 
 
 @pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run not installed")
