@@ -15,7 +15,7 @@ from conftest import REPO
 from schnee_probes import exr, native
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "engine" / "scripts"))
-import viewer  # noqa: E402  (oiiotool-based reference reader)
+import viewer  # noqa: E402  (read_image_oiio: the oiiotool-based reference reader)
 
 STUDIO = "/usr/share/blender/datafiles/studiolights/world/interior.exr"
 
@@ -60,7 +60,7 @@ def _copy(written, tmp_path, codec, dtype="float"):
 def test_codecs_match_openimageio(written, codec, dtype):
     path = written[codec, dtype]
     ours = exr.read(str(path))
-    ref = viewer.read_image(path)  # 9 printed decimals
+    ref = viewer.read_image_oiio(path)  # 9 printed decimals
     assert ours.dtype == np.float32 and ours.shape == ref.shape == (20, 40, 4 if dtype == "half" else 3)
     np.testing.assert_allclose(ours, ref, rtol=1e-7, atol=1e-9)
     assert np.ptp(ours[..., 0]) > 0.01  # a real image, not a constant
@@ -68,7 +68,7 @@ def test_codecs_match_openimageio(written, codec, dtype):
 
 def test_project_file_equals_projection_of_pixels(written):
     path = written["zip", "float"]
-    pixels = viewer.read_image(path).astype(np.float32)
+    pixels = viewer.read_image_oiio(path).astype(np.float32)
     np.testing.assert_array_equal(native.project_file(str(path), 1, negative="allow"),
                                   native.project_equirect(pixels, 1, negative="allow"))
 
@@ -80,7 +80,7 @@ def test_other_codecs_are_unsupported_not_misread(written, codec):
         exr.read(str(path))
     # Outside Blender, native.project_file falls back to oiiotool (development machines, benchmarks):
     # the same projection as OpenImageIO's pixels.
-    pixels = viewer.read_image(path).astype(np.float32)
+    pixels = viewer.read_image_oiio(path).astype(np.float32)
     np.testing.assert_allclose(native.project_file(str(path), 1, negative="allow"),
                                native.project_equirect(pixels, 1, negative="allow"), rtol=0, atol=1e-6)
 
