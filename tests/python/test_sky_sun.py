@@ -40,7 +40,8 @@ def hdris(tmp_path_factory):
     names = sorted(WITH_SUN) + list(WITHOUT_SUN)
     cmd = [tool]
     for name in names:
-        cmd += [str(STUDIOLIGHTS / f"{name}.exr"), "-d", "float", "--compression", "none", "-o", str(tmp / f"{name}.exr")]
+        cmd += [str(STUDIOLIGHTS / f"{name}.exr"), "-d", "float", "--compression", "none",
+                "-o", str(tmp / f"{name}.exr")]
     subprocess.run(cmd, check=True, capture_output=True)
     # As the bake reads a world: RGB, clamped at 0 (the HDRIs hold -1e-5 texels).
     return {name: np.ascontiguousarray(np.clip(exr.read(str(tmp / f"{name}.exr"))[:, :, :3], 0.0, None),
