@@ -58,12 +58,13 @@ def test_modal_adaptive_bake_finishes_and_esc_and_sigint_cancel(tmp_path):
     assert lines, proc.stdout[-3000:] + proc.stderr[-2000:]
     r = json.loads(lines[-1][7:])
     assert r["start"] == ["RUNNING_MODAL"] and r["running_after_start"]
-    # Sky only: the light is the same everywhere, so the 2 m cells stay (3 x 2 x 3 corners, 1 pass).
-    assert r["finished_message"].startswith("Baked 18 probes (") and "in 1 pass)" in r["finished_message"], r
+    # Sky only: the light is the same everywhere, so the 2 m cells of the 4 x 2 x 2 m volume stay
+    # (3 x 2 x 2 corners, 1 pass).
+    assert r["finished_message"].startswith("Baked 12 probes (") and "in 1 pass)" in r["finished_message"], r
     assert r["file"] and r["engine_after"] == "BLENDER_EEVEE"
     assert r["cancel_message"].startswith("Bake cancelled") and r["file_unchanged"]
     assert r["sigint_message"].startswith("Bake cancelled") and r["sigint_file_unchanged"]
     assert r["sigint_handler_after"]
-    assert r["large_result"] == ["CANCELLED"] and "18 probes" in r["large_message"]
+    assert r["large_result"] == ["CANCELLED"] and "12 probes" in r["large_message"]
     assert r["large_file_unchanged"]
-    assert r["confirmed_message"].startswith("Baked 18 probes (")
+    assert r["confirmed_message"].startswith("Baked 12 probes (")

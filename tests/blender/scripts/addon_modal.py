@@ -20,12 +20,12 @@ SIGINT_BEFORE = signal.getsignal(signal.SIGINT)
 out = common.args()[0]
 lib.clear_scene()
 lib.hdri_world("courtyard.exr")
-# SCHNEE_MODAL_PLACEMENT=ADAPTIVE: the Adaptive placement in a 4 x 4 x 2 m volume (18 corner probes
-# of 2 m cells, then 24 test points: long enough to cancel in between); default the geometry octree
-# in a 3 x 2 x 2 m volume (12 probes of 1 m: still above Confirm Above = 10, and each finished bake
-# renders 12 panoramas, not 32).
+# SCHNEE_MODAL_PLACEMENT=ADAPTIVE: the Adaptive placement in a 4 x 2 x 2 m volume (12 corner probes
+# of 2 m cells, then its test points: long enough to cancel in between); default the geometry octree
+# in a 3 x 2 x 2 m volume (12 probes of 1 m). Both stay above Confirm Above = 10, and each finished
+# bake renders 12 panoramas (32 and 18 before).
 placement = os.environ.get("SCHNEE_MODAL_PLACEMENT", "OCTREE")
-lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 2.0)) if placement == "ADAPTIVE" else \
+lib.probe_volume("SkyVolume", (-2.0, -1.0, 0.0), (2.0, 1.0, 2.0)) if placement == "ADAPTIVE" else \
     lib.probe_volume("SkyVolume", (-1.5, -1.0, 0.0), (1.5, 1.0, 2.0))
 lib.save(os.path.join(out, "modal.blend"))
 schnee_probes.register()
