@@ -11,16 +11,34 @@ import random
 import re
 import signal
 import time
+import types
 
 import pytest
 
 from conftest import requires_native
-from schnee_probes import journal, native
+from schnee_probes import adaptive, journal, native
 from test_bake_hazards import SCRIPTS, TINY, Running, bake, copy_blend, last_error, run_blender  # noqa: F401
 
 pytestmark = requires_native
 
 CELLS = ["--min-cell-size", "1", "--max-cell-size", "1"]  # 32 probes
+
+# Adaptive placement at the coarsest sizes that still refine (one level: 2 m first layer, 1 m
+# lattice): the same stages, shard waits and journal records as finer cells, a quarter of the renders.
+ADAPTIVE = ["--placement", "ADAPTIVE", "--min-cell-size", "1", "--max-cell-size", "2"]
+
+
+def _adaptive_reference(scenes, local):
+    """An uninterrupted Adaptive bake in ``local``: its sha256, the points it rendered (probes and
+    test points) and its first layer's probe count."""
+    blend = copy_blend(scenes, "window_room.blend", local)
+    proc = bake(blend, *ADAPTIVE, *TINY)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    first_layer = int(re.search(r"first layer \d+ cell\(s\) of 2 m with (\d+) probes", proc.stdout).group(1))
+    points = int(re.search(r"adaptive placement: 2 pass\(es\), (\d+) points rendered", proc.stdout).group(1))
+    assert first_layer + 3 < points  # room to kill it in its second stage
+    return types.SimpleNamespace(shprobe=_sha(local / "sh_coeffs" / "probes.shprobe"), points=points,
+                                 first_layer=first_layer)
 
 
 @pytest.fixture(scope="module")
@@ -171,41 +189,32 @@ def test_adaptive_shards_pass_by_pass(scenes, tmp_path):
     """Adaptive placement refines pass by pass, so a shard bakes its share of one stage and stops
     until the other shards' points of that stage exist (what the farm's chained arrays do): shards
     run in turn, then the merge writes the same bytes as a local bake."""
-    cells = ["--placement", "ADAPTIVE", "--min-cell-size", "0.5", "--max-cell-size", "1"]
-    local = tmp_path / "local"
-    blend = copy_blend(scenes, "window_room.blend", local)
-    proc = bake(blend, *cells, *TINY)
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    adaptive_reference = _adaptive_reference(scenes, tmp_path / "local")
     farm = tmp_path / "farm"
     blend = copy_blend(scenes, "window_room.blend", farm)
     waits = 0
-    for _ in range(3):  # at most 3 stages (1 m down to 0.5 m)
+    for _ in range(adaptive.stage_bound(1, 2)):  # one round per stage, as the farm chains its arrays
         for k in range(2):
-            proc = bake(blend, *cells, *TINY, "--shard", f"{k}/2")
+            proc = bake(blend, *ADAPTIVE, *TINY, "--shard", f"{k}/2")
             assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
             waits += "its share of this pass is baked" in proc.stdout
     assert waits >= 2  # the shards did wait for each other at a stage boundary
-    proc = bake(blend, *cells, *TINY, "--merge-shards", "2")
+    proc = bake(blend, *ADAPTIVE, *TINY, "--merge-shards", "2")
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
-    assert _sha(farm / "sh_coeffs" / "probes.shprobe") == _sha(local / "sh_coeffs" / "probes.shprobe")
+    assert _sha(farm / "sh_coeffs" / "probes.shprobe") == adaptive_reference.shprobe
 
 
 def test_adaptive_killed_then_resumed_equals_uninterrupted(scenes, tmp_path):
     """The default placement: killed in its second stage (test points), resumed, same bytes."""
-    cells = ["--placement", "ADAPTIVE", "--min-cell-size", "0.5", "--max-cell-size", "1"]
-    local = tmp_path / "local"
-    blend = copy_blend(scenes, "window_room.blend", local)
-    proc = bake(blend, *CELLS, *TINY, *cells)
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
-    first_layer = int(re.search(r"first layer \d+ cell\(s\) of 1 m with (\d+) probes", proc.stdout).group(1))
+    ref = _adaptive_reference(scenes, tmp_path / "local")
     blend = copy_blend(scenes, "window_room.blend", tmp_path / "killed")
-    rc, _, _ = _interrupt(blend, signal.SIGKILL, first_layer + 3, cells)
+    rc, _, _ = _interrupt(blend, signal.SIGKILL, ref.first_layer + 3, ADAPTIVE)
     assert rc == -9
     out = tmp_path / "killed" / "sh_coeffs"
     kept = len(journal.read(str(out / "probes.shprobe.journal")).values)
-    assert kept >= first_layer + 3
-    proc = bake(blend, *CELLS, *TINY, *cells)
+    assert ref.first_layer + 3 <= kept < ref.points  # past the first layer, short of the whole bake
+    proc = bake(blend, *ADAPTIVE, *TINY)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
-    assert f"{first_layer} of {first_layer} probes already baked, 0 to render in the first pass ({kept} points" \
+    assert f"{ref.first_layer} of {ref.first_layer} probes already baked, 0 to render in the first pass ({kept} points" \
         in proc.stdout, proc.stdout[-3000:]
-    assert _sha(out / "probes.shprobe") == _sha(local / "sh_coeffs" / "probes.shprobe")
+    assert _sha(out / "probes.shprobe") == ref.shprobe
