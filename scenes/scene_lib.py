@@ -157,7 +157,12 @@ def probe_volume(name, bmin, bmax, collection_name="ProbeVolumes"):
 
 
 def save(path):
+    """Save the scene to ``path`` with its image paths absolute. Blender's default (Preferences >
+    File Paths > Relative Paths) stores them relative to the .blend ("//../../../usr/share/..."), and
+    a copy of the file in a folder of another depth then finds no sky image: Cycles renders the
+    missing image magenta, silently (found by a test whose bakes depended on their folder)."""
     path = os.path.abspath(path)
     os.makedirs(os.path.dirname(path), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=path, check_existing=False)
+    bpy.context.preferences.filepaths.use_relative_paths = False
+    bpy.ops.wm.save_as_mainfile(filepath=path, check_existing=False, relative_remap=False)
     return path
