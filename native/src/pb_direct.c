@@ -53,32 +53,14 @@ pb_result pb_direct_scene_create(const pb_mesh_desc *geometry, uint32_t count, p
         tris += m->triangle_count;
     }
     pb_direct_scene *s = calloc(1, sizeof *s);
-    pb_occluder_mesh *om = calloc((size_t)count + 1, sizeof *om);
-    if (!s || !om) {
-        free(s);
-        free(om);
-        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating the occluder scene");
-    }
+    if (!s) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating the occluder scene");
     pb_result r = PB_SUCCESS;
     if (tris > 0) {
         for (int a = 0; a < 3; a++) s->centre[a] = 0.5 * (lo[a] + hi[a]);
-        for (uint32_t i = 0; i < count; i++) {
-            om[i].positions = geometry[i].positions;
-            om[i].indices = geometry[i].indices;
-            om[i].vertex_count = geometry[i].vertex_count;
-            om[i].triangle_count = geometry[i].triangle_count;
-        }
         /* One thread: the bake asks for one probe at a time. */
-        pb_occluder_desc d = {0};
-        d.meshes = om;
-        d.mesh_count = count;
-        memcpy(d.origin, s->centre, sizeof d.origin);
-        d.thread_count = 1;
-        d.flags = PB_OCCLUDER_BUILD_MEDIUM;
-        d.what = "direct-light occluder";
-        r = pb_occluder_create(&d, &s->occluder, err);
+        r = pb_occluder_create_from_meshes(geometry, count, s->centre, 1, PB_OCCLUDER_BUILD_MEDIUM,
+                                           "direct-light occluder", &s->occluder, err);
     }
-    free(om);
     if (r) {
         pb_direct_scene_destroy(s);
         return r;

@@ -2,6 +2,7 @@
  * the project that calls Embree; pb_embree_compat.h hides the differences between Embree 3 and 4,
  * and in the Python module every call goes through pb_embree_dyn.h's pointers. */
 #include "schnee/pb_occluder.h"
+#include "schnee/pb_octree.h"
 
 #include "pb_embree_compat.h"
 
@@ -640,4 +641,29 @@ int32_t pb_point_index_nearest(const pb_point_index *ix, const double p[3], doub
 pb_result pb_point_index_error(const pb_point_index *ix, pb_error *err, const char *what)
 {
     return ix ? device_errors_check(&ix->errors, err, what) : PB_SUCCESS;
+}
+
+pb_result pb_occluder_create_from_meshes(const pb_mesh_desc *meshes, uint32_t count, const double origin[3],
+                                         uint32_t thread_count, uint32_t flags, const char *what, pb_occluder **out,
+                                         pb_error *err)
+{
+    pb_occluder_mesh *om = calloc((size_t)count + 1, sizeof *om);
+    if (!om)
+        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating the %s", what ? what : "occluder");
+    for (uint32_t i = 0; i < count; i++) {
+        om[i].positions = meshes[i].positions;
+        om[i].indices = meshes[i].indices;
+        om[i].vertex_count = meshes[i].vertex_count;
+        om[i].triangle_count = meshes[i].triangle_count;
+    }
+    pb_occluder_desc d = {0};
+    d.meshes = om;
+    d.mesh_count = count;
+    memcpy(d.origin, origin, sizeof d.origin);
+    d.thread_count = thread_count;
+    d.flags = flags;
+    d.what = what;
+    pb_result r = pb_occluder_create(&d, out, err);
+    free(om);
+    return r;
 }

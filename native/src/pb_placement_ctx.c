@@ -430,24 +430,7 @@ pb_result pb_oct_setup(oct_ctx *c)
 static pb_result build_occluder(oct_ctx *c, const pb_mesh_desc *meshes, uint32_t count, uint32_t flags,
                                 const char *what, pb_occluder **out)
 {
-    pb_occluder_mesh *om = calloc((size_t)count + 1, sizeof *om);
-    if (!om) return pb_error_set(c->err, PB_ERROR_OUT_OF_MEMORY, "out of memory creating a scene");
-    for (uint32_t i = 0; i < count; i++) {
-        om[i].positions = meshes[i].positions;
-        om[i].indices = meshes[i].indices;
-        om[i].vertex_count = meshes[i].vertex_count;
-        om[i].triangle_count = meshes[i].triangle_count;
-    }
-    pb_occluder_desc d = {0};
-    d.meshes = om;
-    d.mesh_count = count;
-    memcpy(d.origin, c->centre, sizeof d.origin);
-    d.thread_count = c->threads;
-    d.flags = flags;
-    d.what = what;
-    pb_result r = pb_occluder_create(&d, out, c->err);
-    free(om);
-    return r;
+    return pb_occluder_create_from_meshes(meshes, count, c->centre, c->threads, flags, what, out, c->err);
 }
 
 /* The volumes' occluder (robust, with the crossings of the inside test) and the geometry's (when

@@ -76,6 +76,13 @@ typedef struct pb_occluder_ray {
  * PB_ERROR_NON_FINITE naming the mesh, triangle or vertex), and reports Embree failures
  * (PB_ERROR_EMBREE). *out is NULL on failure. */
 pb_result pb_occluder_create(const pb_occluder_desc *desc, pb_occluder **out, pb_error *err);
+
+/* The same from the bake's mesh records (pb_octree.h's pb_mesh_desc: double positions and indices,
+ * borrowed) — the placement's and the direct light's occluders. */
+struct pb_mesh_desc;
+pb_result pb_occluder_create_from_meshes(const struct pb_mesh_desc *meshes, uint32_t count, const double origin[3],
+                                         uint32_t thread_count, uint32_t flags, const char *what, pb_occluder **out,
+                                         pb_error *err);
 void pb_occluder_destroy(pb_occluder *occluder);
 
 /* Triangles in the scene (meshes that were skipped count 0). */
