@@ -74,6 +74,43 @@ def cycles_settings(scene):
     return getattr(scene, "cycles", None)
 
 
+# ---- Cycles render devices (Preferences > System > Cycles Render Devices) ------------------------
+# The Cycles add-on's preferences are the same in 3.4, 4.3 and 5.2 where the bake reads them:
+# ``compute_device_type`` ('NONE', 'CUDA', 'OPTIX', 'HIP', 'METAL', 'ONEAPI'; only the types this
+# build has, read as '' when the stored one is missing: get_compute_device_type() says 'NONE'), the
+# ``devices`` collection (name, id, type, use) and ``get_devices_for_type(type)``, which lists the
+# devices found now, adds them to ``devices``, and returns those entries (that type's, then the
+# CPU). What differs: ``get_devices()`` returns None since 3.0 (2.9x returned the CUDA and OpenCL
+# lists; scripts written for it unpack a None), 4.x added ``get_device_list`` (3.4 has none) and
+# 5.x a ``device_list`` argument, and the raw device tuples grew from 4 to 8 fields; and Debian's
+# builds (3.4, 4.3, 5.2) list CUDA and HIP among the types but have no OptiX.
+GPU_DEVICE_TYPES = ('CUDA', 'OPTIX', 'HIP', 'METAL', 'ONEAPI')
+
+
+def cycles_preferences():
+    """The Cycles add-on's preferences (compute device type and devices), or None without it."""
+    addon = bpy.context.preferences.addons.get("cycles")
+    return getattr(addon, "preferences", None) if addon is not None else None
+
+
+def cycles_gpu_devices(prefs):
+    """``(compute device type, [names of that type's devices found now and enabled], CPU enabled
+    beside them)`` per the user's Preferences; ``('NONE', [], False)`` without Cycles or a type."""
+    if prefs is None:
+        return 'NONE', [], False
+    getter = getattr(prefs, "get_compute_device_type", None)
+    kind = getter() if getter is not None else (prefs.compute_device_type or 'NONE')
+    if kind not in GPU_DEVICE_TYPES:
+        return 'NONE', [], False
+    try:
+        entries = list(prefs.get_devices_for_type(kind))
+    except (AttributeError, RuntimeError, TypeError, KeyError):
+        # A Cycles without the listing call: the stored entries (may name a device gone since).
+        entries = [d for d in prefs.devices if d.type in (kind, 'CPU')]
+    names = [d.name for d in entries if d.type == kind and d.use]
+    return kind, names, bool(names) and any(d.type == 'CPU' and d.use for d in entries)
+
+
 def draw_native_problem(layout):
     """When the compiled bake core did not load: an error box saying what is missing and what the
     user can do (native.native_problem), wrapped to the sidebar width. Draws nothing otherwise."""

@@ -3,7 +3,9 @@
 The panel and the dialog show :func:`grid_cell_bound` of the volumes' bounding boxes with
 :func:`estimate_seconds` of it; ``bake_core.ProbeBake.prepare`` logs the exact count after
 placement with its estimate, and refuses above ``probe_limit`` unless confirmed; the progress line
-refines the estimate with the measured times (``ProbeBake.remaining_seconds``).
+refines the estimate with the measured times (``ProbeBake.remaining_seconds``). Both name the device
+that renders (:func:`device_note`); the model is the CPU's whatever the device (Render Device GPU:
+an upper estimate until the first probes are measured).
 """
 import numpy as np
 
@@ -38,6 +40,16 @@ def estimate_seconds(probes, settings, sky=False, renders=None) -> float:
         # One world-only render: no geometry, priced at the sky-only rate (0.15 µs).
         total += 0.15e-6 * settings.sky_resolution * (settings.sky_resolution // 2) * settings.samples
     return total
+
+
+def device_note(label: str) -> str:
+    """What the estimate and progress lines append for the device that renders
+    (``render_settings.device_label``): "on CPU (2 threads)". The cost model above was measured on
+    this project's 2-core CPU, so on a GPU it says so: the estimate before the first probe is an
+    upper one there, and the measured mean per probe replaces it after the first probes."""
+    if label.startswith("GPU:") and not label.startswith("GPU: none"):
+        return f"on {label}; the estimate before the first probes is a 2-core CPU's"
+    return f"on {label}"
 
 
 def format_duration(seconds) -> str:

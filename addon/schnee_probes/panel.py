@@ -5,7 +5,7 @@ import os
 
 import bpy
 
-from . import bake_core, compat, journal, light_modes
+from . import bake_core, compat, journal, light_modes, render_settings
 from .properties import LIGHT_MODE_ITEMS, draw_estimate, draw_settings
 
 
@@ -30,7 +30,18 @@ class VIEW3D_PT_schnee_probes(bpy.types.Panel):
         layout.use_property_decorate = False
         draw_settings(layout, props)
         draw_estimate(layout, context.scene, props)
+        _draw_device(layout, context.scene, props)
         _draw_journal(layout, props)
+
+
+def _draw_device(layout, scene, props):
+    """What will render the panoramas with Render Device as set ("GPU: none available, CPU (2
+    threads)" when a GPU is asked for and the Preferences give none); nothing without Cycles."""
+    try:
+        label = render_settings.device_label(scene, props.render_device)
+    except bake_core.BakeError:
+        return
+    layout.label(text=f"Renders on {label}")
 
 
 def _draw_journal(layout, props):

@@ -177,8 +177,10 @@ class StateGuard:
         return failed
 
 
-def apply_bake_settings(scene, view_layer, settings):
-    """Override the render settings for panorama renders of a probe bake (see DESIGN.md §6).
+def apply_bake_settings(scene, view_layer, settings, log=print):
+    """Override the render settings for panorama renders of a probe bake (see DESIGN.md §6) and
+    set the Cycles device per Render Device (:func:`apply_render_device`, which logs through
+    ``log`` why a GPU asked for is not used). Returns the label of the device that renders.
 
     ``settings`` is a :class:`bake_core.BakeSettings`. Everything written here is captured by a
     :class:`StateGuard` (:meth:`StateGuard.snapshot` of ``render``, ``cycles`` and
@@ -224,6 +226,56 @@ def apply_bake_settings(scene, view_layer, settings):
     c.seed = settings.seed
     c.use_animated_seed = False
     view_layer.samples = 0  # 0 = use the scene's sample count
+    return apply_render_device(scene, settings.render_device, log)
+
+
+# ------------------------------------------------------------------ the render device
+def _cpu_label(scene) -> str:
+    # render.threads reads the count Cycles uses, also with Threads 'Auto-Detect'.
+    n = scene.render.threads
+    return f"CPU ({n} thread{'' if n == 1 else 's'})"
+
+
+def _device_plan(scene, render_device):
+    """``(value for scene.cycles.device or None to leave it, label, why no GPU or None)`` for the
+    Render Device setting ``render_device`` ('SCENE', 'CPU', 'GPU'); changes nothing."""
+    cycles = require_cycles(scene)
+    wanted = cycles.device if render_device == 'SCENE' else render_device
+    setting = None if render_device == 'SCENE' else wanted
+    if wanted != 'GPU':
+        return setting, _cpu_label(scene), None
+    kind, names, with_cpu = compat.cycles_gpu_devices(compat.cycles_preferences())
+    if names:
+        return setting, f"GPU: {', '.join(names)} ({kind}{' + CPU' if with_cpu else ''})", None
+    if kind == 'NONE':
+        why = "Preferences > System > Cycles Render Devices names no compute device type (None)"
+    else:
+        why = f"no {kind} device is found and enabled in Preferences > System > Cycles Render Devices"
+    # 'SCENE': Cycles itself renders a GPU scene on the CPU when it has no GPU; the label says so.
+    return ('CPU' if setting else None), f"GPU: none available, {_cpu_label(scene)}", why
+
+
+def device_label(scene, render_device='SCENE') -> str:
+    """What renders the panoramas of ``scene`` with Render Device ``render_device``, as a short label
+    ("CPU (2 threads)", "GPU: NVIDIA ... (OPTIX)", "GPU: none available, CPU (2 threads)"); the
+    default 'SCENE' says what renders now (after :func:`apply_render_device`: what the bake uses).
+    Changes no scene setting (listing the devices refreshes the Preferences' device list, as
+    Cycles' own panels do)."""
+    return _device_plan(scene, render_device)[1]
+
+
+def apply_render_device(scene, render_device, log=print) -> str:
+    """Set ``scene.cycles.device`` per Render Device (the caller's :class:`StateGuard` snapshot of
+    ``scene.cycles`` restores it) and return :func:`device_label`'s label. A GPU asked for (or set in
+    the scene) that no device of the Preferences provides renders on the CPU: one line through
+    ``log`` says why, nothing fails."""
+    value, label, why = _device_plan(scene, render_device)
+    if value is not None:
+        scene.cycles.device = value
+    if why is not None:
+        asked = "Render Device GPU" if render_device == 'GPU' else "the scene's Device GPU Compute"
+        log(f"Schnee: {asked}: no GPU available ({why}); the probes render on the {_cpu_label(scene)}")
+    return label
 
 
 # Modifiers whose viewport level differs from the render level.

@@ -310,6 +310,24 @@ SETTINGS: Tuple[Setting, ...] = (
             "scene sync",
             doc="Keeps the scene in Cycles between probe renders, so a probe costs path tracing, "
                 "not scene sync."),
+    Setting("render_device", "enum", 'SCENE', "Render Device",
+            "What renders the probe panoramas: the scene's Cycles device as it is set, the CPU, or the "
+            "GPU devices enabled in Preferences > System > Cycles Render Devices (the CPU when none is "
+            "usable: the bake log says why); the scene's setting is restored after the bake",
+            doc="**As the scene is set** (default): Render Properties > Device is left as it is (a scene "
+                "set to GPU Compute without a usable GPU renders on the CPU, Cycles' own fallback, and "
+                "the bake says so). **CPU**: the CPU, whatever the scene says. **GPU**: the compute "
+                "device type and the devices enabled in Preferences > System > Cycles Render Devices "
+                "(with the CPU too where it is ticked there); with type None, or no device of that "
+                "type found and enabled, the bake renders on the CPU and logs one line saying why. "
+                "CPU and GPU are set for the bake only and restored after it. The progress line and "
+                "the estimate name the device; the estimate before the first probe is this 2-core "
+                "CPU's cost model, an upper one on a GPU (see *Rendering on a GPU*).",
+            choices=(('SCENE', "As the scene is set", "Render on the scene's Cycles device (Render "
+                                                      "Properties > Device), unchanged"),
+                     ('CPU', "CPU", "Render on the CPU, whatever the scene's device"),
+                     ('GPU', "GPU", "Render on the GPU devices enabled in Preferences > System > Cycles "
+                                    "Render Devices; on the CPU when none is usable (the log says why)"))),
     Setting("per_volume_files", "bool", False, "One File per Volume",
             "Write sh_coeffs/<volume name>.shprobe for each volume (placed separately) instead of "
             "one probes.shprobe for their union",
@@ -359,6 +377,7 @@ SETTINGS: Tuple[Setting, ...] = (
 
 SETTINGS_BY_NAME = {s.name: s for s in SETTINGS}
 PIXEL_FILTERS = SETTINGS_BY_NAME["pixel_filter"].choice_ids
+RENDER_DEVICES = SETTINGS_BY_NAME["render_device"].choice_ids
 
 
 def _cross_checks(s) -> Optional[str]:
