@@ -31,7 +31,7 @@ def _result(stdout):
     return json.loads(lines[-1])
 
 
-def _in_chroot(suite, tmp_path):
+def _in_chroot(suite):
     """Run the script in the chroot's Blender on a copy of the add-on (with the native module's
     libraries from the add-on package build/addon_zip, which the chroots lack)."""
     if os.geteuid() != 0:
@@ -64,11 +64,11 @@ def _in_chroot(suite, tmp_path):
 @requires_native
 @pytest.mark.parametrize("suite", ["host", pytest.param("trixie", marks=pytest.mark.chroot),
                                    pytest.param("sid", marks=pytest.mark.chroot)])
-def test_render_device_without_gpu(suite, tmp_path):
+def test_render_device_without_gpu(suite):
     if suite == "host":
         stdout = run_blender(SCRIPT, ADDON_DIR, timeout=300).stdout
     else:
-        stdout = _in_chroot(suite, tmp_path)
+        stdout = _in_chroot(suite)
     r = _result(stdout)
     cases = r["cases"]
     want = {"host": (3, 4), "trixie": (4, 3), "sid": (5, 2)}[suite]
