@@ -59,9 +59,13 @@ def main():
     ap.add_argument("--predict", type=float, nargs="+", default=[adaptive.DEFAULT_POLICY.predict],
                     help="adaptive.Policy.predict factors of the adaptive bakes (default: the add-on's; 0 = every "
                          "child tested; each tolerance x tests is baked with each)")
-    ap.add_argument("--retest", type=int, nargs="+", default=[adaptive.DEFAULT_POLICY.retest],
-                    help="adaptive.Policy.retest sample factors of the adaptive bakes (default: the add-on's; 1 = no "
-                         "re-tests; each tolerance x tests x predict is baked with each)")
+    ap.add_argument("--probe-noise", type=float, nargs="+", default=[adaptive.DEFAULT_POLICY.probe_noise],
+                    help="adaptive.Policy.probe_noise of the adaptive bakes: a probe gets samples until its noise "
+                         "is below this x Error Tolerance (default: the add-on's; each tolerance x tests x "
+                         "predict is baked with each)")
+    ap.add_argument("--max-samples", type=float, default=adaptive.DEFAULT_POLICY.max_samples,
+                    help="adaptive.Policy.max_samples: the most samples of a point, x --samples (0.5 = the two "
+                         "first rounds only, no more rounds)")
     ap.add_argument("--points", type=int, default=64)
     ap.add_argument("--ref-samples", type=int, default=128)
     ap.add_argument("--ref-res", type=int, default=None,
@@ -137,10 +141,11 @@ def main():
     out["floor_point_errors"] = [round(float(e), 5) for e in error(floor)]
     out["points_blender"] = blender_pts.round(4).tolist()
 
-    for tol, tests, pred, rt in [(tol, tests, pred, rt) for tol in a.tolerance for tests in a.tests
-                                 for pred in a.predict for rt in a.retest]:
-        path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}_{pred:g}_{rt}.shprobe")
-        policy = dataclasses.replace(adaptive.DEFAULT_POLICY, predict=pred, retest=rt)
+    for tol, tests, pred, pn in [(tol, tests, pred, pn) for tol in a.tolerance for tests in a.tests
+                                 for pred in a.predict for pn in a.probe_noise]:
+        path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}_{pred:g}_{pn:g}.shprobe")
+        policy = dataclasses.replace(adaptive.DEFAULT_POLICY, predict=pred, probe_noise=pn,
+                                     max_samples=a.max_samples)
         b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", error_tolerance=tol,
                                                        refinement_tests=tests, output_path=path), log=print,
                                 policy=policy)
@@ -150,11 +155,16 @@ def main():
         f = native.read_shprobe(path)
         got = native.interpolation_from_file(path).interpolate(engine_pts, f.coeffs, f.validity)
         err = error(got)
+        cache = b.plan.cache
         out["rows"].append({"placement": "adaptive", "tolerance": tol, "tests": tests, "predict": pred,
-                            "retest": rt, "seconds": sec,
+                            "probe_noise": pn, "max_samples": a.max_samples, "seconds": sec,
                             "cpu_seconds": cpu,
                             "probes": r.probe_count, "render_seconds": r.timings["render"],
-                            "renders": r.renders, "passes": [vars(p) for p in r.passes],
+                            "timings": {k: round(v, 2) for k, v in r.timings.items()},
+                            "renders": r.renders, "points": int(cache.rendered.sum()),
+                            "nodes": cache.node_count, "samples": r.samples,
+                            "samples_per_point": np.bincount(cache.samples[cache.rendered].astype(int)).tolist(),
+                            "passes": [vars(p) for p in r.passes],
                             "file_bytes": os.path.getsize(path), "error": stats(err),
                             "point_errors": [round(float(e), 5) for e in err]})
         print("ROW", json.dumps(out["rows"][-1]), flush=True)
@@ -166,7 +176,7 @@ def main():
             got_t = tet.interpolate(engine_pts, np.asarray(f.coeffs)[keep])
             err_t = error(got_t)
             out["rows"].append({"placement": "adaptive", "interpolation": "tetrahedra", "tolerance": tol,
-                                "tests": tests, "predict": pred, "retest": rt, "probes": int(keep.sum()),
+                                "tests": tests, "predict": pred, "probe_noise": pn, "probes": int(keep.sum()),
                                 "renders": r.renders,
                                 "cpu_seconds": cpu, "seconds": sec, "error": stats(err_t),
                                 "point_errors": [round(float(e), 5) for e in err_t]})

@@ -14,17 +14,19 @@ decides where. The algorithm is docs/placement.md, "Error-driven refinement"; th
    baked, edge midpoints: new) are baked; back to 2 until nothing splits or every leaf is at Min Cell
    Size. Children predicted to pass (Policy.predict: their parent's error next to them, over the rate the
    error was measured falling per halving; no rate where the noise sets the threshold,
-   Policy.predict_noise) are never tested (docs/placement.md, step 4a). With Policy.retest > 1 (off by default), a
-   leaf left unsplit only because the noise raised its threshold has its erring tests rendered again
-   with Policy.retest × the samples and is decided again (docs/placement.md, step 3a).
+   Policy.predict_noise) are never tested (docs/placement.md, step 4a).
 
 Points inside solid geometry (the placement's solid test: more than ``Policy.solid_ratio`` of 64 rays hit
 back faces) are never rendered: as probes they get validity 0 (left out of the interpolation), as
 tests they are not compared.
 
-The noise of a probe is measured, not assumed: each point is rendered twice with half the samples and
-different seeds (:func:`split_samples`); the value is the sample-weighted mean and its noise the
-relative irradiance RMS of the difference, halved (:func:`noise_of_halves`).
+Samples where a decision needs them (docs/placement.md, step 3): a point is rendered in rounds with
+independent seeds, combined by :class:`PointCache` (sample-weighted mean, σ from the pooled variance
+of the rounds). Every new point first gets two rounds of ``Policy.first_round`` × Samples each (its
+noise is measured, not assumed); a probe then gets one more round up to the samples its measured σ
+needs to fall to ``Policy.probe_noise`` × Error Tolerance, a test one more round up to
+``Policy.max_samples`` × Samples only where its leaf's decision is not clear given its noise. At most
+``Policy.max_samples`` × Samples per point.
 """
 from __future__ import annotations
 
@@ -38,7 +40,9 @@ from . import native
 from .metric import _rel, irradiance_error, irradiance_norm  # noqa: F401 (re-exported)
 
 TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
-RETEST_FLAG = 1             # journal key flags of a re-test render (docs/farm.md "Journal file")
+# The sampling scheme's name in the journal's fingerprint (journal.py): a journal of another scheme
+# holds records of other sample counts and is not resumed.
+SAMPLING = "rounds-1"
 
 
 @dataclass(frozen=True)
@@ -69,17 +73,19 @@ class Policy:
     # spp, σ ≈ 2 %, such rates settled children 3–5 % off). There a child passes untested only where
     # its parent passed next to it, as before a rate is known.
     predict_noise: float = 1.5
-    # Inconclusive tests are rendered again (docs/placement.md step 3a): where a leaf did not split
-    # but a test of it erred by more than Error Tolerance, and the leaf's threshold sqrt(tol² +
-    # (2σ)²) is above retest_noise × tol (the noise, not the light, let it pass), each such test
-    # point is rendered once more with (retest − 1) × Samples (seeds Seed + 2, Seed + 3; journal
-    # flag RETEST_FLAG) and combined with its first render: retest × the samples, half the noise at
-    # retest = 4. The leaf is then decided again on the combined values (a split stays a split).
-    # 1 = no re-tests, the default: measured at 16 spp re-tests cost the room 37 % more CPU for the
-    # same error (2.10 vs 2.11 %), re-tested nothing in the courtyard, and gave the hall 2.71 vs
-    # 3.02 % for 1.3× the points, where testing every child gives 2.79 % for 1.1×.
-    retest: int = 1
-    retest_noise: float = 1.2
+    # Progressive samples (docs/placement.md step 3). A new point is rendered as two rounds of
+    # first_round × Samples (at least 1 sample each; seeds Seed and Seed + 1): the sample-weighted
+    # mean and σ from their difference. A probe whose σ (relative, as a moving object sees it) is
+    # above probe_noise × Error Tolerance gets one more round (seed Seed + round) of the samples its
+    # σ says it needs, N·(σ / target)², at most max_samples × Samples in all. A test point whose
+    # leaf did not split but which errs by more than its leaf's threshold − decide_z · σ (the
+    # decision is not clear given its own noise) gets one more round up to max_samples × Samples,
+    # and the pass is decided again. probe_noise: trilinear weights average the corners' noise, so
+    # at a third of the tolerance it adds at most 6 % to the error in quadrature (√(1 + 1/9)).
+    first_round: float = 0.25
+    probe_noise: float = 1.0 / 3.0
+    decide_z: float = 1.0
+    max_samples: float = 2.0
     # The direct-light check of a leaf (AdaptiveGroup.direct_check) samples the lamps' exact direct
     # term on this many steps per axis of the leaf (5³ − 8 points; fewer where that is finer than
     # Min Cell).
@@ -114,16 +120,45 @@ def combine_halves(a: np.ndarray, b: np.ndarray, s1: int, s2: int):
     return mean, noise
 
 
-def combine_retest(a: np.ndarray, noise_a: float, b: np.ndarray, noise_b: float, factor: float):
-    """(value, relative noise) of a point from its first render ``a`` (Samples, relative noise σ_a of
-    that mean) and a re-test render ``b`` of ``factor`` × the samples (σ_b): the sample-weighted mean,
-    and σ of it from the pooled per-sample variance of the two estimates, (σ_a²·S + σ_b²·fS) / 2
-    over (1 + f)·S samples."""
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
-    mean = (a + factor * b) / (1.0 + factor)
-    var = (noise_a * noise_a + factor * noise_b * noise_b) / (2.0 * (1.0 + factor))
-    return mean, math.sqrt(var)
+def round_samples(samples: int, policy: "Policy") -> Tuple[int, int]:
+    """(samples of each of a point's two first rounds, the most samples of a point in all) for the
+    bake's Samples: at 8, (2, 16)."""
+    first = max(1, int(round(samples * policy.first_round)))
+    return first, max(2 * first, int(round(samples * policy.max_samples)))
+
+
+def add_round(mean: np.ndarray, n: float, m2: float, value: np.ndarray, k: float):
+    """Welford's update of a point's rounds by one more round ``value`` of ``k`` samples: (mean, n,
+    m2) with m2 = Σ n_j ‖A·(c_j − mean)‖² over the rounds j (A: the Lambert band factors), so
+    σ² of the mean = m2 / ((rounds − 1) · n) (:func:`round_noise`)."""
+    mean = np.asarray(mean, dtype=np.float64)
+    delta = np.asarray(value, dtype=np.float64) - mean
+    total = n + k
+    m2 = m2 + float(irradiance_norm(delta)) ** 2 * n * k / total
+    return mean + delta * (k / total), total, m2
+
+
+def round_noise(mean: np.ndarray, n: float, m2: float, rounds: int) -> float:
+    """Relative σ of the mean of ``rounds`` rounds (pooled per-sample variance m2 / (rounds − 1))."""
+    den = float(irradiance_norm(np.asarray(mean, dtype=np.float64)))
+    if rounds < 2 or n <= 0 or den <= 0:
+        return 0.0
+    return math.sqrt(max(m2, 0.0) / ((rounds - 1) * n)) / den
+
+
+def unclear_tests(leaf_tests, above_min, ok, err_t, noise, thr, direct, z: float) -> np.ndarray:
+    """(T,) bool: the test points (``ok``: compared, not probes) erring within z·σ of their leaf's
+    threshold ``thr``, in leaves above Min Cell Size (``above_min``) that no test of theirs splits
+    clearly (by more than z·σ above it) and that the lamps' direct light does not split."""
+    pick = np.zeros(len(err_t), dtype=bool)
+    for i in np.flatnonzero(~np.asarray(direct, dtype=bool) & np.asarray(above_min, dtype=bool)):
+        cols = leaf_tests[i]
+        cols = cols[cols >= 0]
+        cols = cols[ok[cols]]
+        if len(cols) == 0 or np.any(err_t[cols] - z * noise[cols] > thr[i]):
+            continue        # nothing to compare, or clearly split
+        pick[cols[np.abs(err_t[cols] - thr[i]) < z * noise[cols]]] = True
+    return pick
 
 
 def lattice_frame(volume_vertices: np.ndarray, min_cell: float, max_cell: float):
@@ -139,18 +174,17 @@ def lattice_frame(volume_vertices: np.ndarray, min_cell: float, max_cell: float)
     return lo, level, dims
 
 
-def stages_per_pass(retest: int) -> int:
-    """Stages of one refinement pass: its probes, its tests and, with re-tests (Policy.retest > 1), the
-    inconclusive tests again."""
-    return 3 if retest > 1 else 2
+# Stages of one refinement pass: its new probes' first rounds; the tests' first rounds with the probes'
+# more rounds; the more rounds of tests whose decision was not clear.
+STAGES_PER_PASS = 3
 
 
 def stage_bound(min_cell: float, max_cell: float, policy: Policy = DEFAULT_POLICY) -> int:
-    """An upper bound of the stages (probe bakes, test bakes, re-test bakes) of any group's
-    refinement with these cell sizes (AdaptiveGroup.stage_count before the group exists): the farm
-    submits one job array per stage."""
+    """An upper bound of the stages (probe bakes, test bakes, more rounds) of any group's refinement
+    with these cell sizes (AdaptiveGroup.stage_count before the group exists): the farm submits one
+    job array per stage. The last pass has its probes' first rounds and their more rounds."""
     level = min(20, max(0, int(math.floor(math.log2(max_cell / min_cell) + 1e-9))))
-    return stages_per_pass(policy.retest) * level + 1
+    return STAGES_PER_PASS * level + 2
 
 
 def centre_only(tests: "native.RefineTests") -> "native.RefineTests":
@@ -202,26 +236,40 @@ def sky_sun(world: np.ndarray) -> Optional["native.Lamp"]:
 
 
 class PointCache:
-    """Every point the bake needs a value at, keyed by position (1 µm): probes and test points of
-    every group share renders. ``index(points)`` returns the cache index of each point, appending new
-    ones; new points inside solid geometry (``ratio > Policy.solid_ratio``) are marked done with value 0."""
+    """Every point the bake needs a value at, keyed by lattice position (1 µm): probes and test points
+    of every group share renders. ``index(points)`` returns the cache index of each point, appending new
+    ones; new points inside solid geometry (``ratio > Policy.solid_ratio``) are marked done with value 0.
+    Two nodes that render at one position (nodes beyond the volumes' box clamped into it, or two solid
+    nodes relocated to one free point) are one entry: a position is rendered once.
 
-    def __init__(self, band: int, policy: Policy = DEFAULT_POLICY):
+    A point's value is built in rounds (module doc): ``samples`` (total), ``rounds`` (done; 0: none
+    yet, the first request renders two), ``m2`` (:func:`add_round`), ``pending`` (samples of the round
+    queued, 0: none). ``samples`` is the bake's Samples setting."""
+
+    def __init__(self, band: int, policy: Policy = DEFAULT_POLICY, samples: int = 8):
         self.solid_ratio = policy.solid_ratio
+        self.policy = policy
+        self.first, self.most = round_samples(samples, policy)
         self.count_coeffs = native.sh_count(band)
-        self._keys = {}
+        self._keys = {}              # lattice key -> entry
+        self._render_keys = {}       # render position key -> entry
         self.positions = np.zeros((0, 3))
         self.coeffs = np.zeros((0, self.count_coeffs, 3))
         self.noise = np.zeros(0, dtype=np.float32)
         self.ratio = np.zeros(0, dtype=np.float32)       # solid test's back-face ratio
         self.rendered = np.zeros(0, dtype=bool)
-        # Re-tests (Policy.retest): entry k of a point renders factor[k] × Samples (0: the point's own
-        # render, Samples); retest_of maps a point's index to its re-test entry.
-        self.factor = np.zeros(0, dtype=np.int32)
-        self.retest_of = {}
+        self.samples = np.zeros(0, dtype=np.float64)
+        self.rounds = np.zeros(0, dtype=np.int32)
+        self.m2 = np.zeros(0, dtype=np.float64)
+        self.pending = np.zeros(0, dtype=np.int32)
 
     def __len__(self):
         return len(self.positions)
+
+    @property
+    def node_count(self) -> int:
+        """Lattice nodes asked for so far (several may share one entry)."""
+        return len(self._keys)
 
     @staticmethod
     def key(p) -> tuple:
@@ -234,26 +282,42 @@ class PointCache:
         there: (positions (N, 3), ratio (N,))."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         out = np.empty(len(pts), dtype=np.int64)
-        new_pts = []
+        slots, new_pts, waiting = {}, [], []
         for i, p in enumerate(pts):
             k = self.key(p)
             j = self._keys.get(k)
-            if j is None:
-                j = len(self.positions) + len(new_pts)
-                self._keys[k] = j
+            if j is not None:
+                out[i] = j
+                continue
+            if k not in slots:
+                slots[k] = len(new_pts)
                 new_pts.append(p)
-            out[i] = j
+            waiting.append((i, slots[k]))
         if not new_pts:
             return out, []
-        new, ratio = locate(np.array(new_pts))
-        ratio = np.asarray(ratio, dtype=np.float32)
-        first = self._append(new, ratio, 0)
-        todo = [first + i for i in range(len(ratio)) if ratio[i] <= self.solid_ratio]
+        at, ratio = locate(np.array(new_pts))
+        at = np.asarray(at, dtype=np.float64).reshape(-1, 3)
+        ratio = np.asarray(ratio, dtype=np.float32).reshape(-1)
+        entry, add, todo = [], [], []
+        for s, k in enumerate(slots):
+            rk = self.key(at[s])
+            j = self._render_keys.get(rk)
+            if j is None:
+                j = self._render_keys[rk] = len(self.positions) + len(add)
+                add.append(s)
+                if ratio[s] <= self.solid_ratio:
+                    todo.append(j)
+            self._keys[k] = j
+            entry.append(j)
+        for i, s in waiting:
+            out[i] = entry[s]
+        self._append(at[add], ratio[add])
+        self.pending[todo] = 2 * self.first
         return out, todo
 
-    def _append(self, positions, ratio, factor: int) -> int:
-        """Append entries (not rendered yet) at render ``positions`` with solid-test ``ratio`` and
-        samples ``factor``; returns the first new index."""
+    def _append(self, positions, ratio) -> int:
+        """Append entries (not rendered yet) at render ``positions`` with solid-test ``ratio``;
+        returns the first new index."""
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         n, first = len(positions), len(self.positions)
         self.positions = np.concatenate([self.positions, positions])
@@ -261,34 +325,62 @@ class PointCache:
         self.noise = np.concatenate([self.noise, np.zeros(n, dtype=np.float32)])
         self.ratio = np.concatenate([self.ratio, np.asarray(ratio, dtype=np.float32)])
         self.rendered = np.concatenate([self.rendered, np.zeros(n, dtype=bool)])
-        self.factor = np.concatenate([self.factor, np.full(n, factor, dtype=np.int32)])
+        self.samples = np.concatenate([self.samples, np.zeros(n)])
+        self.rounds = np.concatenate([self.rounds, np.zeros(n, dtype=np.int32)])
+        self.m2 = np.concatenate([self.m2, np.zeros(n)])
+        self.pending = np.concatenate([self.pending, np.zeros(n, dtype=np.int32)])
         return first
 
-    def retest(self, idx, factor: int) -> List[int]:
-        """Re-test entries for the points ``idx`` (each rendered once more with ``factor`` × Samples, at
-        the same render position; at most one per point): returns the new entries to render."""
-        new = [int(i) for i in dict.fromkeys(int(i) for i in np.asarray(idx).reshape(-1))
-               if int(i) not in self.retest_of and not self.solid(int(i))]
-        if not new:
-            return []
-        first = self._append(self.positions[new], self.ratio[new], factor)
-        for k, i in enumerate(new):
-            self.retest_of[i] = first + k
-        return list(range(first, first + len(new)))
+    # -- rounds
+    def set_first(self, i: int, mean, noise: float):
+        """Point ``i``'s two first rounds (``first`` samples each) as their mean and relative σ
+        (:func:`combine_halves`, also what the journal keeps): m2 follows from σ, so a resumed
+        bake continues from the journal's record exactly as the bake that rendered it."""
+        mean = np.asarray(mean, dtype=np.float64)
+        n = 2.0 * self.first
+        self.coeffs[i], self.samples[i], self.rounds[i] = mean, n, 2
+        self.m2[i] = (float(noise) * float(irradiance_norm(mean))) ** 2 * n
+        self.noise[i] = noise
+        self.rendered[i] = True
+        self.pending[i] = 0
+
+    def add(self, i: int, value, samples: int):
+        """One more round of point ``i``: ``value`` rendered with ``samples`` samples."""
+        mean, n, m2 = add_round(self.coeffs[i], self.samples[i], self.m2[i], value, samples)
+        self.coeffs[i], self.samples[i], self.m2[i] = mean, n, m2
+        self.rounds[i] += 1
+        self.noise[i] = round_noise(mean, n, m2, int(self.rounds[i]))
+        self.pending[i] = 0
+
+    def more(self, idx, want) -> List[int]:
+        """Queue one more round for points ``idx`` up to ``want`` samples each (array or scalar;
+        capped at the most a point gets), where that is more than they have; points already queued,
+        solid or not rendered yet are left alone. Returns the points queued (each once)."""
+        idx = np.asarray(idx, dtype=np.int64).reshape(-1)
+        want = np.broadcast_to(np.asarray(want, dtype=np.float64), idx.shape)
+        out = []
+        for i, w in zip(idx, want):
+            i = int(i)
+            if self.pending[i] or not self.rendered[i] or self.ratio[i] > self.solid_ratio:
+                continue
+            extra = int(min(self.most, math.ceil(w - 1e-9)) - self.samples[i])
+            if extra > 0:
+                self.pending[i] = extra
+                out.append(i)
+        return out
+
+    def needed(self, idx, noise, target: float) -> np.ndarray:
+        """Samples points ``idx`` need for their relative ``noise`` (as compared) to fall to
+        ``target``: n·(σ / target)², rounded up to a multiple of a first round."""
+        idx = np.asarray(idx, dtype=np.int64).reshape(-1)
+        n = self.samples[idx]
+        ratio = (np.asarray(noise, dtype=np.float64) / max(target, 1e-12)) ** 2
+        return np.ceil(n * ratio / self.first - 1e-9) * self.first
 
     def values(self, idx) -> Tuple[np.ndarray, np.ndarray]:
-        """(coefficients, relative noise) of points ``idx``: a point with a rendered re-test combines
-        both renders (:func:`combine_retest`), any other its own render."""
+        """(coefficients, relative noise) of points ``idx``."""
         idx = np.asarray(idx, dtype=np.int64).reshape(-1)
-        if not self.retest_of:  # no re-tests (the default): the renders as they are
-            return self.coeffs[idx], self.noise[idx]
-        coeffs, noise = self.coeffs[idx].copy(), self.noise[idx].astype(np.float64)
-        for k, i in enumerate(idx):
-            r = self.retest_of.get(int(i))
-            if r is not None and self.rendered[r]:
-                coeffs[k], noise[k] = combine_retest(self.coeffs[i], float(self.noise[i]), self.coeffs[r],
-                                                     float(self.noise[r]), float(self.factor[r]))
-        return coeffs, noise.astype(np.float32)
+        return self.coeffs[idx], self.noise[idx]
 
     def solid(self, idx) -> np.ndarray:
         return self.ratio[idx] > self.solid_ratio
@@ -309,15 +401,17 @@ class PassRecord:
     tests: int = 0
     split: int = 0
     predicted: int = 0      # leaves not tested: predicted to pass from their parent's error (Policy.predict)
-    retests: int = 0        # test points rendered again (Policy.retest)
+    rounds: int = 0         # test points given one more round (their decision was not clear)
+    probe_rounds: int = 0   # probes given one more round (their noise was above Policy.probe_noise × tol)
     direct_split: int = 0   # leaves split by the lamps' exact direct light alone (no test flagged them)
 
 
 class AdaptiveGroup:
     """The corner octree of one output file (the union of the volumes, or one volume) and where its
-    refinement stands: ``stage`` "probes" (the tree's probes are being baked), "tests" (test points
-    are being baked) or "retest" (inconclusive test points are being baked again, Policy.retest),
-    ``finished`` when nothing splits any more."""
+    refinement stands: ``stage`` "probes" (the new probes' first rounds are being baked), "tests"
+    (the test points' first rounds and the probes' more rounds), "rounds" (more rounds of tests whose
+    decision was not clear) or "last" (the last probes' more rounds), ``finished`` when nothing
+    splits any more and every probe has its samples."""
 
     def __init__(self, name: str, path: str, volumes, geometry, min_cell: float, max_cell: float,
                  tolerance: float, tests: str = "CENTRE_FACES",
@@ -348,8 +442,6 @@ class AdaptiveGroup:
         self.probe_index = None     # cache index per tree probe
         self.last_errors = None
         self.predict = float(policy.predict)
-        self.retest = int(policy.retest)   # samples factor of a re-test (1: none)
-        self._first_split = None    # the split decided before this pass's re-tests
         self.settled = set()        # leaf keys (x, y, z, level) predicted to pass: never tested
         self.parent_ratio = {}      # leaf key -> its parent's error over threshold next to it
         self.parent_rate = {}       # leaf key -> the rate its parent's error fell by (when measured)
@@ -448,7 +540,11 @@ class AdaptiveGroup:
         render next (possibly none: call again until ``finished`` or something is returned)."""
         if self.finished:
             return []
+        if self.stage == "last":
+            self.finished = True
+            return []
         if self.stage == "probes":
+            more = self._probe_rounds(cache)
             tests = self.tree.refine_tests()
             if self.test_mode == "CENTRE":
                 tests = centre_only(tests)
@@ -464,7 +560,10 @@ class AdaptiveGroup:
                 if self._direct_split.any():
                     self.passes[-1].direct_split = int(self._direct_split.sum())
                     self.passes[-1].split = int(self._direct_split.sum())
-                    return self._split(self._direct_split, cache)
+                    return more + self._split(self._direct_split, cache)
+                if more:
+                    self.stage = "last"
+                    return more
                 self.finished = True
                 return []
             self.tests = tests
@@ -473,21 +572,28 @@ class AdaptiveGroup:
             self.test_index[need] = idx
             self.passes[-1].tests = int(need.sum())
             self.stage = "tests"
-            return todo
-        if self.stage == "tests" and self.retest > 1:
-            split, err, thr, pc, tc, tv = self._decide(cache)
-            todo = self._retests(cache, split, err, thr, pc, tc, tv)
-            if todo:
-                self._first_split = split
-                self.stage = "retest"
-                return todo
-            return self._conclude(cache, split, err, thr, pc, tc, tv)
-        # stage "tests" (no re-tests) or "retest" (its renders done): decide, split, request the new probes
+            return more + todo
         split, err, thr, pc, tc, tv = self._decide(cache)
-        if self.stage == "retest":
-            split = split | self._first_split   # a split stays a split
-            self._first_split = None
+        if self.stage == "tests":
+            todo = self._test_rounds(cache, split, thr, pc, tc, tv)
+            if todo:
+                self.stage = "rounds"
+                return todo
+        # the tests' decision is clear (or they have every sample): split, request the new probes
         return self._conclude(cache, split, err, thr, pc, tc, tv)
+
+    def _probe_rounds(self, cache: PointCache) -> List[int]:
+        """One more round for each probe whose noise, as a moving object sees it, is above
+        Policy.probe_noise × Error Tolerance: up to the samples that noise says it needs."""
+        target = self.policy.probe_noise * self.tolerance
+        pidx = np.asarray(self.probe_index, dtype=np.int64)
+        noise = self.seen(cache, pidx)[1].astype(np.float64)
+        loud = (noise > target) & ~cache.solid(pidx)
+        if not loud.any():
+            return []
+        todo = cache.more(pidx[loud], cache.needed(pidx[loud], noise[loud], target))
+        self.passes[-1].probe_rounds += len(todo)
+        return todo
 
     def _decide(self, cache: PointCache):
         """refine_decide on the current tests: (split, worst error, its threshold, probe values, test
@@ -508,28 +614,26 @@ class AdaptiveGroup:
             noise_k=self.policy.noise_k)
         return split, err, thr, probe_coeffs, test_coeffs, test_valid
 
-    def _retests(self, cache: PointCache, split, err, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
-        """Re-test entries to render (Policy.retest): the test points erring by more than the tolerance in
-        leaves that did not split only because the noise raised their threshold above Policy.retest_noise ×
-        the tolerance. The decision on the lamps' direct light needs no re-test."""
+    def _test_rounds(self, cache: PointCache, split, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
+        """Test points whose leaf's decision is not clear given their own noise, for one more round up
+        to the most samples: a test erring within Policy.decide_z × its σ of its leaf's threshold, in
+        a leaf that no test of it splits clearly (above its threshold by more than that) and that the
+        lamps' direct light does not split. Two rounds' σ is itself an estimate: a spike at a few
+        samples must not split a leaf, nor the noise let an error through."""
         leaves = self.tree.info()["leaves"]
-        direct = self._direct_split if self._direct_split is not None else np.zeros(len(leaves), dtype=bool)
-        doubt = (~split & ~direct & (leaves[:, 3] > 0) & (np.asarray(err) > self.tolerance)
-                 & (np.asarray(thr) > self.policy.retest_noise * self.tolerance))
-        if not doubt.any():
-            return []
         tests = self.tests
+        need = tests.probe < 0
+        noise = np.zeros(len(tests.positions))
+        noise[need] = self.seen(cache, self.test_index[need])[1]
         interp = self.tree.interpolate(tests.positions, probe_coeffs, cache.validity(self.probe_index))
         err_t = np.nan_to_num(irradiance_error(interp, test_coeffs))
-        pick = np.zeros(len(tests.positions), dtype=bool)
-        cols = tests.leaf_tests[doubt]
-        cols = cols[cols >= 0]
-        pick[cols] = True
-        pick &= (tests.probe < 0) & np.asarray(test_valid, dtype=bool) & (err_t > self.tolerance)
+        direct = self._direct_split if self._direct_split is not None else np.zeros(len(leaves), dtype=bool)
+        pick = unclear_tests(tests.leaf_tests, leaves[:, 3] > 0, need & np.asarray(test_valid, dtype=bool),
+                             err_t, noise, thr, direct, self.policy.decide_z)
         if not pick.any():
             return []
-        todo = cache.retest(self.test_index[pick], self.retest - 1)
-        self.passes[-1].retests += len(todo)
+        todo = cache.more(self.test_index[pick], float(cache.most))
+        self.passes[-1].rounds += len(todo)
         return todo
 
     def _conclude(self, cache: PointCache, split, err, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
@@ -686,13 +790,13 @@ class AdaptiveGroup:
                     self.settled.add(child)
 
     def stage_count(self) -> int:
-        """An upper bound of the stages (probe bakes, test bakes, re-test bakes) of this group's
+        """An upper bound of the stages (probe bakes, test bakes, more rounds) of this group's
         refinement."""
-        return stages_per_pass(self.retest) * self.root_level + 1
+        return STAGES_PER_PASS * self.root_level + 2
 
     def stage_index(self) -> int:
-        within = {"probes": 0, "tests": 1, "retest": 2}[self.stage]
-        return stages_per_pass(self.retest) * (len(self.passes) - 1) + within
+        within = {"probes": 0, "tests": 1, "rounds": 2, "last": 1}[self.stage]
+        return STAGES_PER_PASS * (len(self.passes) - 1) + within
 
     def probe_values(self, cache: PointCache):
         """(coeffs (P, C, 3), validity (P,)) of the finished tree's probes."""

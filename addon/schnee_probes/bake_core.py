@@ -64,7 +64,7 @@ from .bake_points import JOURNAL_SUFFIX, PointStore, check_shards, journal_path_
 from .bake_session import TMP_PREFIX, RenderSession, clean_stale_temp_dirs  # noqa: F401
 # The settings are declared in settings.py; re-exported here for scripts that use bake_core.*.
 from .settings import DEFAULT_OUTPUT, PIXEL_FILTERS, BakeError, BakeSettings  # noqa: F401
-from .estimate import (SECONDS_PER_PIXEL_SAMPLE, estimate_seconds, format_duration,  # noqa: F401
+from .estimate import (SECONDS_PER_PIXEL_SAMPLE, device_note, estimate_seconds, format_duration,  # noqa: F401
                        grid_cell_bound)
 
 _abspath = abspath   # the former private name, for scripts written before the split
@@ -79,7 +79,8 @@ class BakeResult:
     seconds: float
     timings: dict = field(default_factory=dict)  # stage -> seconds summed over probes
     messages: List[str] = field(default_factory=list)
-    renders: int = 0            # points rendered (Adaptive: probes and test points, 2 half renders each)
+    renders: int = 0            # queue entries done (Adaptive: a point's first two rounds, or one more round)
+    samples: int = 0            # samples per pixel summed over every Cycles render of this run
     passes: list = field(default_factory=list)  # Adaptive: adaptive.PassRecord per pass (first group)
 
 
@@ -201,7 +202,7 @@ class ProbeBake:
         self._check_cancel()
         self.estimated_seconds = estimate_seconds(self.total, s, sky=self.plan.volumes,
                                                   renders=self.renders_per_point)
-        self.log(self.plan.estimate_line(self.total, self.estimated_seconds))
+        self.log(f"{self.plan.estimate_line(self.total, self.estimated_seconds)}, {device_note(self.session.device)}")
         if s.probe_limit and self.total > s.probe_limit and not self.allow_large:
             raise BakeTooLarge(self.total, self.estimated_seconds, s.probe_limit)
         self.plan.allocate()
@@ -298,7 +299,8 @@ class ProbeBake:
 
     def progress_line(self) -> str:
         elapsed = time.perf_counter() - (self._t0 or time.perf_counter())
-        return self.plan.progress_line(self.done, self.total, self._pass_start, elapsed, self.remaining_seconds())
+        line = self.plan.progress_line(self.done, self.total, self._pass_start, elapsed, self.remaining_seconds())
+        return f"{line}, on {self.session.device}"
 
     def fraction(self) -> float:
         """Progress in [0, 1] for a progress bar (Adaptive: by stages, bake_plans.AdaptivePlan)."""
@@ -335,7 +337,7 @@ class ProbeBake:
         probes = self.total if self.shard is not None else self.plan.probe_count(self.total)
         return BakeResult(files=files, probe_count=probes, seconds=time.perf_counter() - self._t0,
                           timings=dict(self.timings), messages=list(self.messages), renders=self.done,
-                          passes=self.plan.passes)
+                          passes=self.plan.passes, samples=self.plan.samples_rendered)
 
     def _write_outputs(self) -> List[str]:
         """The plan's files, and for a volume bake the sky and the sun (bake_outputs.write_all)."""

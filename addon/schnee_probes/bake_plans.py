@@ -75,6 +75,7 @@ class PlacementPlan:
         self.positions = np.zeros((0, 3))   # unique probe positions, engine space
         self.coeffs = None                  # (P, sh_count, 3) float64, after allocate()
         self.targets: List[Target] = []
+        self.samples_rendered = 0           # pixel samples per pixel, summed over every render
 
     def place(self, placing: Placing) -> List[int]:
         raise NotImplementedError
@@ -106,6 +107,7 @@ class PlacementPlan:
     def measure(self, i: int, pos, session, direct):
         """Render point ``i`` at ``pos`` and keep its value: (value, noise)."""
         value = session.render(pos, i, direct)
+        self.samples_rendered += self.settings.samples
         self.coeffs[i] = value
         return value, 0.0
 
@@ -287,7 +289,8 @@ class UniformPlan(_VolumePlan):
 class AdaptivePlan(_VolumePlan):
     """Placement "Adaptive": every output file's corner octree refined pass by pass where the light
     needs it (adaptive.AdaptiveGroup), its points shared in one adaptive.PointCache (``cache``),
-    each rendered as two half-sample renders for its noise. ``policy``: adaptive.Policy."""
+    each rendered in rounds of independent seeds (two first rounds for its noise, then more only
+    where its noise or its test's decision needs them). ``policy``: adaptive.Policy."""
     adaptive = True
     renders_per_point = 2
 
@@ -321,7 +324,7 @@ class AdaptivePlan(_VolumePlan):
         self.log = placing.log
         groups, geometry = self._gather(placing)
         t = time.perf_counter()
-        self.cache = adaptive.PointCache(s.max_band, self.policy)
+        self.cache = adaptive.PointCache(s.max_band, self.policy, s.samples)
         todo_all = []
         for name, path, vols in groups:
             placing.check_cancel()
@@ -356,37 +359,55 @@ class AdaptivePlan(_VolumePlan):
         return self.cache.positions[i]
 
     def journal_flags(self, i):
-        return adaptive.RETEST_FLAG if self.cache.factor[i] > 0 else 0
+        # The round the point's next record holds: 0 for its two first rounds (one record: their
+        # mean and σ), then the round's index (2, 3, ...: its own value; the record's noise field
+        # holds the round's samples).
+        return int(self.cache.rounds[i])
 
     def store(self, i, coeffs, noise):
-        self.cache.coeffs[i], self.cache.noise[i] = coeffs, noise
-        self.cache.rendered[i] = True
+        cache = self.cache
+        if cache.rounds[i] == 0:
+            cache.set_first(i, coeffs, noise)
+        elif int(noise) != int(cache.pending[i]):
+            raise BakeError(f"The bake journal's round {int(cache.rounds[i])} of the point at "
+                            f"{tuple(np.round(cache.positions[i], 3))} has {noise:g} samples, this bake "
+                            f"wants {int(cache.pending[i])}: bake with --restart")
+        else:
+            cache.add(i, coeffs, int(noise))
 
     def measure(self, i, pos, session, direct):
-        # Two renders of half the samples with different seeds: their difference measures this
-        # point's Monte-Carlo noise, which the refinement must not mistake for light changing.
-        # A re-test (Policy.retest) renders factor × the samples with seeds of its own, so it
-        # is independent of the point's first render, which it is combined with.
-        s = self.settings
-        factor = int(self.cache.factor[i])
-        seed = s.seed + (2 if factor > 0 else 0)
-        s1, s2 = adaptive.split_samples(s.samples * max(factor, 1))
-        session.set_samples(s1, seed)
-        a = session.render(pos, i, direct)
-        session.set_samples(s2, seed + 1)
-        b = session.render(pos, i, direct)
+        # A new point: two rounds of the first round's samples with seeds Seed and Seed + 1, their
+        # difference measures this point's Monte-Carlo noise (which the refinement must not mistake
+        # for light changing). Later rounds (seed Seed + round) add the samples its noise or its
+        # test's decision needs; the point's value is the sample-weighted mean of all of them.
+        s, cache = self.settings, self.cache
+        k = int(cache.rounds[i])
+        if k == 0:
+            a = self._render(cache.first, s.seed, i, pos, session, direct)
+            b = self._render(cache.first, s.seed + 1, i, pos, session, direct)
+            mean, noise = adaptive.combine_halves(a, b, cache.first, cache.first)
+            cache.set_first(i, mean, noise)
+            value, noise = mean, float(noise)
+        else:
+            n = int(cache.pending[i])
+            value = self._render(n, s.seed + k, i, pos, session, direct)
+            cache.add(i, value, n)
+            noise = float(n)
         session.set_samples(s.samples, s.seed, tag=False)
+        return value, noise
+
+    def _render(self, samples, seed, i, pos, session, direct):
+        session.set_samples(samples, seed)
+        self.samples_rendered += samples
+        c = session.render(pos, i, direct)
         if direct is not None and direct.lamps:
-            # Issue 11: the lamps' direct light is exact (no noise), so it goes into both halves
+            # Issue 11: the lamps' direct light is exact (no noise), so it goes into every round
             # before the noise estimate, and into every point before the refinement decides
             # (a sun's shadow edge must draw refinement like any other change of the light).
             t_d = time.perf_counter()
-            lamp = direct.project(np.asarray(pos)[None, :], s.max_band)[0]
-            a, b = a + lamp, b + lamp
+            c = c + direct.project(np.asarray(pos)[None, :], self.settings.max_band)[0]
             session.timings["direct"] = session.timings.get("direct", 0.0) + time.perf_counter() - t_d
-        self.cache.coeffs[i], self.cache.noise[i] = adaptive.combine_halves(a, b, s1, s2)
-        self.cache.rendered[i] = True
-        return self.cache.coeffs[i], float(self.cache.noise[i])
+        return c
 
     def advance(self) -> List[int]:
         """Every queued point is rendered: move each group on (tests -> decision -> split -> new
@@ -404,7 +425,8 @@ class AdaptivePlan(_VolumePlan):
             if len(g.passes) > before:
                 prev, rec = g.passes[-2], g.passes[-1]
                 extra = "".join([f", {prev.predicted} predicted to pass" if prev.predicted else "",
-                                 f", {prev.retests} re-tested" if prev.retests else "",
+                                 f", {prev.rounds} given more samples" if prev.rounds else "",
+                                 f", {prev.probe_rounds} probes given more samples" if prev.probe_rounds else "",
                                  f", {prev.direct_split} split by the lamps' direct light"
                                  if prev.direct_split else ""])
                 log(f"Schnee: '{g.name}': pass {prev.pass_index}: {prev.split} of {prev.leaves} "

@@ -50,6 +50,13 @@ class RenderSession:
         self.guard = None       # render_settings.StateGuard, from apply_settings() until close()
         self._camera = None
         self._tmpdir = None
+        self._device = None     # render_settings.apply_bake_settings' device label, from apply_settings()
+
+    @property
+    def device(self) -> str:
+        """What renders the panoramas (render_settings.device_label): as set by apply_settings(), or
+        before it what Render Device will select."""
+        return self._device or render_settings.device_label(self.scene, self.settings.render_device)
 
     @property
     def camera(self):
@@ -85,7 +92,7 @@ class RenderSession:
             if (scene.frame_current, scene.frame_subframe) != frame:
                 scene.frame_set(frame[0], subframe=frame[1])
         state.on_restore(restore_frame, "scene.frame")
-        render_settings.apply_bake_settings(scene, self.view_layer, s)
+        self._device = render_settings.apply_bake_settings(scene, self.view_layer, s, log=self.log)
         for ob in volume_objects:
             state.set(ob, "hide_render", True, f"object[{ob.name}].hide_render")
         for ob in lights:

@@ -22,7 +22,7 @@ import numpy as np
 
 import bpy
 
-from . import light_modes
+from . import adaptive, light_modes
 
 # UI-only properties: moving a node in the editor or selecting an object does not change the light.
 _IGNORED = frozenset({
@@ -42,7 +42,7 @@ _NOT_VALUES = frozenset({"output_path", "probe_limit", "per_volume_files", "prob
 # Settings added after journals existed, with the value that bakes as before them: left out of the
 # digest at that value, so a journal of an earlier bake still resumes (Sky Sun "baked" is the bake
 # before issue 27 byte for byte; "mixed" changes the probes' sky and is digested).
-_LEGACY_VALUES = {"sky_sun": "baked"}
+_LEGACY_VALUES = {"sky_sun": "baked", "render_device": "SCENE"}
 
 
 def _at_legacy_value(name, value) -> bool:
@@ -173,7 +173,8 @@ def parts(scene, view_layer, settings) -> Dict[str, str]:
         # Where the files go, how they store the values and when to ask for confirmation do not
         # change a probe's value.
         "settings": _digest(sorted((k, v) for k, v in asdict(settings).items()
-                                   if k not in _NOT_VALUES and not _at_legacy_value(k, v))),
+                                   if k not in _NOT_VALUES and not _at_legacy_value(k, v))
+                            + ([("sampling", adaptive.SAMPLING)] if settings.placement == "ADAPTIVE" else [])),
         "geometry": geometry.hexdigest(),
         "materials": _digest(materials),
         "lights": _digest(lights),

@@ -30,7 +30,7 @@ VERSION = 1
 HEADER = struct.Struct("<8sIIIIII32s")  # magic, version, coeff count, channels, shard k, shard n, manifest bytes, fingerprint
 MAX_MANIFEST_BYTES = 1 << 16
 MAX_RECORDS = 1 << 24  # the .shprobe probe limit (PB_SHPROBE_MAX_PROBES)
-KEY = struct.Struct("<3dI")  # position (engine space), flags (0: the point's render; 1: its re-test)
+KEY = struct.Struct("<3dI")  # position (engine space), flags (the round: 0 = the first two, k >= 2 = round k)
 CHANNELS = 3
 
 
@@ -49,7 +49,8 @@ def fingerprint_of(parts: Dict[str, str]) -> bytes:
 
 def key_of(position, flags: int = 0) -> bytes:
     """The record key of a probe at ``position`` (engine space, metres): its float64 bits and
-    ``flags`` (0: the point's own render; 1: its re-test render, adaptive.RETEST_FLAG)."""
+    ``flags`` (the Adaptive placement's round: 0 = the point's two first rounds, k >= 2 = its round k;
+    docs/farm.md "Journal file")."""
     x, y, z = (float(c) for c in position)
     return KEY.pack(x, y, z, int(flags))
 

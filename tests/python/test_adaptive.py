@@ -33,20 +33,24 @@ def sh_of(constant, sun):
 
 def drive(group, field, noise=0.0, jitter=None):
     """Run the refinement with ``field(points) -> (N, 9, 3)`` standing in for the renders, ``noise``
-    the noise estimate of a render of Samples and ``jitter(points, scale)`` (optional) its actual
-    Monte-Carlo error. A re-test entry renders factor × the samples (adaptive.Policy.retest): its jitter
-    and its estimate scale by 1/√factor."""
-    cache = adaptive.PointCache(2)
+    the noise estimate of a point's two first rounds and ``jitter(points, scale)`` (optional) its
+    actual Monte-Carlo error. A later round of n samples jitters by √(first two rounds' samples / n);
+    without jitter the rounds are exact and a point's estimate follows its samples, noise · √(N₀ / N)."""
+    cache = adaptive.PointCache(2, group.policy)
+    n0 = 2 * cache.first
 
     def fill(todo):
         for i in todo:
-            scale = 1.0 / math.sqrt(max(int(cache.factor[i]), 1))
             p = cache.positions[i][None]
-            cache.coeffs[i] = field(p)[0] + (jitter(p, scale)[0] if jitter else 0.0)
-            cache.noise[i] = noise * scale
-            cache.rendered[i] = True
+            if cache.rounds[i] == 0:
+                cache.set_first(i, field(p)[0] + (jitter(p, 1.0)[0] if jitter else 0.0), noise)
+                continue
+            n = int(cache.pending[i])
+            cache.add(i, field(p)[0] + (jitter(p, math.sqrt(n0 / n))[0] if jitter else 0.0), n)
+            if jitter is None:
+                cache.noise[i] = noise * math.sqrt(n0 / cache.samples[i])
     fill(group.start(cache))
-    for _ in range(50):
+    for _ in range(80):
         if group.finished:
             break
         fill(group.advance(cache))
@@ -114,53 +118,102 @@ def test_linear_field_and_bounded_noise_split_nothing(tests):
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests)
     drive(group, lambda p: np.array([sh_of(1.0 + 0.2 * x, 0.5) for x in p[:, 0]]))
     assert len(group.passes) == 1 and group.passes[0].split == 0
-    # ±8 % noise (above the 5 % tolerance) with its estimate passed in: no split either.
-    # The noise re-tests the leaves it lets pass (adaptive.Policy.retest), and they pass again: a re-test
-    # lowers the noise, it does not make noise split.
+    # ±8 % noise (above the 5 % tolerance) with its estimate passed in: no split either. The noise
+    # gives the probes and the unclear tests more rounds, and they pass again: more samples lower
+    # the noise, they do not make noise split.
     rng = np.random.default_rng(5)
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests,
-                                   policy=adaptive.Policy(retest=4))
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests)
     drive(group, lambda p: np.array([sh_of(1.0, 0.0) for _ in p]), noise=0.05,
           jitter=lambda p, scale: np.array([sh_of(1.0, 0.0) * rng.uniform(-0.08, 0.08) * scale for _ in p]))
-    assert group.passes[0].split == 0 and group.passes[0].retests > 0
+    assert group.passes[0].split == 0 and group.passes[0].probe_rounds > 0
 
 
-def test_combine_retest_mean_and_pooled_noise():
-    # A first render (Samples, σ 0.04 of its mean) and a re-test of 3× the samples (σ 0.02): the
-    # sample-weighted mean, and σ² = per-sample variance / 4S with the variance pooled from both
-    # estimates: (0.04²·S + 0.02²·3S) / 2 / 4S.
-    a, b = sh_of(1.0, 0.0), sh_of(1.2, 0.0)
-    mean, noise = adaptive.combine_retest(a, 0.04, b, 0.02, 3.0)
-    np.testing.assert_allclose(mean, sh_of(1.15, 0.0))
-    assert noise == pytest.approx(math.sqrt((0.04 ** 2 + 3 * 0.02 ** 2) / 8))
-    # Consistent estimates (σ_b = σ_a / √3, as the samples say) give σ_a / 2 at 4× the samples.
-    assert adaptive.combine_retest(a, 0.04, b, 0.04 / math.sqrt(3), 3.0)[1] == pytest.approx(0.02)
+def test_rounds_combine_into_the_sample_weighted_mean_and_pooled_noise():
+    # Rounds of 2, 2, 4 and 8 samples: Welford's update equals the closed forms, mean = Σ n_k c_k / N
+    # and σ² = Σ n_k ‖A(c_k − mean)‖² / ((K − 1) N) / ‖A mean‖², and the first two rounds' record
+    # (combine_halves: what the journal keeps) continues exactly as the rounds themselves.
+    rng = np.random.default_rng(7)
+    base = sh_of(1.0, 0.4)
+    n = [2, 2, 4, 8]
+    rounds = [base * (1.0 + 0.05 * rng.normal()) + 0.02 * rng.normal(size=(9, 3)) for _ in n]
+    cache = adaptive.PointCache(2, adaptive.Policy(), samples=8)
+    assert (cache.first, cache.most) == (2, 16)
+    cache._append(np.zeros((1, 3)), np.zeros(1))
+    mean01, noise01 = adaptive.combine_halves(rounds[0], rounds[1], 2, 2)
+    cache.set_first(0, mean01, noise01)
+    assert cache.noise[0] == pytest.approx(noise01, rel=1e-6)
+    for c, k in zip(rounds[2:], n[2:]):
+        cache.add(0, c, k)
+    total = sum(n)
+    mean = sum(k * c for k, c in zip(n, rounds)) / total
+    np.testing.assert_allclose(cache.coeffs[0], mean, rtol=1e-12, atol=1e-14)
+    m2 = sum(k * adaptive.irradiance_norm(c - mean) ** 2 for k, c in zip(n, rounds))
+    sigma = math.sqrt(m2 / (3 * total)) / adaptive.irradiance_norm(mean)
+    assert cache.samples[0] == total and cache.rounds[0] == 4
+    assert cache.noise[0] == pytest.approx(sigma, rel=1e-5)
+    # Queued rounds: at most the most samples, once per point, never for solid or unrendered points.
+    assert cache.more([0], 40) == [] and cache.pending[0] == 0        # already at 16 = the most
+    assert adaptive.round_samples(8, adaptive.Policy()) == (2, 16)
+    assert adaptive.round_samples(1, adaptive.Policy()) == (1, 2)
+    assert adaptive.round_samples(32, adaptive.Policy()) == (8, 64)
 
 
-def test_retest_finds_the_error_the_noise_hid():
+def test_more_samples_find_the_error_the_noise_hid():
     # A light error of 7 % at the centres of the 2 m leaves (f = 1 + 0.07·((x mod 2) − 1)²: the
-    # corners hold 1.07, the centre 1.0), tolerance 5 %, renders with 3 % noise (estimated, not
-    # drawn: the values are exact). The centre's threshold sqrt(tol² + (2σ)²) with σ² = 3² + 3²/8
-    # (its own noise and its 8 corners') is 8.1 %: the error passes as noise. Re-tested at 4× the
-    # samples its own σ halves, the threshold falls to 6.2 %, and every leaf splits; at 1 m the
-    # error is 1.8 %, below the tolerance: nothing more splits and nothing is re-tested.
+    # corners hold 1.07, the centre 1.0), tolerance 5 %, 3 % noise in the first rounds (estimated,
+    # not drawn: the values are exact). The centre's threshold sqrt(tol² + (2σ)²) is then 7.9 %:
+    # the error would pass as noise. The probes get the samples the tolerance asks (σ 3 % → 1.6 %)
+    # and the centre tests, within σ of the threshold, one more round to 4× their samples: σ
+    # halves, the threshold falls to 5.9 % and every leaf splits; at 1 m the error is 1.8 %, below
+    # the tolerance: nothing more splits.
     def field(p):
         return np.array([sh_of(1.0 + 0.07 * ((x % 2.0) - 1.0) ** 2, 0.0) for x in p[:, 0]])
 
-    def run(retest):
-        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05,
-                                       policy=adaptive.Policy(retest=retest))
-        drive(group, field, noise=0.03)
-        return group
-    plain = run(1)
-    assert [p.split for p in plain.passes] == [0] and plain.passes[0].retests == 0
+    def run(policy):
+        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, policy=policy)
+        cache = drive(group, field, noise=0.03)
+        return group, cache
+    plain, _ = run(adaptive.Policy(max_samples=0.5))    # the first rounds only
+    assert [p.split for p in plain.passes] == [0] and plain.passes[0].rounds == 0
     assert plain.last_errors[0].max() == pytest.approx(0.07 / 1.0, rel=0.05)
     assert plain.last_errors[1].min() > 0.075
-    found = run(4)
-    assert found.passes[0].split == 4 and found.passes[0].retests > 0
-    assert [p.split for p in found.passes[1:]] == [0] and found.passes[1].retests == 0
-    # The stages: per pass probes, tests and re-tests (the farm submits one job array per stage).
-    assert found.stage_count() == 3 * found.root_level + 1 == adaptive.stage_bound(0.5, 2.0, found.policy)
+    found, cache = run(adaptive.Policy())
+    assert found.passes[0].split == 4 and found.passes[0].rounds > 0 and found.passes[0].probe_rounds > 0
+    assert [p.split for p in found.passes[1:]] == [0]
+    assert cache.samples.max() == cache.most == 16 and cache.samples[cache.rendered].min() == 4
+    # The stages: per pass probes, tests and more rounds, and the last probes' more rounds (the farm
+    # submits one job array per stage).
+    assert found.stage_count() == 3 * found.root_level + 2 == adaptive.stage_bound(0.5, 2.0, found.policy)
+
+
+def test_a_clear_decision_stops_at_the_first_rounds():
+    # Drawn noise (σ 1 % per first rounds, Gaussian), tolerance 5 %: a linear field's tests err by
+    # the noise only, far below the threshold, and a 300 % step far above it: neither needs more
+    # samples than the first rounds (4 of 8); the probes are quiet enough (σ below 5 %/3) too.
+    rng = np.random.default_rng(11)
+
+    def jitter(p, scale):
+        return np.array([sh_of(1.0, 0.0) * rng.normal() * 0.01 * scale for _ in p])
+    for field in (lambda p: np.array([sh_of(1.0 + 0.2 * x, 0.5) for x in p[:, 0]]),
+                  lambda p: np.array([sh_of(1.0, 3.0 if x > 3.3 else 0.0) for x in p[:, 0]])):
+        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
+        cache = drive(group, field, noise=0.01, jitter=jitter)
+        assert sum(p.rounds + p.probe_rounds for p in group.passes) == 0
+        assert np.all(cache.samples[cache.rendered] == 2 * cache.first)
+
+
+def test_a_position_is_rendered_once():
+    # A 3 m hall under 2 m leaves: the lattice runs to x = 4, and nodes at x = 3 and x = 4 both render
+    # 1 cm inside the box (x = 2.99). Before, each was a point of its own and the same panorama was
+    # rendered twice (bit-identical journal records, issue 29); now one entry serves both nodes.
+    vol = box_mesh("short", (0.0, 0.0, 0.0), (3.0, 2.0, 2.0))
+    group = adaptive.AdaptiveGroup("short", "", [vol], [], 0.5, 2.0, 0.05)
+    cache = drive(group, lambda p: np.array([sh_of(1.0, 3.0 if x > 1.3 else 0.0) for x in p[:, 0]]))
+    keys = [adaptive.PointCache.key(p) for p in cache.positions]
+    assert len(set(keys)) == len(keys)
+    assert cache.node_count > len(cache)        # nodes share entries: 4 m's corners and 3 m's
+    at_edge = cache.positions[:, 0] == 3.0 - adaptive.DEFAULT_POLICY.render_inset
+    assert at_edge.sum() == len(np.unique(cache.positions[at_edge], axis=0)) > 0
 
 
 def test_nodes_on_the_volume_boundary_render_just_inside_it():
@@ -268,9 +321,8 @@ def test_prediction_measures_no_rate_where_the_noise_sets_the_threshold():
     # hall at 16 spp such rates settled children 3–5 % off): no rate is measured there, and a child
     # passes untested only where its parent passed next to it. The quadratic field at tol 0.05:
     # σ = 0.02 gives a threshold of 0.064 (< 0.075, rates measured), σ = 0.03 one of 0.078 (none).
-    policy = adaptive.Policy(predict=4.0)
-    assert policy.retest == 1   # the default: re-tests would lower the thresholds looked at here
-    assert policy.predict_noise == 1.5
+    policy = adaptive.Policy(predict=4.0, max_samples=0.5)   # the first rounds only: more rounds
+    assert policy.predict_noise == 1.5                       # would lower the thresholds looked at here
 
     def run(noise):
         group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05, policy=policy)
@@ -488,10 +540,10 @@ def test_policy_is_frozen_and_defaults_to_the_measured_knobs():
     # The tuning knobs are one frozen object passed in (issue 28), not module globals: the values
     # measured in bench/results/placement.md, and a changed copy through dataclasses.replace.
     p = adaptive.DEFAULT_POLICY
-    assert (p.solid_ratio, p.render_inset, p.relocate, p.noise_k, p.predict, p.predict_noise, p.retest,
-            p.retest_noise, p.direct_divisions) == (0.25, 0.01, 0.05, 2.0, 4.0, 1.5, 1, 1.2, 4)
+    assert (p.solid_ratio, p.render_inset, p.relocate, p.noise_k, p.predict, p.predict_noise,
+            p.direct_divisions) == (0.25, 0.01, 0.05, 2.0, 4.0, 1.5, 4)
+    assert (p.first_round, p.probe_noise, p.decide_z, p.max_samples) == (0.25, pytest.approx(1 / 3), 1.0, 2.0)
     with pytest.raises(dataclasses.FrozenInstanceError):
         p.predict = 2.0
-    assert dataclasses.replace(p, retest=4).retest == 4 and p.retest == 1
-    assert adaptive.stage_bound(0.5, 2.0, dataclasses.replace(p, retest=4)) == 3 * 2 + 1
-    assert adaptive.stage_bound(0.5, 2.0) == 2 * 2 + 1
+    assert dataclasses.replace(p, predict=2.0).predict == 2.0 and p.predict == 4.0
+    assert adaptive.stage_bound(0.5, 2.0) == 3 * 2 + 2

@@ -80,11 +80,13 @@ def temp_dirs():
 
 
 if CASE == "shadow":
-    # Error Tolerance 0.07: since the noise adds to the light's error in quadrature (threshold
-    # sqrt(tol² + (2σ)²), σ ≈ 2 % here) the threshold at 0.05 is 6.4 %, no longer 9 %, and the bright
-    # plane's smooth falloff (3-5 % over a 2 m cell, plus noise) split cells 2.8 m from the shadow;
-    # at 0.07 the threshold is about 8 %, the penumbra's error ~100 %.
-    s = settings(error_tolerance=0.07)
+    # Error Tolerance 0.12. At 0.07 (the noise adds to the light's error in quadrature, threshold
+    # sqrt(tol² + (2σ)²)) the cells far from the shadow passed only while the noise of the dark
+    # probes hid the bright plane's falloff: since the probes get the samples the tolerance asks
+    # (issue 29) the +x cell's face centre at the volume's end (4, 1, 0) errs by 11.7 % at σ 0.3 %
+    # against a threshold of 8.3 %, a real change of the light, and splits. The penumbra's error is
+    # ~100 %: at 0.12 it refines to Min Cell Size as before, and the falloff does not.
+    s = settings(error_tolerance=0.12)
     b, r = bake(s)
     f, out = file_summary(r.files[0])
     out["passes"] = [vars(p) for p in r.passes]
