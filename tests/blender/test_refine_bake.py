@@ -109,6 +109,23 @@ def test_v3_interpolation_matches_probes_baked_at_random_points(shadow):
     assert dark.any() and np.all(err[dark] == 0.0)  # black stays exactly black (no light leaks)
 
 
+def test_rounds_combine_into_one_render_of_their_samples(scenes, tmp_path):
+    # Issue 29: 2 + 2 samples, then one round of 12: the point's value against one 16-sample render
+    # of an independent seed. Both have the noise of 16 samples, sigma each, so the difference has
+    # sqrt(2)·sigma: every point within 4·sqrt(2)·sigma, and the RMS of err / (sqrt(2)·sigma) in
+    # [0.3, 2] (the rounds' sigma estimates the real noise).
+    r = run_case(scenes, "open", "rounds", tmp_path)
+    assert (r["first_round"], r["most"]) == (2, 16)
+    rows = [row for row in r["rows"] if row["sigma"] > 1e-4]
+    assert len(rows) >= 6, r["rows"]
+    for row in r["rows"]:
+        assert (row["first"], row["samples"], row["rounds"]) == (4.0, 16.0, 3)
+    z = np.array([row["err"] / (np.sqrt(2) * row["sigma"]) for row in rows])
+    assert np.all(z < 4.0), z
+    assert 0.3 < np.sqrt(np.mean(z ** 2)) < 2.0, z
+    assert r["rows"][-1]["samples_rendered"] == 16 * len(r["rows"])
+
+
 def test_uniformly_lit_open_scene_does_not_refine_and_v1_is_writable(scenes, tmp_path):
     r = run_case(scenes, "open", "open", tmp_path)
     assert r["version"] == 3
