@@ -5,6 +5,7 @@ baked separately and merged give the same bytes; a merge refuses shards of other
 what changed; a journal of other settings is moved aside, not resumed. The expected bytes come from
 an uninterrupted bake of the same scene (Cycles renders the same bits for the same seed). Runtime:
 ~2 min on 2 cores."""
+import collections
 import hashlib
 import json
 import random
@@ -28,17 +29,47 @@ CELLS = ["--min-cell-size", "1", "--max-cell-size", "1"]  # 32 probes
 ADAPTIVE = ["--placement", "ADAPTIVE", "--min-cell-size", "1", "--max-cell-size", "2"]
 
 
+def _counted(blend, args, log, sig=None, at=None):
+    """bake.py with every Cycles render counted into ``log`` (scripts/count_renders.py); with ``sig``,
+    sent once the journal holds ``at`` records. (returncode, stdout)."""
+    pre = [SCRIPTS / "count_renders.py"] + ([SCRIPTS / "slow_render.py"] if sig is not None else [])
+    run = Running(blend, [*args, *TINY], {"SCHNEE_TEST_RENDER_LOG": str(log)}, pre=pre)
+    if sig is not None:
+        path = str(blend.parent / "sh_coeffs" / "probes.shprobe.journal")
+        end = time.monotonic() + 240
+        while time.monotonic() < end and run.proc.poll() is None:
+            info = journal.summary(path)
+            if info and info["records"] >= at:
+                break
+            time.sleep(0.01)
+        run.proc.send_signal(sig)
+    rc, out, err = run.finish()
+    return rc, out + err[-2000:]
+
+
+def _renders_per_key(log):
+    """{(x, y, z, seed): renders} of a count_renders log: a key rendered twice is the same panorama
+    twice (Cycles renders the same bits for the same position and seed)."""
+    counts = collections.Counter()
+    for line in log.read_text().splitlines():
+        x, y, z, seed, _samples = line.split()
+        counts[(x, y, z, seed)] += 1
+    return counts
+
+
 def _adaptive_reference(scenes, local):
     """An uninterrupted Adaptive bake in ``local``: its sha256, the points it rendered (probes and
-    test points) and its first layer's probe count."""
+    test points), its first layer's probe count and its renders per key (every one once)."""
     blend = copy_blend(scenes, "window_room.blend", local)
-    proc = bake(blend, *ADAPTIVE, *TINY)
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
-    first_layer = int(re.search(r"first layer \d+ cell\(s\) of 2 m with (\d+) probes", proc.stdout).group(1))
-    points = int(re.search(r"adaptive placement: 2 pass\(es\), (\d+) points rendered", proc.stdout).group(1))
+    rc, out = _counted(blend, ADAPTIVE, local / "renders.log")
+    assert rc == 0, out[-3000:]
+    first_layer = int(re.search(r"first layer \d+ cell\(s\) of 2 m with (\d+) probes", out).group(1))
+    points = int(re.search(r"adaptive placement: 2 pass\(es\), (\d+) points rendered", out).group(1))
     assert first_layer + 3 < points  # room to kill it in its second stage
+    renders = _renders_per_key(local / "renders.log")
+    assert max(renders.values()) == 1      # issue 29: each point and seed once
     return types.SimpleNamespace(shprobe=_sha(local / "sh_coeffs" / "probes.shprobe"), points=points,
-                                 first_layer=first_layer)
+                                 first_layer=first_layer, renders=renders)
 
 
 @pytest.fixture(scope="module")
@@ -193,28 +224,43 @@ def test_adaptive_shards_pass_by_pass(scenes, tmp_path):
     farm = tmp_path / "farm"
     blend = copy_blend(scenes, "window_room.blend", farm)
     waits = 0
+    log = farm / "renders.log"
     for _ in range(adaptive.stage_bound(1, 2)):  # one round per stage, as the farm chains its arrays
         for k in range(2):
-            proc = bake(blend, *ADAPTIVE, *TINY, "--shard", f"{k}/2")
-            assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
-            waits += "its share of this pass is baked" in proc.stdout
+            rc, out = _counted(blend, [*ADAPTIVE, "--shard", f"{k}/2"], log)
+            assert rc == 0, out[-3000:]
+            waits += "its share of this pass is baked" in out
     assert waits >= 2  # the shards did wait for each other at a stage boundary
-    proc = bake(blend, *ADAPTIVE, *TINY, "--merge-shards", "2")
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    rc, out = _counted(blend, [*ADAPTIVE, "--merge-shards", "2"], log)
+    assert rc == 0, out[-3000:]
     assert _sha(farm / "sh_coeffs" / "probes.shprobe") == adaptive_reference.shprobe
+    # Issue 29: every render of the shards once, and the same renders as the local bake (the merge
+    # renders nothing but the sky).
+    renders = _renders_per_key(log)
+    assert max(renders.values()) == 1
+    assert set(renders) == set(adaptive_reference.renders)
 
 
 def test_adaptive_killed_then_resumed_equals_uninterrupted(scenes, tmp_path):
     """The default placement: killed in its second stage (test points), resumed, same bytes."""
     ref = _adaptive_reference(scenes, tmp_path / "local")
     blend = copy_blend(scenes, "window_room.blend", tmp_path / "killed")
-    rc, _, _ = _interrupt(blend, signal.SIGKILL, ref.first_layer + 3, ADAPTIVE)
+    log = tmp_path / "killed" / "renders.log"
+    rc, _ = _counted(blend, ADAPTIVE, log, signal.SIGKILL, ref.first_layer + 3)
     assert rc == -9
     out = tmp_path / "killed" / "sh_coeffs"
-    kept = len(journal.read(str(out / "probes.shprobe.journal")).values)
+    path = str(out / "probes.shprobe.journal")
+    kept = len(journal.read(path).values)
+    assert journal.summary(path)["records"] == kept      # issue 29: no key twice in the journal
     assert ref.first_layer + 3 <= kept < ref.points  # past the first layer, short of the whole bake
-    proc = bake(blend, *ADAPTIVE, *TINY)
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    rc, stdout = _counted(blend, ADAPTIVE, log)
+    assert rc == 0, stdout[-3000:]
     assert f"{ref.first_layer} of {ref.first_layer} probes already baked, 0 to render in the first pass ({kept} points" \
-        in proc.stdout, proc.stdout[-3000:]
+        in stdout, stdout[-3000:]
     assert _sha(out / "probes.shprobe") == ref.shprobe
+    # Issue 29: the killed bake and its resume render every key of the uninterrupted bake, each once,
+    # but for the point the kill cut short (its renders without a record: at most its two first rounds).
+    renders = _renders_per_key(log)
+    assert set(renders) == set(ref.renders)
+    twice = [k for k, n in renders.items() if n > 1]
+    assert len(twice) <= 2 and len({k[:3] for k in twice}) <= 1 and max(renders.values()) <= 2
