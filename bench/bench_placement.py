@@ -156,6 +156,9 @@ def main():
         got = native.interpolation_from_file(path).interpolate(engine_pts, f.coeffs, f.validity)
         err = error(got)
         cache = b.plan.cache
+        kept = np.zeros(len(cache), dtype=bool)
+        kept[np.concatenate([g.probe_index for g in b.plan.groups])] = True
+        dropped = cache.rendered & ~kept
         out["rows"].append({"placement": "adaptive", "tolerance": tol, "tests": tests, "predict": pred,
                             "probe_noise": pn, "max_samples": a.max_samples, "seconds": sec,
                             "cpu_seconds": cpu,
@@ -163,6 +166,7 @@ def main():
                             "timings": {k: round(v, 2) for k, v in r.timings.items()},
                             "renders": r.renders, "points": int(cache.rendered.sum()),
                             "nodes": cache.node_count, "samples": r.samples,
+                            "dropped_points": int(dropped.sum()), "dropped_samples": int(cache.samples[dropped].sum()),
                             "samples_per_point": np.bincount(cache.samples[cache.rendered].astype(int)).tolist(),
                             "passes": [vars(p) for p in r.passes],
                             "file_bytes": os.path.getsize(path), "error": stats(err),
