@@ -63,6 +63,8 @@ def main():
                     help="adaptive.Policy.probe_noise of the adaptive bakes: a probe gets samples until its noise "
                          "is below this x Error Tolerance (default: the add-on's; each tolerance x tests x "
                          "predict is baked with each)")
+    ap.add_argument("--first-round", type=float, default=adaptive.DEFAULT_POLICY.first_round,
+                    help="adaptive.Policy.first_round: each of a point's two first rounds renders this x --samples")
     ap.add_argument("--max-samples", type=float, default=adaptive.DEFAULT_POLICY.max_samples,
                     help="adaptive.Policy.max_samples: the most samples of a point, x --samples (0.5 = the two "
                          "first rounds only, no more rounds)")
@@ -145,7 +147,7 @@ def main():
                                  for pred in a.predict for pn in a.probe_noise]:
         path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}_{pred:g}_{pn:g}.shprobe")
         policy = dataclasses.replace(adaptive.DEFAULT_POLICY, predict=pred, probe_noise=pn,
-                                     max_samples=a.max_samples)
+                                     max_samples=a.max_samples, first_round=a.first_round)
         b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", error_tolerance=tol,
                                                        refinement_tests=tests, output_path=path), log=print,
                                 policy=policy)
@@ -160,7 +162,8 @@ def main():
         kept[np.concatenate([g.probe_index for g in b.plan.groups])] = True
         dropped = cache.rendered & ~kept
         out["rows"].append({"placement": "adaptive", "tolerance": tol, "tests": tests, "predict": pred,
-                            "probe_noise": pn, "max_samples": a.max_samples, "seconds": sec,
+                            "probe_noise": pn, "max_samples": a.max_samples, "first_round": a.first_round,
+                            "seconds": sec,
                             "cpu_seconds": cpu,
                             "probes": r.probe_count, "render_seconds": r.timings["render"],
                             "timings": {k: round(v, 2) for k, v in r.timings.items()},

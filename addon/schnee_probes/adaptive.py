@@ -24,9 +24,8 @@ Samples where a decision needs them (docs/placement.md, step 3): a point is rend
 independent seeds, combined by :class:`PointCache` (sample-weighted mean, σ from the pooled variance
 of the rounds). Every new point first gets two rounds of ``Policy.first_round`` × Samples each (its
 noise is measured, not assumed); a probe then gets one more round up to the samples its measured σ
-needs to fall to ``Policy.probe_noise`` × Error Tolerance, a test one more round up to
-``Policy.max_samples`` × Samples only where its leaf's decision is not clear given its noise. At most
-``Policy.max_samples`` × Samples per point.
+needs to fall to ``Policy.probe_noise`` × Error Tolerance, a test one more round only where its leaf's decision is
+not clear given its noise. At most ``Policy.max_samples`` × Samples per point.
 """
 from __future__ import annotations
 
@@ -77,10 +76,10 @@ class Policy:
     # first_round × Samples (at least 1 sample each; seeds Seed and Seed + 1): the sample-weighted
     # mean and σ from their difference. A probe whose σ (relative, as a moving object sees it) is
     # above probe_noise × Error Tolerance gets one more round (seed Seed + round) of the samples its
-    # σ says it needs, N·(σ / target)², at most max_samples × Samples in all. A test point whose
-    # leaf did not split but which errs by more than its leaf's threshold − decide_z · σ (the
-    # decision is not clear given its own noise) gets one more round up to max_samples × Samples,
-    # and the pass is decided again. probe_noise: trilinear weights average the corners' noise, so
+    # σ says it needs, N·(σ / target)², at most max_samples × Samples in all. A test point erring
+    # within decide_z · σ of its leaf's threshold (the decision is not clear given its own noise)
+    # gets one more round of the samples that make it clear, N·(decide_z · σ / |err − thr|)², and
+    # the pass is decided again. probe_noise: trilinear weights average the corners' noise, so
     # at a third of the tolerance it adds at most 6 % to the error in quadrature (√(1 + 1/9)).
     first_round: float = 0.25
     probe_noise: float = 1.0 / 3.0
@@ -147,18 +146,21 @@ def round_noise(mean: np.ndarray, n: float, m2: float, rounds: int) -> float:
 
 
 def unclear_tests(leaf_tests, above_min, ok, err_t, noise, thr, direct, z: float) -> np.ndarray:
-    """(T,) bool: the test points (``ok``: compared, not probes) erring within z·σ of their leaf's
-    threshold ``thr``, in leaves above Min Cell Size (``above_min``) that no test of theirs splits
-    clearly (by more than z·σ above it) and that the lamps' direct light does not split."""
-    pick = np.zeros(len(err_t), dtype=bool)
+    """(T,) float: for the test points (``ok``: compared, not probes) erring within z·σ of their
+    leaf's threshold ``thr``, in leaves above Min Cell Size (``above_min``) that no test of theirs
+    splits clearly (by more than z·σ above it) and that the lamps' direct light does not split,
+    their distance |error − threshold| from it; inf for the others (clear)."""
+    gap = np.full(len(err_t), np.inf)
     for i in np.flatnonzero(~np.asarray(direct, dtype=bool) & np.asarray(above_min, dtype=bool)):
         cols = leaf_tests[i]
         cols = cols[cols >= 0]
         cols = cols[ok[cols]]
         if len(cols) == 0 or np.any(err_t[cols] - z * noise[cols] > thr[i]):
             continue        # nothing to compare, or clearly split
-        pick[cols[np.abs(err_t[cols] - thr[i]) < z * noise[cols]]] = True
-    return pick
+        d = np.abs(err_t[cols] - thr[i])
+        near = d < z * noise[cols]
+        gap[cols[near]] = np.minimum(gap[cols[near]], d[near])
+    return gap
 
 
 def lattice_frame(volume_vertices: np.ndarray, min_cell: float, max_cell: float):
@@ -615,8 +617,9 @@ class AdaptiveGroup:
         return split, err, thr, probe_coeffs, test_coeffs, test_valid
 
     def _test_rounds(self, cache: PointCache, split, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
-        """Test points whose leaf's decision is not clear given their own noise, for one more round up
-        to the most samples: a test erring within Policy.decide_z × its σ of its leaf's threshold, in
+        """Test points whose leaf's decision is not clear given their own noise, for one more round of
+        the samples that make it clear (at most the most): a test erring within Policy.decide_z × its
+        σ of its leaf's threshold, in
         a leaf that no test of it splits clearly (above its threshold by more than that) and that the
         lamps' direct light does not split. Two rounds' σ is itself an estimate: a spike at a few
         samples must not split a leaf, nor the noise let an error through."""
@@ -628,11 +631,15 @@ class AdaptiveGroup:
         interp = self.tree.interpolate(tests.positions, probe_coeffs, cache.validity(self.probe_index))
         err_t = np.nan_to_num(irradiance_error(interp, test_coeffs))
         direct = self._direct_split if self._direct_split is not None else np.zeros(len(leaves), dtype=bool)
-        pick = unclear_tests(tests.leaf_tests, leaves[:, 3] > 0, need & np.asarray(test_valid, dtype=bool),
-                             err_t, noise, thr, direct, self.policy.decide_z)
+        gap = unclear_tests(tests.leaf_tests, leaves[:, 3] > 0, need & np.asarray(test_valid, dtype=bool),
+                            err_t, noise, thr, direct, self.policy.decide_z)
+        pick = np.isfinite(gap)
         if not pick.any():
             return []
-        todo = cache.more(self.test_index[pick], float(cache.most))
+        # The samples that shrink z·σ (∝ 1/√N) to the test's distance from the threshold.
+        ti = self.test_index[pick]
+        ratio = (self.policy.decide_z * noise[pick] / np.maximum(gap[pick], 1e-12)) ** 2
+        todo = cache.more(ti, np.ceil(cache.samples[ti] * ratio / cache.first - 1e-9) * cache.first)
         self.passes[-1].rounds += len(todo)
         return todo
 
