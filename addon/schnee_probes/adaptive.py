@@ -79,12 +79,16 @@ class Policy:
     # σ says it needs, N·(σ / target)², at most max_samples × Samples in all. A test point erring
     # within decide_z · σ of its leaf's threshold (the decision is not clear given its own noise)
     # gets one more round of the samples that make it clear, N·(decide_z · σ / |err − thr|)², and
-    # the pass is decided again. probe_noise: trilinear weights average the corners' noise, so
-    # at a third of the tolerance it adds at most 6 % to the error in quadrature (√(1 + 1/9)).
+    # the pass is decided again. Measured in the bundled room at the defaults (bench/results/
+    # placement.md "Samples where a decision needs them"): probe_noise 1/3 with max_samples 2 gave
+    # 1.65 % at the points for 1.57x the samples of the two half renders before (most points went
+    # to 16 samples: two rounds of 2 samples overstate sigma often); 1/2 with max_samples 1 (no
+    # point above Samples) 1.77 % for 0.78x (before: 1.87 %). A probe's noise enters the error at a
+    # point between probes through the trilinear weights, sqrt(E Σw²) ≈ 0.55 of it, in quadrature.
     first_round: float = 0.25
-    probe_noise: float = 1.0 / 3.0
+    probe_noise: float = 0.5
     decide_z: float = 1.0
-    max_samples: float = 2.0
+    max_samples: float = 1.0
     # The direct-light check of a leaf (AdaptiveGroup.direct_check) samples the lamps' exact direct
     # term on this many steps per axis of the leaf (5³ − 8 points; fewer where that is finer than
     # Min Cell).

@@ -242,13 +242,13 @@ SETTINGS: Tuple[Setting, ...] = (
             "error is the interpolation's between probes; the sky and lamps seen directly are exact "
             "at any samples, so a small bright sun needs no more). Adaptive placement spends them "
             "where a decision needs them: every point first gets two rounds of a quarter of them, "
-            "a probe more only while its noise is above a third of Error Tolerance, a test point "
-            "more only where its split is unclear, at most twice Samples",
+            "a probe more only while its noise is above half of Error Tolerance, a test point "
+            "more only where its split is unclear, no point more than Samples",
             doc="Cycles samples per pixel. Time is linear in it, noise falls as 1/√samples. With "
                 "Adaptive placement Samples sets the rounds (docs/placement.md step 3): every point "
                 "first gets two rounds of Samples/4 with different seeds (its noise measured), a probe "
-                "then one more round only while its noise is above Error Tolerance/3, a test point only "
-                "where its split decision is unclear given its noise; no point gets more than 2 × "
+                "then one more round only while its noise is above Error Tolerance/2, a test point only "
+                "where its split decision is unclear given its noise; no point gets more than "
                 "Samples. In the "
                 "bright room at 32 bounces 8 / 16 / 32 / 64 / 128 spp give 0.81 / 0.57 / 0.42 / "
                 "0.33 / 0.28 % per probe (table below); between the probes of the bundled room the "

@@ -136,7 +136,7 @@ def test_rounds_combine_into_the_sample_weighted_mean_and_pooled_noise():
     base = sh_of(1.0, 0.4)
     n = [2, 2, 4, 8]
     rounds = [base * (1.0 + 0.05 * rng.normal()) + 0.02 * rng.normal(size=(9, 3)) for _ in n]
-    cache = adaptive.PointCache(2, adaptive.Policy(), samples=8)
+    cache = adaptive.PointCache(2, adaptive.Policy(max_samples=2.0), samples=8)
     assert (cache.first, cache.most) == (2, 16)
     cache._append(np.zeros((1, 3)), np.zeros(1))
     mean01, noise01 = adaptive.combine_halves(rounds[0], rounds[1], 2, 2)
@@ -153,19 +153,19 @@ def test_rounds_combine_into_the_sample_weighted_mean_and_pooled_noise():
     assert cache.noise[0] == pytest.approx(sigma, rel=1e-5)
     # Queued rounds: at most the most samples, once per point, never for solid or unrendered points.
     assert cache.more([0], 40) == [] and cache.pending[0] == 0        # already at 16 = the most
-    assert adaptive.round_samples(8, adaptive.Policy()) == (2, 16)
+    assert adaptive.round_samples(8, adaptive.Policy()) == (2, 8)      # the default: at most Samples
     assert adaptive.round_samples(1, adaptive.Policy()) == (1, 2)
-    assert adaptive.round_samples(32, adaptive.Policy()) == (8, 64)
+    assert adaptive.round_samples(32, adaptive.Policy(max_samples=2.0)) == (8, 64)
 
 
 def test_more_samples_find_the_error_the_noise_hid():
     # A light error of 7 % at the centres of the 2 m leaves (f = 1 + 0.07·((x mod 2) − 1)²: the
     # corners hold 1.07, the centre 1.0), tolerance 5 %, 3 % noise in the first rounds (estimated,
     # not drawn: the values are exact). The centre's threshold sqrt(tol² + (2σ)²) is then 7.9 %:
-    # the error would pass as noise. The probes get the samples the tolerance asks (σ 3 % → 1.6 %)
-    # and the centre tests, within σ of the threshold, one more round to 4× their samples: σ
-    # halves, the threshold falls to 5.9 % and every leaf splits; at 1 m the error is 1.8 %, below
-    # the tolerance: nothing more splits.
+    # the error would pass as noise. The probes get the samples the tolerance asks (at most Samples,
+    # twice the first rounds': σ 3 % → 2.1 %) and the centre tests, within σ of the threshold, one
+    # more round to Samples: σ falls by √2, the threshold to 6.5 % and every leaf splits; at 1 m the
+    # error is 1.8 %, below the tolerance: nothing more splits.
     def field(p):
         return np.array([sh_of(1.0 + 0.07 * ((x % 2.0) - 1.0) ** 2, 0.0) for x in p[:, 0]])
 
@@ -180,7 +180,7 @@ def test_more_samples_find_the_error_the_noise_hid():
     found, cache = run(adaptive.Policy())
     assert found.passes[0].split == 4 and found.passes[0].rounds > 0 and found.passes[0].probe_rounds > 0
     assert [p.split for p in found.passes[1:]] == [0]
-    assert cache.samples.max() == cache.most == 16 and cache.samples[cache.rendered].min() == 4
+    assert cache.samples.max() == cache.most == 8 and cache.samples[cache.rendered].min() == 4
     # The stages: per pass probes, tests and more rounds, and the last probes' more rounds (the farm
     # submits one job array per stage).
     assert found.stage_count() == 3 * found.root_level + 2 == adaptive.stage_bound(0.5, 2.0, found.policy)
@@ -542,7 +542,7 @@ def test_policy_is_frozen_and_defaults_to_the_measured_knobs():
     p = adaptive.DEFAULT_POLICY
     assert (p.solid_ratio, p.render_inset, p.relocate, p.noise_k, p.predict, p.predict_noise,
             p.direct_divisions) == (0.25, 0.01, 0.05, 2.0, 4.0, 1.5, 4)
-    assert (p.first_round, p.probe_noise, p.decide_z, p.max_samples) == (0.25, pytest.approx(1 / 3), 1.0, 2.0)
+    assert (p.first_round, p.probe_noise, p.decide_z, p.max_samples) == (0.25, 0.5, 1.0, 1.0)
     with pytest.raises(dataclasses.FrozenInstanceError):
         p.predict = 2.0
     assert dataclasses.replace(p, predict=2.0).predict == 2.0 and p.predict == 4.0
