@@ -70,23 +70,32 @@ def wall(r):
 
 
 # The bundled room at the add-on's defaults (128×64 px, 8 spp, 32 bounces, Error Tolerance 0.03):
-# the latest run, placement_room_defaults_faces.json (after cc78ad3), shared the machine with the test
-# suite (22.7 min wall), so its time alone on 2 cores is estimated from its CPU-s at the wall/CPU ratio
-# of the same settings measured alone just before (placement_room_defaults_pnoise.json: 733 s wall for
-# 1408 CPU-s).
-ROOM_DEFAULTS = "placement_room_defaults_faces"
+# placement_room_issue29.json (issue 29: progressive samples). It ran beside two other bakes on the 2
+# cores, and so did the same bake of the code before it (placement_room_issue29_before.json: 2298
+# CPU-s, bit-identical probes to placement_room_defaults_faces.json, which took 1458 CPU-s with one
+# job beside it). The time alone is estimated from its CPU-s scaled by that ratio (the contention
+# factor of the same work) and the wall/CPU ratio of the same settings measured alone
+# (placement_room_defaults_pnoise.json: 733 s wall for 1408 CPU-s).
+ROOM_DEFAULTS = "placement_room_issue29"
+ROOM_BEFORE = "placement_room_issue29_before"
+ROOM_BEFORE_QUIET = "placement_room_defaults_faces"
 ALONE = "placement_room_defaults_pnoise"
+
+
+def room_defaults_cpu_alone():
+    return row(ROOM_DEFAULTS)["cpu_seconds"] * row(ROOM_BEFORE_QUIET)["cpu_seconds"] / row(ROOM_BEFORE)["cpu_seconds"]
 
 
 def room_defaults_alone_seconds():
     ref = row(ALONE)
-    return row(ROOM_DEFAULTS)["cpu_seconds"] * ref["seconds"] / ref["cpu_seconds"]
+    return room_defaults_cpu_alone() * ref["seconds"] / ref["cpu_seconds"]
 
 
 NUMBERS = {
     "room_defaults_probes": lambda: str(row(ROOM_DEFAULTS)["probes"]),
-    "room_defaults_points": lambda: str(row(ROOM_DEFAULTS)["renders"]),
-    "room_defaults_cpu_s": lambda: f"{row(ROOM_DEFAULTS)['cpu_seconds']:.0f}",
+    "room_defaults_points": lambda: str(row(ROOM_DEFAULTS).get("points", row(ROOM_DEFAULTS)["renders"])),
+    "room_defaults_samples": lambda: str(row(ROOM_DEFAULTS)["samples"]),
+    "room_defaults_cpu_s": lambda: f"{room_defaults_cpu_alone():.0f}",
     "room_defaults_minutes": lambda: minutes(room_defaults_alone_seconds()),
     "room_defaults_error_mean": lambda: pct(row(ROOM_DEFAULTS)["error"]["mean"], 2),
     # The same room and render settings at 4 spp (placement_room_4spp_quad.json, noise in quadrature).

@@ -81,6 +81,7 @@ class BakeResult:
     messages: List[str] = field(default_factory=list)
     renders: int = 0            # queue entries done (Adaptive: a point's first two rounds, or one more round)
     samples: int = 0            # samples per pixel summed over every Cycles render of this run
+    points: int = 0             # distinct points with a value (Adaptive: probes and test points; else renders)
     passes: list = field(default_factory=list)  # Adaptive: adaptive.PassRecord per pass (first group)
 
 
@@ -337,7 +338,8 @@ class ProbeBake:
         probes = self.total if self.shard is not None else self.plan.probe_count(self.total)
         return BakeResult(files=files, probe_count=probes, seconds=time.perf_counter() - self._t0,
                           timings=dict(self.timings), messages=list(self.messages), renders=self.done,
-                          passes=self.plan.passes, samples=self.plan.samples_rendered)
+                          passes=self.plan.passes, samples=self.plan.samples_rendered,
+                          points=self.plan.points_rendered(self.done))
 
     def _write_outputs(self) -> List[str]:
         """The plan's files, and for a volume bake the sky and the sun (bake_outputs.write_all)."""

@@ -114,6 +114,10 @@ class PlacementPlan:
     def advance(self) -> List[int]:
         return []
 
+    def points_rendered(self, done: int) -> int:
+        """Distinct points with a value after ``done`` queue entries (one each here)."""
+        return done
+
     def finish_values(self, direct, timings: dict):
         """Before writing: the lamps' exact direct light added to every probe at once."""
         if direct is not None:
@@ -408,6 +412,9 @@ class AdaptivePlan(_VolumePlan):
             c = c + direct.project(np.asarray(pos)[None, :], self.settings.max_band)[0]
             session.timings["direct"] = session.timings.get("direct", 0.0) + time.perf_counter() - t_d
         return c
+
+    def points_rendered(self, done):
+        return int(self.cache.rendered.sum()) if self.cache is not None else done
 
     def advance(self) -> List[int]:
         """Every queued point is rendered: move each group on (tests -> decision -> split -> new

@@ -27,7 +27,7 @@ def _record(props, result=None, message=""):
 def _summary(result):
     names = ", ".join(os.path.basename(f) for f in result.files)
     if result.passes:
-        return (f"Baked {result.probe_count} probes ({result.renders} points rendered in "
+        return (f"Baked {result.probe_count} probes ({result.points} points rendered in "
                 f"{len(result.passes)} pass{'' if len(result.passes) == 1 else 'es'}) in "
                 f"{result.seconds:.1f} s -> {names}")
     return f"Baked {result.probe_count} probes in {result.seconds:.1f} s -> {names}"
