@@ -467,12 +467,13 @@ class AdaptivePlan(_VolumePlan):
     def progress_line(self, done, total, pass_start, elapsed, eta):
         g = max(self.groups, key=lambda g: g.stage_index())
         rec = g.passes[-1]
-        what = "test points" if g.stage == "tests" else "probes"
+        points = self.points_rendered(done)
+        what = {"tests": "test points", "rounds": "unclear tests", "last": "more rounds"}.get(g.stage, "probes")
         if self.finished:
             what = "done"
         return (f"Schnee bake: pass {rec.pass_index} ({what}, cells down to {rec.smallest_cell:g} m): "
-                f"{done - pass_start}/{total - pass_start}, {done} points "
-                f"rendered, {elapsed:.1f} s elapsed, ~{eta:.0f} s left in this pass")
+                f"{done - pass_start}/{total - pass_start}, {points} points rendered (+{done - points} "
+                f"more rounds), {elapsed:.1f} s elapsed, ~{eta:.0f} s left in this pass")
 
     def fraction(self, done, total, pass_start):
         """By stages (each stage's share of the most stages the refinement can take), as the number
