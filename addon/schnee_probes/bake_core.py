@@ -145,7 +145,7 @@ class ProbeBake:
 
     @property
     def renders_per_point(self) -> int:
-        """Renders of one point: two half-sample renders for the Adaptive noise estimate, else one."""
+        """Renders of one point's first request: two first rounds for the Adaptive noise estimate, else one."""
         return self.plan.renders_per_point
 
     positions = property(lambda self: self.plan.positions, doc="The unique render positions (engine space).")

@@ -24,7 +24,7 @@ FIRST_PROBE_SECONDS = 1.6           # scene upload before the first render (0.7-
 # Fixed cost of one render with persistent data (sync, film, EXR write, projection): in the bundled
 # room at 128x64 px and 32 bounces one render took 0.069 s at 1 spp and 0.0375 s more per sample
 # (1-32 spp), an intercept of 0.031 s. It matters at low samples, and twice per point for the
-# Adaptive placement (two half-sample renders per point for the noise estimate).
+# Adaptive placement (two first rounds per point for the noise estimate).
 RENDER_SECONDS = 0.03
 
 
