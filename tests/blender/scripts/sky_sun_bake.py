@@ -88,8 +88,13 @@ def sky_case():
     from schnee_probes import fingerprint
     fp = {m: fingerprint.parts(bpy.context.scene, bpy.context.view_layer, settings(folder, sky_sun=m))["settings"]
           for m in ("mixed", "baked")}
-    legacy = fingerprint._digest(sorted((k, v) for k, v in asdict(settings(folder)).items()
-                                        if k not in fingerprint._NOT_VALUES and k != "sky_sun"))
+    # (Render Device at its default is left out the same way; Adaptive bakes name their sampling
+    # scheme, issue 29, so journals of the two-halves scheme do not resume.)
+    from schnee_probes import adaptive
+    s = settings(folder)
+    legacy = fingerprint._digest(sorted((k, v) for k, v in asdict(s).items()
+                                        if k not in fingerprint._NOT_VALUES and k not in ("sky_sun", "render_device"))
+                                 + ([("sampling", adaptive.SAMPLING)] if s.placement == "ADAPTIVE" else []))
     out["fingerprint"] = dict(fp, legacy=legacy)
     # The world as the bake reads it (Blender's pixels x strength 1), for the expected values.
     world = np.clip(native.read_image(lib.studiolight_path(HDRI))[:, :, :3], 0.0, None).astype(np.float32)
