@@ -105,12 +105,6 @@ _RELOCATE_DIRS = np.array(sorted(((i, j, k) for i in (-1, 0, 1) for j in (-1, 0,
 _RELOCATE_DIRS /= np.linalg.norm(_RELOCATE_DIRS, axis=1)[:, None]
 # leaf_tests columns adjacent to child octant bit b of an axis: −face for b = 0, +face for b = 1.
 _FACE_COL = ((1, 2), (3, 4), (5, 6))
-def split_samples(samples: int):
-    """Samples of the two half renders of one point: (s1, s2), s1 + s2 = samples, at least 1 each."""
-    s1 = max(1, samples // 2)
-    return s1, max(1, samples - s1)
-
-
 def combine_halves(a: np.ndarray, b: np.ndarray, s1: int, s2: int):
     """(value, relative noise) of a point rendered twice with independent seeds: the sample-weighted
     mean, and σ of that mean estimated from the difference (for equal halves σ_mean = ‖d‖/2; in
@@ -581,7 +575,7 @@ class AdaptiveGroup:
             return more + todo
         split, err, thr, pc, tc, tv = self._decide(cache)
         if self.stage == "tests":
-            todo = self._test_rounds(cache, split, thr, pc, tc, tv)
+            todo = self._test_rounds(cache, thr, pc, tc, tv)
             if todo:
                 self.stage = "rounds"
                 return todo
@@ -620,7 +614,7 @@ class AdaptiveGroup:
             noise_k=self.policy.noise_k)
         return split, err, thr, probe_coeffs, test_coeffs, test_valid
 
-    def _test_rounds(self, cache: PointCache, split, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
+    def _test_rounds(self, cache: PointCache, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
         """Test points whose leaf's decision is not clear given their own noise, for one more round of
         the samples that make it clear (at most the most): a test erring within Policy.decide_z × its
         σ of its leaf's threshold, in

@@ -35,14 +35,7 @@ def _counted(blend, args, log, sig=None, at=None):
     pre = [SCRIPTS / "count_renders.py"] + ([SCRIPTS / "slow_render.py"] if sig is not None else [])
     run = Running(blend, [*args, *TINY], {"SCHNEE_TEST_RENDER_LOG": str(log)}, pre=pre)
     if sig is not None:
-        path = str(blend.parent / "sh_coeffs" / "probes.shprobe.journal")
-        end = time.monotonic() + 240
-        while time.monotonic() < end and run.proc.poll() is None:
-            info = journal.summary(path)
-            if info and info["records"] >= at:
-                break
-            time.sleep(0.01)
-        run.proc.send_signal(sig)
+        _signal_at(run, blend, sig, at)
     rc, out, err = run.finish()
     return rc, out + err[-2000:]
 
@@ -110,6 +103,13 @@ def _interrupt(blend, sig, at, args=()):
     """Start the bake (each render slowed by 0.2 s), send ``sig`` once the journal holds ``at``
     probes."""
     run = Running(blend, [*CELLS, *TINY, *args], {}, pre=SCRIPTS / "slow_render.py")
+    _signal_at(run, blend, sig, at)
+    return run.finish()
+
+
+def _signal_at(run, blend, sig, at):
+    """Send ``sig`` to the running bake once its journal holds ``at`` records (or it has ended, or
+    240 s passed)."""
     path = str(blend.parent / "sh_coeffs" / "probes.shprobe.journal")
     end = time.monotonic() + 240
     while time.monotonic() < end and run.proc.poll() is None:
@@ -118,7 +118,6 @@ def _interrupt(blend, sig, at, args=()):
             break
         time.sleep(0.01)
     run.proc.send_signal(sig)
-    return run.finish()
 
 
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT], ids=["kill-9", "cancel"])

@@ -90,8 +90,6 @@ def test_combine_halves_mean_and_noise():
     mean, noise = adaptive.combine_halves(a, b, 1, 3)
     assert np.allclose(mean, (a + 3 * b) / 4)
     assert noise == pytest.approx(0.04 / 0.99 * math.sqrt(3) / 4)  # relative to the mean, 0.99
-    assert adaptive.split_samples(32) == (16, 16) and adaptive.split_samples(1) == (1, 1)
-    assert adaptive.split_samples(5) == (2, 3)
 
 
 @pytest.mark.parametrize("tests", adaptive.TEST_MODES)
