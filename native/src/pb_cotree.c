@@ -402,6 +402,12 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
 
 uint32_t pb_cotree_leaf_count(const pb_cotree *t) { return t ? t->leaf_count : 0; }
 const uint32_t *pb_cotree_leaves(const pb_cotree *t) { return t ? t->leaves : NULL; }
+void pb_cotree_leaf_levels(const pb_cotree *t, uint32_t *out)
+{
+    if (!t || !out) return;
+    for (uint32_t i = 0; i < t->leaf_count; i++)
+        for (int k = 0; k < 3; k++) out[3u * i + (uint32_t)k] = t->leaves[4u * i + 3u];
+}
 uint32_t pb_cotree_probe_count(const pb_cotree *t) { return t && t->finalized ? t->probe_count : 0; }
 uint32_t pb_cotree_hanging_count(const pb_cotree *t) { return t && t->finalized ? t->hanging_count : 0; }
 const uint32_t *pb_cotree_probe_lattice(const pb_cotree *t) { return t && t->finalized ? t->probe_lattice : NULL; }

@@ -62,6 +62,39 @@ pb_result pb_cotree_create(const double origin[3], double min_cell, uint32_t roo
  * Leaves must be aligned (x, y, z multiples of 2^level), inside `dims`, and not overlap. */
 pb_result pb_cotree_create_leaves(const double origin[3], double min_cell, const uint32_t dims[3],
                                   const uint32_t *leaves, uint32_t leaf_count, pb_cotree **out, pb_error *err);
+/* ---- boxes with per-axis levels (issue 29 item 3, docs/aniso-refinement.md) --------------------------
+ * A leaf may be a box: level lx, ly, lz per axis (it spans 2^l_a min cells on axis a from a min corner
+ * that is a multiple of 2^l_a). pb_cotree_leaves()' fourth word stays the leaf's largest level (its
+ * level as before for a cube); pb_cotree_leaf_levels() gives the three. A tree of cubes behaves exactly
+ * as before. */
+#define PB_LEVELS_PACK(lx, ly, lz) ((uint32_t)(lx) | (uint32_t)(ly) << 8 | (uint32_t)(lz) << 16)
+#define PB_LEVEL_X(p)             ((p) & 0xffu)
+#define PB_LEVEL_Y(p)             ((p) >> 8 & 0xffu)
+#define PB_LEVEL_Z(p)             ((p) >> 16 & 0xffu)
+/* A tree from explicit boxes (4 uint32 each: x, y, z lattice min corner, packed levels
+ * PB_LEVELS_PACK), e.g. a version-4 file's. root_level R: Max Cell Size = 2^R min cells (every level
+ * ≤ R; the split tree's root grid is ceil(dims / 2^R)). Boxes must be aligned, inside `dims`, not
+ * overlap. */
+pb_result pb_cotree_create_boxes(const double origin[3], double min_cell, uint32_t root_level, const uint32_t dims[3],
+                                 const uint32_t *leaves, uint32_t leaf_count, pb_cotree **out, pb_error *err);
+/* leaf_count × 3 levels (lx, ly, lz), leaves in pb_cotree_leaves() order. */
+void pb_cotree_leaf_levels(const pb_cotree *tree, uint32_t *out);
+/* The root level R (create: root_level; create_leaves: the largest leaf level). */
+uint32_t pb_cotree_root_level(const pb_cotree *tree);
+/* Halves every leaf along the axes of its mask (bit 0 = x, 1 = y, 2 = z; axes at level 0 are ignored):
+ * 2^|axes| children. pb_cotree_split(flags) is split_axes with mask 7 where a flag is set. The tree must
+ * be finalized again afterwards; finalize first applies the nesting rule (docs/aniso-refinement.md:
+ * forced splits remove every cross), *forced (pb_cotree_forced_splits) counts them. */
+pb_result pb_cotree_split_axes(pb_cotree *tree, const uint8_t *axes, uint32_t *split_count, pb_error *err);
+uint32_t pb_cotree_forced_splits(const pb_cotree *tree); /* by the last finalize */
+/* The canonical split tree (docs/aniso-refinement.md "Point location", "Canonical split tree"): *count
+ * nodes, nodes 0..G-1 the root cells (x fastest, G = prod ceil(dims / 2^R)); bits 0-1: 0 leaf, 1/2/3 split
+ * along x/y/z; bits 2-31: a leaf's index in pb_cotree_leaves() order (2^30 - 1 = empty) or a split's
+ * lower child (upper = lower + 1). nodes NULL: only *count. Requires finalize. */
+pb_result pb_cotree_split_tree(const pb_cotree *tree, uint32_t *nodes, uint32_t capacity, uint32_t *count,
+                               pb_error *err);
+#define PB_SPLIT_TREE_EMPTY ((UINT32_C(1) << 30) - 1u)
+
 /* Drops leaves whose flag is nonzero (e.g. outside the probe volumes); not finalized afterwards. */
 pb_result pb_cotree_drop(pb_cotree *tree, const uint8_t *drop, pb_error *err);
 /* Replaces every leaf whose flag is nonzero and whose level is > 0 by its 8 children (flags of

@@ -33,7 +33,8 @@ typedef struct pb_refine_tests {
     double *positions;    /* point_count × 3, engine space */
     int32_t *probe; /* point_count: index of the probe already at that point (its value is used, no bake), or −1 */
     uint32_t leaf_count;
-    int32_t *leaf_tests; /* leaf_count × 7 test point indices, −1 for leaves at Min Cell Size */
+    int32_t *leaf_tests; /* leaf_count × per_leaf test point indices, −1 for none */
+    uint32_t per_leaf;   /* 0 or 7: the octree's tests (PB_REFINE_TESTS_PER_LEAF); 14: per-axis tests */
 } pb_refine_tests;
 
 /* Test points of a finalized tree, optionally only for leaves whose `active` flag is set (NULL = all
@@ -59,6 +60,22 @@ typedef struct pb_refine_desc {
  * threshold it was held to (NULL to skip). Leaves without tests get error 0 and flag 0. */
 pb_result pb_refine_decide(const pb_cotree *tree, const pb_refine_tests *tests, const pb_refine_desc *desc,
                            uint8_t *split, double *leaf_error, double *leaf_threshold, pb_error *err);
+
+/* ---- per-axis refinement (issue 29 item 3, docs/aniso-refinement.md "Tests and the split rule") ----
+ * Test columns of a leaf (per_leaf = 14): 4a + e for the 4 edges along axis a (e: bit 0 = the first other
+ * axis at its max, bit 1 = the second; other axes in x, y, z order), the edge's midpoint, −1 where
+ * l_a = 0; column 12 the middle of all splittable axes (the centre when all three levels are > 0; with
+ * one level-0 axis the centre of the face across it at its min) and 13 (one level-0 axis: the face
+ * centre at its max; else −1). With two level-0 axes only the one axis' edges. */
+#define PB_REFINE_AXIS_TESTS 14
+pb_result pb_refine_tests_create_axes(const pb_cotree *tree, const uint8_t *active, pb_refine_tests **out,
+                                      pb_error *err);
+/* Axis masks (leaf_count bytes: bit a = split along axis a) by the rule of docs/aniso-refinement.md: a
+ * failing edge midpoint along a splits along a; a failing middle point splits along all its axes only
+ * when no edge test of the leaf failed. Errors, thresholds as pb_refine_decide (the worst over the
+ * leaf's tests). */
+pb_result pb_refine_decide_axes(const pb_cotree *tree, const pb_refine_tests *tests, const pb_refine_desc *desc,
+                                uint8_t *axes, double *leaf_error, double *leaf_threshold, pb_error *err);
 
 /* Relative irradiance error, RMS over directions and RGB, of SH `a` against reference `ref`
  * (radiance SH, band max_band): ‖A·(a − ref)‖ / ‖A·ref‖ with A the Lambert band factors (exact, by
