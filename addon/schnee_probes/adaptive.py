@@ -41,7 +41,8 @@ from .metric import _rel, irradiance_error, irradiance_norm  # noqa: F401 (re-ex
 TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
 # The sampling scheme's name in the journal's fingerprint (journal.py): a journal of another scheme
 # holds records of other sample counts and is not resumed.
-SAMPLING = "rounds-1"
+# "axes-1": the per-axis refinement (Policy.axes), whose journals hold other points than the octree's.
+SAMPLING = "rounds-1/axes-1"
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,11 @@ class Policy:
     # term on this many steps per axis of the leaf (5³ − 8 points; fewer where that is finer than
     # Min Cell).
     direct_divisions: int = 4
+    # Per-axis refinement (docs/aniso-refinement.md): a leaf is a box with a level per axis and splits
+    # only along the axes its tests disagree on (12 edge midpoints + the middle point; the direct
+    # check the same way). False: the octree's all-axes splits with 7 tests (Refinement Tests "Centre"
+    # always uses those).
+    axes: bool = False
 
 
 DEFAULT_POLICY = Policy()
@@ -103,8 +109,8 @@ DEFAULT_POLICY = Policy()
 _RELOCATE_DIRS = np.array(sorted(((i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                                   if (i, j, k) != (0, 0, 0)), key=lambda d: sum(map(abs, d))), dtype=np.float64)
 _RELOCATE_DIRS /= np.linalg.norm(_RELOCATE_DIRS, axis=1)[:, None]
-# leaf_tests columns adjacent to child octant bit b of an axis: −face for b = 0, +face for b = 1.
-_FACE_COL = ((1, 2), (3, 4), (5, 6))
+
+
 def combine_halves(a: np.ndarray, b: np.ndarray, s1: int, s2: int):
     """(value, relative noise) of a point rendered twice with independent seeds: the sample-weighted
     mean, and σ of that mean estimated from the difference (for equal halves σ_mean = ‖d‖/2; in
@@ -161,6 +167,83 @@ def unclear_tests(leaf_tests, above_min, ok, err_t, noise, thr, direct, z: float
     return gap
 
 
+def _axes():
+    from . import refine_axes       # the per-axis tests' wrappers (native)
+    return refine_axes
+
+
+def leaf_levels(info: dict) -> np.ndarray:
+    """(L, 3) per-axis levels of a tree's leaves (``CornerOctree.info()``)."""
+    levels = info.get("levels")
+    if levels is None:
+        return np.repeat(np.asarray(info["leaves"])[:, 3:4], 3, axis=1)
+    return np.asarray(levels).reshape(-1, 3)
+
+
+def leaf_keys(info: dict) -> List[tuple]:
+    """A leaf's key: (x, y, z, lx, ly, lz)."""
+    leaves, levels = np.asarray(info["leaves"]), leaf_levels(info)
+    return [tuple(int(v) for v in leaves[i, :3]) + tuple(int(v) for v in levels[i]) for i in range(len(leaves))]
+
+
+def child_keys(key: tuple, mask: int) -> List[tuple]:
+    """The children of leaf ``key`` split along the axes of ``mask`` (axes at level 0 stay)."""
+    axes = [a for a in range(3) if mask >> a & 1 and key[3 + a] > 0]
+    out = []
+    for bits in range(1 << len(axes)):
+        k = list(key)
+        for j, a in enumerate(axes):
+            k[3 + a] = key[3 + a] - 1
+            k[a] = key[a] + ((bits >> j) & 1) * (1 << k[3 + a])
+        out.append(tuple(k))
+    return out
+
+
+def direct_points(leaves: np.ndarray, levels: np.ndarray, divisions: int):
+    """The direct check's lattice points of each leaf above Min Cell Size: ``divisions`` steps per axis
+    (fewer where finer than a min cell), the corners left out. Returns (lattice (M, 3), leaf (M,),
+    edge axis (M,): the axis of the leaf edge a point lies inside, −1 for a point off the edges)."""
+    lat, leaf_of, edge = [], [], []
+    levels = np.asarray(levels, dtype=np.int64).reshape(-1, 3)
+    for lv in np.unique(levels, axis=0):
+        sel = np.flatnonzero((levels == lv).all(axis=1))
+        if not lv.any() or len(sel) == 0:
+            continue
+        div = [min(1 << int(v), divisions) for v in lv]
+        grid = np.stack(np.meshgrid(*[np.arange(d + 1) for d in div], indexing="ij"), axis=-1).reshape(-1, 3)
+        at_end = (grid == 0) | (grid == np.array(div))
+        keep = ~at_end.all(axis=1)
+        grid, at_end = grid[keep], at_end[keep]
+        axis = np.where(at_end.sum(axis=1) == 2, np.argmin(at_end, axis=1), -1)
+        step = np.array([(1 << int(v)) // d for v, d in zip(lv, div)], dtype=np.int64)
+        lat.append((leaves[sel, None, :3].astype(np.int64) + grid[None] * step).reshape(-1, 3))
+        leaf_of.append(np.repeat(sel, len(grid)))
+        edge.append(np.tile(axis, len(sel)))
+    if not lat:
+        return np.zeros((0, 3), np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return np.concatenate(lat), np.concatenate(leaf_of), np.concatenate(edge)
+
+
+def split_masks(leaf_count: int, levels: np.ndarray, leaf_of: np.ndarray, edge: np.ndarray, fail: np.ndarray,
+                axes: bool) -> np.ndarray:
+    """(L,) uint8 axis masks from failing points (the per-axis split rule of docs/aniso-refinement.md:
+    a failing point inside an edge along a splits along a; a failing point off the edges splits along
+    every axis above level 0 only when no edge point of the leaf failed). ``axes`` False: every axis
+    where anything failed (the octree)."""
+    out = np.zeros(leaf_count, dtype=np.uint8)
+    splittable = (np.asarray(levels).reshape(-1, 3) > 0) @ np.array([1, 2, 4])
+    fail = np.asarray(fail, dtype=bool)
+    if not axes:
+        out[np.unique(leaf_of[fail])] = 7
+        return (out & splittable).astype(np.uint8)
+    on_edge = fail & (edge >= 0)
+    np.bitwise_or.at(out, leaf_of[on_edge], (1 << edge[on_edge]).astype(np.uint8))
+    middle = np.unique(leaf_of[fail & (edge < 0)])
+    middle = middle[out[middle] == 0]
+    out[middle] = splittable[middle]
+    return (out & splittable).astype(np.uint8)
+
+
 def lattice_frame(volume_vertices: np.ndarray, min_cell: float, max_cell: float):
     """(origin (3,), root_level, root_dims (3,)) of the corner octree over the volumes' bounding box:
     origin = its min corner, leaves of Max Cell Size rounded down to Min Cell Size · 2^k (as the
@@ -184,7 +267,13 @@ def stage_bound(min_cell: float, max_cell: float, policy: Policy = DEFAULT_POLIC
     with these cell sizes (AdaptiveGroup.stage_count before the group exists): the farm submits one
     job array per stage. The last pass has its probes' first rounds and their more rounds."""
     level = min(20, max(0, int(math.floor(math.log2(max_cell / min_cell) + 1e-9))))
-    return STAGES_PER_PASS * level + 2
+    return STAGES_PER_PASS * passes_bound(level, policy) + 2
+
+
+def passes_bound(root_level: int, policy: Policy = DEFAULT_POLICY) -> int:
+    """Refinement passes that can split: one level per pass on every axis at once (octree), or on one
+    axis at least (per axis: up to three times the levels)."""
+    return (3 if policy.axes else 1) * root_level
 
 
 def centre_only(tests: "native.RefineTests") -> "native.RefineTests":
@@ -426,6 +515,7 @@ class AdaptiveGroup:
         self.min_cell = float(min_cell)
         self.tolerance = float(tolerance)
         self.test_mode = tests
+        self.axes = bool(policy.axes) and tests == "CENTRE_FACES"
         verts = np.concatenate([np.asarray(v[1], dtype=np.float64).reshape(-1, 3) for v in volumes])
         self.origin, self.root_level, dims = lattice_frame(verts, min_cell, max_cell)
         self.box_min, self.box_max = verts.min(axis=0), verts.max(axis=0)
@@ -458,19 +548,22 @@ class AdaptiveGroup:
         self._engine_of = {}        # cache index -> the mixed lamps' direct SH there
 
     # -- geometry queries through the placement's rules
-    def _classify_boxes(self, leaves: np.ndarray) -> np.ndarray:
-        size = self.min_cell * (2.0 ** leaves[:, 3].astype(np.float64))
-        centre = self.origin + (leaves[:, :3].astype(np.float64) + 0.5 * (2.0 ** leaves[:, 3])[:, None]) * self.min_cell
-        boxes = np.concatenate([centre, (size / 2)[:, None]], axis=1)
+    def _classify_boxes(self, leaves: np.ndarray, levels: np.ndarray) -> np.ndarray:
+        """Placement class of each leaf box, through the cube around it (a box is dropped only when
+        that cube lies outside the volumes)."""
+        size = 2.0 ** np.asarray(levels, dtype=np.float64)
+        centre = self.origin + (leaves[:, :3].astype(np.float64) + 0.5 * size) * self.min_cell
+        boxes = np.concatenate([centre, (0.5 * self.min_cell * size.max(axis=1))[:, None]], axis=1)
         _, _, cls = native.classify_placement(self.volumes, self.geometry, boxes=boxes,
                                               min_cell_size=self.min_cell)
         return cls
 
     def _drop_outside(self) -> int:
-        leaves = self.tree.info()["leaves"]
+        info = self.tree.info()
+        leaves = info["leaves"]
         if len(leaves) == 0:
             return 0
-        outside = self._classify_boxes(leaves) == 0
+        outside = self._classify_boxes(leaves, leaf_levels(info)) == 0
         if outside.any():
             self.tree.drop(outside)
         return int(outside.sum())
@@ -524,8 +617,8 @@ class AdaptiveGroup:
         return at, ratio
 
     def smallest_cell(self) -> float:
-        leaves = self.tree.info()["leaves"]
-        return self.min_cell * float(2 ** int(leaves[:, 3].min())) if len(leaves) else self.min_cell
+        levels = leaf_levels(self.tree.info())
+        return self.min_cell * float(2 ** int(levels.min())) if len(levels) else self.min_cell
 
     # -- the state machine
     def start(self, cache: PointCache) -> List[int]:
@@ -545,12 +638,11 @@ class AdaptiveGroup:
             return []
         if self.stage == "probes":
             more = self._probe_rounds(cache)
-            tests = self.tree.refine_tests()
+            tests = _axes().tests_axes(self.tree) if self.axes else self.tree.refine_tests()
             if self.test_mode == "CENTRE":
                 tests = centre_only(tests)
             if self.settled:
-                leaves = self.tree.info()["leaves"]
-                skip = np.array([tuple(int(v) for v in lf) in self.settled for lf in leaves], dtype=bool)
+                skip = np.array([k in self.settled for k in leaf_keys(self.tree.info())], dtype=bool)
                 skip &= (tests.leaf_tests >= 0).any(axis=1)
                 self.passes[-1].predicted = int(skip.sum())
                 tests = without_leaves(tests, skip)
@@ -558,8 +650,8 @@ class AdaptiveGroup:
             self._direct_split = self.direct_check(cache)
             if len(tests.positions) == 0 or not (tests.leaf_tests >= 0).any():
                 if self._direct_split.any():
-                    self.passes[-1].direct_split = int(self._direct_split.sum())
-                    self.passes[-1].split = int(self._direct_split.sum())
+                    self.passes[-1].direct_split = int((self._direct_split != 0).sum())
+                    self.passes[-1].split = int((self._direct_split != 0).sum())
                     return more + self._split(self._direct_split, cache)
                 if more:
                     self.stage = "last"
@@ -608,10 +700,13 @@ class AdaptiveGroup:
         probe_coeffs, probe_noise = self.seen(cache, pidx)
         test_coeffs[need], test_noise[need] = self.seen(cache, ti)
         test_valid[need] = ~cache.solid(ti)
-        split, err, thr = self.tree.refine_decide(
-            tests, probe_coeffs, test_coeffs, probe_noise=probe_noise, test_noise=test_noise,
-            probe_validity=cache.validity(pidx), test_valid=test_valid, tolerance=self.tolerance,
-            noise_k=self.policy.noise_k)
+        kw = dict(probe_noise=probe_noise, test_noise=test_noise, probe_validity=cache.validity(pidx),
+                  test_valid=test_valid, tolerance=self.tolerance, noise_k=self.policy.noise_k)
+        if self.axes:
+            split, err, thr = _axes().decide_axes(self.tree, tests, probe_coeffs, test_coeffs, **kw)
+        else:
+            split, err, thr = self.tree.refine_decide(tests, probe_coeffs, test_coeffs, **kw)
+            split = np.where(split, 7, 0).astype(np.uint8)
         return split, err, thr, probe_coeffs, test_coeffs, test_valid
 
     def _test_rounds(self, cache: PointCache, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
@@ -629,6 +724,7 @@ class AdaptiveGroup:
         interp = self.tree.interpolate(tests.positions, probe_coeffs, cache.validity(self.probe_index))
         err_t = np.nan_to_num(irradiance_error(interp, test_coeffs))
         direct = self._direct_split if self._direct_split is not None else np.zeros(len(leaves), dtype=bool)
+        direct = np.asarray(direct) != 0
         gap = unclear_tests(tests.leaf_tests, leaves[:, 3] > 0, need & np.asarray(test_valid, dtype=bool),
                             err_t, noise, thr, direct, self.policy.decide_z)
         pick = np.isfinite(gap)
@@ -645,9 +741,9 @@ class AdaptiveGroup:
         """The pass's decision made: record it, predict the children that pass, split."""
         self.last_errors = (err, thr)
         if self._direct_split is not None:
-            self.passes[-1].direct_split = int((self._direct_split & ~split).sum())
+            self.passes[-1].direct_split = int(((self._direct_split != 0) & (split == 0)).sum())
             split = split | self._direct_split
-        n = int(split.sum())
+        n = int((split != 0).sum())
         self.passes[-1].split = n
         if n == 0:
             self.tests = self.test_index = None
@@ -684,7 +780,10 @@ class AdaptiveGroup:
     def _split(self, split: np.ndarray, cache: PointCache) -> List[int]:
         """Split the flagged leaves, drop children outside the volumes, request the new probes."""
         self._direct_split = None
-        self.tree.split(split)
+        if self.axes:
+            self.tree.split_axes(np.asarray(split, dtype=np.uint8))
+        else:
+            self.tree.split(np.asarray(split) != 0)
         self.tree.finalize()
         self._drop_outside()
         self.tree.finalize()
@@ -696,32 +795,20 @@ class AdaptiveGroup:
         return todo
 
     def direct_check(self, cache: PointCache) -> np.ndarray:
-        """(L,) bool: leaves above Min Cell Size whose interpolation of the lamps' exact direct light
+        """(L,) uint8 axis masks (split_masks): leaves above Min Cell Size whose interpolation of the lamps' exact direct light
         is off by more than the tolerance somewhere on a lattice of Policy.direct_divisions steps per axis
         inside the leaf (at most one per Min Cell Size; the leaf's corners excluded), relative to the
         interpolated total light there. The direct term costs no render (shadow rays only), so a
         sunbeam's edge that passes between a leaf's test points, or crosses a leaf predicted to
         pass, still draws refinement. Points inside solid geometry are not compared."""
-        leaves = self.tree.info()["leaves"]
-        out = np.zeros(len(leaves), dtype=bool)
+        info = self.tree.info()
+        leaves, levels = info["leaves"], leaf_levels(info)
+        out = np.zeros(len(leaves), dtype=np.uint8)
         if self.direct is None:
             return out
-        lat_parts, leaf_of = [], []
-        for lv in np.unique(leaves[:, 3]):
-            lv = int(lv)
-            sel = np.flatnonzero(leaves[:, 3] == lv)
-            if lv == 0 or len(sel) == 0:
-                continue
-            div = min(1 << lv, self.policy.direct_divisions)
-            r = range(div + 1)
-            offs = np.array([(i, j, k) for i in r for j in r for k in r
-                             if not (i in (0, div) and j in (0, div) and k in (0, div))], dtype=np.int64)
-            step = (1 << lv) // div
-            lat_parts.append((leaves[sel, None, :3].astype(np.int64) + offs[None] * step).reshape(-1, 3))
-            leaf_of.append(np.repeat(sel, len(offs)))
-        if not lat_parts:
+        lat, leaf_of, edge = direct_points(leaves, levels, self.policy.direct_divisions)
+        if len(lat) == 0:
             return out
-        lat, leaf_of = np.concatenate(lat_parts), np.concatenate(leaf_of)
         uniq, inverse = np.unique(lat, axis=0, return_inverse=True)
         pos = self.lattice_positions(uniq)
         at = self.render_positions(pos)
@@ -744,14 +831,13 @@ class AdaptiveGroup:
         err = np.nan_to_num(err)
         err[np.asarray(self.classify_points(at)) > self.policy.solid_ratio] = 0.0
         fail = err[inverse.reshape(-1)] > self.tolerance
-        out[np.unique(leaf_of[fail])] = True
-        return out
+        return split_masks(len(leaves), levels, leaf_of, edge, fail, self.axes)
 
     def _settle_children(self, split, thr, probe_coeffs, validity, test_coeffs, test_valid):
         """Mark the children of split leaves that are predicted to pass (see Policy.predict). A child's
-        parent ratio is the parent's worst error over its threshold at the test points next to the
-        child (the parent's centre and the three face centres of the child's octant; where none of
-        those was compared, inside solids, the parent's worst over all its tests)."""
+        parent ratio is the parent's worst error over its threshold at its test points on the child's
+        closed box (for an octree leaf its centre and the three face centres of the child's octant;
+        where none of those was compared, inside solids, the parent's worst over all its tests)."""
         tests = self.tests
         values = test_coeffs.copy()
         is_probe = tests.probe >= 0
@@ -761,11 +847,9 @@ class AdaptiveGroup:
         valid_t = np.asarray(test_valid, dtype=bool).copy()
         valid_t[is_probe] &= np.asarray(validity)[tests.probe[is_probe]] > 0
         err_t = np.where(valid_t & np.isfinite(err_t), err_t, np.nan)
-        leaves = self.tree.info()["leaves"]
+        keys = leaf_keys(self.tree.info())
         for i in np.flatnonzero(split):
-            x, y, z, lv = (int(v) for v in leaves[i])
-            if lv == 0:
-                continue
+            key = keys[i]
             cols = tests.leaf_tests[i]
             ratios = np.where(cols >= 0, err_t[np.maximum(cols, 0)], np.nan) / max(float(thr[i]), 1e-12)
             whole = np.nanmax(ratios) if np.isfinite(ratios).any() else np.inf
@@ -776,19 +860,20 @@ class AdaptiveGroup:
             # nine points. Unknown: 1 (a child passes only where its parent itself passed).
             # (min(own, parent's) was measured too: more accurate, 1.4–1.5× the renders; see
             # bench/results/placement.md.)
-            before = self.parent_ratio.get((x, y, z, lv))
+            before = self.parent_ratio.get(key)
             measured = None if before is None or not whole > 0 else min(self.predict, max(1.0, before / whole))
             if float(thr[i]) > self.policy.predict_noise * self.tolerance:
                 measured = None     # the threshold is the noise's: no rate (Policy.predict_noise)
-            rate = 1.0 if measured is None or (x, y, z, lv) not in self.parent_rate else measured
-            half = 1 << (lv - 1)
-            for octant in range(8):
-                bits = ((octant >> 0) & 1, (octant >> 1) & 1, (octant >> 2) & 1)
-                near = [ratios[0]] + [ratios[_FACE_COL[a][bits[a]]] for a in range(3)]
-                near = [r for r in near if np.isfinite(r)]
-                worst = max(near) if near else whole
-                child = (x + bits[0] * half, y + bits[1] * half, z + bits[2] * half, lv - 1)
-                self.parent_ratio[child] = float(worst)
+            rate = 1.0 if measured is None or key not in self.parent_rate else measured
+            lat = np.where(cols[:, None] >= 0, tests.lattice[np.maximum(cols, 0)], -1).astype(np.int64)
+            for child in child_keys(key, int(split[i])):
+                lo = np.array(child[:3], dtype=np.int64)
+                hi = lo + (1 << np.array(child[3:], dtype=np.int64))
+                # the parent's tests on the child's closed box (the octree: its centre and the three
+                # face centres of the child's octant)
+                inside = (cols >= 0) & ((lat >= lo) & (lat <= hi)).all(axis=1) & np.isfinite(ratios)
+                worst = float(ratios[inside].max()) if inside.any() else whole
+                self.parent_ratio[child] = worst
                 if measured is not None:
                     self.parent_rate[child] = measured
                 if worst / rate < 1.0:
@@ -797,7 +882,8 @@ class AdaptiveGroup:
     def stage_count(self) -> int:
         """An upper bound of the stages (probe bakes, test bakes, more rounds) of this group's
         refinement."""
-        return STAGES_PER_PASS * self.root_level + 2
+        return STAGES_PER_PASS * passes_bound(self.root_level, self.policy if self.axes else
+                                              Policy(axes=False)) + 2
 
     def stage_index(self) -> int:
         within = {"probes": 0, "tests": 1, "rounds": 2, "last": 1}[self.stage]

@@ -545,3 +545,40 @@ def test_policy_is_frozen_and_defaults_to_the_measured_knobs():
         p.predict = 2.0
     assert dataclasses.replace(p, predict=2.0).predict == 2.0 and p.predict == 4.0
     assert adaptive.stage_bound(0.5, 2.0) == 3 * 2 + 2
+
+
+def test_child_keys_halve_only_the_masked_axes_above_level_0():
+    # A 4×4×4-min-cell cube split along y: two 4×2×4 boxes, the upper one 2 min cells up.
+    assert adaptive.child_keys((0, 0, 0, 2, 2, 2), 0b010) == [(0, 0, 0, 2, 1, 2), (0, 2, 0, 2, 1, 2)]
+    # A slab at level 0 in y asked to split on every axis: x and z only, 4 children at (x, z) offsets 2.
+    kids = adaptive.child_keys((4, 3, 8, 2, 0, 1), 0b111)
+    assert sorted(kids) == sorted([(4 + 2 * i, 3, 8 + k, 1, 0, 0) for i in (0, 1) for k in (0, 1)])
+
+
+def test_direct_points_classify_the_points_inside_each_edge():
+    # One leaf 4 × 1 × 4 min cells (levels 2, 0, 2), 4 divisions: x and z steps of 1, y only its ends.
+    # 5·2·5 − 8 corners = 42 points; inside an x edge (y ∈ {0, 1}, z ∈ {0, 4}, x ∈ 1..3): 2·2·3 = 12,
+    # inside a z edge 12, a y edge has no inside point; the other 18 are off the edges.
+    leaves = np.array([[8, 4, 0, 2]], dtype=np.uint32)
+    lat, leaf, edge = adaptive.direct_points(leaves, np.array([[2, 0, 2]]), 4)
+    assert len(lat) == 42 and np.all(leaf == 0)
+    assert (edge == 0).sum() == 12 and (edge == 2).sum() == 12 and (edge == 1).sum() == 0
+    x_edge = lat[edge == 0]
+    assert set(map(int, x_edge[:, 0])) == {9, 10, 11} and set(map(int, x_edge[:, 2])) == {0, 4}
+    # A leaf at Min Cell Size on every axis has no points.
+    lat, _, _ = adaptive.direct_points(leaves, np.array([[0, 0, 0]]), 4)
+    assert len(lat) == 0
+
+
+def test_split_masks_follow_the_per_axis_rule():
+    levels = np.array([[2, 0, 2], [1, 1, 1], [3, 3, 3]])
+    leaf = np.array([0, 0, 1, 1, 2])
+    edge = np.array([0, -1, -1, 2, -1])
+    # leaf 0: an x-edge point and a middle point fail: x only; leaf 1: only its middle fails (its
+    # z-edge point passes): every axis; leaf 2: nothing fails.
+    fail = np.array([True, True, True, False, False])
+    assert list(adaptive.split_masks(3, levels, leaf, edge, fail, True)) == [0b001, 0b111, 0]
+    # a middle point alone in a leaf at level 0 in y: x and z
+    assert list(adaptive.split_masks(1, levels[:1], leaf[1:2], edge[1:2], fail[1:2], True)) == [0b101]
+    # the octree: every splittable axis where anything failed
+    assert list(adaptive.split_masks(3, levels, leaf, edge, fail, False)) == [0b101, 0b111, 0]
