@@ -63,6 +63,10 @@ def main():
                     help="adaptive.Policy.probe_noise of the adaptive bakes: a probe gets samples until its noise "
                          "is below this x Error Tolerance (default: the add-on's; each tolerance x tests x "
                          "predict is baked with each)")
+    ap.add_argument("--axes", choices=("on", "off"), nargs="+",
+                    default=["on" if adaptive.DEFAULT_POLICY.axes else "off"],
+                    help="adaptive.Policy.axes of the adaptive bakes: per-axis splits (on) or the octree's (off); "
+                         "both: one row each")
     ap.add_argument("--first-round", type=float, default=adaptive.DEFAULT_POLICY.first_round,
                     help="adaptive.Policy.first_round: each of a point's two first rounds renders this x --samples")
     ap.add_argument("--max-samples", type=float, default=adaptive.DEFAULT_POLICY.max_samples,
@@ -143,11 +147,11 @@ def main():
     out["floor_point_errors"] = [round(float(e), 5) for e in error(floor)]
     out["points_blender"] = blender_pts.round(4).tolist()
 
-    for tol, tests, pred, pn in [(tol, tests, pred, pn) for tol in a.tolerance for tests in a.tests
-                                 for pred in a.predict for pn in a.probe_noise]:
-        path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}_{pred:g}_{pn:g}.shprobe")
+    for tol, tests, pred, pn, axes in [(tol, tests, pred, pn, axes) for tol in a.tolerance for tests in a.tests
+                                       for pred in a.predict for pn in a.probe_noise for axes in a.axes]:
+        path = os.path.join(tmp, f"adaptive_{tol:g}_{tests}_{pred:g}_{pn:g}_{axes}.shprobe")
         policy = dataclasses.replace(adaptive.DEFAULT_POLICY, predict=pred, probe_noise=pn,
-                                     max_samples=a.max_samples, first_round=a.first_round)
+                                     max_samples=a.max_samples, first_round=a.first_round, axes=axes == "on")
         b = bake_core.ProbeBake(scene, layer, settings(placement="ADAPTIVE", error_tolerance=tol,
                                                        refinement_tests=tests, output_path=path), log=print,
                                 policy=policy)
@@ -163,7 +167,9 @@ def main():
         dropped = cache.rendered & ~kept
         out["rows"].append({"placement": "adaptive", "tolerance": tol, "tests": tests, "predict": pred,
                             "probe_noise": pn, "max_samples": a.max_samples, "first_round": a.first_round,
-                            "seconds": sec,
+                            "axes": axes == "on", "leaves": int(sum(g.tree.leaf_count for g in b.plan.groups)),
+                            "forced_splits": int(sum(getattr(g.tree, "forced_splits", 0) for g in b.plan.groups)),
+                            "file_version": int(f.version), "seconds": sec,
                             "cpu_seconds": cpu,
                             "probes": r.probe_count, "render_seconds": r.timings["render"],
                             "timings": {k: round(v, 2) for k, v in r.timings.items()},
