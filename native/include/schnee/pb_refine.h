@@ -34,7 +34,8 @@ typedef struct pb_refine_tests {
     int32_t *probe; /* point_count: index of the probe already at that point (its value is used, no bake), or −1 */
     uint32_t leaf_count;
     int32_t *leaf_tests; /* leaf_count × per_leaf test point indices, −1 for none */
-    uint32_t per_leaf;   /* 0 or 7: the octree's tests (PB_REFINE_TESTS_PER_LEAF); 14: per-axis tests */
+    uint32_t per_leaf;   /* columns of leaf_tests: 7 (or 0 in a struct filled by hand) the octree's tests
+                            (PB_REFINE_TESTS_PER_LEAF); 14 (PB_REFINE_AXIS_TESTS) per-axis tests */
 } pb_refine_tests;
 
 /* Test points of a finalized tree, optionally only for leaves whose `active` flag is set (NULL = all
@@ -57,25 +58,36 @@ typedef struct pb_refine_desc {
 } pb_refine_desc;
 
 /* Split flags (leaf_count bytes, 1 = split) and optionally each leaf's worst error and the
- * threshold it was held to (NULL to skip). Leaves without tests get error 0 and flag 0. */
+ * threshold it was held to (NULL to skip). Leaves without tests get error 0 and flag 0. Tests with
+ * per_leaf 14 (per-axis) are read too: a leaf splits when any of its tests fails. */
 pb_result pb_refine_decide(const pb_cotree *tree, const pb_refine_tests *tests, const pb_refine_desc *desc,
                            uint8_t *split, double *leaf_error, double *leaf_threshold, pb_error *err);
 
 /* ---- per-axis refinement (issue 29 item 3, docs/aniso-refinement.md "Tests and the split rule") ----
+ * For trees of boxes with per-axis levels (pb_cotree_leaf_levels); on a tree of cubes they are valid too
+ * (12 edge midpoints and the centre, all lattice points). Steps as above, with
+ * pb_refine_tests_create_axes, pb_refine_decide_axes and pb_cotree_split_axes.
  * Test columns of a leaf (per_leaf = 14): 4a + e for the 4 edges along axis a (e: bit 0 = the first other
  * axis at its max, bit 1 = the second; other axes in x, y, z order), the edge's midpoint, −1 where
  * l_a = 0; column 12 the middle of all splittable axes (the centre when all three levels are > 0; with
  * one level-0 axis the centre of the face across it at its min) and 13 (one level-0 axis: the face
- * centre at its max; else −1). With two level-0 axes only the one axis' edges. */
+ * centre at its max; else −1). With two level-0 axes only the one axis' edges. Shared points are one
+ * test point (lattice order), a point that is a probe is marked as in pb_refine_tests_create. */
 #define PB_REFINE_AXIS_TESTS 14
 pb_result pb_refine_tests_create_axes(const pb_cotree *tree, const uint8_t *active, pb_refine_tests **out,
                                       pb_error *err);
 /* Axis masks (leaf_count bytes: bit a = split along axis a) by the rule of docs/aniso-refinement.md: a
  * failing edge midpoint along a splits along a; a failing middle point splits along all its axes only
- * when no edge test of the leaf failed. Errors, thresholds as pb_refine_decide (the worst over the
- * leaf's tests). */
+ * when no edge test of the leaf failed; level-0 axes are never set. A test fails, and errors and
+ * thresholds are measured, exactly as in pb_refine_decide (the worst margin over the leaf's compared
+ * tests); the mask is nonzero exactly where pb_refine_decide on the same tests gives 1. Needs tests with
+ * per_leaf 14. */
 pb_result pb_refine_decide_axes(const pb_cotree *tree, const pb_refine_tests *tests, const pb_refine_desc *desc,
                                 uint8_t *axes, double *leaf_error, double *leaf_threshold, pb_error *err);
+/* The lattice point of test column `column` (0..13, layout above) of the box with min corner `corner`
+ * and levels `levels` (lattice units); false where the column has no test (e.g. an edge along a level-0
+ * axis). What pb_refine_tests_create_axes places, for a caller that reads tests by column. */
+bool pb_refine_axis_test_point(const uint32_t corner[3], const uint32_t levels[3], uint32_t column, uint32_t out[3]);
 
 /* Relative irradiance error, RMS over directions and RGB, of SH `a` against reference `ref`
  * (radiance SH, band max_band): ‖A·(a − ref)‖ / ‖A·ref‖ with A the Lambert band factors (exact, by
