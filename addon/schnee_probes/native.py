@@ -349,6 +349,9 @@ _IDENTITY_AXES = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 # (native/src/pb_shprobe.c, engine/ext/sv_ext.c) are compared with it by
 # tests/python/test_structure_names.py.
 STRUCTURES = ("grid", "octree", "tetrahedra")
+# Structure 3 (version 4 only, docs/shprobe-format.md "Version 4"): the kd corner tree of boxes with
+# per-axis levels. Not a glTF entry's structure name yet (the exporter's list above is version 3's).
+_FILE_STRUCTURES = STRUCTURES + ("kdtree",)
 
 
 @dataclass
@@ -373,13 +376,17 @@ class ShProbeFile:
     # octree or tetrahedra ``grid`` is None; ``coeffs`` holds 6 faces per probe for an ambient cube.
     representation: str = "sh"        # "sh" or "ambientCube"
     storage: str = "float32"          # "float32" or "float16" (in the file; arrays are float32)
-    structure: str = "grid"           # "grid", "octree" or "tetrahedra"
-    leaves: Optional[np.ndarray] = None           # (N, 4) uint32 x, y, z, level (octree)
+    structure: str = "grid"           # "grid", "octree", "tetrahedra" or (version 4) "kdtree"
+    leaves: Optional[np.ndarray] = None           # (N, 4) uint32 x, y, z, level (octree); kdtree: the
+    #                                               4th word packs the levels lx | ly << 8 | lz << 16
     leaf_corners: Optional[np.ndarray] = None     # (N, 8) int32 node indices (octree)
     hanging_sources: Optional[np.ndarray] = None  # (H, 4) uint32 (octree)
     hanging_weights: Optional[np.ndarray] = None  # (H, 4) float32 (octree)
     tets: Optional[np.ndarray] = None             # (N, 4) uint32 (tetrahedra)
     tet_neighbours: Optional[np.ndarray] = None   # (N, 4) int32, −1 = none (tetrahedra)
+    # Version 4 additions (structure "kdtree"): root level R and the split tree (K,) uint32.
+    root_level: int = 0
+    split_nodes: Optional[np.ndarray] = None
 
     @property
     def probe_count(self) -> int:
@@ -413,7 +420,9 @@ def _shprobe_from_dict(d: dict) -> ShProbeFile:
         grid_axes=tuple(tuple(r) for r in d["grid_axes"]),
         representation="ambientCube" if cube else "sh",
         storage="float16" if d.get("storage", 0) == 1 else "float32",
-        structure=STRUCTURES[d.get("structure", 0)],
+        structure=_FILE_STRUCTURES[d.get("structure", 0)],
+        root_level=d.get("root_level", 0),
+        split_nodes=None if d.get("split_nodes") is None else np.frombuffer(d["split_nodes"], dtype=np.uint32),
         leaves=_opt_rows(d.get("leaves"), np.uint32, 4),
         leaf_corners=_opt_rows(d.get("leaf_corners"), np.int32, 8),
         hanging_sources=_opt_rows(d.get("hanging_sources"), np.uint32, 4),

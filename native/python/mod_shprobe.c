@@ -32,11 +32,16 @@ static int header_into_dict(PyObject *d, const pb_shprobe *p)
                : 0;
 }
 
-/* Version 3 fields (versions 1/2 read back SH, float32, grid, no structure arrays). */
+/* Version 3 and 4 fields (versions 1/2 read back SH, float32, grid, no structure arrays; the kd corner
+ * tree's leaves hold packed levels, its root level and split tree follow). */
 static int v3_into_dict(PyObject *d, const pb_shprobe *p)
 {
-    size_t N = p->element_count, H = p->hanging_count;
-    bool oct = p->structure == PB_SHPROBE_OCTREE, tet = p->structure == PB_SHPROBE_TETRA;
+    size_t N = p->element_count, H = p->hanging_count, K = p->split_node_count;
+    bool kd = p->structure == PB_SHPROBE_KDTREE, tet = p->structure == PB_SHPROBE_TETRA;
+    bool oct = p->structure == PB_SHPROBE_OCTREE || kd;
+    if (_pb_py_dict_put(d, "root_level", PyLong_FromUnsignedLong(p->root_level)) < 0 ||
+        _pb_py_dict_put(d, "split_nodes", kd ? _pb_py_bytes_out(p->split_nodes, K * 4) : Py_NewRef(Py_None)) < 0)
+        return -1;
     return (_pb_py_dict_put(d, "representation", PyLong_FromUnsignedLong(p->representation)) < 0 ||
             _pb_py_dict_put(d, "storage", PyLong_FromUnsignedLong(p->storage)) < 0 ||
             _pb_py_dict_put(d, "structure", PyLong_FromUnsignedLong(p->structure)) < 0 ||

@@ -65,12 +65,52 @@ static const char *const structure_names[] = {"grid", "octree", "tetrahedra"};
 _Static_assert(sizeof structure_names / sizeof structure_names[0] == PB_SHPROBE_TETRA + 1,
                "one name per pb_shprobe_structure");
 
-const char *pb_shprobe_structure_name_(uint32_t s) { return s <= PB_SHPROBE_TETRA ? structure_names[s] : "grid"; }
+/* The kd corner tree (version 4 only) is named apart: the table above is the version 3 list. */
+const char *pb_shprobe_structure_name_(uint32_t s)
+{
+    return s == PB_SHPROBE_KDTREE ? "kd corner tree" : s <= PB_SHPROBE_TETRA ? structure_names[s] : "grid";
+}
+
+/* Root cells of a kd corner tree: prod ceil(dims / 2^R), in 64 bits (at most 2^60). */
+static uint64_t kd_root_cells(const uint32_t dims[3], uint32_t root_level)
+{
+    uint64_t g = 1;
+    for (int k = 0; k < 3; k++) g *= ((uint64_t)dims[k] + ((uint64_t)1 << root_level) - 1u) >> root_level;
+    return g;
+}
+
+/* Version 4 header fields of the kd corner tree (lattice extent already checked). */
+static pb_result check_kd_header(const pb_shprobe *h, pb_result code, pb_error *err)
+{
+    if (h->root_level > V3_MAX_LEVEL)
+        return pb_error_set(err, code, "root level %u at offset %u is out of range 0..%u", h->root_level,
+                            V4_ROOT_LEVEL, V3_MAX_LEVEL);
+    if (h->split_node_count > PB_SHPROBE_MAX_SPLIT_NODES)
+        return pb_error_set(err, PB_ERROR_TOO_LARGE, "%u split-tree nodes (offset %u) are above the limit of %u",
+                            h->split_node_count, V4_NODE_COUNT, PB_SHPROBE_MAX_SPLIT_NODES);
+    uint64_t g = kd_root_cells(h->grid_dims, h->root_level);
+    if (h->split_node_count < g)
+        return pb_error_set(err, code,
+                            "split-tree node count %u (offset %u) is below the %llu root cells of a %u x %u x %u "
+                            "lattice at root level %u",
+                            h->split_node_count, V4_NODE_COUNT, (unsigned long long)g, h->grid_dims[0],
+                            h->grid_dims[1], h->grid_dims[2], h->root_level);
+    return PB_SUCCESS;
+}
 
 /* Version 3 kind fields and structure counts: known values, limits, what each structure requires.
  * `code` is the result for a wrong value (format when reading, invalid argument when writing). */
-pb_result pb_shprobe_check_v3_kind_(const pb_shprobe *h, bool positions, pb_result code, pb_error *err)
+pb_result pb_shprobe_check_v3_kind_(uint32_t version, const pb_shprobe *h, bool positions, pb_result code,
+                                    pb_error *err)
 {
+    if (version == 4 && h->structure != PB_SHPROBE_KDTREE)
+        return pb_error_set(err, code,
+                            "structure %u at offset %u in a version 4 file; version 4 holds 3 = kd corner tree only "
+                            "(the others are version 3)",
+                            h->structure, V3_STRUCTURE);
+    if (version != 4 && h->structure == PB_SHPROBE_KDTREE)
+        return pb_error_set(err, code, "the kd corner tree (structure 3 at offset %u) needs version 4, not %u",
+                            V3_STRUCTURE, version);
     if (h->representation > PB_SHPROBE_AMBIENT_CUBE)
         return pb_error_set(err, code,
                             "unknown representation %u at offset %u; this reader knows 0 = SH, 1 = ambient cube",
@@ -78,7 +118,7 @@ pb_result pb_shprobe_check_v3_kind_(const pb_shprobe *h, bool positions, pb_resu
     if (h->storage > PB_SHPROBE_FLOAT16)
         return pb_error_set(err, code, "unknown storage %u at offset %u; this reader knows 0 = float32, 1 = binary16",
                             h->storage, V3_STORAGE);
-    if (h->structure > PB_SHPROBE_TETRA)
+    if (h->structure > PB_SHPROBE_TETRA && version != 4)
         return pb_error_set(err, code,
                             "unknown structure %u at offset %u; this reader knows 0 = grid, 1 = octree, 2 = tetrahedra",
                             h->structure, V3_STRUCTURE);
@@ -91,14 +131,14 @@ pb_result pb_shprobe_check_v3_kind_(const pb_shprobe *h, bool positions, pb_resu
     if (!positions)
         return pb_error_set(err, code, "the %s structure needs probe positions (flag bit 0 at offset 16)",
                             pb_shprobe_structure_name_(h->structure));
-    uint32_t limit = h->structure == PB_SHPROBE_OCTREE ? PB_SHPROBE_MAX_LEAVES : PB_SHPROBE_MAX_TETS;
+    bool tets = h->structure == PB_SHPROBE_TETRA;
+    uint32_t limit = tets ? PB_SHPROBE_MAX_TETS : PB_SHPROBE_MAX_LEAVES;
     if (h->element_count > limit)
         return pb_error_set(err, PB_ERROR_TOO_LARGE, "%u %s (offset %u) are above the limit of %u", h->element_count,
-                            h->structure == PB_SHPROBE_OCTREE ? "leaves" : "tetrahedra", V3_ELEMENTS, limit);
+                            tets ? "tetrahedra" : "leaves", V3_ELEMENTS, limit);
     if (h->element_count == 0)
         return pb_error_set(err, code, "the %s structure has no %s (offset %u)",
-                            pb_shprobe_structure_name_(h->structure),
-                            h->structure == PB_SHPROBE_OCTREE ? "leaves" : "tetrahedra", V3_ELEMENTS);
+                            pb_shprobe_structure_name_(h->structure), tets ? "tetrahedra" : "leaves", V3_ELEMENTS);
     if (h->structure == PB_SHPROBE_TETRA) {
         if (h->hanging_count != 0)
             return pb_error_set(err, code, "tetrahedra have no hanging nodes; the count at offset %u is %u", V3_HANGING,
@@ -117,7 +157,7 @@ pb_result pb_shprobe_check_v3_kind_(const pb_shprobe *h, bool positions, pb_resu
             return pb_error_set(err, h->grid_dims[i] ? PB_ERROR_TOO_LARGE : code,
                                 "octree lattice extent %c at offset %u is %u; it must be 1..%u min cells", "XYZ"[i],
                                 20u + 4u * (uint32_t)i, h->grid_dims[i], PB_SHPROBE_MAX_LATTICE);
-    return PB_SUCCESS;
+    return h->structure == PB_SHPROBE_KDTREE ? check_kd_header(h, code, err) : PB_SUCCESS;
 }
 
 /* The exact byte layout of a file; fails (code `fail`) when a size overflows 64 bits or size_t.
@@ -131,7 +171,7 @@ pb_result pb_shprobe_layout_compute_(uint32_t version, const pb_shprobe *h, bool
     lay->version = version;
     lay->positions = positions;
     lay->colour_bytes = 16u;
-    lay->structure = version == 3 ? h->structure : PB_SHPROBE_GRID;
+    lay->structure = version >= 3 ? h->structure : PB_SHPROBE_GRID;
     uint64_t header;
     if (version == 1) {
         lay->fields = &pb_shprobe_v1_fields_;
@@ -141,7 +181,7 @@ pb_result pb_shprobe_layout_compute_(uint32_t version, const pb_shprobe *h, bool
         lay->fields = &pb_shprobe_v2_fields_; /* version 3 keeps version 2's offsets up to 92 */
         lay->disk_coeffs = pb_sh_count(h->max_band);
         header = V2_HEADER_SIZE;
-        if (version == 3) {
+        if (version >= 3) {
             header = V3_HEADER_SIZE;
             lay->disk_coeffs = pb_shprobe_colour_count(h);
             lay->colour_bytes = h->storage == PB_SHPROBE_FLOAT16 ? 8u : 16u;
@@ -164,21 +204,23 @@ pb_result pb_shprobe_layout_compute_(uint32_t version, const pb_shprobe *h, bool
     /* Coefficient vec4s plus one vec4 (scale, ambient, validity, 0). */
     lay->record_size = (uint64_t)lay->colour_bytes * lay->disk_coeffs + 16u;
     lay->records_offset = header;
-    uint64_t records, pos_bytes = 0, grid_bytes = 0, hanging_bytes = 0, end;
+    uint64_t records, pos_bytes = 0, grid_bytes = 0, hanging_bytes = 0, node_bytes = 0, end;
     bool ok = mul_u64(probe_count, lay->record_size, &records);
     if (positions) ok = ok && mul_u64(probe_count, 16u, &pos_bytes);
     ok = ok && add_u64(header, records, &lay->positions_offset);
     ok = ok && add_u64(lay->positions_offset, pos_bytes, &lay->grid_offset);
     if (lay->structure == PB_SHPROBE_GRID) {
         ok = ok && mul_u64(lay->grid_cells, 4u, &grid_bytes);
-    } else if (lay->structure == PB_SHPROBE_OCTREE) {
+    } else if (lay->structure == PB_SHPROBE_OCTREE || lay->structure == PB_SHPROBE_KDTREE) {
         ok = ok && mul_u64(h->element_count, V3_LEAF_SIZE, &grid_bytes);
         ok = ok && mul_u64(h->hanging_count, V3_HANGING_SIZE, &hanging_bytes);
+        if (lay->structure == PB_SHPROBE_KDTREE) ok = ok && mul_u64(h->split_node_count, V4_NODE_SIZE, &node_bytes);
     } else {
         ok = ok && mul_u64(h->element_count, V3_TET_SIZE, &grid_bytes);
     }
     ok = ok && add_u64(lay->grid_offset, grid_bytes, &lay->hanging_offset);
-    ok = ok && add_u64(lay->hanging_offset, hanging_bytes, &end);
+    ok = ok && add_u64(lay->hanging_offset, hanging_bytes, &lay->split_offset);
+    ok = ok && add_u64(lay->split_offset, node_bytes, &end);
     if (!ok || end > (uint64_t)SIZE_MAX)
         return pb_error_set(err, fail, "file size overflows: %u probes, grid %u x %u x %u cells (version %u)",
                             probe_count, dims[0], dims[1], dims[2], version);
@@ -364,6 +406,7 @@ void pb_shprobe_destroy(pb_shprobe *probes)
     free(probes->hanging_weights);
     free(probes->tets);
     free(probes->tet_neighbours);
+    free(probes->split_nodes);
     free(probes);
 }
 /* ---- lookup ----------------------------------------------------------------------------------- */

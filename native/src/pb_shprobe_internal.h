@@ -26,6 +26,10 @@
 #define V3_HANGING_SIZE   32u /* 4 source node indices, 4 float weights */
 #define V3_TET_SIZE       32u /* 4 vertex indices, 4 neighbour indices */
 #define V3_MAX_LEVEL      20u
+#define V4_ROOT_LEVEL     112u /* version 4: root level R */
+#define V4_NODE_COUNT     116u /* version 4: split-tree node count K */
+#define V4_RESERVED       120u /* version 4: 8 bytes, must be 0 */
+#define V4_NODE_SIZE      4u
 #define HALF_MAX          65504.0f
 #define HANGING_SUM_TOL   1e-5
 
@@ -84,7 +88,8 @@ typedef struct layout {
     uint32_t disk_coeffs;  /* coefficient vec4s (colours) per probe record */
     uint32_t colour_bytes; /* 16 (float32 vec4) or 8 (binary16 ×4) */
     uint32_t structure;
-    uint64_t hanging_offset; /* octree: after the leaves */
+    uint64_t hanging_offset; /* octree, kd tree: after the leaves */
+    uint64_t split_offset;   /* kd tree: the split-tree nodes, after the hanging rules */
     bool positions;
     const field_offsets *fields;
     uint64_t grid_cells;
@@ -98,9 +103,11 @@ typedef struct layout {
 /* Name of a pb_shprobe_structure for messages ("grid" for an unknown value). */
 const char *pb_shprobe_structure_name_(uint32_t s);
 
-/* Version 3 kind fields and structure counts: known values, limits, what each structure requires.
- * `code` is the result for a wrong value (format when reading, invalid argument when writing). */
-pb_result pb_shprobe_check_v3_kind_(const pb_shprobe *h, bool positions, pb_result code, pb_error *err);
+/* Version 3 and 4 kind fields and structure counts: known values, limits, what each structure requires
+ * (version 4 holds the kd corner tree only, version 3 never). `code` is the result for a wrong value
+ * (format when reading, invalid argument when writing). */
+pb_result pb_shprobe_check_v3_kind_(uint32_t version, const pb_shprobe *h, bool positions, pb_result code,
+                                    pb_error *err);
 
 /* The exact byte layout of a file; fails (code `fail`) when a size overflows 64 bits or size_t.
  * Version 3 kind fields must have passed pb_shprobe_check_v3_kind_. */
@@ -114,9 +121,11 @@ pb_result pb_shprobe_check_header_values_(const pb_shprobe *p, const layout *lay
 /* Per-probe values and grid entries. `code` is the result for a range error (format when reading,
  * invalid argument when writing); NaN/Inf is always PB_ERROR_NON_FINITE. */
 pb_result pb_shprobe_check_contents_(const pb_shprobe *p, const layout *lay, pb_result code, pb_error *err);
-/* Version 3 (pb_shprobe_v3.c; called by pb_shprobe_check_contents_): octree leaves, corner references and hanging rules; tetrahedra and neighbours. Leaves must be in
- * Morton order of their min corners (z most significant): aligned cubes in that order do not overlap
- * exactly when each one's Morton range ends before the next one starts, so one pass proves it. */
+/* Versions 3 and 4 (pb_shprobe_v3.c; called by pb_shprobe_check_contents_): octree leaves, corner
+ * references and hanging rules; tetrahedra and neighbours; the kd corner tree's boxes and split tree.
+ * Octree leaves must be in Morton order of their min corners (z most significant): aligned cubes in that
+ * order do not overlap exactly when each one's Morton range ends before the next one starts, so one pass
+ * proves it. The kd tree's split tree proves the same for boxes (docs/shprobe-format.md "Version 4"). */
 pb_result pb_shprobe_check_structure_(const pb_shprobe *p, const layout *lay, pb_result code, pb_error *err);
 
 #endif

@@ -1,4 +1,4 @@
-/* `.shprobe` reader, versions 1 to 3: the header first (its exact size against the file's, limits
+/* `.shprobe` reader, versions 1 to 4: the header first (its exact size against the file's, limits
  * before anything is allocated), then the records and the structure, then the validation shared with
  * the writer (pb_shprobe.c). Files are opened without blocking, regular files only (pb_file.h).
  */
@@ -48,9 +48,9 @@ static pb_result parse_header(const uint8_t *data, size_t avail, uint64_t file_s
         return pb_error_set(err, PB_ERROR_FORMAT, "truncated: %llu bytes, the version at offset 4 needs 8",
                             (unsigned long long)file_size);
     uint32_t version = get_u32(data + 4);
-    if (version < 1 || version > 3)
+    if (version < 1 || version > 4)
         return pb_error_set(err, PB_ERROR_FORMAT,
-                            "unknown version %u at offset 4; this reader knows versions 1, 2 and 3", version);
+                            "unknown version %u at offset 4; this reader knows versions 1, 2, 3 and 4", version);
     uint32_t header_size = version == 1 ? V1_HEADER_SIZE : (version == 2 ? V2_HEADER_SIZE : V3_HEADER_SIZE);
     if (file_size < header_size || avail < header_size)
         return pb_error_set(err, PB_ERROR_FORMAT, "truncated: %llu bytes, the version %u header needs %u",
@@ -75,14 +75,23 @@ static pb_result parse_header(const uint8_t *data, size_t avail, uint64_t file_s
         if (pb_shprobe_axes_are_zero_(h->grid_axes))
             return pb_error_set(err, PB_ERROR_FORMAT, "grid axes at offset %u are all zero", f->axes);
     }
-    if (version == 3) {
+    if (version >= 3) {
         h->representation = get_u32(data + V3_REPRESENTATION);
         h->storage = get_u32(data + V3_STORAGE);
         h->structure = get_u32(data + V3_STRUCTURE);
         h->element_count = get_u32(data + V3_ELEMENTS);
         h->hanging_count = get_u32(data + V3_HANGING);
         for (int i = 0; i < 3; i++) h->grid_dims[i] = get_u32(data + f->dims + 4 * i);
-        pb_result kr = pb_shprobe_check_v3_kind_(h, (flags & V2_FLAG_POSITIONS) != 0, PB_ERROR_FORMAT, err);
+        if (version == 4) {
+            h->root_level = get_u32(data + V4_ROOT_LEVEL);
+            h->split_node_count = get_u32(data + V4_NODE_COUNT);
+            for (uint32_t k = 0; k < 2; k++)
+                if (get_u32(data + V4_RESERVED + 4u * k) != 0)
+                    return pb_error_set(err, PB_ERROR_FORMAT, "reserved word at offset %u is 0x%X; it must be 0",
+                                        V4_RESERVED + 4u * k, get_u32(data + V4_RESERVED + 4u * k));
+        }
+        pb_result kr =
+            pb_shprobe_check_v3_kind_(version, h, (flags & V2_FLAG_POSITIONS) != 0, PB_ERROR_FORMAT, err);
         if (kr != PB_SUCCESS) return kr;
     }
     for (int i = 0; i < 3; i++) {
@@ -127,7 +136,10 @@ pb_result pb_shprobe_read_memory(const void *data, size_t size, pb_shprobe **out
     if (r != PB_SUCCESS) return r;
 
     pb_shprobe *p = NULL;
-    if (h.version == 3)
+    if (h.version == 4)
+        r = pb_shprobe_create_v4(h.probe_count, h.representation, h.max_band, h.grid_dims, h.element_count,
+                                 h.hanging_count, h.root_level, h.split_node_count, &p, err);
+    else if (h.version == 3)
         r = pb_shprobe_create_v3(h.probe_count, h.representation, h.max_band, h.structure, h.grid_dims, h.element_count,
                                  h.hanging_count, &p, err);
     else
@@ -166,7 +178,7 @@ pb_result pb_shprobe_read_memory(const void *data, size_t size, pb_shprobe **out
     const uint8_t *grid = bytes + lay.grid_offset;
     if (lay.structure == PB_SHPROBE_GRID) {
         for (uint64_t j = 0; j < lay.grid_cells; j++) p->grid[j] = (int32_t)get_u32(grid + 4 * j);
-    } else if (lay.structure == PB_SHPROBE_OCTREE) {
+    } else if (lay.structure == PB_SHPROBE_OCTREE || lay.structure == PB_SHPROBE_KDTREE) {
         for (uint32_t i = 0; i < h.element_count; i++) {
             const uint8_t *l = grid + (size_t)V3_LEAF_SIZE * i;
             for (int k = 0; k < 4; k++) p->leaves[4u * i + (uint32_t)k] = get_u32(l + 4 * k);
@@ -178,6 +190,8 @@ pb_result pb_shprobe_read_memory(const void *data, size_t size, pb_shprobe **out
                 p->hanging_sources[4u * j + (uint32_t)k] = get_u32(hang + (size_t)V3_HANGING_SIZE * j + 4 * k);
                 p->hanging_weights[4u * j + (uint32_t)k] = get_f32(hang + (size_t)V3_HANGING_SIZE * j + 16 + 4 * k);
             }
+        for (uint32_t j = 0; j < h.split_node_count; j++)
+            p->split_nodes[j] = get_u32(bytes + lay.split_offset + (size_t)V4_NODE_SIZE * j);
     } else {
         for (uint32_t i = 0; i < h.element_count; i++)
             for (int k = 0; k < 4; k++) {

@@ -1,4 +1,4 @@
-/* `.shprobe` writer, versions 1 to 3: the smallest version that holds the data (or the one asked
+/* `.shprobe` writer, versions 1 to 4: the smallest version that holds the data (or the one asked
  * for), the validation shared with the reader (pb_shprobe.c), the bytes, and an atomic replace that
  * never overwrites anything but a .shprobe file (pb_file.h).
  */
@@ -52,6 +52,16 @@ static bool all_valid(const pb_shprobe *p)
 
 static pb_result choose_version(const pb_shprobe *p, uint32_t *version, pb_error *err)
 {
+    bool kd = p->structure == PB_SHPROBE_KDTREE;
+    if (kd && (p->version == 0 || p->version == 4)) {
+        *version = 4;
+        return PB_SUCCESS;
+    }
+    if (kd || p->version == 4)
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                            kd ? "version %u cannot hold a kd corner tree (structure 3); write version 4 or 0 (auto)"
+                               : "version %u holds the kd corner tree (structure 3) only; write version 3 or 0 (auto)",
+                            p->version);
     const char *needs3 = NULL;
     if (p->representation != PB_SHPROBE_SH)
         needs3 = "an ambient cube";
@@ -88,8 +98,8 @@ static pb_result choose_version(const pb_shprobe *p, uint32_t *version, pb_error
     if (p->version == 1 && needs2)
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
                             "version 1 cannot hold %s (max band %u); write version 2 or 0 (auto)", needs2, p->max_band);
-    if (p->version > 3)
-        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "unknown version %u to write; known: 1, 2, 3 (0 = auto)",
+    if (p->version > 4)
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "unknown version %u to write; known: 1, 2, 3, 4 (0 = auto)",
                             p->version);
     *version = p->version;
     return PB_SUCCESS;
@@ -103,7 +113,11 @@ static uint8_t *serialize(const pb_shprobe *p, const layout *lay)
     put_u32(b, PB_SHPROBE_MAGIC);
     put_u32(b + 4, lay->version);
     put_u32(b + f->count, p->probe_count);
-    if (lay->version == 3) {
+    if (lay->version == 4) {
+        put_u32(b + V4_ROOT_LEVEL, p->root_level);
+        put_u32(b + V4_NODE_COUNT, p->split_node_count);
+    }
+    if (lay->version >= 3) {
         put_u32(b + V3_REPRESENTATION, p->representation);
         put_u32(b + V3_STORAGE, p->storage);
         put_u32(b + V3_STRUCTURE, p->structure);
@@ -148,7 +162,7 @@ static uint8_t *serialize(const pb_shprobe *p, const layout *lay)
     uint8_t *grid = b + lay->grid_offset;
     if (lay->structure == PB_SHPROBE_GRID) {
         for (uint64_t j = 0; j < lay->grid_cells; j++) put_u32(grid + 4 * j, (uint32_t)p->grid[j]);
-    } else if (lay->structure == PB_SHPROBE_OCTREE) {
+    } else if (lay->structure == PB_SHPROBE_OCTREE || lay->structure == PB_SHPROBE_KDTREE) {
         for (uint32_t i = 0; i < p->element_count; i++) {
             uint8_t *l = grid + (size_t)V3_LEAF_SIZE * i;
             for (int k = 0; k < 4; k++) put_u32(l + 4 * k, p->leaves[4u * i + (uint32_t)k]);
@@ -160,6 +174,8 @@ static uint8_t *serialize(const pb_shprobe *p, const layout *lay)
                 put_u32(hang + (size_t)V3_HANGING_SIZE * j + 4 * k, p->hanging_sources[4u * j + (uint32_t)k]);
                 put_f32(hang + (size_t)V3_HANGING_SIZE * j + 16 + 4 * k, p->hanging_weights[4u * j + (uint32_t)k]);
             }
+        for (uint32_t j = 0; lay->structure == PB_SHPROBE_KDTREE && j < p->split_node_count; j++)
+            put_u32(b + lay->split_offset + (size_t)V4_NODE_SIZE * j, p->split_nodes[j]);
     } else {
         for (uint32_t i = 0; i < p->element_count; i++)
             for (int k = 0; k < 4; k++) {
@@ -226,17 +242,18 @@ pb_result pb_shprobe_write(const char *path, const pb_shprobe *probes, pb_error 
         r = pb_error_set(&local, PB_ERROR_INVALID_ARGUMENT, "max band %u is out of range 0..%d", p->max_band,
                          PB_SH_MAX_BAND);
     if (r == PB_SUCCESS) r = choose_version(p, &version, &local);
-    if (r == PB_SUCCESS && version == 3)
-        r = pb_shprobe_check_v3_kind_(p, p->positions != NULL, PB_ERROR_INVALID_ARGUMENT, &local);
+    if (r == PB_SUCCESS && version >= 3)
+        r = pb_shprobe_check_v3_kind_(version, p, p->positions != NULL, PB_ERROR_INVALID_ARGUMENT, &local);
     if (r == PB_SUCCESS)
         r = pb_shprobe_layout_compute_(version, p, p->positions != NULL, PB_ERROR_TOO_LARGE, &lay, &local);
     if (r == PB_SUCCESS && p->probe_count > 0 && !p->coeffs)
         r = pb_error_set(&local, PB_ERROR_INVALID_ARGUMENT, "coeffs is NULL");
     if (r == PB_SUCCESS && lay.structure == PB_SHPROBE_GRID && !p->grid)
         r = pb_error_set(&local, PB_ERROR_INVALID_ARGUMENT, "grid is NULL");
-    if (r == PB_SUCCESS && lay.structure == PB_SHPROBE_OCTREE &&
-        (!p->leaves || !p->leaf_corners || (p->hanging_count && (!p->hanging_sources || !p->hanging_weights))))
-        r = pb_error_set(&local, PB_ERROR_INVALID_ARGUMENT, "octree leaves, corners or hanging rules are NULL");
+    if (r == PB_SUCCESS && (lay.structure == PB_SHPROBE_OCTREE || lay.structure == PB_SHPROBE_KDTREE) &&
+        (!p->leaves || !p->leaf_corners || (p->hanging_count && (!p->hanging_sources || !p->hanging_weights)) ||
+         (lay.structure == PB_SHPROBE_KDTREE && !p->split_nodes)))
+        r = pb_error_set(&local, PB_ERROR_INVALID_ARGUMENT, "leaves, corners, hanging rules or split tree are NULL");
     if (r == PB_SUCCESS && lay.structure == PB_SHPROBE_TETRA && (!p->tets || !p->tet_neighbours))
         r = pb_error_set(&local, PB_ERROR_INVALID_ARGUMENT, "tetrahedra or neighbours are NULL");
     if (r == PB_SUCCESS) r = pb_shprobe_check_header_values_(p, &lay, PB_ERROR_INVALID_ARGUMENT, &local);

@@ -82,7 +82,7 @@ def v3_scene(d, data, count):
 
 
 def test_version_3_loads_and_an_unknown_version_or_structure_is_named(tmp_path):
-    # docs/user-guide.md "What can go wrong": the engine reads versions 1, 2 and 3 (a v3 octree
+    # docs/user-guide.md "What can go wrong": the engine reads versions 1 to 4 (a v3 octree
     # loads); a version or a v3 structure it does not know ends the run naming the value, the
     # offset and what it knows (the bake's reader's words), before any frame.
     data, count = v3_octree_bytes(tmp_path)
@@ -92,10 +92,14 @@ def test_version_3_loads_and_an_unknown_version_or_structure_is_named(tmp_path):
     assert (tmp_path / "ok.png").stat().st_size > 0
     shprobe = tmp_path / "sh_coeffs" / "p.shprobe"
     for mutate, message in [
-        (lambda d: corrupt(d, 4, struct.pack("<I", 4)),
-         "unknown version 4 at offset 4; this reader knows versions 1, 2 and 3"),
+        (lambda d: corrupt(d, 4, struct.pack("<I", 5)),
+         "unknown version 5 at offset 4; this reader knows versions 1, 2, 3 and 4"),
+        (lambda d: corrupt(d, 100, struct.pack("<I", 4)),
+         "unknown structure 4 at offset 100; this reader knows 0 = grid, 1 = octree, 2 = tetrahedra"),
         (lambda d: corrupt(d, 100, struct.pack("<I", 3)),
-         "unknown structure 3 at offset 100; this reader knows 0 = grid, 1 = octree, 2 = tetrahedra"),
+         "the kd corner tree (structure 3 at offset 100) needs version 4, not 3"),
+        (lambda d: corrupt(d, 4, struct.pack("<I", 4)),
+         "structure 1 at offset 100 in a version 4 file; version 4 holds 3 = kd corner tree only"),
     ]:
         gltf = v3_scene(tmp_path, mutate(data), count)
         proc = viewer.run(gltf, "--headless", "--output", tmp_path / "x.png", "--width", 8, "--height", 8)

@@ -338,7 +338,7 @@ static void test_read_rejects(void)
         {1, SIZE_MAX, 0, 3 - (long)n1, PB_ERROR_FORMAT, "truncated: 3 bytes"},
         {1, 0, 0x52504853u, 0, PB_ERROR_FORMAT, "not a .shprobe file (bad magic: it does not start with \"SPHR\""},
         {1, SIZE_MAX, 0, 6 - (long)n1, PB_ERROR_FORMAT, "the version at offset 4"},
-        {1, 4, 4, 0, PB_ERROR_FORMAT, "unknown version 4 at offset 4"},
+        {1, 4, 5, 0, PB_ERROR_FORMAT, "unknown version 5 at offset 4; this reader knows versions 1, 2, 3 and 4"},
         {1, 4, 0, 0, PB_ERROR_FORMAT, "unknown version 0 at offset 4"},
         {1, SIZE_MAX, 0, 47 - (long)n1, PB_ERROR_FORMAT, "the version 1 header needs 48"},
         {1, SIZE_MAX, 0, -1, PB_ERROR_FORMAT, "truncated: 415 bytes, but 2 probes"},

@@ -1,4 +1,4 @@
-/* Schnee probes — `.shprobe` files (DESIGN.md §4; versions 2 and 3 in docs/shprobe-format.md).
+/* Schnee probes — `.shprobe` files (DESIGN.md §4; versions 2 to 4 in docs/shprobe-format.md).
  *
  * How to use it:
  *   writing: pb_shprobe_create() with the probe count, band and grid dims, fill the arrays,
@@ -36,6 +36,9 @@ extern "C" {
 #define PB_SHPROBE_MAX_HANGING (UINT32_C(1) << 26) /* hanging nodes (32 B each) */
 #define PB_SHPROBE_MAX_TETS    (UINT32_C(1) << 27) /* tetrahedra (32 B each) */
 #define PB_SHPROBE_MAX_LATTICE (UINT32_C(1) << 20) /* octree lattice extent per axis, min cells */
+/* Version 4 (structure 3, the kd corner tree): split-tree nodes (4 B each). */
+#define PB_SHPROBE_MAX_SPLIT_NODES (UINT32_C(1) << 28)
+#define PB_SHPROBE_SPLIT_EMPTY     ((UINT32_C(1) << 30) - 1u) /* a leaf node's index: no leaf (outside) */
 
 typedef enum pb_shprobe_representation {
     PB_SHPROBE_SH = 0,           /* radiance SH of band max_band: pb_sh_count(max_band) colours per probe */
@@ -51,13 +54,15 @@ typedef enum pb_shprobe_structure {
     PB_SHPROBE_GRID = 0,   /* dense occupancy grid (versions 1, 2; 3 optional) */
     PB_SHPROBE_OCTREE = 1, /* corner octree: leaves with 8 corner nodes, hanging-node rules (version 3) */
     PB_SHPROBE_TETRA = 2,  /* Delaunay tetrahedra with neighbours (version 3) */
+    PB_SHPROBE_KDTREE = 3, /* kd corner tree: boxes with per-axis levels and their split tree (version 4,
+                              docs/aniso-refinement.md); a tree of cubes is written as OCTREE */
 } pb_shprobe_structure;
 
 typedef struct pb_shprobe {
     uint32_t version; /* version read, or to write: 0 = smallest that holds the data
                                 (1 for max_band <= 2 without positions, identity axes and every
-                                validity 1; 3 for an ambient cube, binary16 or a structure other
-                                than the grid; else 2) */
+                                validity 1; 4 for the kd corner tree; 3 for an ambient cube, binary16
+                                or another structure than the grid; else 2) */
     uint32_t probe_count;
     uint32_t max_band;      /* 0..4; version 1 files always read back as 2 (9 coefficients) */
     uint32_t grid_dims[3];  /* X, Y, Z */
@@ -83,12 +88,19 @@ typedef struct pb_shprobe {
     uint32_t structure;        /* pb_shprobe_structure */
     uint32_t element_count;    /* octree leaves or tetrahedra */
     uint32_t hanging_count;    /* octree hanging nodes */
-    uint32_t *leaves;          /* element_count × (x, y, z, level), Morton order */
+    uint32_t *leaves;          /* element_count × (x, y, z, level), Morton order of min corners; KDTREE:
+                                  (x, y, z, levels packed lx | ly << 8 | lz << 16, PB_LEVELS_PACK) */
     int32_t *leaf_corners;     /* element_count × 8 node indices: [0, P) probes, [P, P+H) hanging nodes */
     uint32_t *hanging_sources; /* hanging_count × 4 node indices (probes or earlier hanging nodes) */
     float *hanging_weights;    /* hanging_count × 4, ≥ 0, sum 1 (unused sources: weight 0) */
     uint32_t *tets;            /* element_count × 4 probe indices */
     int32_t *tet_neighbours;   /* element_count × 4: neighbour opposite vertex i, or −1 */
+    /* Added with version 4 (structure KDTREE; docs/shprobe-format.md "Version 4"). */
+    uint32_t root_level;       /* R: Max Cell Size = 2^R min cells; the root grid is ceil(grid_dims / 2^R) */
+    uint32_t split_node_count; /* K */
+    uint32_t *split_nodes;     /* K nodes, 0..G-1 the root cells (x fastest). Bits 0-1: 0 leaf, 1/2/3 split
+                                  along x/y/z; bits 2-31: the leaf's index (PB_SHPROBE_SPLIT_EMPTY: none)
+                                  or the split's lower child (upper = lower + 1) */
 } pb_shprobe;
 
 /* Colours per probe record: pb_sh_count(max_band) for SH, 6 for an ambient cube. */
