@@ -36,6 +36,7 @@ extern PyMethodDef _pb_py_sh_methods[];
 extern PyMethodDef _pb_py_placement_methods[];
 extern PyMethodDef _pb_py_shprobe_methods[];
 extern PyMethodDef _pb_py_interp_methods[];
+extern PyMethodDef _pb_py_refine_axes_methods[]; /* mod_refine_axes.c: pb_refine.h per-axis tests, decisions */
 extern PyMethodDef _pb_py_direct_methods[];
 
 /* Raises the registered error class (native.SchneeError) with the core's message and `.code`.
