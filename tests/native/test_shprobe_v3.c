@@ -329,7 +329,7 @@ static void test_read_rejects(void)
     const reject_case cases[] = {
         {92, 2, 0, PB_ERROR_FORMAT, "unknown representation 2 at offset 92; this reader knows 0 = SH, 1 = ambient"},
         {96, 7, 0, PB_ERROR_FORMAT, "unknown storage 7 at offset 96"},
-        {100, 3, 0, PB_ERROR_FORMAT, "unknown structure 3 at offset 100"},
+        {100, 4, 0, PB_ERROR_FORMAT, "unknown structure 4 at offset 100"},
         {16, 0, 0, PB_ERROR_FORMAT, "the octree structure needs probe positions (flag bit 0 at offset 16)"},
         {104, 0, 0, PB_ERROR_FORMAT, "the octree structure has no leaves (offset 104)"},
         {104, (1u << 26) + 1, 0, PB_ERROR_TOO_LARGE, "67108865 leaves (offset 104) are above the limit of 67108864"},
