@@ -10,6 +10,7 @@ set(PB_BASE_SOURCES
   src/pb_ambient_cube.c
   src/pb_interp.c
   src/pb_cotree.c
+  src/pb_cotree_boxes.c
   src/pb_tetra.c
   src/pb_interp_v3.c
   src/pb_refine.c

@@ -11,6 +11,12 @@
  * corners can hang only on leaves larger than D (a corner of D has coordinates that are multiples of
  * D's size, so it cannot lie inside a face of a leaf of D's size or smaller), so resolving hanging
  * nodes from the largest host down needs each source only once, and the recursion ends.
+ *
+ * Boxes with per-axis levels (docs/aniso-refinement.md): the same argument needs the nesting rule (two
+ * leaves sharing part of a face: one's face contains the other's; finalize forces splits until it
+ * holds, pb_cotree_boxes.c), the host becomes the leaf whose face holds the corner in its interior,
+ * else the one with the longest edge holding it, and the order of resolution the potential (a source's
+ * is strictly larger). A tree of cubes keeps the octree's host and order above, bit for bit.
  */
 #define _POSIX_C_SOURCE 200809L
 #include "schnee/pb_cotree.h"
@@ -47,57 +53,112 @@ void pb_cotree_destroy(pb_cotree *tree)
     if (!tree) return;
     cotree_clear_nodes(tree);
     hmap_free(&tree->leaf_map);
+    hmap_free(&tree->root_map);
+    free(tree->split_nodes);
     free(tree->leaves);
+    free(tree->levels);
     free(tree);
 }
 
+typedef struct leaf_rec {
+    uint64_t morton;
+    uint32_t l[4], lv[3];
+} leaf_rec;
+
 static int cmp_leaf_morton(const void *pa, const void *pb)
 {
-    const uint32_t *a = pa, *b = pb;
-    uint64_t ma = pb_morton3_(a[0], a[1], a[2]), mb = pb_morton3_(b[0], b[1], b[2]);
-    if (ma != mb) return ma < mb ? -1 : 1;
-    return a[3] < b[3] ? 1 : (a[3] > b[3] ? -1 : 0); /* larger first: an overlap shows as nesting */
+    const leaf_rec *a = pa, *b = pb;
+    if (a->morton != b->morton) return a->morton < b->morton ? -1 : 1;
+    return a->l[3] < b->l[3] ? 1 : (a->l[3] > b->l[3] ? -1 : 0); /* larger first: an overlap shows as nesting */
 }
 
-/* Sorts the leaves, rebuilds the corner map and checks alignment, bounds and non-overlap. */
+/* "level 3" for a cube, "levels (3, 1, 3)" for a box: the leaf's levels in a message. */
+static const char *levels_text(const uint32_t lv[3], char buf[48])
+{
+    if (lv[0] == lv[1] && lv[1] == lv[2])
+        snprintf(buf, 48, "level %u", lv[0]);
+    else
+        snprintf(buf, 48, "levels (%u, %u, %u)", lv[0], lv[1], lv[2]);
+    return buf;
+}
+
+/* Sorts the leaves (Morton order of min corners; per-axis levels along), checks levels, alignment,
+ * bounds and non-overlap, and rebuilds the corner map and the split tree (point location). */
 static pb_result cotree_index_leaves(pb_cotree *t, pb_error *err)
 {
-    qsort(t->leaves, t->leaf_count, 4 * sizeof(uint32_t), cmp_leaf_morton);
+    uint32_t n = t->leaf_count;
+    leaf_rec *rec = malloc(((size_t)n + 1) * sizeof *rec);
+    if (!rec) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %u leaves", n);
+    for (uint32_t i = 0; i < n; i++) {
+        memcpy(rec[i].l, t->leaves + 4u * i, 3 * sizeof(uint32_t));
+        memcpy(rec[i].lv, t->levels + 3u * i, 3 * sizeof(uint32_t));
+        uint32_t m = rec[i].lv[0] > rec[i].lv[1] ? rec[i].lv[0] : rec[i].lv[1];
+        rec[i].l[3] = m > rec[i].lv[2] ? m : rec[i].lv[2];
+        rec[i].morton = pb_morton3_(rec[i].l[0], rec[i].l[1], rec[i].l[2]);
+    }
+    qsort(rec, n, sizeof *rec, cmp_leaf_morton);
+    for (uint32_t i = 0; i < n; i++) {
+        memcpy(t->leaves + 4u * i, rec[i].l, 4 * sizeof(uint32_t));
+        memcpy(t->levels + 3u * i, rec[i].lv, 3 * sizeof(uint32_t));
+    }
+    free(rec);
     hmap_free(&t->leaf_map);
-    if (!hmap_init(&t->leaf_map, t->leaf_count))
-        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %u leaves", t->leaf_count);
+    hmap_free(&t->root_map);
+    free(t->split_nodes);
+    t->split_nodes = NULL;
+    t->split_count = 0;
     t->max_level = 0;
+    t->cubes = true;
+    for (uint32_t i = 0; i < n && t->cubes; i++) {
+        const uint32_t *lv = t->levels + 3u * i;
+        t->cubes = lv[0] == lv[1] && lv[1] == lv[2];
+    }
+    char lt[48];
     uint64_t prev_end = 0;
-    for (uint32_t i = 0; i < t->leaf_count; i++) {
-        const uint32_t *l = t->leaves + 4u * i;
+    for (uint32_t i = 0; i < n; i++) {
+        const uint32_t *l = t->leaves + 4u * i, *lv = t->levels + 3u * i;
         if (l[3] > PB_COTREE_MAX_LEVEL)
             return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "leaf %u has level %u, above the limit %u", i, l[3],
                                 PB_COTREE_MAX_LEVEL);
-        uint32_t s = 1u << l[3];
+        if (l[3] > t->root_level)
+            return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "leaf %u has level %u, above the root level %u", i,
+                                l[3], t->root_level);
         for (int k = 0; k < 3; k++) {
-            if (l[k] % s != 0)
+            uint32_t s = 1u << lv[k];
+            if (l[k] % s != 0 && t->cubes)
                 return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
                                     "leaf %u at (%u, %u, %u) level %u is not aligned to its size %u", i, l[0], l[1],
                                     l[2], l[3], s);
+            if (l[k] % s != 0)
+                return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                                    "leaf %u at (%u, %u, %u) %s is not aligned to its size %u on axis %c", i, l[0],
+                                    l[1], l[2], levels_text(lv, lt), s, "XYZ"[k]);
             if ((uint64_t)l[k] + s > t->dims[k])
                 return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                                    "leaf %u at (%u, %u, %u) level %u reaches past the lattice extent %u on axis %c", i,
-                                    l[0], l[1], l[2], l[3], t->dims[k], "XYZ"[k]);
+                                    "leaf %u at (%u, %u, %u) %s reaches past the lattice extent %u on axis %c", i,
+                                    l[0], l[1], l[2], levels_text(lv, lt), t->dims[k], "XYZ"[k]);
         }
+        if (l[3] > t->max_level) t->max_level = l[3];
+        if (!t->cubes) continue; /* cubes: the octree's Morton check; boxes: the split tree proves it */
         uint64_t start = pb_morton3_(l[0], l[1], l[2]);
         if (i > 0 && start < prev_end)
             return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
                                 "leaf %u at (%u, %u, %u) level %u overlaps another leaf", i, l[0], l[1], l[2], l[3]);
         prev_end = start + ((uint64_t)1 << (3u * l[3]));
+    }
+    pb_result r = _pb_cotree_index_split_tree(t, err);
+    if (r != PB_SUCCESS) return r;
+    if (!hmap_init(&t->leaf_map, n)) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %u leaves", n);
+    for (uint32_t i = 0; i < n; i++) {
         bool inserted;
-        *hmap_put(&t->leaf_map, pack3(l[0], l[1], l[2]), &inserted) = i;
-        if (l[3] > t->max_level) t->max_level = l[3];
+        *hmap_put(&t->leaf_map, pack3(t->leaves[4u * i], t->leaves[4u * i + 1], t->leaves[4u * i + 2]), &inserted) = i;
     }
     return PB_SUCCESS;
 }
 
-static pb_result cotree_alloc(const double origin[3], double min_cell, const uint32_t dims[3], pb_cotree **out,
-                              pb_error *err)
+/* A tree with room for n leaves (leaves and levels uninitialised, leaf_count n). */
+static pb_result cotree_alloc(const double origin[3], double min_cell, const uint32_t dims[3], uint64_t n,
+                              pb_cotree **out, pb_error *err)
 {
     if (!origin || !dims || !out) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "corner octree: NULL argument");
     *out = NULL;
@@ -111,10 +172,31 @@ static pb_result cotree_alloc(const double origin[3], double min_cell, const uin
                                 PB_COTREE_MAX_AXIS);
     }
     pb_cotree *t = calloc(1, sizeof *t);
-    if (!t) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory");
+    if (t) {
+        t->leaves = malloc(((size_t)n + 1) * 4 * sizeof(uint32_t));
+        t->levels = malloc(((size_t)n + 1) * 3 * sizeof(uint32_t));
+    }
+    if (!t || !t->leaves || !t->levels) {
+        pb_cotree_destroy(t);
+        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu leaves", (unsigned long long)n);
+    }
     memcpy(t->origin, origin, sizeof t->origin);
     t->h = min_cell;
     memcpy(t->dims, dims, sizeof t->dims);
+    t->leaf_count = (uint32_t)n;
+    *out = t;
+    return PB_SUCCESS;
+}
+
+/* Indexes a freshly filled tree; destroys it on failure. */
+static pb_result cotree_publish(pb_cotree *t, pb_cotree **out, pb_error *err)
+{
+    pb_result r = cotree_index_leaves(t, err);
+    if (r != PB_SUCCESS) {
+        pb_cotree_destroy(t);
+        *out = NULL;
+        return r;
+    }
     *out = t;
     return PB_SUCCESS;
 }
@@ -142,54 +224,69 @@ pb_result pb_cotree_create(const double origin[3], double min_cell, uint32_t roo
         return pb_error_set(err, PB_ERROR_TOO_LARGE, "%llu root leaves are above the limit of %u leaves",
                             (unsigned long long)n, PB_COTREE_MAX_LEAVES);
     pb_cotree *t;
-    pb_result r = cotree_alloc(origin, min_cell, dims, &t, err);
+    pb_result r = cotree_alloc(origin, min_cell, dims, n, &t, err);
     if (r != PB_SUCCESS) return r;
-    t->leaves = malloc((size_t)n * 4 * sizeof(uint32_t));
-    if (!t->leaves) {
-        pb_cotree_destroy(t);
-        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu leaves", (unsigned long long)n);
-    }
+    t->root_level = root_level;
     uint32_t s = 1u << root_level, i = 0;
     for (uint32_t z = 0; z < root_dims[2]; z++)
         for (uint32_t y = 0; y < root_dims[1]; y++)
             for (uint32_t x = 0; x < root_dims[0]; x++, i++) {
-                uint32_t *l = t->leaves + 4u * i;
+                uint32_t *l = t->leaves + 4u * i, *lv = t->levels + 3u * i;
                 l[0] = x * s, l[1] = y * s, l[2] = z * s, l[3] = root_level;
+                lv[0] = lv[1] = lv[2] = root_level;
             }
-    t->leaf_count = (uint32_t)n;
-    r = cotree_index_leaves(t, err);
-    if (r != PB_SUCCESS) {
-        pb_cotree_destroy(t);
-        return r;
-    }
-    *out = t;
+    return cotree_publish(t, out, err);
+}
+
+static pb_result check_leaf_count(const uint32_t *leaves, uint32_t leaf_count, pb_error *err)
+{
+    if (leaf_count > 0 && !leaves) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "corner octree: NULL leaves");
+    if (leaf_count > PB_COTREE_MAX_LEAVES)
+        return pb_error_set(err, PB_ERROR_TOO_LARGE, "%u leaves are above the limit of %u leaves", leaf_count,
+                            PB_COTREE_MAX_LEAVES);
     return PB_SUCCESS;
 }
 
 pb_result pb_cotree_create_leaves(const double origin[3], double min_cell, const uint32_t dims[3],
                                   const uint32_t *leaves, uint32_t leaf_count, pb_cotree **out, pb_error *err)
 {
-    if (leaf_count > 0 && !leaves) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "corner octree: NULL leaves");
-    if (leaf_count > PB_COTREE_MAX_LEAVES)
-        return pb_error_set(err, PB_ERROR_TOO_LARGE, "%u leaves are above the limit of %u leaves", leaf_count,
-                            PB_COTREE_MAX_LEAVES);
-    pb_cotree *t;
-    pb_result r = cotree_alloc(origin, min_cell, dims, &t, err);
+    pb_result r = check_leaf_count(leaves, leaf_count, err);
+    pb_cotree *t = NULL;
+    if (r == PB_SUCCESS) r = cotree_alloc(origin, min_cell, dims, leaf_count, &t, err);
     if (r != PB_SUCCESS) return r;
-    t->leaves = malloc(((size_t)leaf_count + 1u) * 4 * sizeof(uint32_t));
-    if (!t->leaves) {
-        pb_cotree_destroy(t);
-        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %u leaves", leaf_count);
+    for (uint32_t i = 0; i < leaf_count; i++) {
+        memcpy(t->leaves + 4u * i, leaves + 4u * i, 4 * sizeof(uint32_t));
+        uint32_t lv = leaves[4u * i + 3];
+        for (int k = 0; k < 3; k++) t->levels[3u * i + (uint32_t)k] = lv;
+        if (lv > t->root_level) t->root_level = lv > PB_COTREE_MAX_LEVEL ? PB_COTREE_MAX_LEVEL : lv;
     }
-    if (leaf_count) memcpy(t->leaves, leaves, (size_t)leaf_count * 4 * sizeof(uint32_t));
-    t->leaf_count = leaf_count;
-    r = cotree_index_leaves(t, err);
-    if (r != PB_SUCCESS) {
-        pb_cotree_destroy(t);
-        return r;
+    return cotree_publish(t, out, err);
+}
+
+pb_result pb_cotree_create_boxes(const double origin[3], double min_cell, uint32_t root_level, const uint32_t dims[3],
+                                 const uint32_t *leaves, uint32_t leaf_count, pb_cotree **out, pb_error *err)
+{
+    pb_result r = check_leaf_count(leaves, leaf_count, err);
+    if (r != PB_SUCCESS) return r;
+    if (root_level > PB_COTREE_MAX_LEVEL)
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "root level %u is above the limit %u", root_level,
+                            PB_COTREE_MAX_LEVEL);
+    for (uint32_t i = 0; i < leaf_count; i++)
+        if (leaves[4u * i + 3] >> 24)
+            return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                                "leaf %u: the levels word 0x%08x is not PB_LEVELS_PACK(lx, ly, lz) (top byte not 0)", i,
+                                leaves[4u * i + 3]);
+    pb_cotree *t;
+    r = cotree_alloc(origin, min_cell, dims, leaf_count, &t, err);
+    if (r != PB_SUCCESS) return r;
+    t->root_level = root_level;
+    for (uint32_t i = 0; i < leaf_count; i++) {
+        const uint32_t *l = leaves + 4u * i;
+        memcpy(t->leaves + 4u * i, l, 3 * sizeof(uint32_t));
+        uint32_t *lv = t->levels + 3u * i;
+        lv[0] = PB_LEVEL_X(l[3]), lv[1] = PB_LEVEL_Y(l[3]), lv[2] = PB_LEVEL_Z(l[3]);
     }
-    *out = t;
-    return PB_SUCCESS;
+    return cotree_publish(t, out, err);
 }
 
 pb_result pb_cotree_drop(pb_cotree *t, const uint8_t *drop, pb_error *err)
@@ -197,54 +294,110 @@ pb_result pb_cotree_drop(pb_cotree *t, const uint8_t *drop, pb_error *err)
     if (!t || !drop) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_drop: NULL argument");
     uint32_t n = 0;
     for (uint32_t i = 0; i < t->leaf_count; i++)
-        if (!drop[i]) memmove(t->leaves + 4u * n++, t->leaves + 4u * i, 4 * sizeof(uint32_t));
+        if (!drop[i]) {
+            memmove(t->leaves + 4u * n, t->leaves + 4u * i, 4 * sizeof(uint32_t));
+            memmove(t->levels + 3u * n++, t->levels + 3u * i, 3 * sizeof(uint32_t));
+        }
     t->leaf_count = n;
     cotree_clear_nodes(t);
     return cotree_index_leaves(t, err);
 }
 
-pb_result pb_cotree_split(pb_cotree *t, const uint8_t *split, uint32_t *split_count, pb_error *err)
+/* The axes of mask m (bits 0-2) on which leaf i can halve (level > 0). */
+static uint32_t split_mask(const pb_cotree *t, uint32_t i, uint32_t m)
 {
-    if (!t || !split) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_split: NULL argument");
+    const uint32_t *lv = t->levels + 3u * i;
+    return m & 7u & ((lv[0] > 0) | (lv[1] > 0) << 1 | (lv[2] > 0) << 2);
+}
+
+pb_result pb_cotree_split_axes(pb_cotree *t, const uint8_t *axes, uint32_t *split_count, pb_error *err)
+{
+    if (!t || !axes) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_split: NULL argument");
     uint64_t n = 0, splits = 0;
     for (uint32_t i = 0; i < t->leaf_count; i++) {
-        bool s = split[i] && t->leaves[4u * i + 3] > 0;
-        n += s ? 8u : 1u;
-        splits += s;
+        uint32_t m = split_mask(t, i, axes[i]);
+        n += 1u << ((m & 1u) + (m >> 1 & 1u) + (m >> 2 & 1u));
+        splits += m != 0;
     }
     if (n > PB_COTREE_MAX_LEAVES)
         return pb_error_set(err, PB_ERROR_TOO_LARGE, "splitting %llu leaves gives %llu leaves, above the limit of %u",
                             (unsigned long long)splits, (unsigned long long)n, PB_COTREE_MAX_LEAVES);
-    uint32_t *nl = malloc((size_t)(n + 1) * 4 * sizeof(uint32_t));
-    if (!nl) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu leaves", (unsigned long long)n);
+    uint32_t *nl = malloc((size_t)(n + 1) * 4 * sizeof(uint32_t)), *nv = malloc((size_t)(n + 1) * 3 * sizeof(uint32_t));
+    if (!nl || !nv) {
+        free(nl);
+        free(nv);
+        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %llu leaves", (unsigned long long)n);
+    }
     uint32_t k = 0;
     for (uint32_t i = 0; i < t->leaf_count; i++) {
-        const uint32_t *l = t->leaves + 4u * i;
-        if (split[i] && l[3] > 0) {
-            uint32_t s = 1u << (l[3] - 1);
-            for (uint32_t c = 0; c < 8; c++, k++) {
-                uint32_t *o = nl + 4u * k;
-                o[0] = l[0] + (c & 1 ? s : 0), o[1] = l[1] + (c & 2 ? s : 0), o[2] = l[2] + (c & 4 ? s : 0);
-                o[3] = l[3] - 1;
+        const uint32_t *l = t->leaves + 4u * i, *lv = t->levels + 3u * i;
+        uint32_t m = split_mask(t, i, axes[i]), kids = 1u << ((m & 1u) + (m >> 1 & 1u) + (m >> 2 & 1u));
+        for (uint32_t c = 0; c < kids; c++, k++) {
+            uint32_t *o = nl + 4u * k, *ov = nv + 3u * k, bit = 0;
+            memcpy(o, l, 4 * sizeof(uint32_t));
+            memcpy(ov, lv, 3 * sizeof(uint32_t));
+            for (int a = 0; a < 3; a++) {
+                if (!((m >> a) & 1u)) continue;
+                ov[a]--;
+                if ((c >> bit++) & 1u) o[a] += 1u << ov[a];
             }
-        } else {
-            memcpy(nl + 4u * k++, l, 4 * sizeof(uint32_t));
         }
     }
     free(t->leaves);
+    free(t->levels);
     t->leaves = nl;
+    t->levels = nv;
     t->leaf_count = k;
     cotree_clear_nodes(t);
     if (split_count) *split_count = (uint32_t)splits;
     return cotree_index_leaves(t, err);
 }
 
+pb_result pb_cotree_split(pb_cotree *t, const uint8_t *split, uint32_t *split_count, pb_error *err)
+{
+    if (!t || !split) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_split: NULL argument");
+    uint8_t *axes = malloc((size_t)t->leaf_count + 1u);
+    if (!axes) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %u split flags", t->leaf_count);
+    for (uint32_t i = 0; i < t->leaf_count; i++) axes[i] = split[i] ? 7u : 0u;
+    pb_result r = pb_cotree_split_axes(t, axes, split_count, err);
+    free(axes);
+    return r;
+}
+
 typedef struct node_tmp {
     uint32_t p[3];
     int32_t host;   /* leaf it hangs on, −1 = probe */
-    uint32_t level; /* host level */
+    uint32_t level; /* sort key of a hanging node: cubes its host's level, boxes its potential */
     uint64_t morton;
 } node_tmp;
+
+/* A lattice point's potential (docs/aniso-refinement.md, "Resolution order"): the sum over the axes of
+ * its trailing zero bits, each capped at R + 1 (0 counts R + 1). A hanging node's sources have a
+ * strictly larger one, so resolving by decreasing potential finds every source resolved. */
+static uint32_t potential(const uint32_t p[3], uint32_t R)
+{
+    uint32_t sum = 0;
+    for (int k = 0; k < 3; k++) {
+        uint32_t z = 0;
+        while (z <= R && !((p[k] >> z) & 1u)) z++;
+        sum += z;
+    }
+    return sum;
+}
+
+/* Host key of leaf li for corner node p, 0 when p is one of its corners. Cubes (the octree's rule):
+ * 1 + the leaf's level, the largest leaf wins. Boxes: a face that holds p in its interior before any
+ * edge (100 per axis on which p is inside the leaf's extent), then the larger face / longer edge (the
+ * levels of those axes). Ties: the lower leaf index. */
+static uint32_t host_key(const pb_cotree *t, uint32_t li, const uint32_t p[3])
+{
+    const uint32_t *l = t->leaves + 4u * li, *lv = t->levels + 3u * li;
+    uint32_t inside = 0, sum = 0;
+    for (int k = 0; k < 3; k++)
+        if (p[k] != l[k] && p[k] != l[k] + (1u << lv[k])) inside++, sum += lv[k];
+    if (!inside) return 0;
+    return t->cubes ? 1u + l[3] : 100u * inside + sum;
+}
 
 static int cmp_node(const void *pa, const void *pb)
 {
@@ -259,6 +412,11 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
 {
     if (!t) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_finalize: NULL tree");
     cotree_clear_nodes(t);
+    t->forced = 0;
+    if (!t->cubes) { /* cubes never cross */
+        pb_result r = _pb_cotree_apply_nesting(t, err);
+        if (r != PB_SUCCESS) return r;
+    }
     size_t maxn = (size_t)t->leaf_count * 8u;
     node_tmp *nodes = malloc((maxn + 1) * sizeof *nodes);
     bool ok = nodes && hmap_init(&t->node_map, maxn);
@@ -269,10 +427,10 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
     /* Unique corner points. */
     size_t n = 0;
     for (uint32_t i = 0; i < t->leaf_count; i++) {
-        const uint32_t *l = t->leaves + 4u * i;
-        uint32_t s = 1u << l[3];
+        const uint32_t *l = t->leaves + 4u * i, *lv = t->levels + 3u * i;
         for (uint32_t c = 0; c < 8; c++) {
-            uint32_t p[3] = {l[0] + (c & 1 ? s : 0), l[1] + (c & 2 ? s : 0), l[2] + (c & 4 ? s : 0)};
+            uint32_t p[3];
+            for (int k = 0; k < 3; k++) p[k] = l[k] + ((c >> k) & 1u ? 1u << lv[k] : 0u);
             bool inserted;
             uint32_t *v = hmap_put(&t->node_map, pack3(p[0], p[1], p[2]), &inserted);
             if (!inserted) continue;
@@ -284,7 +442,8 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
             nd->morton = pb_morton3_(p[0], p[1], p[2]);
         }
     }
-    /* Hanging test: the largest leaf around p that has p on its boundary but not as a corner. */
+    /* Hanging test: among the leaves around p that have p on their boundary but not as a corner, the
+     * host by host_key(). */
     for (size_t j = 0; j < n; j++) {
         node_tmp *nd = nodes + j;
         for (uint32_t o = 0; o < 8; o++) {
@@ -299,17 +458,13 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
             if (!inside) continue;
             int32_t li = locate_cell(t, q);
             if (li < 0) continue;
-            const uint32_t *l = t->leaves + 4u * (uint32_t)li;
-            uint32_t s = 1u << l[3];
-            bool corner = true;
-            for (int k = 0; k < 3; k++)
-                if (nd->p[k] != l[k] && nd->p[k] != l[k] + s) corner = false;
-            if (corner) continue;
-            if (nd->host < 0 || l[3] > nd->level || (l[3] == nd->level && li < nd->host)) {
+            uint32_t key = host_key(t, (uint32_t)li, nd->p);
+            if (key && (nd->host < 0 || key > nd->level || (key == nd->level && li < nd->host))) {
                 nd->host = li;
-                nd->level = l[3];
+                nd->level = key;
             }
         }
+        if (nd->host >= 0 && !t->cubes) nd->level = potential(nd->p, t->root_level);
     }
     qsort(nodes, n, sizeof *nodes, cmp_node);
     uint32_t P = 0;
@@ -341,16 +496,16 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
     uint32_t e = 0;
     for (uint32_t hI = 0; hI < H; hI++) {
         const node_tmp *nd = nodes + P + hI;
-        const uint32_t *l = t->leaves + 4u * (uint32_t)nd->host;
-        double s = (double)(1u << l[3]), tt[3], w8[8];
-        for (int k = 0; k < 3; k++) tt[k] = ((double)nd->p[k] - l[k]) / s;
+        const uint32_t *l = t->leaves + 4u * (uint32_t)nd->host, *lv = t->levels + 3u * (uint32_t)nd->host;
+        double tt[3], w8[8];
+        for (int k = 0; k < 3; k++) tt[k] = ((double)nd->p[k] - l[k]) / (double)(1u << lv[k]);
         trilinear8(tt, w8);
         uint32_t ns = 0, cnt = 0;
         t->exp_start[hI] = e;
         for (uint32_t c = 0; c < 8; c++) {
             if (w8[c] <= 0.0) continue;
-            uint32_t cs = 1u << l[3];
-            uint32_t cp[3] = {l[0] + (c & 1 ? cs : 0), l[1] + (c & 2 ? cs : 0), l[2] + (c & 4 ? cs : 0)};
+            uint32_t cp[3];
+            for (int k = 0; k < 3; k++) cp[k] = l[k] + ((c >> k) & 1u ? 1u << lv[k] : 0u);
             uint32_t src;
             if (!hmap_get(&t->node_map, pack3(cp[0], cp[1], cp[2]), &src) || src >= P + hI || ns >= 4) {
                 uint32_t at[3] = {nd->p[0], nd->p[1], nd->p[2]};
@@ -387,12 +542,11 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
     }
     free(nodes);
     for (uint32_t i = 0; i < t->leaf_count; i++) {
-        const uint32_t *l = t->leaves + 4u * i;
-        uint32_t s = 1u << l[3];
+        const uint32_t *l = t->leaves + 4u * i, *lv = t->levels + 3u * i;
         for (uint32_t c = 0; c < 8; c++) {
-            uint32_t v = 0;
-            (void)hmap_get(&t->node_map, pack3(l[0] + (c & 1 ? s : 0), l[1] + (c & 2 ? s : 0), l[2] + (c & 4 ? s : 0)),
-                           &v);
+            uint32_t v = 0, p[3];
+            for (int k = 0; k < 3; k++) p[k] = l[k] + ((c >> k) & 1u ? 1u << lv[k] : 0u);
+            (void)hmap_get(&t->node_map, pack3(p[0], p[1], p[2]), &v);
             t->corners[8u * i + c] = (int32_t)v;
         }
     }
@@ -404,10 +558,10 @@ uint32_t pb_cotree_leaf_count(const pb_cotree *t) { return t ? t->leaf_count : 0
 const uint32_t *pb_cotree_leaves(const pb_cotree *t) { return t ? t->leaves : NULL; }
 void pb_cotree_leaf_levels(const pb_cotree *t, uint32_t *out)
 {
-    if (!t || !out) return;
-    for (uint32_t i = 0; i < t->leaf_count; i++)
-        for (int k = 0; k < 3; k++) out[3u * i + (uint32_t)k] = t->leaves[4u * i + 3u];
+    if (t && out) memcpy(out, t->levels, (size_t)t->leaf_count * 3 * sizeof(uint32_t));
 }
+uint32_t pb_cotree_root_level(const pb_cotree *t) { return t ? t->root_level : 0; }
+uint32_t pb_cotree_forced_splits(const pb_cotree *t) { return t ? t->forced : 0; }
 uint32_t pb_cotree_probe_count(const pb_cotree *t) { return t && t->finalized ? t->probe_count : 0; }
 uint32_t pb_cotree_hanging_count(const pb_cotree *t) { return t && t->finalized ? t->hanging_count : 0; }
 const uint32_t *pb_cotree_probe_lattice(const pb_cotree *t) { return t && t->finalized ? t->probe_lattice : NULL; }
@@ -455,10 +609,11 @@ pb_result pb_cotree_pair_visibility(const pb_cotree *t, pb_segment_fn segment, v
     if (!t || !segment || (!out && t->leaf_count))
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_pair_visibility: NULL argument");
     for (uint32_t i = 0; i < t->leaf_count; i++) {
-        const uint32_t *l = t->leaves + 4u * i;
-        double s = (double)(1u << l[3]), p[8][3];
+        const uint32_t *l = t->leaves + 4u * i, *lv = t->levels + 3u * i;
+        double p[8][3];
         for (uint32_t c = 0; c < 8; c++)
-            for (int k = 0; k < 3; k++) p[c][k] = t->origin[k] + ((double)l[k] + ((c >> k) & 1u ? s : 0.0)) * t->h;
+            for (int k = 0; k < 3; k++)
+                p[c][k] = t->origin[k] + ((double)l[k] + ((c >> k) & 1u ? (double)(1u << lv[k]) : 0.0)) * t->h;
         uint8_t *o = out + 64u * i;
         for (uint32_t k = 0; k < 8; k++)
             for (uint32_t c = 0; c < 8; c++) {

@@ -1,5 +1,6 @@
 /* Interpolation between probes at their real positions (pb_interp.h; docs/placement.md,
- * "Interpolation"): point location in the corner octree and in the tetrahedra, and the weights over
+ * "Interpolation"; boxes: docs/aniso-refinement.md): point location in the corner octree (the split
+ * tree's descent, locate_cell in pb_interp_internal.h) and in the tetrahedra, and the weights over
  * the probes, with the visibility field, validity and a visibility judge. The structures are built in
  * pb_cotree.c and pb_tetra.c. shaders/shading.glsl mirrors locate_point_cell() and leaf_weights().
  */
@@ -140,10 +141,11 @@ static void expand_weights(const pb_cotree *t, int32_t li, const double w8[8], c
 static void leaf_weights(const pb_cotree *t, int32_t li, const double u[3], const double point[3],
                          const pb_interp_options *opt, pb_interp_weights *out)
 {
-    const uint32_t *l = t->leaves + 4u * (uint32_t)li;
-    double s = (double)(1u << l[3]), tt[3], w8[8];
+    /* Trilinear in t = (u − min) / s with the per-axis size s = 2^l_a (docs/aniso-refinement.md). */
+    const uint32_t *l = t->leaves + 4u * (uint32_t)li, *lv = t->levels + 3u * (uint32_t)li;
+    double tt[3], w8[8];
     for (int k = 0; k < 3; k++) {
-        tt[k] = (u[k] - l[k]) / s;
+        tt[k] = (u[k] - l[k]) / (double)(1u << lv[k]);
         tt[k] = tt[k] < 0.0 ? 0.0 : (tt[k] > 1.0 ? 1.0 : tt[k]);
     }
     trilinear8(tt, w8);

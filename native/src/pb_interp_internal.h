@@ -96,10 +96,19 @@ struct pb_cotree {
     double origin[3];
     double h;
     uint32_t dims[3];
-    uint32_t *leaves; /* leaf_count × (x, y, z, level) */
+    uint32_t *leaves; /* leaf_count × (x, y, z, level): level = the largest of the leaf's three */
+    uint32_t *levels; /* leaf_count × (lx, ly, lz): per-axis levels (docs/aniso-refinement.md) */
     uint32_t leaf_count;
     uint32_t max_level;
-    hmap leaf_map; /* pack(min corner) → leaf */
+    uint32_t root_level; /* R: Max Cell Size = 2^R min cells; every level ≤ R */
+    bool cubes;          /* every leaf has lx = ly = lz: the corner octree's rules, bit for bit */
+    uint32_t forced;     /* leaves split by the nesting rule in the last finalize */
+    hmap leaf_map;       /* pack(min corner) → leaf */
+    /* Point location: the canonical split tree of the non-empty root cells (pb_cotree_boxes.c),
+     * root_map: pack(root cell) → its node; nodes in the file's format (pb_cotree.h). */
+    hmap root_map;
+    uint32_t *split_nodes;
+    uint32_t split_count;
     bool finalized;
     uint32_t probe_count;
     uint32_t *probe_lattice; /* probe_count × 3 */
@@ -131,16 +140,49 @@ struct pb_tetra {
 
 /* ---- helpers of several parts ------------------------------------------------------------------------ */
 
+/* Descent of a split tree (pb_cotree.h) from `node`, the box (lo, lv) on entry, to the leaf holding
+ * lattice cell q: its index, or −1 where the tree has no leaf (an empty node, or a malformed node
+ * splitting an axis at level 0). lo, lv end as the box reached (a leaf's, or the empty box's). At most
+ * lv_x + lv_y + lv_z steps. */
+static inline int32_t split_descend(const uint32_t *nodes, uint32_t node, uint32_t lo[3], uint32_t lv[3],
+                                    const uint32_t q[3])
+{
+    for (;;) {
+        uint32_t nd = nodes[node], ax = nd & 3u;
+        if (!ax) return (nd >> 2) == ((UINT32_C(1) << 30) - 1u) ? -1 : (int32_t)(nd >> 2);
+        uint32_t a = ax - 1u;
+        if (!lv[a]) return -1;
+        lv[a]--;
+        uint32_t upper = q[a] >= lo[a] + (1u << lv[a]);
+        if (upper) lo[a] += 1u << lv[a];
+        node = (nd >> 2) + upper;
+    }
+}
+
+/* The box (lo, lv) holding lattice cell q (q < dims): a leaf's (its index returned) or an empty one
+ * (−1; the whole root cell where the root has no leaf). */
+static inline int32_t locate_box(const pb_cotree *t, const uint32_t q[3], uint32_t lo[3], uint32_t lv[3])
+{
+    uint32_t R = t->root_level, node;
+    for (int k = 0; k < 3; k++) lo[k] = q[k] >> R << R, lv[k] = R;
+    if (!hmap_get(&t->root_map, pack3(q[0] >> R, q[1] >> R, q[2] >> R), &node)) return -1;
+    return split_descend(t->split_nodes, node, lo, lv, q);
+}
+
 /* Leaf holding the unit lattice cell with min corner q, or −1. */
 static inline int32_t locate_cell(const pb_cotree *t, const uint32_t q[3])
 {
-    for (uint32_t lv = 0; lv <= t->max_level; lv++) {
-        uint32_t mask = ~((1u << lv) - 1u), i;
-        if (hmap_get(&t->leaf_map, pack3(q[0] & mask, q[1] & mask, q[2] & mask), &i) && t->leaves[4u * i + 3] == lv)
-            return (int32_t)i;
-    }
-    return -1;
+    uint32_t lo[3], lv[3];
+    return locate_box(t, q, lo, lv);
 }
+
+/* Internal parts of pb_cotree_boxes.c used by pb_cotree.c. */
+/* Builds the split tree of t's (sorted) leaves into t->split_nodes / root_map; fails (invalid
+ * argument) where the leaves overlap or are not 2:1 splits of the root cells. */
+pb_result _pb_cotree_index_split_tree(pb_cotree *t, pb_error *err);
+/* The nesting rule (docs/aniso-refinement.md): sweeps of forced splits until no two face neighbours
+ * cross; t->forced counts the leaves split. */
+pb_result _pb_cotree_apply_nesting(pb_cotree *t, pb_error *err);
 
 /* Adds w·(node's expansion) into a small merged list. */
 static inline bool merge_add(uint32_t *probe, double *weight, uint32_t *count, uint32_t cap, uint32_t p, double w)

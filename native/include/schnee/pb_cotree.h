@@ -59,7 +59,8 @@ typedef struct pb_cotree pb_cotree;
 pb_result pb_cotree_create(const double origin[3], double min_cell, uint32_t root_level, const uint32_t root_dims[3],
                            pb_cotree **out, pb_error *err);
 /* A tree from explicit leaves (4 uint32 each: x, y, z lattice min corner, level), e.g. a file's.
- * Leaves must be aligned (x, y, z multiples of 2^level), inside `dims`, and not overlap. */
+ * Leaves must be aligned (x, y, z multiples of 2^level), inside `dims`, and not overlap. Root level:
+ * the largest leaf level. */
 pb_result pb_cotree_create_leaves(const double origin[3], double min_cell, const uint32_t dims[3],
                                   const uint32_t *leaves, uint32_t leaf_count, pb_cotree **out, pb_error *err);
 /* ---- boxes with per-axis levels (issue 29 item 3, docs/aniso-refinement.md) --------------------------
@@ -74,7 +75,8 @@ pb_result pb_cotree_create_leaves(const double origin[3], double min_cell, const
 /* A tree from explicit boxes (4 uint32 each: x, y, z lattice min corner, packed levels
  * PB_LEVELS_PACK), e.g. a version-4 file's. root_level R: Max Cell Size = 2^R min cells (every level
  * ≤ R; the split tree's root grid is ceil(dims / 2^R)). Boxes must be aligned, inside `dims`, not
- * overlap. */
+ * overlap, and be what 2:1 splits of the root cells make (a split tree exists); the nesting rule is not
+ * checked here: finalize enforces it by forced splits. Leaves are then in Morton order of min corners. */
 pb_result pb_cotree_create_boxes(const double origin[3], double min_cell, uint32_t root_level, const uint32_t dims[3],
                                  const uint32_t *leaves, uint32_t leaf_count, pb_cotree **out, pb_error *err);
 /* leaf_count × 3 levels (lx, ly, lz), leaves in pb_cotree_leaves() order. */
@@ -90,20 +92,32 @@ uint32_t pb_cotree_forced_splits(const pb_cotree *tree); /* by the last finalize
 /* The canonical split tree (docs/aniso-refinement.md "Point location", "Canonical split tree"): *count
  * nodes, nodes 0..G-1 the root cells (x fastest, G = prod ceil(dims / 2^R)); bits 0-1: 0 leaf, 1/2/3 split
  * along x/y/z; bits 2-31: a leaf's index in pb_cotree_leaves() order (2^30 - 1 = empty) or a split's
- * lower child (upper = lower + 1). nodes NULL: only *count. Requires finalize. */
+ * lower child (upper = lower + 1). At every box the split is along the lowest axis whose middle plane no
+ * leaf crosses, so the tree depends on the leaves alone. Nodes depth first: a split's two children are
+ * appended, then the lower child's subtree, then the upper's; roots in order. nodes NULL: only *count
+ * (capacity below *count: invalid argument). Of the current leaves: after finalize, the final ones. */
 pb_result pb_cotree_split_tree(const pb_cotree *tree, uint32_t *nodes, uint32_t capacity, uint32_t *count,
                                pb_error *err);
 #define PB_SPLIT_TREE_EMPTY ((UINT32_C(1) << 30) - 1u)
+/* The descent (docs/aniso-refinement.md "Point location"): the leaf index a split tree holds for the
+ * unit lattice cell with min corner q, or −1 (outside the root grid, an empty node, or a split of an axis
+ * already at level 0). At most 3·root_level steps. `nodes` must be a split tree whose child indices are
+ * in range (pb_cotree_split_tree's, or a file's after the reader's checks). */
+int32_t pb_cotree_split_tree_find(const uint32_t *nodes, const uint32_t root_grid[3], uint32_t root_level,
+                                  const uint32_t q[3]);
 
 /* Drops leaves whose flag is nonzero (e.g. outside the probe volumes); not finalized afterwards. */
 pb_result pb_cotree_drop(pb_cotree *tree, const uint8_t *drop, pb_error *err);
 /* Replaces every leaf whose flag is nonzero and whose level is > 0 by its 8 children (flags of
- * level-0 leaves are ignored: Min Cell Size is the limit). Leaf order: Morton order of min corners.
+ * level-0 leaves are ignored: Min Cell Size is the limit; a box halves along its axes above level 0). Leaf order: Morton order of min corners.
  * The tree must be finalized again afterwards. *split_count (optional) = leaves split. */
 pb_result pb_cotree_split(pb_cotree *tree, const uint8_t *split, uint32_t *split_count, pb_error *err);
 /* Numbers the probes (non-hanging corner nodes, in Morton order of their lattice point) and builds
  * the hanging rules. Fails (PB_ERROR_TOO_LARGE) if a hanging node would depend on more than 32 probes
- * (only in pathologically unbalanced trees). */
+ * (only in pathologically unbalanced trees). With boxes (docs/aniso-refinement.md) it first applies the
+ * nesting rule (forced splits: leaf indices change), a hanging corner's host is the leaf whose face
+ * holds it in its interior, else the one with the longest edge holding it, and the rules are in
+ * decreasing potential (ties: Morton order). A tree of cubes: the octree's rules and order, unchanged. */
 pb_result pb_cotree_finalize(pb_cotree *tree, pb_error *err);
 void pb_cotree_destroy(pb_cotree *tree);
 
