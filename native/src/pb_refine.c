@@ -57,6 +57,24 @@ pb_result _pb_refine_tests_number(const pb_cotree *tree, pb_refine_tests *t, _pb
     return PB_SUCCESS;
 }
 
+/* The octree's tests are for cubes: a box's centre and face centres need not be lattice points. */
+static pb_result check_cubes(const pb_cotree *tree, pb_error *err)
+{
+    uint32_t L = pb_cotree_leaf_count(tree), *levels = malloc(((size_t)L + 1) * 3 * sizeof(uint32_t));
+    if (!levels) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for the levels of %u leaves", L);
+    pb_cotree_leaf_levels(tree, levels);
+    pb_result r = PB_SUCCESS;
+    for (uint32_t i = 0; i < L && r == PB_SUCCESS; i++) {
+        const uint32_t *lv = levels + 3u * i;
+        if (lv[0] != lv[1] || lv[1] != lv[2])
+            r = pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                             "leaf %u is a box (levels %u, %u, %u): test it with pb_refine_tests_create_axes", i, lv[0],
+                             lv[1], lv[2]);
+    }
+    free(levels);
+    return r;
+}
+
 pb_result pb_refine_tests_create(const pb_cotree *tree, const uint8_t *active, pb_refine_tests **out, pb_error *err)
 {
     if (!tree || !out) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_refine_tests_create: NULL argument");
@@ -65,6 +83,8 @@ pb_result pb_refine_tests_create(const pb_cotree *tree, const uint8_t *active, p
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "the corner octree is not finalized");
     uint32_t L = pb_cotree_leaf_count(tree);
     const uint32_t *leaves = pb_cotree_leaves(tree);
+    pb_result r = check_cubes(tree, err);
+    if (r != PB_SUCCESS) return r;
     pb_refine_tests *t = calloc(1, sizeof *t);
     _pb_test_key *keys = malloc(((size_t)L * PB_REFINE_TESTS_PER_LEAF + 1) * sizeof *keys);
     if (t) t->leaf_tests = malloc(((size_t)L * PB_REFINE_TESTS_PER_LEAF + 1) * sizeof(int32_t));
@@ -93,7 +113,7 @@ pb_result pb_refine_tests_create(const pb_cotree *tree, const uint8_t *active, p
             nk++;
         }
     }
-    pb_result r = _pb_refine_tests_number(tree, t, keys, nk, err);
+    r = _pb_refine_tests_number(tree, t, keys, nk, err);
     free(keys);
     if (r != PB_SUCCESS) {
         pb_refine_tests_destroy(t);

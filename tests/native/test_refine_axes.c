@@ -393,6 +393,137 @@ static void test_invalid_tests_skipped(void)
     pb_cotree_destroy(t);
 }
 
+/* ---- box trees -------------------------------------------------------------------------------- */
+
+/* One box of levels (lx, ly, lz) at the origin, min cell 1 m, R = 2, lattice dims. */
+static pb_cotree *boxes(const uint32_t dims[3], const uint32_t *leaves, uint32_t n)
+{
+    const double o[3] = {0, 0, 0};
+    pb_cotree *t = NULL;
+    pb_error err = {0};
+    if (pb_cotree_create_boxes(o, 1.0, 2, dims, leaves, n, &t, &err) != PB_SUCCESS) return NULL;
+    if (pb_cotree_finalize(t, &err) != PB_SUCCESS) {
+        pb_cotree_destroy(t);
+        return NULL;
+    }
+    return t;
+}
+
+/* The test points of a tree are exactly the `n` lattice points `want` (in any order). */
+static void check_points(const pb_refine_tests *tests, const uint32_t want[][3], uint32_t n)
+{
+    TU_CHECK(tests->point_count == n);
+    for (uint32_t w = 0; w < n; w++) {
+        uint32_t found = 0;
+        for (uint32_t j = 0; j < tests->point_count; j++)
+            found += memcmp(tests->lattice + 3 * j, want[w], 3 * sizeof(uint32_t)) == 0;
+        TU_CHECK(found == 1);
+    }
+}
+
+static void test_box_test_points(void)
+{
+    pb_error err = {0};
+    pb_refine_tests *tests = NULL;
+    /* A slab 4 × 1 × 4 (levels 2, 0, 2): 4 x edges at x = 2 (y in {0, 1}, z in {0, 4}), 4 z edges at z =
+     * 2, the centres of its two faces across y: 10 points, no y edge. */
+    const uint32_t d1[3] = {4, 1, 4}, slab[4] = {0, 0, 0, PB_LEVELS_PACK(2, 0, 2)};
+    const uint32_t w1[10][3] = {{2, 0, 0}, {2, 1, 0}, {2, 0, 4}, {2, 1, 4}, {0, 0, 2},
+                                {4, 0, 2}, {0, 1, 2}, {4, 1, 2}, {2, 0, 2}, {2, 1, 2}};
+    pb_cotree *t = boxes(d1, slab, 1);
+    TU_REQUIRE(t != NULL);
+    TU_REQUIRE(pb_refine_tests_create_axes(t, NULL, &tests, &err) == PB_SUCCESS);
+    check_points(tests, w1, 10);
+    pb_refine_tests *octree = NULL; /* the octree's centre and face centres are not lattice points here */
+    TU_CHECK(pb_refine_tests_create(t, NULL, &octree, &err) == PB_ERROR_INVALID_ARGUMENT && octree == NULL);
+    for (uint32_t c = 4; c < 8; c++) TU_CHECK(tests->leaf_tests[c] == -1);
+    TU_CHECK(tests->leaf_tests[12] >= 0 && tests->lattice[3 * tests->leaf_tests[12] + 1] == 0);
+    TU_CHECK(tests->leaf_tests[13] >= 0 && tests->lattice[3 * tests->leaf_tests[13] + 1] == 1);
+    pb_refine_tests_destroy(tests);
+    pb_cotree_destroy(t);
+    /* A column 1 × 1 × 4 (levels 0, 0, 2): its 4 z edges' midpoints only. */
+    const uint32_t d2[3] = {1, 1, 4}, column[4] = {0, 0, 0, PB_LEVELS_PACK(0, 0, 2)};
+    const uint32_t w2[4][3] = {{0, 0, 2}, {1, 0, 2}, {0, 1, 2}, {1, 1, 2}};
+    t = boxes(d2, column, 1);
+    TU_REQUIRE(t != NULL);
+    TU_REQUIRE(pb_refine_tests_create_axes(t, NULL, &tests, &err) == PB_SUCCESS);
+    check_points(tests, w2, 4);
+    pb_refine_tests_destroy(tests);
+    pb_cotree_destroy(t);
+    /* Two slabs side by side along x (8 × 1 × 4) share the 2 z edges of the face x = 4: 20 − 2. */
+    const uint32_t d3[3] = {8, 1, 4}, two[8] = {0, 0, 0, PB_LEVELS_PACK(2, 0, 2), 4, 0, 0, PB_LEVELS_PACK(2, 0, 2)};
+    t = boxes(d3, two, 2);
+    TU_REQUIRE(t != NULL);
+    TU_REQUIRE(pb_refine_tests_create_axes(t, NULL, &tests, &err) == PB_SUCCESS);
+    TU_CHECK(tests->point_count == 18);
+    pb_refine_tests_destroy(tests);
+    pb_cotree_destroy(t);
+}
+
+/* On the 4 × 1 × 4 m slab: f quadratic in x splits along x; f = 1 + y² varies only along the level-0
+ * axis, at whose two ends every test point lies: exact, nothing splits; a bump at the centre of the
+ * face y = 0, seen by no edge midpoint (2 m away), fails the face centre: split along x and z, never
+ * y. Error closed forms as on the cube: (q/4) / (1 + q/4) for f = 1 + q (x/4)², q = 1: 0.2. */
+static double slab_x(const double p[3]) { return 1.0 + (p[0] / 4.0) * (p[0] / 4.0); }
+static double slab_y(const double p[3]) { return 1.0 + p[1] * p[1]; }
+static double slab_bump(const double p[3])
+{
+    double r2 = (p[0] - 2.0) * (p[0] - 2.0) + p[1] * p[1] + (p[2] - 2.0) * (p[2] - 2.0);
+    return 1.0 + (r2 < 1.0 ? (1.0 - r2) * (1.0 - r2) : 0.0);
+}
+
+static void test_box_split_rule(void)
+{
+    const uint32_t dims[3] = {4, 1, 4}, slab[4] = {0, 0, 0, PB_LEVELS_PACK(2, 0, 2)};
+    pb_cotree *t = boxes(dims, slab, 1);
+    TU_REQUIRE(t != NULL);
+    decided d;
+    TU_REQUIRE(decide(t, slab_x, 0.05, 0.0f, false, &d));
+    TU_CHECK(d.axes[0] == 1);
+    TU_CHECK_NEAR(d.err[0], 0.2, 1e-12);
+    decided_free(&d);
+    TU_REQUIRE(decide(t, slab_y, 1e-9, 0.0f, false, &d));
+    TU_CHECK(d.axes[0] == 0);
+    TU_CHECK(d.err[0] < 1e-12);
+    decided_free(&d);
+    TU_REQUIRE(decide(t, slab_bump, 0.05, 0.0f, false, &d));
+    TU_CHECK(d.axes[0] == 5);
+    TU_CHECK_NEAR(d.err[0], 0.5, 1e-12); /* f = 2 at the face centre against 1 */
+    TU_CHECK(d.split[0] == 1);
+    decided_free(&d);
+    pb_cotree_destroy(t);
+}
+
+/* The refinement loop's step: the 1 m cube split along y (pb_cotree_split_axes, mask 2) gives two boxes
+ * of levels (2, 1, 2), 13 tests each, 4 shared (the x and z edges of the face y = 0.5 m): 22 points.
+ * f = 1 + y² then splits the lower box along y again at a tolerance between the two boxes' errors. */
+static void test_split_axes_then_test(void)
+{
+    pb_cotree *t = cubes(1, 1, 1);
+    TU_REQUIRE(t != NULL);
+    pb_error err = {0};
+    uint8_t mask = 2;
+    TU_REQUIRE(pb_cotree_split_axes(t, &mask, NULL, &err) == PB_SUCCESS);
+    TU_REQUIRE(pb_cotree_finalize(t, &err) == PB_SUCCESS);
+    TU_REQUIRE(pb_cotree_leaf_count(t) == 2);
+    uint32_t lv[6];
+    pb_cotree_leaf_levels(t, lv);
+    TU_CHECK(lv[0] == 2 && lv[1] == 1 && lv[2] == 2 && lv[3] == 2 && lv[4] == 1 && lv[5] == 2);
+    decided d;
+    /* Lower box y in [0, 0.5] m: at 0.25 m 1.0625 against (1 + 1.25) / 2 = 1.125, error 0.0625 / 1.0625;
+     * upper [0.5, 1]: 1.5625 against 1.625, 0.0625 / 1.5625 = 0.04. */
+    TU_REQUIRE(decide(t, quad_y, 0.05, 0.0f, false, &d));
+    TU_CHECK(d.tests->point_count == 22);
+    const uint32_t *leaves = pb_cotree_leaves(t);
+    for (uint32_t i = 0; i < 2; i++) {
+        bool lower = leaves[4 * i + 1] == 0;
+        TU_CHECK(d.axes[i] == (lower ? 2 : 0));
+        TU_CHECK_NEAR(d.err[i], lower ? 0.0625 / 1.0625 : 0.04, 1e-12);
+    }
+    decided_free(&d);
+    pb_cotree_destroy(t);
+}
+
 int main(void)
 {
     TU_RUN(test_column_layout);
@@ -402,5 +533,8 @@ int main(void)
     TU_RUN(test_decide_agrees_with_octree_decide);
     TU_RUN(test_noise_within_k_sigma);
     TU_RUN(test_invalid_tests_skipped);
+    TU_RUN(test_box_test_points);
+    TU_RUN(test_box_split_rule);
+    TU_RUN(test_split_axes_then_test);
     return TU_EXIT();
 }

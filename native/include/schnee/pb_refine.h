@@ -39,7 +39,8 @@ typedef struct pb_refine_tests {
 } pb_refine_tests;
 
 /* Test points of a finalized tree, optionally only for leaves whose `active` flag is set (NULL = all
- * leaves), e.g. leaves that split in the previous pass and their neighbours. */
+ * leaves), e.g. leaves that split in the previous pass and their neighbours. A tree of cubes only
+ * (a box leaf is refused: pb_refine_tests_create_axes). */
 pb_result pb_refine_tests_create(const pb_cotree *tree, const uint8_t *active, pb_refine_tests **out, pb_error *err);
 void pb_refine_tests_destroy(pb_refine_tests *tests);
 
