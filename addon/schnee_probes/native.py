@@ -601,7 +601,8 @@ class _Interpolation:
 
 class CornerOctree(_Interpolation):
     """Probes at the corners of octree leaves, trilinear inside each leaf, hanging corners taken from
-    the larger neighbour's face/edge (C0 everywhere). Lattice units = the min cell size."""
+    the larger neighbour's face/edge (C0 everywhere). Lattice units = the min cell size. Leaves may be
+    boxes with per-axis levels (docs/aniso-refinement.md): :meth:`from_boxes`, :meth:`split_axes`."""
 
     def __init__(self, handle):
         self._handle = handle
@@ -621,6 +622,17 @@ class CornerOctree(_Interpolation):
         return cls(_lib().cotree_from_leaves(tuple(float(v) for v in origin), float(min_cell),
                                              tuple(int(v) for v in dims), lv))
 
+    @classmethod
+    def from_boxes(cls, origin: Sequence[float], min_cell: float, root_level: int, dims: Sequence[int],
+                   leaves: np.ndarray) -> "CornerOctree":
+        """A tree from (N, 4) boxes: x, y, z lattice min corner, levels packed as
+        :func:`pack_levels` (lx | ly << 8 | lz << 16), each <= root_level (Max Cell Size = 2**root_level
+        min cells). Aligned per axis, inside ``dims``, no overlap; finalize it (the nesting rule may
+        split leaves: :attr:`forced_splits`)."""
+        lv = _array(leaves, "leaves", np.uint32, _INT_KINDS).reshape(-1)
+        return cls(_lib().cotree_from_boxes(tuple(float(v) for v in origin), float(min_cell), int(root_level),
+                                            tuple(int(v) for v in dims), lv))
+
     def _flags(self, flags, name: str) -> np.ndarray:
         f = np.ascontiguousarray(np.asarray(flags).astype(bool), dtype=np.uint8)
         if f.shape != (self.leaf_count,):
@@ -631,6 +643,16 @@ class CornerOctree(_Interpolation):
         """Split the flagged leaves (level > 0) into 8; returns how many. Finalize afterwards."""
         return _lib().cotree_split(self._handle, self._flags(flags, "flags"))
 
+    def split_axes(self, masks) -> int:
+        """Halve every leaf along the axes of its mask (L,) (bit 0 = x, 1 = y, 2 = z; axes at level 0
+        ignored): 2**|axes| children. Returns the leaves split. Finalize afterwards."""
+        m = np.asarray(masks)
+        if m.shape != (self.leaf_count,):
+            raise _shape_error("masks", f"({self.leaf_count},)", m)
+        if m.dtype.kind not in "iub" or (m.size and (int(m.min()) < 0 or int(m.max()) > 7)):
+            raise ValueError("masks must be integers 0..7 (bit 0 = x, 1 = y, 2 = z)")
+        return _lib().cotree_split_axes(self._handle, np.ascontiguousarray(m, dtype=np.uint8))
+
     def drop(self, flags) -> None:
         """Remove the flagged leaves (e.g. outside the volumes). Finalize afterwards."""
         _lib().cotree_drop(self._handle, self._flags(flags, "flags"))
@@ -640,11 +662,13 @@ class CornerOctree(_Interpolation):
         _lib().cotree_finalize(self._handle)
 
     def info(self) -> dict:
-        """origin, min_cell, dims, leaves (L, 4); after finalize also probe_count, probe_lattice (P, 3),
-        positions (P, 3), leaf_corners (L, 8), hanging_count, hanging_sources/weights (H, 4)."""
+        """origin, min_cell, dims, root_level, forced_splits, leaves (L, 4) (x, y, z, largest level),
+        levels (L, 3) (lx, ly, lz); after finalize also probe_count, probe_lattice (P, 3), positions
+        (P, 3), leaf_corners (L, 8), hanging_count, hanging_sources/weights (H, 4)."""
         d = _lib().cotree_info(self._handle)
         out = dict(d)
         out["leaves"] = np.frombuffer(d["leaves"], dtype=np.uint32).reshape(-1, 4)
+        out["levels"] = np.frombuffer(d["levels"], dtype=np.uint32).reshape(-1, 3)
         if d["finalized"]:
             out["probe_lattice"] = np.frombuffer(d["probe_lattice"], dtype=np.uint32).reshape(-1, 3)
             out["positions"] = np.frombuffer(d["positions"], dtype=np.float64).reshape(-1, 3)
@@ -660,6 +684,22 @@ class CornerOctree(_Interpolation):
     @property
     def probe_count(self) -> int:
         return int(_lib().cotree_info(self._handle)["probe_count"])
+
+    @property
+    def forced_splits(self) -> int:
+        """Leaves the last finalize split to keep the nesting rule (0 for trees of cubes)."""
+        return int(_lib().cotree_info(self._handle)["forced_splits"])
+
+    def split_tree(self) -> np.ndarray:
+        """The canonical split tree (K,) uint32 (pb_cotree.h, docs/aniso-refinement.md "Point
+        location"): nodes 0..G-1 the root cells (x fastest); bits 0-1: 0 leaf, 1/2/3 split along x/y/z;
+        bits 2-31: leaf index (2**30 - 1 = empty) or the lower child (upper = lower + 1)."""
+        return np.frombuffer(_lib().cotree_split_tree(self._handle), dtype=np.uint32)
+
+    def locate(self, points: np.ndarray) -> np.ndarray:
+        """The leaf holding each engine-space point (N, 3) -> (N,) int32, -1 = none."""
+        p, _ = _vectors(points, "points")
+        return np.frombuffer(_lib().cotree_locate(self._handle, p), dtype=np.int32)
 
     def positions(self) -> np.ndarray:
         """(P, 3) float64 probe positions (after finalize)."""
@@ -751,6 +791,12 @@ class Tetrahedra(_Interpolation):
         d = _lib().tetra_info(self._handle)
         return {"tets": np.frombuffer(d["tets"], dtype=np.uint32).reshape(-1, 4),
                 "neighbours": np.frombuffer(d["neighbours"], dtype=np.int32).reshape(-1, 4)}
+
+
+def pack_levels(levels: np.ndarray) -> np.ndarray:
+    """Per-axis levels (..., 3) -> the packed word lx | ly << 8 | lz << 16 (PB_LEVELS_PACK), uint32."""
+    lv = np.asarray(levels).astype(np.uint32)
+    return lv[..., 0] | lv[..., 1] << np.uint32(8) | lv[..., 2] << np.uint32(16)
 
 
 def interpolation_from_file(path: str) -> _Interpolation:

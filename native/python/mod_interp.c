@@ -84,25 +84,95 @@ static PyObject *py_cotree_from_leaves(PyObject *module, PyObject *args)
     return cotree_capsule(t);
 }
 
-/* cotree_split / cotree_drop: flags = uint8[leaf_count]. */
-static PyObject *cotree_flags_op(PyObject *module, PyObject *args, bool split)
+static PyObject *py_cotree_from_boxes(PyObject *module, PyObject *args)
+{
+    double origin[3], cell;
+    Py_ssize_t level, dims_in[3];
+    uint32_t dims[3], lv;
+    PyObject *l_obj;
+    if (!PyArg_ParseTuple(args, "(ddd)dn(nnn)O:cotree_from_boxes", &origin[0], &origin[1], &origin[2], &cell, &level,
+                          &dims_in[0], &dims_in[1], &dims_in[2], &l_obj) ||
+        get_dims(dims_in, dims) < 0 || _pb_py_check_u32(level, "root_level", &lv) < 0)
+        return NULL;
+    pb_py_buffer leaves;
+    if (_pb_py_get_buffer(l_obj, "leaves", 'I', 4, -1, &leaves) < 0) return NULL;
+    pb_cotree *t = NULL;
+    pb_error err = {0};
+    pb_result r = leaves.count / 4 > UINT32_MAX ? PB_ERROR_TOO_LARGE : PB_SUCCESS;
+    if (r == PB_SUCCESS)
+        r = pb_cotree_create_boxes(origin, cell, lv, dims, leaves.view.buf, (uint32_t)(leaves.count / 4), &t, &err);
+    _pb_py_release(&leaves);
+    if (r != PB_SUCCESS) return _pb_py_raise_core(module, r, &err);
+    return cotree_capsule(t);
+}
+
+/* cotree_split / cotree_split_axes / cotree_drop: flags (axis masks) = uint8[leaf_count]. */
+enum { FLAGS_SPLIT, FLAGS_SPLIT_AXES, FLAGS_DROP };
+static PyObject *cotree_flags_op(PyObject *module, PyObject *args, int op)
 {
     PyObject *t_obj, *f_obj;
     if (!PyArg_ParseTuple(args, "OO", &t_obj, &f_obj)) return NULL;
     pb_cotree *t = get_cotree(t_obj);
     if (!t) return NULL;
     pb_py_buffer flags;
-    if (_pb_py_get_buffer(f_obj, "flags", 'B', 0, pb_cotree_leaf_count(t), &flags) < 0) return NULL;
+    if (_pb_py_get_buffer(f_obj, op == FLAGS_SPLIT_AXES ? "axes" : "flags", 'B', 0, pb_cotree_leaf_count(t), &flags) <
+        0)
+        return NULL;
     pb_error err = {0};
     uint32_t n = 0;
-    pb_result r = split ? pb_cotree_split(t, flags.view.buf, &n, &err) : pb_cotree_drop(t, flags.view.buf, &err);
+    pb_result r = op == FLAGS_SPLIT        ? pb_cotree_split(t, flags.view.buf, &n, &err)
+                  : op == FLAGS_SPLIT_AXES ? pb_cotree_split_axes(t, flags.view.buf, &n, &err)
+                                           : pb_cotree_drop(t, flags.view.buf, &err);
     _pb_py_release(&flags);
     if (r != PB_SUCCESS) return _pb_py_raise_core(module, r, &err);
     return PyLong_FromUnsignedLong(n);
 }
 
-static PyObject *py_cotree_split(PyObject *module, PyObject *args) { return cotree_flags_op(module, args, true); }
-static PyObject *py_cotree_drop(PyObject *module, PyObject *args) { return cotree_flags_op(module, args, false); }
+static PyObject *py_cotree_split(PyObject *module, PyObject *args) { return cotree_flags_op(module, args, FLAGS_SPLIT); }
+static PyObject *py_cotree_split_axes(PyObject *module, PyObject *args)
+{
+    return cotree_flags_op(module, args, FLAGS_SPLIT_AXES);
+}
+static PyObject *py_cotree_drop(PyObject *module, PyObject *args) { return cotree_flags_op(module, args, FLAGS_DROP); }
+
+/* cotree_split_tree(tree) -> bytearray uint32[K]: the canonical split tree (pb_cotree_split_tree). */
+static PyObject *py_cotree_split_tree(PyObject *module, PyObject *t_obj)
+{
+    pb_cotree *t = get_cotree(t_obj);
+    if (!t) return NULL;
+    pb_error err = {0};
+    uint32_t k = 0;
+    pb_result r = pb_cotree_split_tree(t, NULL, 0, &k, &err);
+    if (r != PB_SUCCESS) return _pb_py_raise_core(module, r, &err);
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)k * 4);
+    if (!out) return NULL;
+    r = pb_cotree_split_tree(t, (uint32_t *)(void *)PyByteArray_AsString(out), k, &k, &err);
+    if (r != PB_SUCCESS) {
+        Py_DECREF(out);
+        return _pb_py_raise_core(module, r, &err);
+    }
+    return out;
+}
+
+/* cotree_locate(tree, points float64[N*3]) -> bytearray int32[N]: the leaf holding each point, −1 none. */
+static PyObject *py_cotree_locate(PyObject *module, PyObject *args)
+{
+    PyObject *t_obj, *p_obj;
+    if (!PyArg_ParseTuple(args, "OO:cotree_locate", &t_obj, &p_obj)) return NULL;
+    pb_cotree *t = get_cotree(t_obj);
+    if (!t) return NULL;
+    pb_py_buffer pts;
+    if (_pb_py_get_buffer(p_obj, "points", 'd', 3, -1, &pts) < 0) return NULL;
+    Py_ssize_t n = pts.count / 3;
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, n * 4);
+    if (out) {
+        int32_t *o = (int32_t *)(void *)PyByteArray_AsString(out);
+        const double *pp = pts.view.buf;
+        for (Py_ssize_t i = 0; i < n; i++) o[i] = pb_cotree_locate(t, pp + 3 * i);
+    }
+    _pb_py_release(&pts);
+    return out;
+}
 
 static PyObject *py_cotree_finalize(PyObject *module, PyObject *t_obj)
 {
@@ -127,6 +197,8 @@ static PyObject *py_cotree_info(PyObject *module, PyObject *t_obj)
     PyObject *d = PyDict_New();
     if (!d) return NULL;
     PyObject *pos = NULL, *corners = NULL, *src = NULL, *w = NULL;
+    PyObject *levels = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(L * 3 * sizeof(uint32_t)));
+    if (levels) pb_cotree_leaf_levels(t, (uint32_t *)(void *)PyByteArray_AsString(levels));
     if (fin) {
         pos = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(P * 3 * sizeof(double)));
         corners = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(L * 8 * sizeof(int32_t)));
@@ -146,6 +218,9 @@ static PyObject *py_cotree_info(PyObject *module, PyObject *t_obj)
         _pb_py_dict_put(d, "dims", Py_BuildValue("(III)", dims[0], dims[1], dims[2])) < 0 ||
         _pb_py_dict_put(d, "finalized", PyBool_FromLong(fin)) < 0 ||
         _pb_py_dict_put(d, "leaves", _pb_py_bytes_out(pb_cotree_leaves(t), L * 4 * sizeof(uint32_t))) < 0 ||
+        _pb_py_dict_put(d, "levels", levels) < 0 ||
+        _pb_py_dict_put(d, "root_level", PyLong_FromUnsignedLong(pb_cotree_root_level(t))) < 0 ||
+        _pb_py_dict_put(d, "forced_splits", PyLong_FromUnsignedLong(pb_cotree_forced_splits(t))) < 0 ||
         _pb_py_dict_put(d, "probe_count", PyLong_FromSize_t(P)) < 0 ||
         _pb_py_dict_put(d, "hanging_count", PyLong_FromSize_t(H)) < 0 ||
         _pb_py_dict_put(d, "probe_lattice",
@@ -454,7 +529,13 @@ PyMethodDef _pb_py_interp_methods[] = {
      "cotree_create(origin, min_cell, root_level, root_dims) -> corner octree handle (not finalized)"},
     {"cotree_from_leaves", py_cotree_from_leaves, METH_VARARGS,
      "cotree_from_leaves(origin, min_cell, dims, leaves: uint32[N*4]) -> handle"},
+    {"cotree_from_boxes", py_cotree_from_boxes, METH_VARARGS,
+     "cotree_from_boxes(origin, min_cell, root_level, dims, leaves: uint32[N*4] (x, y, z, PB_LEVELS_PACK)) -> handle"},
     {"cotree_split", py_cotree_split, METH_VARARGS, "cotree_split(tree, flags: uint8[leaves]) -> leaves split"},
+    {"cotree_split_axes", py_cotree_split_axes, METH_VARARGS,
+     "cotree_split_axes(tree, axes: uint8[leaves], bit 0/1/2 = x/y/z) -> leaves split"},
+    {"cotree_split_tree", py_cotree_split_tree, METH_O, "cotree_split_tree(tree) -> bytearray uint32[K]"},
+    {"cotree_locate", py_cotree_locate, METH_VARARGS, "cotree_locate(tree, points: float64[N*3]) -> bytearray int32[N]"},
     {"cotree_drop", py_cotree_drop, METH_VARARGS, "cotree_drop(tree, flags: uint8[leaves]) -> 0"},
     {"cotree_finalize", py_cotree_finalize, METH_O, "cotree_finalize(tree): number probes, hanging rules"},
     {"cotree_info", py_cotree_info, METH_O, "cotree_info(tree) -> dict (leaves, probes, positions, rules)"},
