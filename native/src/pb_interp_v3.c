@@ -1,6 +1,6 @@
-/* The interpolation structures in `.shprobe` version 3 files (pb_interp_v3.h): a file image from a
- * corner octree or tetrahedra, the structure back from a file with the file's numbering, and the
- * resampling of a version 3 field onto the seed's dense grid.
+/* The interpolation structures in `.shprobe` version 3 and 4 files (pb_interp_v3.h): a file image from
+ * a corner octree (version 4 when some leaf is a box, not a cube) or tetrahedra, the structure back from
+ * a file with the file's numbering, and the resampling of such a field onto the seed's dense grid.
  */
 #define _POSIX_C_SOURCE 200809L
 #include "schnee/pb_interp_v3.h"
@@ -14,22 +14,59 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* A version 4 image of a tree with some box that is not a cube: leaves in pb_cotree_leaves() order with
+ * their packed levels, the canonical split tree (pb_cotree_split_tree) whose leaf nodes index them. */
+static pb_result kdtree_image(const pb_cotree *t, const uint32_t *levels, uint32_t representation, uint32_t max_band,
+                              pb_shprobe **out, pb_error *err)
+{
+    uint32_t K = 0;
+    pb_result r = pb_cotree_split_tree(t, NULL, 0, &K, err);
+    if (r != PB_SUCCESS) return r;
+    pb_shprobe *p;
+    r = pb_shprobe_create_v4(t->probe_count, representation, max_band, t->dims, t->leaf_count, t->hanging_count,
+                             pb_cotree_root_level(t), K, &p, err);
+    if (r != PB_SUCCESS) return r;
+    uint32_t got = 0;
+    r = pb_cotree_split_tree(t, p->split_nodes, K, &got, err);
+    if (r == PB_SUCCESS && got != K)
+        r = pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "the split tree has %u nodes, then %u", K, got);
+    if (r != PB_SUCCESS) {
+        pb_shprobe_destroy(p);
+        return r;
+    }
+    for (uint32_t i = 0; i < t->leaf_count; i++) {
+        memcpy(p->leaves + 4u * i, t->leaves + 4u * i, 3 * sizeof(uint32_t));
+        p->leaves[4u * i + 3] = PB_LEVELS_PACK(levels[3u * i], levels[3u * i + 1], levels[3u * i + 2]);
+    }
+    *out = p;
+    return PB_SUCCESS;
+}
+
 pb_result pb_shprobe_from_cotree(const pb_cotree *t, uint32_t representation, uint32_t max_band, pb_shprobe **out,
                                  pb_error *err)
 {
     if (!t || !out) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_shprobe_from_cotree: NULL argument");
     *out = NULL;
     if (!t->finalized) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "the corner octree is not finalized");
+    uint32_t *levels = malloc(((size_t)t->leaf_count * 3 + 1) * sizeof(uint32_t));
+    if (!levels) return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for %u leaves", t->leaf_count);
+    pb_cotree_leaf_levels(t, levels);
+    bool cubes = true;
+    for (uint32_t i = 0; i < t->leaf_count && cubes; i++)
+        cubes = levels[3u * i] == levels[3u * i + 1] && levels[3u * i] == levels[3u * i + 2];
     pb_shprobe *p;
-    pb_result r = pb_shprobe_create_v3(t->probe_count, representation, max_band, PB_SHPROBE_OCTREE, t->dims,
-                                       t->leaf_count, t->hanging_count, &p, err);
+    /* A tree of cubes stays version 3 structure 1, byte for byte as before boxes existed. */
+    pb_result r = cubes ? pb_shprobe_create_v3(t->probe_count, representation, max_band, PB_SHPROBE_OCTREE, t->dims,
+                                               t->leaf_count, t->hanging_count, &p, err)
+                        : kdtree_image(t, levels, representation, max_band, &p, err);
+    free(levels);
     if (r != PB_SUCCESS) return r;
     for (int k = 0; k < 3; k++) p->grid_origin[k] = (float)t->origin[k];
     p->grid_spacing = (float)t->h;
     for (uint32_t i = 0; i < t->probe_count; i++)
         for (int k = 0; k < 3; k++)
             p->positions[3u * i + (uint32_t)k] = (float)(t->origin[k] + t->h * t->probe_lattice[3u * i + (uint32_t)k]);
-    memcpy(p->leaves, t->leaves, (size_t)t->leaf_count * 4 * sizeof(uint32_t));
+    if (cubes) memcpy(p->leaves, t->leaves, (size_t)t->leaf_count * 4 * sizeof(uint32_t));
     memcpy(p->leaf_corners, t->corners, (size_t)t->leaf_count * 8 * sizeof(int32_t));
     memcpy(p->hanging_sources, t->hang_src, (size_t)t->hanging_count * 4 * sizeof(uint32_t));
     memcpy(p->hanging_weights, t->hang_w, (size_t)t->hanging_count * 4 * sizeof(float));
@@ -56,9 +93,7 @@ pb_result pb_shprobe_from_tetra(const pb_tetra *t, const double *positions, uint
     return PB_SUCCESS;
 }
 
-/* A tree with a file's numbering: leaves as stored (Morton order, so the indices survive the sort),
- * corners and hanging rules as stored, expansions recomputed. */
-static pb_result cotree_from_file(const pb_shprobe *f, pb_cotree **out, pb_error *err)
+static pb_result identity_frame(const pb_shprobe *f, pb_error *err)
 {
     static const float identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
     bool zero = true;
@@ -66,11 +101,40 @@ static pb_result cotree_from_file(const pb_shprobe *f, pb_cotree **out, pb_error
     if (!zero && memcmp(f->grid_axes, identity, sizeof identity) != 0)
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
                             "octree files with rotated axes are not interpolated by this version (identity only)");
+    return PB_SUCCESS;
+}
+
+/* A tree with a file's numbering: leaves as stored (Morton order, so the indices survive the sort),
+ * corners and hanging rules as stored, expansions recomputed. Version 4 (the kd corner tree): the tree
+ * from the boxes (pb_cotree_create_boxes, its split tree built from the leaves), their per-axis levels
+ * placing the corners; as for version 3 the file's numbering is kept (any numbering whose rules name
+ * earlier sources), and the geometry of the rules is the writer's guarantee (docs/shprobe-format.md). */
+static pb_result cotree_from_file(const pb_shprobe *f, pb_cotree **out, pb_error *err)
+{
+    pb_result r0 = identity_frame(f, err);
+    if (r0 != PB_SUCCESS) return r0;
     double origin[3] = {f->grid_origin[0], f->grid_origin[1], f->grid_origin[2]};
+    bool kd = f->structure == PB_SHPROBE_KDTREE;
     pb_cotree *t;
-    pb_result r = pb_cotree_create_leaves(origin, f->grid_spacing, f->grid_dims, f->leaves, f->element_count, &t, err);
+    pb_result r = kd ? pb_cotree_create_boxes(origin, f->grid_spacing, f->root_level, f->grid_dims, f->leaves,
+                                              f->element_count, &t, err)
+                     : pb_cotree_create_leaves(origin, f->grid_spacing, f->grid_dims, f->leaves, f->element_count, &t,
+                                               err);
     if (r != PB_SUCCESS) return r;
-    if (memcmp(t->leaves, f->leaves, (size_t)f->element_count * 4 * sizeof(uint32_t)) != 0) {
+    uint32_t *levels = malloc(((size_t)f->element_count * 3 + 1) * sizeof(uint32_t));
+    if (!levels) {
+        pb_cotree_destroy(t);
+        return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for the file's octree");
+    }
+    pb_cotree_leaf_levels(t, levels);
+    bool same = pb_cotree_leaf_count(t) == f->element_count;
+    for (uint32_t i = 0; same && i < f->element_count; i++) {
+        const uint32_t *l = f->leaves + 4u * i, *lv = levels + 3u * i;
+        same = memcmp(t->leaves + 4u * i, l, 3 * sizeof(uint32_t)) == 0 &&
+               (kd ? PB_LEVELS_PACK(lv[0], lv[1], lv[2]) == l[3] : t->leaves[4u * i + 3] == l[3]);
+    }
+    if (!same) {
+        free(levels);
         pb_cotree_destroy(t);
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "the file's leaves are not in Morton order");
     }
@@ -88,6 +152,7 @@ static pb_result cotree_from_file(const pb_shprobe *f, pb_cotree **out, pb_error
     bool ok = t->probe_lattice && t->hang_lattice && t->hang_src && t->hang_w && t->exp_start && t->exp_probe &&
               t->exp_w && t->corners && hmap_init(&t->node_map, (size_t)N * 8);
     if (!ok) {
+        free(levels);
         pb_cotree_destroy(t);
         return pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "out of memory for the file's octree");
     }
@@ -95,12 +160,13 @@ static pb_result cotree_from_file(const pb_shprobe *f, pb_cotree **out, pb_error
     memcpy(t->hang_w, f->hanging_weights, (size_t)H * 4 * sizeof(float));
     memcpy(t->corners, f->leaf_corners, (size_t)N * 8 * sizeof(int32_t));
     for (uint32_t i = 0; i < N; i++) {
-        const uint32_t *l = t->leaves + 4u * i;
-        uint32_t s = 1u << l[3];
+        const uint32_t *l = t->leaves + 4u * i, *lv = levels + 3u * i;
         for (uint32_t c = 0; c < 8; c++) {
-            uint32_t pnt[3] = {l[0] + (c & 1 ? s : 0), l[1] + (c & 2 ? s : 0), l[2] + (c & 4 ? s : 0)};
+            uint32_t pnt[3];
+            for (int k = 0; k < 3; k++) pnt[k] = l[k] + ((c >> k) & 1u ? 1u << lv[k] : 0u);
             uint32_t node = (uint32_t)t->corners[8u * i + c];
             if (node >= P + H) {
+                free(levels);
                 pb_cotree_destroy(t);
                 return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "leaf %u corner %u is not a node", i, c);
             }
@@ -109,6 +175,7 @@ static pb_result cotree_from_file(const pb_shprobe *f, pb_cotree **out, pb_error
             memcpy(node < P ? t->probe_lattice + 3u * node : t->hang_lattice + 3u * (node - P), pnt, sizeof pnt);
         }
     }
+    free(levels);
     uint32_t e = 0;
     for (uint32_t hI = 0; hI < H; hI++) {
         uint32_t cnt = 0;
@@ -149,7 +216,7 @@ pb_result pb_interp_from_shprobe(const pb_shprobe *f, pb_cotree **tree, pb_tetra
     if (!f || !tree || !tetra) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_interp_from_shprobe: NULL");
     *tree = NULL;
     *tetra = NULL;
-    if (f->structure == PB_SHPROBE_OCTREE) return cotree_from_file(f, tree, err);
+    if (f->structure == PB_SHPROBE_OCTREE || f->structure == PB_SHPROBE_KDTREE) return cotree_from_file(f, tree, err);
     if (f->structure != PB_SHPROBE_TETRA)
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
                             "the file holds a dense grid, not probe positions with an interpolation structure");

@@ -315,6 +315,149 @@ static void test_version_3_structures_are_unchanged(void)
     TU_CHECK_CONTAINS(err.message, "unknown structure 4 at offset 100; this reader knows 0 = grid, 1 = octree, 2 = tetrahedra");
 }
 
+/* ---- with the box tree of pb_cotree.h -------------------------------------------------------------- */
+
+static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
+static double rnd(void)
+{
+    rng_state ^= rng_state >> 12;
+    rng_state ^= rng_state << 25;
+    rng_state ^= rng_state >> 27;
+    return (double)((rng_state * 0x2545F4914F6CDD1Dull) >> 11) / 9007199254740992.0;
+}
+
+/* The hand-made file's boxes as a tree: the writer's image is the hand-made file, field by field (its
+ * canonical split tree, probe numbering and hanging rules are the ones written out above from the
+ * format's rules), and with the same records the bytes are equal. */
+static void test_tree_of_the_hand_made_boxes_writes_the_same_file(void)
+{
+    const double origin[3] = {1.0, 2.0, 3.0};
+    const uint32_t dims[3] = {4, 2, 2};
+    pb_cotree *t = NULL;
+    pb_error err = {0};
+    TU_REQUIRE(pb_cotree_create_boxes(origin, 0.5, 1, dims, &hm_leaves[0][0], HM_N, &t, &err) == PB_SUCCESS);
+    TU_REQUIRE(pb_cotree_finalize(t, &err) == PB_SUCCESS);
+    pb_shprobe *p = NULL;
+    TU_REQUIRE(pb_shprobe_from_cotree(t, PB_SHPROBE_SH, 0, &p, &err) == PB_SUCCESS);
+    uint8_t b[HM_SIZE];
+    hm_bytes(b);
+    pb_shprobe *want = NULL;
+    TU_REQUIRE(pb_shprobe_read_memory(b, HM_SIZE, &want, &err) == PB_SUCCESS);
+    TU_CHECK_EQ_INT(p->structure, PB_SHPROBE_KDTREE);
+    TU_CHECK_EQ_INT(p->probe_count, HM_P);
+    TU_CHECK_EQ_INT(p->hanging_count, HM_H);
+    TU_CHECK_EQ_INT(p->root_level, 1);
+    TU_REQUIRE(p->split_node_count == HM_K);
+    TU_CHECK(memcmp(p->split_nodes, want->split_nodes, HM_K * 4) == 0);
+    TU_CHECK(memcmp(p->leaves, want->leaves, HM_N * 16) == 0);
+    TU_CHECK(memcmp(p->leaf_corners, want->leaf_corners, HM_N * 32) == 0);
+    TU_CHECK(memcmp(p->hanging_sources, want->hanging_sources, HM_H * 16) == 0);
+    TU_CHECK(memcmp(p->hanging_weights, want->hanging_weights, HM_H * 16) == 0);
+    TU_CHECK(memcmp(p->positions, want->positions, HM_P * 12) == 0);
+    memcpy(p->coeffs, want->coeffs, HM_P * 3 * sizeof(float));
+    memcpy(p->validity, want->validity, HM_P * sizeof(float));
+    char path[300];
+    snprintf(path, sizeof path, "%s/tree.shprobe", tmpdir);
+    TU_CHECK(pb_shprobe_write(path, p, &err) == PB_SUCCESS);
+    size_t n = 0;
+    uint8_t *w = read_all(path, &n);
+    TU_CHECK(w && n == HM_SIZE && memcmp(w, b, HM_SIZE) == 0);
+    free(w);
+    pb_shprobe_destroy(want);
+    pb_shprobe_destroy(p);
+    pb_cotree_destroy(t);
+}
+
+/* A random tree of boxes (2 x 1 x 2 roots of 4 min cells, 4 passes of random axis masks, the nesting
+ * rule's forced splits) -> version 4 bytes -> read -> pb_interp_from_shprobe: the weights at 4000 random
+ * points equal the tree's (same probes, 1e-12). A tree of cubes stays version 3. */
+static void test_box_tree_round_trip_queries_as_the_tree(void)
+{
+    const double origin[3] = {-1.0, 0.5, 2.0};
+    const uint32_t roots[3] = {2, 1, 2};
+    for (int trial = 0; trial < 6; trial++) {
+        pb_cotree *t = NULL;
+        pb_error err = {0};
+        TU_REQUIRE(pb_cotree_create(origin, 0.25, 2, roots, &t, &err) == PB_SUCCESS);
+        for (int pass = 0; pass < 4; pass++) {
+            uint32_t n = pb_cotree_leaf_count(t);
+            uint8_t *axes = calloc(n, 1);
+            for (uint32_t i = 0; i < n; i++)
+                axes[i] = (uint8_t)(trial == 0 ? (rnd() < 0.3 ? 7 : 0) : rnd() < 0.35 ? 1u + (uint32_t)(rnd() * 7) : 0);
+            TU_REQUIRE(pb_cotree_split_axes(t, axes, NULL, &err) == PB_SUCCESS);
+            free(axes);
+        }
+        TU_REQUIRE(pb_cotree_finalize(t, &err) == PB_SUCCESS);
+        pb_shprobe *p = NULL;
+        TU_REQUIRE(pb_shprobe_from_cotree(t, PB_SHPROBE_SH, 1, &p, &err) == PB_SUCCESS);
+        /* trial 0 splits whole cubes only: version 3, structure 1 */
+        TU_CHECK_EQ_INT(p->structure, trial == 0 ? PB_SHPROBE_OCTREE : PB_SHPROBE_KDTREE);
+        for (size_t k = 0; k < (size_t)p->probe_count * 4 * 3; k++) p->coeffs[k] = (float)rnd();
+        char path[300];
+        snprintf(path, sizeof path, "%s/round%d.shprobe", tmpdir, trial);
+        TU_REQUIRE(pb_shprobe_write(path, p, &err) == PB_SUCCESS);
+        pb_shprobe *f = NULL;
+        TU_REQUIRE(pb_shprobe_read(path, &f, &err) == PB_SUCCESS);
+        TU_CHECK_EQ_INT(f->version, trial == 0 ? 3 : 4);
+        pb_cotree *ft = NULL;
+        pb_tetra *tet = NULL;
+        TU_REQUIRE(pb_interp_from_shprobe(f, &ft, &tet, &err) == PB_SUCCESS);
+        TU_REQUIRE(ft && !tet);
+        int bad = 0, inside = 0;
+        for (int q = 0; q < 4000; q++) {
+            double pt[3] = {origin[0] + 2.0 * rnd(), origin[1] + 1.0 * rnd(), origin[2] + 2.0 * rnd()};
+            if (q % 10 == 0) pt[q / 10 % 3] = origin[q / 10 % 3] + 0.25 * (double)(uint32_t)(rnd() * 8); /* faces */
+            pb_interp_weights a, b;
+            pb_interp_query_cotree(t, pt, NULL, &a);
+            pb_interp_query_cotree(ft, pt, NULL, &b);
+            inside += a.count > 0;
+            bool same = a.count == b.count;
+            for (uint32_t k = 0; same && k < a.count; k++)
+                same = a.probe[k] == b.probe[k] && fabs(a.weight[k] - b.weight[k]) <= 1e-12;
+            bad += !same;
+        }
+        TU_CHECK_EQ_INT(bad, 0);
+        TU_CHECK(inside > 3900);
+        pb_cotree_destroy(ft);
+        pb_shprobe_destroy(f);
+        pb_shprobe_destroy(p);
+        pb_cotree_destroy(t);
+    }
+}
+
+/* The dense resample of a version 4 file of a linear field: exact (float) at every cell centre, since
+ * trilinear boxes with hanging rules reproduce a linear field. */
+static void test_resample_dense_of_a_box_tree(void)
+{
+    const double origin[3] = {1.0, 2.0, 3.0};
+    const uint32_t dims[3] = {4, 2, 2};
+    pb_cotree *t = NULL;
+    pb_error err = {0};
+    TU_REQUIRE(pb_cotree_create_boxes(origin, 0.5, 1, dims, &hm_leaves[0][0], HM_N, &t, &err) == PB_SUCCESS);
+    TU_REQUIRE(pb_cotree_finalize(t, &err) == PB_SUCCESS);
+    pb_shprobe *p = NULL;
+    TU_REQUIRE(pb_shprobe_from_cotree(t, PB_SHPROBE_SH, 0, &p, &err) == PB_SUCCESS);
+    for (uint32_t i = 0; i < p->probe_count; i++) {
+        const float *x = p->positions + 3u * i;
+        p->coeffs[3u * i] = 1.0f + 0.5f * x[0] - 0.25f * x[1] + 0.75f * x[2];
+    }
+    pb_shprobe *d = NULL;
+    TU_REQUIRE(pb_interp_resample_dense(p, 0.0, &d, &err) == PB_SUCCESS);
+    TU_CHECK_EQ_INT(d->grid_dims[0], 4);
+    TU_CHECK_EQ_INT(d->probe_count, 16);
+    for (uint32_t j = 0; j < 16; j++) {
+        uint32_t c[3] = {j % 4, j / 4 % 2, j / 8};
+        int32_t pi = d->grid[j];
+        TU_REQUIRE(pi >= 0);
+        double x[3];
+        for (int k = 0; k < 3; k++) x[k] = origin[k] + 0.5 * (c[k] + 0.5);
+        TU_CHECK_NEAR(d->coeffs[3u * (uint32_t)pi], 1.0 + 0.5 * x[0] - 0.25 * x[1] + 0.75 * x[2], 2e-6);
+    }
+    pb_shprobe_destroy(d);
+    pb_shprobe_destroy(p);
+    pb_cotree_destroy(t);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/schnee_v4_XXXXXX");
@@ -322,6 +465,9 @@ int main(void)
     TU_RUN(test_hand_made_file_reads_field_by_field);
     TU_RUN(test_each_check_refuses_one_corrupt_field);
     TU_RUN(test_version_3_structures_are_unchanged);
+    TU_RUN(test_tree_of_the_hand_made_boxes_writes_the_same_file);
+    TU_RUN(test_box_tree_round_trip_queries_as_the_tree);
+    TU_RUN(test_resample_dense_of_a_box_tree);
     char cmd[300];
     snprintf(cmd, sizeof cmd, "rm -rf %s", tmpdir);
     if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", tmpdir);

@@ -17,17 +17,19 @@ extern "C" {
 
 /* ---- files (.shprobe version 3) --------------------------------------------------------------------- */
 
-/* A version 3 octree file image of a finalized tree: positions, leaves (Morton order), corners and
- * hanging rules filled, lattice frame in grid_origin/grid_spacing/grid_dims; the caller fills the
- * probe records (coeffs: pb_shprobe_colour_count colours per probe) and writes it. */
+/* An octree file image of a finalized tree: positions, leaves (Morton order), corners and hanging rules
+ * filled, lattice frame in grid_origin/grid_spacing/grid_dims; the caller fills the probe records
+ * (coeffs: pb_shprobe_colour_count colours per probe) and writes it. A tree whose leaves are all cubes
+ * gives version 3 structure 1 (byte for byte as before boxes); one with a box that is not a cube gives
+ * version 4 structure 3 (packed levels in the leaves' 4th word, root_level, the canonical split tree). */
 pb_result pb_shprobe_from_cotree(const pb_cotree *tree, uint32_t representation, uint32_t max_band, pb_shprobe **out,
                                  pb_error *err);
 /* A version 3 tetrahedra file image (positions, tetrahedra, neighbours); records left to the caller. */
 pb_result pb_shprobe_from_tetra(const pb_tetra *tetra, const double *positions, uint32_t representation,
                                 uint32_t max_band, pb_shprobe **out, pb_error *err);
 /* The interpolation structure a file holds, with the file's own probe numbering: *tree for an
- * octree (built from its leaves, corners and hanging rules), *tetra for tetrahedra; the other is NULL.
- * Octree frames must have identity axes (a rotated frame is refused with a message). */
+ * octree (built from its leaves, corners and hanging rules; a version 4 kd corner tree from its boxes
+ * with pb_cotree_create_boxes), *tetra for tetrahedra; the other is NULL. Octree frames must have identity axes (a rotated frame is refused with a message). */
 pb_result pb_interp_from_shprobe(const pb_shprobe *file, pb_cotree **tree, pb_tetra **tetra, pb_error *err);
 /* Resamples a version 3 file's field onto a dense grid (the seed's version 1 layout, DESIGN.md §4):
  * every grid cell whose centre the structure covers becomes a probe holding the interpolated record
