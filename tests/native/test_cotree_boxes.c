@@ -526,6 +526,85 @@ static void test_create_boxes_rejects(void)
     pb_cotree_destroy(t);
 }
 
+/* Hostile boxes (a file's leaves go to create_boxes): random sets, mostly refused; any accepted set
+ * finalizes (or is too unbalanced: PB_ERROR_TOO_LARGE), its split tree finds what locate finds at every
+ * lattice cell, and it reproduces a linear field at the points its leaves cover. Run under ASan/UBSan by
+ * test.sh's sanitizer build. */
+/* Whether lattice point u lies in a leaf (not only within the face rule's 0.01 of one). */
+static bool covered(const pb_cotree *t, const double u[3])
+{
+    const uint32_t *l = pb_cotree_leaves(t);
+    uint32_t L = pb_cotree_leaf_count(t), *lv = malloc(12u * L + 4), in = 0;
+    pb_cotree_leaf_levels(t, lv);
+    for (uint32_t i = 0; i < L && !in; i++) {
+        in = 1;
+        for (int k = 0; k < 3; k++)
+            if (!(u[k] >= l[4 * i + k] && u[k] <= l[4 * i + k] + (double)(1u << lv[3 * i + k]))) in = 0;
+    }
+    free(lv);
+    return in;
+}
+
+static void test_hostile_boxes(void)
+{
+    const uint32_t dims[3] = {8, 4, 8};
+    uint32_t accepted = 0, finalized = 0;
+    for (int iter = 0; iter < 20000; iter++) {
+        uint32_t n = 1 + (uint32_t)(rnd() * 6), R = (uint32_t)(rnd() * 4), leaves[24];
+        for (uint32_t i = 0; i < n; i++) {
+            uint32_t lv[3];
+            for (int k = 0; k < 3; k++) {
+                lv[k] = (uint32_t)(rnd() * (R + 1.5));
+                uint32_t s = 1u << (lv[k] > 8 ? 8 : lv[k]);
+                leaves[4 * i + (uint32_t)k] = rnd() < 0.9 ? s * (uint32_t)(rnd() * (dims[k] / s + 1)) : (uint32_t)(rnd() * 9);
+            }
+            leaves[4 * i + 3] = PB_LEVELS_PACK(lv[0], lv[1], lv[2]);
+        }
+        pb_cotree *t = NULL;
+        pb_error err = {0};
+        pb_result r = pb_cotree_create_boxes(ORIGIN, H, R, dims, leaves, n, &t, &err);
+        TU_CHECK(r == PB_SUCCESS || (r == PB_ERROR_INVALID_ARGUMENT && err.message[0] && !t));
+        if (r != PB_SUCCESS) continue;
+        accepted++;
+        uint32_t K, *nodes = split_tree(t, &K);
+        TU_REQUIRE(nodes != NULL);
+        const uint32_t grid[3] = {(dims[0] + (1u << R) - 1) >> R, (dims[1] + (1u << R) - 1) >> R,
+                                  (dims[2] + (1u << R) - 1) >> R};
+        for (uint32_t z = 0; z < dims[2]; z++)
+            for (uint32_t y = 0; y < dims[1]; y++)
+                for (uint32_t x = 0; x < dims[0]; x++) {
+                    const uint32_t q[3] = {x, y, z};
+                    const double c[3] = {ORIGIN[0] + H * (x + 0.5), ORIGIN[1] + H * (y + 0.5), ORIGIN[2] + H * (z + 0.5)};
+                    TU_CHECK_EQ_INT(pb_cotree_split_tree_find(nodes, grid, R, q), pb_cotree_locate(t, c));
+                }
+        free(nodes);
+        r = pb_cotree_finalize(t, &err);
+        TU_CHECK(r == PB_SUCCESS || r == PB_ERROR_TOO_LARGE);
+        if (r == PB_SUCCESS) {
+            finalized++;
+            uint32_t P = pb_cotree_probe_count(t);
+            const uint32_t *lat = pb_cotree_probe_lattice(t);
+            double *lin = malloc((P + 1) * sizeof(double)), worst = 0.0;
+            for (uint32_t p = 0; p < P; p++) {
+                double u[3] = {lat[3 * p], lat[3 * p + 1], lat[3 * p + 2]};
+                lin[p] = linear(u);
+            }
+            for (int k = 0; k < 50; k++) {
+                double u[3], x[3];
+                for (int a = 0; a < 3; a++) u[a] = rnd() * dims[a], x[a] = ORIGIN[a] + H * u[a];
+                pb_interp_weights w;
+                if (pb_interp_query_cotree(t, x, NULL, &w) == PB_SUCCESS && w.count && covered(t, u))
+                    worst = fmax(worst, fabs(eval(&w, lin) - linear(u)));
+            }
+            TU_CHECK(worst < 1e-9);
+            free(lin);
+        }
+        pb_cotree_destroy(t);
+    }
+    printf("  accepted %u box sets (of 20000), finalized %u\n", accepted, finalized);
+    TU_CHECK(accepted > 500);
+}
+
 int main(void)
 {
     TU_RUN(test_random_trees_linear_and_c0);
@@ -535,5 +614,6 @@ int main(void)
     TU_RUN(test_cube_trees_unchanged);
     TU_RUN(test_hanging_edge_and_visibility);
     TU_RUN(test_create_boxes_rejects);
+    TU_RUN(test_hostile_boxes);
     return TU_EXIT();
 }

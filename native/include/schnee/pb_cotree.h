@@ -10,7 +10,11 @@
  * read probe positions with pb_cotree_probe_positions(); query with pb_interp_query_cotree()
  * (pb_interp.h); pb_cotree_destroy(). Coordinates: engine space, metres, double; lattice coordinates
  * are integers in units of the min cell size, relative to the origin.
- * Part of pb_interp.h (include either); source native/src/pb_cotree.c.
+ * Boxes (docs/aniso-refinement.md): pb_cotree_split_axes() halves leaves along some axes only, or
+ * pb_cotree_create_boxes() takes boxes with per-axis levels; finalize then also applies the nesting
+ * rule (forced splits); pb_cotree_leaf_levels() gives the levels, pb_cotree_split_tree() the canonical
+ * split tree that locates points. A tree of cubes behaves exactly as the octree always did.
+ * Part of pb_interp.h (include either); sources native/src/pb_cotree.c, pb_cotree_boxes.c.
  */
 #ifndef SCHNEE_PB_COTREE_H
 #define SCHNEE_PB_COTREE_H
