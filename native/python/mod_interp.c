@@ -128,7 +128,10 @@ static PyObject *cotree_flags_op(PyObject *module, PyObject *args, int op)
     return PyLong_FromUnsignedLong(n);
 }
 
-static PyObject *py_cotree_split(PyObject *module, PyObject *args) { return cotree_flags_op(module, args, FLAGS_SPLIT); }
+static PyObject *py_cotree_split(PyObject *module, PyObject *args)
+{
+    return cotree_flags_op(module, args, FLAGS_SPLIT);
+}
 static PyObject *py_cotree_split_axes(PyObject *module, PyObject *args)
 {
     return cotree_flags_op(module, args, FLAGS_SPLIT_AXES);
@@ -535,7 +538,8 @@ PyMethodDef _pb_py_interp_methods[] = {
     {"cotree_split_axes", py_cotree_split_axes, METH_VARARGS,
      "cotree_split_axes(tree, axes: uint8[leaves], bit 0/1/2 = x/y/z) -> leaves split"},
     {"cotree_split_tree", py_cotree_split_tree, METH_O, "cotree_split_tree(tree) -> bytearray uint32[K]"},
-    {"cotree_locate", py_cotree_locate, METH_VARARGS, "cotree_locate(tree, points: float64[N*3]) -> bytearray int32[N]"},
+    {"cotree_locate", py_cotree_locate, METH_VARARGS,
+     "cotree_locate(tree, points: float64[N*3]) -> bytearray int32[N]"},
     {"cotree_drop", py_cotree_drop, METH_VARARGS, "cotree_drop(tree, flags: uint8[leaves]) -> 0"},
     {"cotree_finalize", py_cotree_finalize, METH_O, "cotree_finalize(tree): number probes, hanging rules"},
     {"cotree_info", py_cotree_info, METH_O, "cotree_info(tree) -> dict (leaves, probes, positions, rules)"},

@@ -135,8 +135,8 @@ static pb_result cotree_index_leaves(pb_cotree *t, pb_error *err)
                                     l[1], l[2], levels_text(lv, lt), s, "XYZ"[k]);
             if ((uint64_t)l[k] + s > t->dims[k])
                 return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
-                                    "leaf %u at (%u, %u, %u) %s reaches past the lattice extent %u on axis %c", i,
-                                    l[0], l[1], l[2], levels_text(lv, lt), t->dims[k], "XYZ"[k]);
+                                    "leaf %u at (%u, %u, %u) %s reaches past the lattice extent %u on axis %c", i, l[0],
+                                    l[1], l[2], levels_text(lv, lt), t->dims[k], "XYZ"[k]);
         }
         if (l[3] > t->max_level) t->max_level = l[3];
         if (!t->cubes) continue; /* cubes: the octree's Morton check; boxes: the split tree proves it */
@@ -561,6 +561,7 @@ void pb_cotree_leaf_levels(const pb_cotree *t, uint32_t *out)
     if (t && out) memcpy(out, t->levels, (size_t)t->leaf_count * 3 * sizeof(uint32_t));
 }
 uint32_t pb_cotree_root_level(const pb_cotree *t) { return t ? t->root_level : 0; }
+bool pb_cotree_all_cubes(const pb_cotree *t) { return !t || t->cubes; }
 uint32_t pb_cotree_forced_splits(const pb_cotree *t) { return t ? t->forced : 0; }
 uint32_t pb_cotree_probe_count(const pb_cotree *t) { return t && t->finalized ? t->probe_count : 0; }
 uint32_t pb_cotree_hanging_count(const pb_cotree *t) { return t && t->finalized ? t->hanging_count : 0; }

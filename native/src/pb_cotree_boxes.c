@@ -187,8 +187,7 @@ pb_result pb_cotree_split_tree(const pb_cotree *t, uint32_t *nodes, uint32_t cap
     if (r != PB_SUCCESS) return r;
     *count = k;
     if (nodes && capacity < k)
-        r = pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "the split tree has %u nodes, room for %u given", k,
-                         capacity);
+        r = pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "the split tree has %u nodes, room for %u given", k, capacity);
     else if (nodes)
         memcpy(nodes, tree, (size_t)k * sizeof(uint32_t));
     free(tree);

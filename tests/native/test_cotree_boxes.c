@@ -71,6 +71,7 @@ static void test_random_trees_linear_and_c0(void)
         uint32_t f = 0;
         pb_cotree *t = random_tree(4, &f);
         TU_REQUIRE(t != NULL);
+        TU_CHECK(!pb_cotree_all_cubes(t));
         forced += f;
         uint32_t L = pb_cotree_leaf_count(t), P = pb_cotree_probe_count(t);
         hanging += pb_cotree_hanging_count(t);
@@ -134,6 +135,30 @@ static void test_random_trees_linear_and_c0(void)
             }
             TU_CHECK_NEAR(s, 1.0, 1e-6);
         }
+        /* Resolution order: decreasing potential (docs/aniso-refinement.md), hanging points from the
+         * leaves' corners. */
+        uint32_t *hp = calloc(3u * Hc + 3, sizeof(uint32_t));
+        int32_t *corners = malloc(32u * L);
+        pb_cotree_leaf_corners(t, corners);
+        for (uint32_t i = 0; i < L; i++)
+            for (uint32_t c = 0; c < 8; c++)
+                if ((uint32_t)corners[8 * i + c] >= P)
+                    for (int k = 0; k < 3; k++)
+                        hp[3 * (corners[8 * i + c] - P) + k] =
+                            leaves[4 * i + k] + ((c >> k) & 1u ? 1u << lv[3 * i + k] : 0u);
+        uint32_t prev = UINT32_MAX;
+        for (uint32_t h = 0; h < Hc; h++) {
+            uint32_t pot = 0;
+            for (int k = 0; k < 3; k++) {
+                uint32_t z = 0, v = hp[3 * h + k];
+                while (z <= 3 && !((v >> z) & 1u)) z++;
+                pot += z;
+            }
+            TU_CHECK(pot <= prev);
+            prev = pot;
+        }
+        free(hp);
+        free(corners);
         free(src);
         free(wt);
         free(lin);
@@ -309,8 +334,7 @@ static void test_split_tree(void)
         TU_REQUIRE(pb_cotree_finalize(u, &err) == PB_SUCCESS);
         TU_CHECK_EQ_INT(pb_cotree_forced_splits(u), 0);
         TU_CHECK_EQ_INT(pb_cotree_probe_count(u), pb_cotree_probe_count(t));
-        TU_CHECK(memcmp(pb_cotree_probe_lattice(t), pb_cotree_probe_lattice(u),
-                        12u * pb_cotree_probe_count(t)) == 0);
+        TU_CHECK(memcmp(pb_cotree_probe_lattice(t), pb_cotree_probe_lattice(u), 12u * pb_cotree_probe_count(t)) == 0);
         free(nodes2);
         free(pk);
         free(nodes);
@@ -355,7 +379,7 @@ static void test_split_tree_sparse(void)
     uint32_t K, *nodes = split_tree(t, &K);
     TU_REQUIRE(nodes != NULL);
     TU_CHECK_EQ_INT(K, 4);
-    TU_CHECK_EQ_INT(nodes[0], 2u << 2 | 1u);            /* root 0: split along x, children 2, 3 */
+    TU_CHECK_EQ_INT(nodes[0], 2u << 2 | 1u);             /* root 0: split along x, children 2, 3 */
     TU_CHECK_EQ_INT(nodes[1], PB_SPLIT_TREE_EMPTY << 2); /* root 1 dropped */
     TU_CHECK_EQ_INT(nodes[2], PB_SPLIT_TREE_EMPTY << 2); /* the dropped lower half */
     TU_CHECK_EQ_INT(nodes[3], 0u << 2);                  /* leaf 0 */
@@ -400,6 +424,7 @@ static void test_cube_trees_unchanged(void)
         TU_CHECK_EQ_INT(pb_cotree_probe_count(b), P);
         TU_CHECK_EQ_INT(pb_cotree_hanging_count(b), Hc);
         TU_CHECK_EQ_INT(pb_cotree_forced_splits(a), 0);
+        TU_CHECK(pb_cotree_all_cubes(a) && pb_cotree_all_cubes(b));
         TU_CHECK(Hc > 0);
         TU_CHECK(memcmp(pb_cotree_leaves(a), pb_cotree_leaves(b), 16u * L) == 0);
         TU_CHECK(memcmp(pb_cotree_probe_lattice(a), pb_cotree_probe_lattice(b), 12u * P) == 0);
@@ -465,7 +490,8 @@ static void test_hanging_edge_and_visibility(void)
         TU_CHECK_NEAR(w[4 * h], 0.5, 0);
         TU_CHECK_NEAR(w[4 * h + 1], 0.5, 0);
         TU_CHECK_NEAR(w[4 * h + 2], 0.0, 0);
-        const uint32_t *p0 = pb_cotree_probe_lattice(t) + 3 * src[4 * h], *p1 = pb_cotree_probe_lattice(t) + 3 * src[4 * h + 1];
+        const uint32_t *p0 = pb_cotree_probe_lattice(t) + 3 * src[4 * h],
+                       *p1 = pb_cotree_probe_lattice(t) + 3 * src[4 * h + 1];
         TU_CHECK(p0[0] == 8 && p1[0] == 8 && p0[2] == p1[2] && p0[1] + p1[1] == 8);
     }
     pb_cotree_destroy(t);
@@ -497,7 +523,10 @@ static void test_create_boxes_rejects(void)
         {{8, 0, 0, PB_LEVELS_PACK(0, 0, 0)}, 1, 2, "reaches past the lattice extent 8 on axis X"},
         {{0, 0, 0, 1u << 24}, 1, 3, "top byte"},
         {{0, 0, 0, PB_LEVELS_PACK(2, 0, 0), 2, 0, 0, PB_LEVELS_PACK(1, 1, 0)}, 2, 3, "overlaps leaf"},
-        {{0, 0, 0, PB_LEVELS_PACK(1, 1, 1), 0, 0, 0, PB_LEVELS_PACK(1, 1, 1)}, 2, 3, "overlaps another leaf"}, /* cubes: the Morton check */
+        {{0, 0, 0, PB_LEVELS_PACK(1, 1, 1), 0, 0, 0, PB_LEVELS_PACK(1, 1, 1)},
+         2,
+         3,
+         "overlaps another leaf"}, /* cubes: the Morton check */
         /* A pinwheel: 3 boxes, each crossing one middle plane of the root, no overlap. */
         {{0, 0, 0, PB_LEVELS_PACK(3, 2, 2), 0, 0, 4, PB_LEVELS_PACK(2, 3, 2), 4, 4, 0, PB_LEVELS_PACK(2, 2, 3)},
          3,
@@ -556,7 +585,8 @@ static void test_hostile_boxes(void)
             for (int k = 0; k < 3; k++) {
                 lv[k] = (uint32_t)(rnd() * (R + 1.5));
                 uint32_t s = 1u << (lv[k] > 8 ? 8 : lv[k]);
-                leaves[4 * i + (uint32_t)k] = rnd() < 0.9 ? s * (uint32_t)(rnd() * (dims[k] / s + 1)) : (uint32_t)(rnd() * 9);
+                leaves[4 * i + (uint32_t)k] =
+                    rnd() < 0.9 ? s * (uint32_t)(rnd() * (dims[k] / s + 1)) : (uint32_t)(rnd() * 9);
             }
             leaves[4 * i + 3] = PB_LEVELS_PACK(lv[0], lv[1], lv[2]);
         }
@@ -574,7 +604,8 @@ static void test_hostile_boxes(void)
             for (uint32_t y = 0; y < dims[1]; y++)
                 for (uint32_t x = 0; x < dims[0]; x++) {
                     const uint32_t q[3] = {x, y, z};
-                    const double c[3] = {ORIGIN[0] + H * (x + 0.5), ORIGIN[1] + H * (y + 0.5), ORIGIN[2] + H * (z + 0.5)};
+                    const double c[3] = {ORIGIN[0] + H * (x + 0.5), ORIGIN[1] + H * (y + 0.5),
+                                         ORIGIN[2] + H * (z + 0.5)};
                     TU_CHECK_EQ_INT(pb_cotree_split_tree_find(nodes, grid, R, q), pb_cotree_locate(t, c));
                 }
         free(nodes);

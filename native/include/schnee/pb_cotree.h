@@ -87,6 +87,8 @@ pb_result pb_cotree_create_boxes(const double origin[3], double min_cell, uint32
 void pb_cotree_leaf_levels(const pb_cotree *tree, uint32_t *out);
 /* The root level R (create: root_level; create_leaves: the largest leaf level). */
 uint32_t pb_cotree_root_level(const pb_cotree *tree);
+/* Whether every leaf is a cube (lx = ly = lz): the octree (a version-3 file's structure 1). */
+bool pb_cotree_all_cubes(const pb_cotree *tree);
 /* Halves every leaf along the axes of its mask (bit 0 = x, 1 = y, 2 = z; axes at level 0 are ignored):
  * 2^|axes| children. pb_cotree_split(flags) is split_axes with mask 7 where a flag is set. The tree must
  * be finalized again afterwards; finalize first applies the nesting rule (docs/aniso-refinement.md:
