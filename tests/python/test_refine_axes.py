@@ -93,3 +93,29 @@ def test_octree_tests_refused():
     tests = tree.refine_tests()  # the octree's 7 columns
     with pytest.raises(ValueError, match="leaf_tests"):
         refine_axes.decide_axes(tree, tests, np.zeros((8, 4, 3)), np.zeros((7, 4, 3)))
+
+
+def test_box_trees():
+    # A 4 x 1 x 4 slab of 0.5 m min cells (levels 2, 0, 2) at ORIGIN: x and z edge midpoints and the
+    # centres of its faces across y, 10 points by hand; f quadratic along x splits x only (0.2 as on
+    # the cube), f varying along its level-0 axis y nothing (every test point lies at y's ends).
+    slab = native.CornerOctree.from_boxes(ORIGIN, 0.5, 2, (4, 1, 4), [[0, 0, 0, 2 | 0 << 8 | 2 << 16]])
+    slab.finalize()
+    tests = refine_axes.tests_axes(slab)
+    want = {(2, 0, 0), (2, 1, 0), (2, 0, 4), (2, 1, 4), (0, 0, 2), (4, 0, 2), (0, 1, 2), (4, 1, 2), (2, 0, 2),
+            (2, 1, 2)}
+    assert {tuple(int(v) for v in p) for p in tests.lattice} == want and len(tests.lattice) == 10
+    assert (tests.leaf_tests[0, 4:8] == -1).all()
+    axes, err, _ = _decide(slab, lambda p: 1.0 + ((p[:, 0] - 1.0) / 2.0) ** 2, tolerance=0.05)
+    assert axes.tolist() == [1] and err[0] == pytest.approx(0.2, abs=1e-12)
+    axes, err, _ = _decide(slab, lambda p: 1.0 + 4.0 * (p[:, 1] - 2.0) ** 2, tolerance=1e-9)
+    assert axes.tolist() == [0] and err[0] < 1e-12
+    # The refinement step: the cube split along y gives two boxes (2, 1, 2); the y quadratic splits the
+    # lower one again (0.0625 / 1.0625 at its middle) but not the upper (0.0625 / 1.5625 = 0.04).
+    tree = _cube()
+    assert tree.split_axes([2]) == 1
+    tree.finalize()
+    axes, err, _ = _decide(tree, lambda p: 1.0 + ((p[:, 1] - 2.0) / 2.0) ** 2, tolerance=0.05)
+    lower = tree.info()["leaves"][:, 1] == 0
+    assert axes.tolist() == np.where(lower, 2, 0).tolist()
+    np.testing.assert_allclose(err, np.where(lower, 0.0625 / 1.0625, 0.04), atol=1e-12)
