@@ -408,6 +408,34 @@ static int cmp_node(const void *pa, const void *pb)
     return a->morton < b->morton ? -1 : (a->morton > b->morton ? 1 : 0);
 }
 
+/* Hanging test: among the leaves around each corner node p that have p on their boundary but not as a
+ * corner, the host by host_key(); a hanging node's sort key. */
+static void cotree_find_hosts(const pb_cotree *t, node_tmp *nodes, size_t n)
+{
+    for (size_t j = 0; j < n; j++) {
+        node_tmp *nd = nodes + j;
+        for (uint32_t o = 0; o < 8; o++) {
+            uint32_t q[3];
+            bool inside = true;
+            for (int k = 0; k < 3; k++) {
+                bool neg = !((o >> k) & 1);
+                if (neg && nd->p[k] == 0) inside = false;
+                if (!neg && nd->p[k] >= t->dims[k]) inside = false;
+                q[k] = neg ? nd->p[k] - 1 : nd->p[k];
+            }
+            if (!inside) continue;
+            int32_t li = locate_cell(t, q);
+            if (li < 0) continue;
+            uint32_t key = host_key(t, (uint32_t)li, nd->p);
+            if (key && (nd->host < 0 || key > nd->level || (key == nd->level && li < nd->host))) {
+                nd->host = li;
+                nd->level = key;
+            }
+        }
+        if (nd->host >= 0 && !t->cubes) nd->level = potential(nd->p, t->root_level);
+    }
+}
+
 pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
 {
     if (!t) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_finalize: NULL tree");
@@ -442,30 +470,7 @@ pb_result pb_cotree_finalize(pb_cotree *t, pb_error *err)
             nd->morton = pb_morton3_(p[0], p[1], p[2]);
         }
     }
-    /* Hanging test: among the leaves around p that have p on their boundary but not as a corner, the
-     * host by host_key(). */
-    for (size_t j = 0; j < n; j++) {
-        node_tmp *nd = nodes + j;
-        for (uint32_t o = 0; o < 8; o++) {
-            uint32_t q[3];
-            bool inside = true;
-            for (int k = 0; k < 3; k++) {
-                bool neg = !((o >> k) & 1);
-                if (neg && nd->p[k] == 0) inside = false;
-                if (!neg && nd->p[k] >= t->dims[k]) inside = false;
-                q[k] = neg ? nd->p[k] - 1 : nd->p[k];
-            }
-            if (!inside) continue;
-            int32_t li = locate_cell(t, q);
-            if (li < 0) continue;
-            uint32_t key = host_key(t, (uint32_t)li, nd->p);
-            if (key && (nd->host < 0 || key > nd->level || (key == nd->level && li < nd->host))) {
-                nd->host = li;
-                nd->level = key;
-            }
-        }
-        if (nd->host >= 0 && !t->cubes) nd->level = potential(nd->p, t->root_level);
-    }
+    cotree_find_hosts(t, nodes, n);
     qsort(nodes, n, sizeof *nodes, cmp_node);
     uint32_t P = 0;
     while (P < n && nodes[P].host < 0) P++;
