@@ -524,6 +524,57 @@ static void test_split_axes_then_test(void)
     pb_cotree_destroy(t);
 }
 
+/* Refinement pass after pass on 2 × 1 × 2 roots of 1 m (min cell 0.25 m) at tolerance 5 %: f = 1 + y²
+ * varies along y only, so every pass splits along y only and every leaf keeps its x and z levels (2).
+ * The error at the y edges' midpoint of a box [y0, y0 + s] is (s/2)² / f(y0 + s/2): 0.25 / 1.25 for the
+ * root, then 0.0625 / 1.0625 = 5.9 % for [0, 0.5] (splits to Min Cell Size) and 0.0625 / 1.5625 = 4 %
+ * for [0.5, 1] (stays): 2 passes, 3 boxes per root, y levels 0, 0, 1. A linear field on the final tree
+ * splits nothing. */
+static double linear_y(const double p[3]) { return 2.0 + 0.3 * p[0] - 0.7 * p[1] + 0.5 * p[2]; }
+
+static void test_passes_split_y_only(void)
+{
+    pb_cotree *t = cubes(2, 1, 2);
+    TU_REQUIRE(t != NULL);
+    pb_error err = {0};
+    uint32_t passes = 0;
+    for (; passes < 8; passes++) {
+        decided d;
+        TU_REQUIRE(decide(t, quad_y, 0.05, 0.0f, false, &d));
+        uint32_t L = pb_cotree_leaf_count(t), n = 0;
+        for (uint32_t i = 0; i < L; i++) {
+            TU_CHECK((d.axes[i] & 5u) == 0);
+            n += d.axes[i] != 0;
+        }
+        if (n == 0) {
+            decided_free(&d);
+            break;
+        }
+        pb_result r = pb_cotree_split_axes(t, d.axes, NULL, &err);
+        decided_free(&d);
+        TU_REQUIRE(r == PB_SUCCESS && pb_cotree_finalize(t, &err) == PB_SUCCESS);
+        TU_CHECK(pb_cotree_forced_splits(t) == 0);
+    }
+    TU_CHECK(passes == 2);
+    uint32_t L = pb_cotree_leaf_count(t), *lv = malloc((size_t)L * 3 * sizeof(uint32_t));
+    TU_CHECK(L == 12);
+    pb_cotree_leaf_levels(t, lv);
+    const uint32_t *leaves = pb_cotree_leaves(t);
+    for (uint32_t i = 0; i < L; i++) {
+        TU_CHECK(lv[3 * i] == 2 && lv[3 * i + 2] == 2);
+        TU_CHECK(lv[3 * i + 1] == (leaves[4 * i + 1] < 2 ? 0u : 1u));
+    }
+    free(lv);
+    decided d;
+    TU_REQUIRE(decide(t, linear_y, 1e-9, 0.0f, false, &d));
+    for (uint32_t i = 0; i < L; i++) {
+        TU_CHECK(d.axes[i] == 0);
+        TU_CHECK(d.err[i] < 1e-12);
+    }
+    decided_free(&d);
+    pb_cotree_destroy(t);
+}
+
 int main(void)
 {
     TU_RUN(test_column_layout);
@@ -536,5 +587,6 @@ int main(void)
     TU_RUN(test_box_test_points);
     TU_RUN(test_box_split_rule);
     TU_RUN(test_split_axes_then_test);
+    TU_RUN(test_passes_split_y_only);
     return TU_EXIT();
 }
