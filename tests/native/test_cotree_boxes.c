@@ -455,6 +455,61 @@ static void test_cube_trees_unchanged(void)
     }
 }
 
+/* Cube trees as the octree built them before boxes existed: an FNV-1a 64 digest of leaves, probe
+ * lattice, leaf corners and hanging rules of 12 random cube trees. Expected value: the same program
+ * linked against native/src/pb_cotree.c and pb_interp.c of commit 1dd9c79 (the octree code before
+ * this change): eb93e44ce95dd204. */
+static uint64_t digest_rng = 88172645463325252ull;
+static double digest_rnd(void) /* xorshift64 */
+{
+    digest_rng ^= digest_rng << 13;
+    digest_rng ^= digest_rng >> 7;
+    digest_rng ^= digest_rng << 17;
+    return (double)(digest_rng >> 11) / 9007199254740992.0;
+}
+
+static void fnv_mix(uint64_t *h, const void *p, size_t n)
+{
+    const unsigned char *b = p;
+    for (size_t i = 0; i < n; i++) *h = (*h ^ b[i]) * 1099511628211ull;
+}
+
+static void test_cube_trees_digest(void)
+{
+    uint64_t h = 1469598103934665603ull;
+    for (uint32_t seed = 0; seed < 12; seed++) {
+        const double o[3] = {-1, 0.5, 2};
+        const uint32_t roots[3] = {1 + seed % 3, 2, 1 + seed % 2};
+        pb_cotree *t = NULL;
+        pb_error e = {0};
+        TU_REQUIRE(pb_cotree_create(o, 0.25, 3, roots, &t, &e) == PB_SUCCESS);
+        for (int p = 0; p < 3; p++) {
+            uint32_t L = pb_cotree_leaf_count(t);
+            uint8_t *f = calloc(L + 1, 1);
+            for (uint32_t i = 0; i < L; i++) f[i] = digest_rnd() < 0.3;
+            TU_CHECK(pb_cotree_split(t, f, NULL, &e) == PB_SUCCESS);
+            free(f);
+        }
+        TU_REQUIRE(pb_cotree_finalize(t, &e) == PB_SUCCESS);
+        uint32_t L = pb_cotree_leaf_count(t), P = pb_cotree_probe_count(t), Hc = pb_cotree_hanging_count(t);
+        fnv_mix(&h, pb_cotree_leaves(t), 16u * L);
+        fnv_mix(&h, pb_cotree_probe_lattice(t), 12u * P);
+        int32_t *c = malloc(32u * L);
+        pb_cotree_leaf_corners(t, c);
+        fnv_mix(&h, c, 32u * L);
+        uint32_t *sr = malloc(16u * Hc + 1);
+        float *w = malloc(16u * Hc + 1);
+        pb_cotree_hanging_rules(t, sr, w);
+        fnv_mix(&h, sr, 16u * Hc);
+        fnv_mix(&h, w, 16u * Hc);
+        free(c);
+        free(sr);
+        free(w);
+        pb_cotree_destroy(t);
+    }
+    TU_CHECK(h == 0xeb93e44ce95dd204ull);
+}
+
 /* A y-split root beside an unsplit one (test_aniso_prototype.py's case): the 2 corners at mid-height
  * on the shared face hang on the neighbour's edges, 1/2 and 1/2; boxes' pair visibility traces the
  * box's own corners, 152 segments per leaf. */
@@ -643,6 +698,7 @@ int main(void)
     TU_RUN(test_split_tree);
     TU_RUN(test_split_tree_sparse);
     TU_RUN(test_cube_trees_unchanged);
+    TU_RUN(test_cube_trees_digest);
     TU_RUN(test_hanging_edge_and_visibility);
     TU_RUN(test_create_boxes_rejects);
     TU_RUN(test_hostile_boxes);
