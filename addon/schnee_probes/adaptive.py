@@ -98,7 +98,7 @@ class Policy:
     # only along the axes its tests disagree on (12 edge midpoints + the middle point; the direct
     # check the same way). False: the octree's all-axes splits with 7 tests (Refinement Tests "Centre"
     # always uses those).
-    axes: bool = False
+    axes: bool = True
 
 
 DEFAULT_POLICY = Policy()
@@ -242,6 +242,31 @@ def split_masks(leaf_count: int, levels: np.ndarray, leaf_of: np.ndarray, edge: 
     middle = middle[out[middle] == 0]
     out[middle] = splittable[middle]
     return (out & splittable).astype(np.uint8)
+
+
+def outside_boxes(origin, min_cell: float, volumes, geometry, leaves: np.ndarray, levels: np.ndarray) -> np.ndarray:
+    """(L,) bool: the leaf boxes outside the volumes: class 0 (``classify_placement``) for each of the
+    cubes of the box's smallest side that tile it (at most 8 per axis: beyond that, the cubes
+    around 8 × 8 × 8 sub-boxes, which may keep a box just outside)."""
+    levels = np.asarray(levels, dtype=np.int64).reshape(-1, 3)
+    side = levels.min(axis=1, keepdims=True)
+    split = np.minimum(levels - side, 3)          # cubes per axis 2^split (≤ 8)
+    centres, halves, owner = [], [], []
+    for lv in np.unique(levels, axis=0):
+        sel = np.flatnonzero((levels == lv).all(axis=1))
+        sp = split[sel[0]]
+        cube = 2.0 ** (lv - sp)                   # min cells per axis (equal unless capped)
+        grid = np.stack(np.meshgrid(*[np.arange(1 << k) for k in sp], indexing="ij"), axis=-1).reshape(-1, 3)
+        c = leaves[sel, None, :3].astype(np.float64) + (grid[None] + 0.5) * cube
+        centres.append(origin + c.reshape(-1, 3) * min_cell)
+        halves.append(np.full(len(sel) * len(grid), 0.5 * min_cell * cube.max()))
+        owner.append(np.repeat(sel, len(grid)))
+    boxes = np.concatenate([np.concatenate(centres), np.concatenate(halves)[:, None]], axis=1)
+    _, _, cls = native.classify_placement(volumes, geometry, boxes=boxes,
+                                          min_cell_size=min_cell)
+    inside = np.zeros(len(leaves), dtype=bool)
+    inside[np.concatenate(owner)[np.asarray(cls) != 0]] = True
+    return ~inside
 
 
 def lattice_frame(volume_vertices: np.ndarray, min_cell: float, max_cell: float):
@@ -548,22 +573,12 @@ class AdaptiveGroup:
         self._engine_of = {}        # cache index -> the mixed lamps' direct SH there
 
     # -- geometry queries through the placement's rules
-    def _classify_boxes(self, leaves: np.ndarray, levels: np.ndarray) -> np.ndarray:
-        """Placement class of each leaf box, through the cube around it (a box is dropped only when
-        that cube lies outside the volumes)."""
-        size = 2.0 ** np.asarray(levels, dtype=np.float64)
-        centre = self.origin + (leaves[:, :3].astype(np.float64) + 0.5 * size) * self.min_cell
-        boxes = np.concatenate([centre, (0.5 * self.min_cell * size.max(axis=1))[:, None]], axis=1)
-        _, _, cls = native.classify_placement(self.volumes, self.geometry, boxes=boxes,
-                                              min_cell_size=self.min_cell)
-        return cls
-
     def _drop_outside(self) -> int:
         info = self.tree.info()
         leaves = info["leaves"]
         if len(leaves) == 0:
             return 0
-        outside = self._classify_boxes(leaves, leaf_levels(info)) == 0
+        outside = outside_boxes(self.origin, self.min_cell, self.volumes, self.geometry, leaves, leaf_levels(info))
         if outside.any():
             self.tree.drop(outside)
         return int(outside.sum())

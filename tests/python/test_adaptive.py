@@ -59,6 +59,14 @@ def drive(group, field, noise=0.0, jitter=None):
 
 
 VOLUME = box_mesh("hall", (0.0, 0.0, 0.0), (8.0, 2.0, 2.0))
+OCTREE = adaptive.Policy(axes=False)
+
+
+def x_cells(group, h=0.5):
+    """(min x, size along x, size along y and z (L, 2)) of the group's leaves, metres."""
+    info = group.tree.info()
+    levels = adaptive.leaf_levels(info).astype(float)
+    return info["leaves"][:, 0] * h, h * 2 ** levels[:, 0], h * 2 ** levels[:, 1:]
 
 
 def test_lattice_frame_rounds_max_cell_down_and_covers_the_box():
@@ -100,15 +108,15 @@ def test_shadow_plane_refines_only_the_cells_it_crosses(tests):
     def field(p):
         return np.array([sh_of(1.0, 3.0 if x > 3.3 else 0.0) for x in p[:, 0]])
     drive(group, field)
-    info = group.tree.info()
-    leaves = info["leaves"].astype(float)
-    size = 0.5 * 2 ** leaves[:, 3]
-    lo = leaves[:, 0] * 0.5
+    lo, size, other = x_cells(group)
     crossed = (lo < 3.3) & (lo + size > 3.3)
     assert np.all(size[crossed] == 0.5)
     # Leaves below Max Cell Size only inside the 2 m cell [2, 4] that holds the plane.
     assert np.all((lo[size < 2] >= 2.0) & (lo[size < 2] + size[size < 2] <= 4.0))
     assert [p.smallest_cell for p in group.passes] == [2.0, 1.0, 0.5]
+    # The light varies along x only: per axis (the default, with face tests) nothing splits along y
+    # or z, the octree halves those too.
+    assert np.all(other == 2.0) == (tests == "CENTRE_FACES")
 
 
 @pytest.mark.parametrize("tests", adaptive.TEST_MODES)
@@ -181,7 +189,10 @@ def test_more_samples_find_the_error_the_noise_hid():
     assert cache.samples.max() == cache.most == 8 and cache.samples[cache.rendered].min() == 4
     # The stages: per pass probes, tests and more rounds, and the last probes' more rounds (the farm
     # submits one job array per stage).
-    assert found.stage_count() == 3 * found.root_level + 2 == adaptive.stage_bound(0.5, 2.0, found.policy)
+    # Per axis a leaf may split one axis a pass: up to 3 passes per level.
+    assert found.stage_count() == 3 * 3 * found.root_level + 2 == adaptive.stage_bound(0.5, 2.0, found.policy)
+    octree = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, policy=OCTREE)
+    assert octree.stage_count() == 3 * octree.root_level + 2 == adaptive.stage_bound(0.5, 2.0, OCTREE)
 
 
 def test_a_clear_decision_stops_at_the_first_rounds():
@@ -239,12 +250,13 @@ def test_centre_tests_keep_each_leafs_centre_and_drop_face_only_points():
 
 def test_centre_tests_render_fewer_points_for_the_same_refinement():
     # The shadow plane of the test above: both modes split the same leaves (same tree), the centre
-    # mode renders fewer points (the face centres of leaves that do not split are never baked).
+    # mode renders fewer points (the face centres of leaves that do not split are never baked). The
+    # centre mode is an octree's: compared with the octree's face tests.
     def field(p):
         return np.array([sh_of(1.0, 3.0 if x > 3.3 else 0.0) for x in p[:, 0]])
     trees, renders = {}, {}
     for mode in adaptive.TEST_MODES:
-        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, mode)
+        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, mode, policy=OCTREE)
         cache = drive(group, field)
         trees[mode] = group.tree.info()["leaves"].tolist()
         renders[mode] = int(cache.rendered.sum())
@@ -254,11 +266,11 @@ def test_centre_tests_render_fewer_points_for_the_same_refinement():
         adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, "FACES")
 
 
-def _quadratic_hall(predict):
+def _quadratic_hall(predict, axes=False):
     """The hall at Min/Max Cell 0.125/2 m under f = 1 + x² (SH L0) with Policy.predict = predict:
     (group, renders, error at 500 seeded points)."""
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05,
-                                   policy=adaptive.Policy(predict=predict))
+                                   policy=adaptive.Policy(predict=predict, axes=axes))
 
     def field(p):
         return np.array([sh_of(1.0 + x * x, 0.5) for x in p[:, 0]])
@@ -279,16 +291,25 @@ def test_prediction_skips_the_tests_of_children_a_smooth_field_lets_pass():
     assert np.array_equal(err, err_all) and err.max() <= 0.05
     # 556 vs 1164 renders (412 while one measured rate was enough: see the next-but-one test)
     assert renders < 0.5 * renders_all
+    # Per axis the same holds with slabs split along x only: the same tree and error with fewer
+    # renders, and far fewer renders than the octree's in all.
+    plain_axes, renders_all_axes, err_all_axes = _quadratic_hall(0.0, axes=True)
+    group, renders_axes, err = _quadratic_hall(4.0, axes=True)
+    assert sum(p.predicted for p in group.passes) > 0
+    assert group.tree.info()["leaves"].tolist() == plain_axes.tree.info()["leaves"].tolist()
+    assert np.array_equal(err, err_all_axes) and err.max() <= 0.05
+    assert renders_axes < renders_all_axes and renders_axes < 0.5 * renders
 
 
 def test_prediction_needs_a_measured_rate():
     # The first layer's children are always tested: at 16 m in a 10 m room nothing says the light
     # is in the h² regime yet. With Max Cell 2 m the quadratic field's first split leaves have no
     # rate; only their children's children are predicted.
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05,
-                                   policy=adaptive.Policy(predict=4.0))
-    drive(group, lambda p: np.array([sh_of(1.0 + x * x, 0.5) for x in p[:, 0]]))
-    assert [p.predicted for p in group.passes][:2] == [0, 0]
+    for axes in (False, True):
+        group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05,
+                                       policy=adaptive.Policy(predict=4.0, axes=axes))
+        drive(group, lambda p: np.array([sh_of(1.0 + x * x, 0.5) for x in p[:, 0]]))
+        assert [p.predicted for p in group.passes][:2] == [0, 0]
 
 
 def test_prediction_needs_the_rate_measured_at_two_levels():
@@ -296,14 +317,16 @@ def test_prediction_needs_the_rate_measured_at_two_levels():
     # only a 0.5 m leaf's centre test can see: predicted from that one rate, the spot's 0.5 m leaf
     # was never tested (measured in Cycles: the bundled room at 128×64 px, a 4 m leaf predicted
     # from the 16 m → 8 m rate, 15–28 % off at nine points). With both its own rate and its
-    # parent's required, that leaf is tested and the spot refines.
+    # parent's required, that leaf is tested and the spot refines. (An octree's: per axis the
+    # quadratic's x edges split slabs along x only, and no test comes near the spot; the per-axis
+    # middle tests find a compact feature where one lies at a leaf's middle, docs/aniso-refinement.md.)
     spot = np.array([0.75, 0.25, 0.25])      # centre of a 0.5 m leaf, 0.43 m from its parent's tests
 
     def field(p):
         bump = 3.0 * np.exp(-np.sum((p - spot) ** 2, axis=1) / (2 * 0.06 ** 2))
         return np.array([sh_of(1.0 + 0.3 * x * x + b, 0.5) for x, b in zip(p[:, 0], bump)])
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.125, 2.0, 0.05,
-                                   policy=adaptive.Policy(predict=4.0))
+                                   policy=adaptive.Policy(predict=4.0, axes=False))
     cache = drive(group, field)
     got = group.tree.interpolate(spot[None], cache.coeffs[group.probe_index], cache.validity(group.probe_index))
     assert adaptive.irradiance_error(got, field(spot[None]))[0] < 0.05
@@ -340,8 +363,7 @@ def test_prediction_still_refines_a_shadow_edge_to_min_cell():
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05,
                                    policy=adaptive.Policy(predict=4.0))
     drive(group, lambda p: np.array([sh_of(1.0, 3.0 if x > 3.3 else 0.0) for x in p[:, 0]]))
-    leaves = group.tree.info()["leaves"].astype(float)
-    size, lo = 0.5 * 2 ** leaves[:, 3], leaves[:, 0] * 0.5
+    lo, size, _ = x_cells(group)
     crossed = (lo < 3.3) & (lo + size > 3.3)
     assert crossed.any() and np.all(size[crossed] == 0.5)
     assert np.all((lo[size < 2] >= 2.0) & (lo[size < 2] + size[size < 2] <= 4.0))
@@ -368,11 +390,11 @@ def test_direct_light_draws_refinement_to_a_beam_the_tests_miss():
 
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, direct=direct)
     cache = drive(group, total)
-    leaves = group.tree.info()["leaves"].astype(float)
-    size, lo = 0.5 * 2 ** leaves[:, 3], leaves[:, 0] * 0.5
+    lo, size, other = x_cells(group)
     holds = (lo < 2.9) & (lo + size > 2.4)
     assert holds.any() and np.all(size[holds] == 0.5)
     assert np.all((lo[size < 2] >= 2.0) & (lo[size < 2] + size[size < 2] <= 4.0))
+    assert np.all(other == 2.0)     # the direct check's failing points lie on x edges: x only
     assert sum(p.direct_split for p in group.passes) > 0
     # Every render is a probe or a test: the direct check itself renders nothing.
     assert int(cache.rendered.sum()) == len(cache)
@@ -399,8 +421,7 @@ def test_mixed_sun_errors_are_judged_on_the_light_an_object_gets(jump, sun, spli
     drive(group, field)
     assert (group.passes[0].split > 0) == splits
     if splits:
-        leaves = group.tree.info()["leaves"].astype(float)
-        size, lo = 0.5 * 2 ** leaves[:, 3], leaves[:, 0] * 0.5
+        lo, size, _ = x_cells(group)
         assert np.all(size[(lo < 3.3) & (lo + size > 3.3)] == 0.5)
     # The check's arithmetic: the sun's share of the norm really is that large.
     # ||A c|| of sh_of(1, s) is sqrt(pi^2 + (2 pi s / 3)^2) per channel (A_0 = pi, A_1 = 2 pi / 3).
@@ -519,7 +540,7 @@ def test_a_surface_on_the_volumes_max_face_belongs_to_the_leaf_inside():
     def field(p):
         return np.array([sh_of(1.0 + 3.0 * x * x, 0.0) for x in p[:, 0]])
     cache = drive(group, field)
-    assert group.tree.info()["dims"][0] == 8 and np.all(group.tree.info()["leaves"][:, 3] == 0)
+    assert group.tree.info()["dims"][0] == 8 and np.all(x_cells(group)[1] == 0.5)
     xs = [3.0 - 1e-9, 3.0, 3.0 + 1e-7, 3.004, 3.006]
     pts = np.array([[x, 1.1, 0.9] for x in xs])
     got = group.tree.interpolate(pts, cache.coeffs[group.probe_index], cache.validity(group.probe_index))
@@ -544,7 +565,7 @@ def test_policy_is_frozen_and_defaults_to_the_measured_knobs():
     with pytest.raises(dataclasses.FrozenInstanceError):
         p.predict = 2.0
     assert dataclasses.replace(p, predict=2.0).predict == 2.0 and p.predict == 4.0
-    assert adaptive.stage_bound(0.5, 2.0) == 3 * 2 + 2
+    assert p.axes and adaptive.stage_bound(0.5, 2.0) == 3 * 3 * 2 + 2
 
 
 def test_child_keys_halve_only_the_masked_axes_above_level_0():
