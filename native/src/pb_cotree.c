@@ -312,7 +312,7 @@ static uint32_t split_mask(const pb_cotree *t, uint32_t i, uint32_t m)
 
 pb_result pb_cotree_split_axes(pb_cotree *t, const uint8_t *axes, uint32_t *split_count, pb_error *err)
 {
-    if (!t || !axes) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_split: NULL argument");
+    if (!t || !axes) return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_split_axes: NULL argument");
     uint64_t n = 0, splits = 0;
     for (uint32_t i = 0; i < t->leaf_count; i++) {
         uint32_t m = split_mask(t, i, axes[i]);

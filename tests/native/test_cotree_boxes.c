@@ -91,7 +91,11 @@ static void test_random_trees_linear_and_c0(void)
             lin[p] = linear(u);
             rv[p] = rnd();
         }
-        double worst_lin = 0.0, worst_jump = 0.0, worst_sum = 0.0;
+        double worst_lin = 0.0, worst_jump = 0.0, worst_sum = 0.0, worst_vis = 0.0;
+        /* The visibility field with every pair clear (255) is the plain field. */
+        uint8_t *clear = malloc(64u * L);
+        memset(clear, PB_VIS_CLEAR, 64u * L);
+        const pb_interp_options vis = {.pair_visibility = clear};
         for (int n = 0; n < 4000; n++) {
             double u[3], x[3];
             for (int k = 0; k < 3; k++) u[k] = rnd() * dims[k], x[k] = ORIGIN[k] + H * u[k];
@@ -101,7 +105,11 @@ static void test_random_trees_linear_and_c0(void)
             for (uint32_t k = 0; k < w.count; k++) s += w.weight[k];
             worst_sum = fmax(worst_sum, fabs(s - 1.0));
             worst_lin = fmax(worst_lin, fabs(eval(&w, lin) - linear(u)));
+            TU_REQUIRE(pb_interp_query_cotree(t, x, &vis, &w) == PB_SUCCESS && w.count > 0);
+            worst_vis = fmax(worst_vis, fabs(eval(&w, lin) - linear(u)));
         }
+        TU_CHECK(worst_vis < 1e-9);
+        free(clear);
         /* (b) random points on random leaves' upper faces: both leaves' own fields. */
         for (int n = 0; n < 6000; n++) {
             uint32_t i = (uint32_t)(rnd() * L), a = (uint32_t)(rnd() * 3);
