@@ -53,17 +53,26 @@ def shadow(scenes, tmp_path_factory):
 
 
 def _leaf_boxes(r):
-    leaves = np.array(r["leaves"], dtype=float)
+    """(min corner, max corner, size) per leaf and axis, metres: version 4 leaves hold packed
+    per-axis levels (docs/shprobe-format.md), version 3 one level."""
+    leaves = np.array(r["leaves"], dtype=np.int64)
     h, o = r["grid_spacing"], np.array(r["grid_origin"])
-    size = h * 2.0 ** leaves[:, 3]
+    if r["version"] >= 4:
+        levels = np.stack([leaves[:, 3] & 0xFF, leaves[:, 3] >> 8 & 0xFF, leaves[:, 3] >> 16 & 0xFF], axis=1)
+    else:
+        levels = np.repeat(leaves[:, 3:4], 3, axis=1)
+    size = h * 2.0 ** levels
     lo = o + leaves[:, :3] * h
-    return lo, lo + size[:, None], size
+    return lo, lo + size, size
 
 
 def test_shadow_boundary_draws_refinement_to_it_and_nowhere_else(shadow):
     r = shadow
-    assert r["version"] == 3 and r["structure"] == "octree"
-    lo, hi, size = _leaf_boxes(r)
+    # Per-axis refinement (the default): the penumbra is a plane nearly normal to x (its x shifts by
+    # 0.02 m per metre of z), so leaves split along x and stay whole along y: boxes, version 4.
+    assert r["version"] == 4 and r["structure"] == "kdtree"
+    lo, hi, sizes = _leaf_boxes(r)
+    size = sizes[:, 0]
     # The transition slab: every x where some point of the leaf's z range is in the penumbra.
     b_lo, w_lo = boundary(lo[:, 2])
     b_hi, w_hi = boundary(hi[:, 2])
@@ -79,12 +88,14 @@ def test_shadow_boundary_draws_refinement_to_it_and_nowhere_else(shadow):
     gap = np.maximum(slab_min - hi[:, 0], lo[:, 0] - slab_max)
     assert np.all(gap[finer] < MAX_CELL), gap[finer]
     outer = (hi[:, 0] <= -2.0) | (lo[:, 0] >= 2.0)
-    assert np.all(size[outer] == MAX_CELL)
+    assert np.all(sizes[outer] == MAX_CELL)
     assert outer.sum() == 2
+    assert np.all(sizes[:, 1] == MAX_CELL)          # nothing varies along y (the wall's height)
     # Min Cell Size leaves only near the slab: within one Min Cell Size... of the parent (1 m).
     fine = size == MIN_CELL
     assert np.all(gap[fine] < 2 * MIN_CELL), gap[fine]
-    # Far fewer probes than the uniform grid of Min Cell Size (17 x 5 x 5 = 425 corners).
+    # Far fewer probes than the uniform grid of Min Cell Size (17 x 5 x 5 = 425 corners), and than
+    # the octree's (which halves y and z with x: 9 x 3 x 3 corners around a 2 m slab at least).
     assert r["probe_count"] < 425 / 3
     # Passes: Max Cell Size 2 m -> 1 m -> 0.5 m, nothing split in the last.
     assert [p["smallest_cell"] for p in r["passes"]] == [2.0, 1.0, 0.5]
