@@ -89,7 +89,31 @@ uvec3 leaf_min(uint at) { return uvec3(uint(cell_probe[at]), uint(cell_probe[at 
 // an aligned leaf covers a contiguous Morton range, so a binary search for the last leaf whose min
 // corner is not after q finds the only candidate (at most 27 steps for the 2^26 leaves a file may
 // hold); it holds q when q lies in its cube.
+// A kd corner tree (.shprobe v4, SV_GRID_KDTREE; docs/aniso-refinement.md "Point location"): from the
+// node of q's root cell (q >> R, x fastest), while the node splits along axis a, halve the box on a and
+// go to the lower child when q_a < min_a + 2^l_a (the new level), else to the upper one. Each split
+// lowers one of the three levels, so at most 3R steps (the loop's bound), one 4-byte fetch each; a split
+// of a level-0 axis (never in a file the reader accepted) ends as no leaf.
+int kd_locate(sv_gpu_grid gr, uvec3 q) {
+    uint R = gr.tree.y;
+    uvec3 lo = (q >> R) << R, lv = uvec3(R);
+    uint node = (q.x >> R) + gr.tree.z * ((q.y >> R) + gr.tree.w * (q.z >> R));
+    for (uint i = 0u; i <= 3u * R; ++i) {
+        uint nd = uint(cell_probe[gr.tree.x + node]);
+        uint ax = nd & 3u;
+        if (ax == 0u) return (nd >> 2u) == 0x3fffffffu ? -1 : int(nd >> 2u);
+        uint a = ax - 1u;
+        if (lv[a] == 0u) return -1;
+        lv[a] -= 1u;
+        uint up = q[a] >= lo[a] + (1u << lv[a]) ? 1u : 0u;
+        lo[a] += up << lv[a];
+        node = (nd >> 2u) + up;
+    }
+    return -1;
+}
+
 int octree_locate(sv_gpu_grid gr, uvec3 q) {
+    if ((gr.base.z & SV_GRID_KDTREE) != 0u) return kd_locate(gr, q);
     uint lo = 0u, hi = gr.base.w;
     while (lo < hi) {
         uint mid = (lo + hi) / 2u;
@@ -128,14 +152,14 @@ float pair_vis(uint at, uint k, uint c) {
     return q >= 255u ? 1.0 : 1.0 - 127.5 / float(max(q, 1u));
 }
 
-// E(n) of a corner octree at p: mirrors leaf_weights() of native/src/pb_interp.c line by line (leaf
-// of the point, t = clamp((u - corner0) / 2^level, 0, 1), trilinear weights of the 8 corners, each
+// E(n) of a corner octree or kd corner tree at p: mirrors leaf_weights() of native/src/pb_interp.c line by
+// line (leaf of the point, t = clamp((u - corner0) / s, 0, 1) with s = 2^l_a per axis, trilinear weights of the 8 corners, each
 // times the ramp smoothstep(1/2, 1/2 + PB_VIS_RAMP, v_c) of the leaf's continuous visibility field
 // v_c = sum_k w_k V(k, c) (pb_interp.h; tables traced at load through the static scene), zero weights
 // skipped, probes of validity 0 dropped, renormalised). The hanging corners were resolved at load into
 // the entries after the probes (value and validity mass, sv_probes.c resolve_hanging), so the 8
 // fetches give exactly the CPU's expanded and merged weights. On top, for static objects only, the
-// back-face weight smoothstep(-0.1, 0.1, dot(c - p, n) / leaf size) of each corner (a movable object was
+// back-face weight smoothstep(-0.1, 0.1, dot((c - p) / s, n)) of each corner, s the leaf's per-axis size (a movable object was
 // not in the bake, so every corner holds the light where it now is, and on a small convex object the
 // weight would throw away the probes behind each surface point). When these leave no weight, the plain
 // trilinear weights are used (the leaf's own field, as the CPU). False: no leaf holds p, or every
@@ -154,7 +178,10 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, bool m
     if (li < 0) return false;
     uint lb = gr.dims.w + SV_LEAF_INTS * uint(li);
     vec3 l = vec3(float(cell_probe[lb]), float(cell_probe[lb + 1u]), float(cell_probe[lb + 2u]));
-    float s = float(1u << uint(cell_probe[lb + 3u]));
+    // Per-axis sizes 2^l_a: a kd tree's leaf packs lx | ly << 8 | lz << 16, an octree's is one level.
+    uint lw = uint(cell_probe[lb + 3u]);
+    uvec3 lvl = (gr.base.z & SV_GRID_KDTREE) != 0u ? uvec3(lw & 255u, (lw >> 8u) & 255u, (lw >> 16u) & 255u) : uvec3(lw);
+    vec3 s = vec3(uvec3(1u) << lvl);
     vec3 tt = clamp((u - l) / s, vec3(0.0), vec3(1.0));
     uint vb = gr.base.y + SV_LEAF_VIS_INTS * uint(li);
     // Corner c's trilinear weight (w8) and that times its back-face weight (wb, static objects), as
@@ -164,8 +191,9 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, bool m
     vec4 w8a = xy * fz.x, w8b = xy * fz.y;
     vec4 wba = w8a, wbb = w8b;
     if (!movable) {
-        // dot(corner - p_surface, n) / (s h) = dot(l + o s - u_surface, n) / s, u_surface in lattice units
-        float d0 = dot(l - (p_surface - gr.origin_spacing.xyz) / h, n) / s;
+        // dot((corner - p_surface) / (s h), n) per component = dot((l - u_surface) / s + o, n), u_surface in
+        // lattice units, o the corner's bits: a box's back faces normalised per axis (a cube's dot / size)
+        float d0 = dot((l - (p_surface - gr.origin_spacing.xyz) / h) / s, n);
         vec4 dxy = vec4(0.0, n.x, n.y, n.x + n.y);
         wba *= smoothstep(-0.1, 0.1, d0 + dxy);
         wbb *= smoothstep(-0.1, 0.1, d0 + n.z + dxy);

@@ -122,9 +122,13 @@
 #define SV_GRID_OCTREE    1u /* corner octree (.shprobe v3 structure 1): leaves in the cell buffer */
 #define SV_GRID_CUBE_ONLY 2u /* the grid's file holds ambient cubes only (representation 1) */
 #define SV_GRID_TETRA     4u /* tetrahedra: not sampled per pixel (objects use their per-object probe) */
-/* Ints per octree leaf in the cell buffer: x, y, z (lattice min corner), level, blocked (1 when its
- * visibility field's table holds a surface, else 0: the field is then 1 everywhere), 3 reserved (0),
- * then the 8 corner nodes (corner bit 0 = +x, 1 = +y, 2 = +z; node = probe-buffer index - base.x). */
+#define SV_GRID_KDTREE                                                                                                 \
+    8u /* with SV_GRID_OCTREE: a kd corner tree (.shprobe v4 structure 3): leaf int 3 holds the packed
+          levels lx | ly << 8 | lz << 16, leaves are found by descending the file's split tree (tree) */
+/* Ints per octree leaf in the cell buffer: x, y, z (lattice min corner), level (kd tree: the packed levels),
+ * blocked (1 when its visibility field's table holds a surface, else 0: the field is then 1 everywhere),
+ * 3 reserved (0), then the 8 corner nodes (corner bit 0 = +x, 1 = +y, 2 = +z; node = probe-buffer index
+ * - base.x). */
 #define SV_LEAF_INTS 16u
 /* Ints per octree leaf of its visibility field (pb_cotree_pair_visibility, pb_interp.h): 64 bytes,
  * byte 8k + c (little-endian within each int) = corner k looking at corner c, round(255 t). */
@@ -288,9 +292,12 @@ SV_STRUCT(sv_gpu_grid)
                                 nodes follow the probes), y = offset of its visibility masks in the cell
                                 buffer (octree: SV_LEAF_VIS_INTS per leaf), z = SV_GRID_* flags,
                                 w = octree leaf count */
+    SV_UVEC4(tree);          /* kd tree (SV_GRID_KDTREE): x = offset of split-tree node 0 in the cell buffer
+                                (the file's nodes as stored), y = root level R, z, w = root cells along
+                                x and y (ceil(dims / 2^R)); 0 otherwise */
 }
 SV_END(sv_gpu_grid)
-SV_SIZE_CHECK(sv_gpu_grid, 96)
+SV_SIZE_CHECK(sv_gpu_grid, 112)
 /* Cell buffer (SV_BINDING_CELL_INDEX): int32 per cell, x + y*X + z*X*Y from dims.w on, the grid's
  * own probe index or -1 (the .shprobe occupancy grid as stored), then the visibility masks. */
 

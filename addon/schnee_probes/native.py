@@ -515,7 +515,8 @@ def write_shprobe_v3(path: str, structure: _Interpolation, coeffs: np.ndarray, *
                      storage: str = "float32", probe_scale=None, probe_ambient=None, validity=None,
                      default_sh_scale: float = 1.0, default_ambient: float = 0.1) -> int:
     """Write a version 3 ``.shprobe`` of a finalized :class:`CornerOctree` or a :class:`Tetrahedra`
-    (positions from the structure). ``coeffs`` (P, sh_count, 3) for SH, (P, 6, 3) for an ambient
+    (positions from the structure); a tree with a box that is not a cube is written as version 4 (the
+    kd corner tree, docs/shprobe-format.md "Version 4"). ``coeffs`` (P, sh_count, 3) for SH, (P, 6, 3) for an ambient
     cube (its header's max band is then 2, informational). Returns the probe count."""
     rep = _choice(representation, _REPRESENTATIONS, "representation")
     sto = _choice(storage, _STORAGES, "storage")

@@ -281,18 +281,20 @@ bool sv_probes_cubes_fit_half(const sv_probes *probes, const sv_gpu_cube *cubes,
 bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_grid **grids_out, int32_t **cells_out,
                          uint32_t *cell_count)
 {
-    size_t n = 0, leaves = 0;
+    size_t n = 0, leaves = 0, nodes = 0;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         const pb_shprobe *f = probes->grids[g].file;
         if (probes->grids[g].tree)
             leaves += f->element_count;
         else if (f->grid)
             n += (size_t)f->grid_dims[0] * f->grid_dims[1] * f->grid_dims[2];
+        if (probes->grids[g].tree && f->structure == PB_SHPROBE_KDTREE) nodes += f->split_node_count;
     }
     *grids_out = NULL;
     *cells_out = NULL;
     *cell_count = 0;
-    size_t ints = 2 * n + (SV_LEAF_INTS + SV_LEAF_VIS_INTS) * leaves;
+    /* Cell indices, masks, leaves, leaf visibility tables, then the kd trees' split-tree nodes. */
+    size_t ints = 2 * n + (SV_LEAF_INTS + SV_LEAF_VIS_INTS) * leaves + nodes;
     if (ints > INT32_MAX) {
         fprintf(stderr, "schnee-view: error: probe grids have more than 2^31 cell and leaf entries in total\n");
         return false;
@@ -310,6 +312,7 @@ bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_
         return false;
     }
     size_t off = 0, loff = 0, leaf_base = 2 * n, mask_base = 2 * n + SV_LEAF_INTS * leaves;
+    size_t node_off = mask_base + SV_LEAF_VIS_INTS * leaves;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         const sv_probe_grid *gr = &probes->grids[g];
         const pb_shprobe *f = gr->file;
@@ -331,10 +334,20 @@ bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_
             d->base[3] = f->element_count;
             d->dims[3] = (uint32_t)(leaf_base + SV_LEAF_INTS * loff);
             d->base[1] = (uint32_t)(mask_base + SV_LEAF_VIS_INTS * loff);
+            if (f->structure == PB_SHPROBE_KDTREE) { /* the split tree as stored (docs/shprobe-format.md) */
+                uint32_t R = f->root_level;
+                d->base[2] |= SV_GRID_KDTREE;
+                d->tree[0] = (uint32_t)node_off;
+                d->tree[1] = R;
+                d->tree[2] = (uint32_t)(((uint64_t)f->grid_dims[0] + (1u << R) - 1u) >> R);
+                d->tree[3] = (uint32_t)(((uint64_t)f->grid_dims[1] + (1u << R) - 1u) >> R);
+                memcpy(cells + node_off, f->split_nodes, (size_t)f->split_node_count * sizeof(uint32_t));
+                node_off += f->split_node_count;
+            }
             for (uint32_t i = 0; i < f->element_count; ++i) {
                 const uint32_t *l = f->leaves + 4u * i;
                 int32_t *o = cells + leaf_base + SV_LEAF_INTS * (loff + i);
-                memcpy(o, l, 4 * sizeof(uint32_t)); /* x, y, z, level; ints 5..7 reserved (0) */
+                memcpy(o, l, 4 * sizeof(uint32_t)); /* x, y, z, level(s); ints 5..7 reserved (0) */
                 memcpy(o + 8, f->leaf_corners + 8u * i, 8 * sizeof(int32_t));
                 const uint8_t *vis = leaf_masks + 64u * (loff + i);
                 memcpy(cells + mask_base + SV_LEAF_VIS_INTS * (loff + i), vis, 64);

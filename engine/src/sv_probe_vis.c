@@ -155,6 +155,16 @@ static double segment_first_hit(void *user, const double a[3], const double b[3]
     return pb_occluder_first_hit((const pb_occluder *)user, &ray, NULL, NULL, &t, NULL) ? (double)t : 1.0;
 }
 
+/* The tree's leaves are the file's, in its order: min corners equal (a kd tree's 4th word packs the
+ * levels where the tree's holds the largest; pb_interp_from_shprobe compared the levels). */
+static bool same_leaves(const uint32_t *tree_leaves, const pb_shprobe *f)
+{
+    if (f->structure != PB_SHPROBE_KDTREE) return memcmp(tree_leaves, f->leaves, 16u * (size_t)f->element_count) == 0;
+    for (size_t i = 0; i < f->element_count; ++i)
+        if (memcmp(tree_leaves + 4 * i, f->leaves + 4 * i, 3 * sizeof(uint32_t)) != 0) return false;
+    return true;
+}
+
 uint32_t *sv_probe_visibility_masks(const sv_probes *probes, const sv_scene *scene, size_t n, uint8_t *leaf_vis,
                                     size_t leaf_count)
 {
@@ -177,8 +187,7 @@ uint32_t *sv_probe_visibility_masks(const sv_probes *probes, const sv_scene *sce
         if (probes->grids[g].tree) {
             const pb_cotree *tree = probes->grids[g].tree;
             /* The tree was built from the file's leaves, which are in the same (Morton) order. */
-            if (pb_cotree_leaf_count(tree) == f->element_count &&
-                memcmp(pb_cotree_leaves(tree), f->leaves, 16u * (size_t)f->element_count) == 0) {
+            if (pb_cotree_leaf_count(tree) == f->element_count && same_leaves(pb_cotree_leaves(tree), f)) {
                 (void)pb_cotree_pair_visibility(tree, segment_first_hit, occ, leaf_vis + 64u * loff, NULL);
                 rays += 56u * (size_t)f->element_count;
             } else {

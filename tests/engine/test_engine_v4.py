@@ -1,0 +1,202 @@
+""".shprobe version 4 (the kd corner tree, docs/shprobe-format.md "Version 4") in schnee-view: boxes
+with per-axis levels per pixel (the GLSL descent of the file's split tree and the per-axis weights,
+docs/aniso-refinement.md "What the engine's GLSL changes") and per object (the core's
+pb_interp_query_cotree on the file's tree), mirroring tests/engine/test_engine_v3.py's octree cases.
+
+The file comes from a box tree of the core (CornerOctree.split_axes, finalized with the nesting rule's
+forced splits) through the writer, which picks version 4 for it. Expected values: the CPU model
+(CornerOctree.query, tested against closed forms in tests/python/test_native_boxes.py), the closed form
+of a field linear in position, and a numpy transcription of the documented per-pixel rule from the
+file's own arrays."""
+import re
+import struct
+
+import numpy as np
+import pytest
+
+from test_engine_v3 import (CUBE_CENTRES, N, Y0, cpu_object_e, floor_mask, half, interpolate, lattice_scene,
+                            linear, linear_sh, pixel_of, pixel_points, random_sh, ref, render, sg, sh_e, viewer)
+from schnee_probes import native
+
+
+def kd_tree():
+    """Lattice of 0.5 m min cells, 8 x 4 x 8 (4 x 2 x 4 m from the origin), root level 2: 2 x 1 x 2 roots of
+    2 m. The roots split along x, z, x and z, y; then the leaves whose min corner has x < 4 along z and
+    those with z >= 4 along x; the nesting rule adds what it needs. Slabs and cubes meet at the roots'
+    borders, so hanging nodes sit on faces and edges of boxes of different shapes."""
+    t = native.CornerOctree.uniform((0.0, 0.0, 0.0), 0.5, 2, (2, 1, 2))
+    lv = t.info()["leaves"]
+    t.split_axes(np.array([{(0, 0): 1, (4, 0): 4, (0, 4): 5, (4, 4): 2}[(int(x), int(z))] for x, _, z, _ in lv],
+                          np.uint8))
+    lv = t.info()["leaves"]
+    t.split_axes(np.where(lv[:, 0] < 4, 4, np.where(lv[:, 2] >= 4, 1, 0)).astype(np.uint8))
+    t.finalize()
+    info = t.info()
+    assert (info["levels"].min(axis=1) != info["levels"].max(axis=1)).sum() > 10  # boxes, not cubes
+    assert info["hanging_count"] > 5
+    return t
+
+
+def write_grid(d, tree, coeffs, name="p", storage="float32"):
+    (d / "sh_coeffs").mkdir(exist_ok=True)
+    path = d / "sh_coeffs" / f"{name}.shprobe"
+    count = native.write_shprobe_v3(str(path), tree, coeffs, storage=storage)
+    assert struct.unpack_from("<I", path.read_bytes(), 4)[0] == 4  # a version 4 file
+    f = native.read_shprobe(str(path))
+    e = sg.grid_entry(name, f"sh_coeffs/{name}.shprobe", count, f.grid_origin, f.grid_dims, f.grid_spacing)
+    e.update(representation=f.representation, storage=f.storage)  # the glTF has no name for "kdtree"
+    return e
+
+
+@pytest.mark.parametrize("storage", ["float32", "float16"])
+def test_kd_tree_per_pixel_and_per_object_equal_the_cpu_model(tmp_path, storage):
+    tree = kd_tree()
+    coeffs = random_sh(tree.probe_count, 3)
+    entry = write_grid(tmp_path, tree, coeffs, storage=storage)
+    scene, moves = lattice_scene(tmp_path, entry)
+    args = ["--probe-storage", "half"] if storage == "float16" else []
+    img, proc = render(scene, tmp_path / "v4.exr", *moves, *args)
+    assert "but the file has" not in proc.stderr, proc.stderr
+    c = half(coeffs) if storage == "float16" else coeffs
+    keep, p = floor_mask()
+    want = np.maximum(sh_e(interpolate(tree, p[keep], c)), 0) / np.pi
+    err = np.abs(img[keep] - want).max()
+    # As the octree's test: float32 on the GPU against float64; half storage rounds probes, resolved
+    # hanging nodes and slots to binary16.
+    bound = 1e-5 + 1e-5 * want.max() if storage == "float32" else 1e-3 * want.max()
+    assert err < bound, (err, bound)
+    assert keep.sum() > 0.8 * N * N
+    for k, centre in enumerate(CUBE_CENTRES):
+        e = np.maximum(cpu_object_e(tree, c, centre), 0) / np.pi
+        got = img[pixel_of(centre[0], centre[2], 2.0, 2.0, 2.0)]
+        assert np.abs(got - e).max() < (1e-5 + 1e-5 * e.max() if storage == "float32" else 1e-3 * e.max()), (k, got, e)
+    out = viewer.run(scene, "--headless", "--print-assignments", *moves)
+    slots = re.findall(r"^  grid 0 weights (\d+):((?: \d+:[0-9.e-]+)+)", out.stdout, re.M)
+    assert len(slots) == 1 + len(CUBE_CENTRES)
+    for k in range(len(CUBE_CENTRES)):
+        probes, weights = tree.query(CUBE_CENTRES[k:k + 1])
+        got = {int(a) - 1: float(b) for a, b in (t.split(":") for t in slots[1 + k][1].split())}
+        want_w = {int(q): w for q, w in zip(probes[0], weights[0]) if q >= 0}
+        assert got.keys() == want_w.keys(), k
+        assert max(abs(got[q] - want_w[q]) for q in got) < 1e-7
+
+
+def test_kd_tree_reproduces_a_linear_field(tmp_path):
+    # Boxes with hanging nodes reproduce a field linear in position exactly: the closed form Y0 * f(p),
+    # per pixel and per object.
+    tree = kd_tree()
+    entry = write_grid(tmp_path, tree, linear_sh(tree.positions()))
+    scene, moves = lattice_scene(tmp_path, entry)
+    img, _ = render(scene, tmp_path / "lin.exr", *moves)
+    keep, p = floor_mask()
+    want = Y0 * linear(p[keep])
+    assert np.abs(img[keep] - want[:, None]).max() < 2e-6 * want.max()
+    for centre in CUBE_CENTRES:
+        got = img[pixel_of(centre[0], centre[2], 2.0, 2.0, 2.0)]
+        assert np.allclose(got, Y0 * linear(centre), rtol=2e-6), (centre, got)
+
+
+def kd_pixel_ref(path, p, n, per_axis=True):
+    """numpy of the documented per-pixel rule for a static surface (docs/aniso-refinement.md, "Visibility
+    field"), from the file's own arrays: hanging nodes resolved as (A, a) in file order, the leaf holding p
+    by brute force over the boxes, trilinear corner weights at t = (u - min) / s per axis x validity mass x
+    back-face weight smoothstep(-0.1, 0.1, dot((c - p) / s, n)) with s the box's per-axis size in metres
+    (per_axis False: one size, the largest, as an octree leaf's), renormalised; when that leaves nothing,
+    the plain weights. No visibility field (no static triangles). E(n) of L2 SH per point."""
+    f = native.read_shprobe(str(path))
+    P, H = f.probe_count, len(f.hanging_sources)
+    A = np.zeros((P + H, 9, 3))
+    a = np.zeros(P + H)
+    A[:P] = f.probe_scale[:, None, None] * f.coeffs
+    a[:P] = 1.0
+    for j in range(H):
+        for src, w in zip(f.hanging_sources[j], f.hanging_weights[j]):
+            if w > 0:
+                A[P + j] += w * A[src]
+                a[P + j] += w * a[src]
+    origin, h = np.array(f.grid_origin, float), float(f.grid_spacing)
+    lo = f.leaves[:, :3].astype(np.int64)
+    size = 2.0 ** np.stack([f.leaves[:, 3] >> (8 * k) & 255 for k in range(3)], axis=1)
+    out = np.zeros((len(p), 3))
+    for i, (pi, ni) in enumerate(zip(p, n)):
+        u = (pi - origin) / h
+        q = np.minimum(np.floor(u), np.array(f.grid_dims) - 1)
+        li = np.flatnonzero(((lo <= q) & (q < lo + size)).all(axis=1))
+        assert len(li) == 1
+        s = size[li[0]] if per_axis else np.full(3, size[li[0]].max())
+        t = np.clip((u - lo[li[0]]) / size[li[0]], 0, 1)
+        for backface in (True, False):
+            e, wsum = np.zeros(3), 0.0
+            for c in range(8):
+                o = np.array([c & 1, (c >> 1) & 1, (c >> 2) & 1])
+                w = np.prod(np.where(o, t, 1 - t))
+                node = f.leaf_corners[li[0], c]
+                w *= a[node]
+                if backface:
+                    corner = lo[li[0]] + o * size[li[0]]
+                    w *= ref.smoothstep(-0.1, 0.1, np.dot((corner - u) / s, ni))
+                if w <= 0:
+                    continue
+                e += w * ref.irradiance(A[node] / a[node], ni)
+                wsum += w
+            if wsum > 0:
+                out[i] = e / wsum
+                break
+    return out
+
+
+def test_kd_tree_per_pixel_on_a_movable_sphere_is_the_cpu_model(tmp_path):
+    # A movable object gets the CPU model's plain interpolation at each surface point (no back-face
+    # weights), here on a sphere across slabs of the x- and z-split roots and their hanging nodes.
+    tree = kd_tree()
+    coeffs = random_sh(tree.probe_count, 13)
+    entry = write_grid(tmp_path, tree, coeffs)
+    c, r = np.array([1.95, 0.8, 2.05]), 0.4
+    b = sg.GltfBuilder()
+    m = b.material("White", sh_scale=1.0, ambient_term=0.0, probe_mode="pixel")
+    b.node("Sphere", mesh=b.mesh("sphere", sg.uv_sphere(r, 128, 64), m), translation=(5.0, 5.0, 5.0))
+    b.node("Camera", camera=b.ortho_camera("top", r), translation=(c[0], 3.0, c[2]), rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids([entry])
+    scene = b.write(tmp_path / "sphere.gltf")
+    img, proc = render(scene, tmp_path / "s.exr", "--move", "Sphere", *c)
+    p = pixel_points(c[0], c[2], r, 0.0)
+    d2 = (p[..., 0] - c[0]) ** 2 + (p[..., 2] - c[2]) ** 2
+    on = d2 < (0.9 * r) ** 2
+    p[..., 1] = c[1] + np.sqrt(np.maximum(r * r - d2, 0))
+    nrm = (p - c) / r
+    want = np.maximum([ref.irradiance(x, nn) for x, nn in zip(interpolate(tree, p[on], coeffs), nrm[on])], 0) / np.pi
+    err = np.abs(img[on] - want).max()
+    assert err < 1e-4 + 1e-3 * want.max(), (err, want.max())
+    # The static surfaces' rule (back-face weights per corner) differs here: the case matters.
+    backface = np.maximum(kd_pixel_ref(tmp_path / "sh_coeffs" / "p.shprobe", p[on], nrm[on]), 0) / np.pi
+    assert np.abs(backface - want).max() > 0.05
+
+
+def test_kd_tree_static_surface_uses_per_axis_back_face_weights(tmp_path):
+    # A small static quad (0.1 m, normal +y) 4 cm above the floor inside the box (2, 0, 2) m of sizes
+    # (1, 1, 2) m: away from the box's body diagonals and faces, so no corner segment crosses it (the
+    # visibility field stays clear) and its pixels show the back-face weights alone. Per axis, the lower
+    # corners lie -0.04 box heights away (weight 0): the image is the upper face's field. With one size
+    # per box (the largest, 2 m) they would be -0.02 (weight 0.28) and the pixels differ.
+    tree = kd_tree()
+    info = tree.info()
+    box = np.flatnonzero((info["leaves"][:, :3] == [4, 0, 4]).all(axis=1))
+    assert len(box) == 1 and list(info["levels"][box[0]]) == [1, 1, 2]
+    coeffs = random_sh(tree.probe_count, 21)
+    entry = write_grid(tmp_path, tree, coeffs)
+    cx, y0, cz, mag = 2.3, 0.04, 2.5, 0.045
+    b = sg.GltfBuilder()
+    m = b.material("White", sh_scale=1.0, ambient_term=0.0, probe_mode="pixel")
+    b.node("Chip", mesh=b.mesh("chip", sg.quad(0.1, 0.1, 1), m), translation=(cx, y0, cz))
+    b.node("Camera", camera=b.ortho_camera("top", mag), translation=(cx, 1.5, cz), rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids([entry])
+    scene = b.write(tmp_path / "chip.gltf")
+    img, proc = render(scene, tmp_path / "c.exr")
+    p = pixel_points(cx, cz, mag, y0).reshape(-1, 3)
+    nrm = np.tile([0.0, 1.0, 0.0], (len(p), 1))
+    path = tmp_path / "sh_coeffs" / "p.shprobe"
+    want = np.maximum(kd_pixel_ref(path, p, nrm), 0).reshape(N, N, 3) / np.pi
+    one_size = np.maximum(kd_pixel_ref(path, p, nrm, per_axis=False), 0).reshape(N, N, 3) / np.pi
+    err = np.abs(img - want).max()
+    assert err < 1e-5 + 1e-5 * want.max(), (err, want.max())
+    assert np.abs(one_size - want).max() > 100 * (1e-5 + 1e-5 * want.max())  # the case tells them apart
