@@ -23,18 +23,26 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     }
     /* Accepted: re-check the reader's promises (touching every array also lets ASan see overruns). */
-    if (p->version < 1 || p->version > 3 || p->max_band > PB_SH_MAX_BAND) abort();
+    if (p->version < 1 || p->version > 4 || p->max_band > PB_SH_MAX_BAND) abort();
+    if ((p->version == 4) != (p->structure == PB_SHPROBE_KDTREE)) abort();
     if (p->structure != PB_SHPROBE_TETRA && (!(p->grid_spacing > 0.0f) || !isfinite(p->grid_spacing))) abort();
     size_t coeffs = (size_t)p->probe_count * pb_shprobe_colour_count(p) * 3u;
     for (size_t i = 0; i < coeffs; i++)
         if (!isfinite(p->coeffs[i])) abort();
     if (p->structure != PB_SHPROBE_GRID) {
-        /* Version 3 structures: every reference in range, and the interpolation built from the file
-         * answers queries with weights over valid probes only (pb_interp.c on hostile structure). */
+        /* Version 3 and 4 structures: every reference in range, and the interpolation built from the
+         * file answers queries with weights over valid probes only (pb_interp.c on hostile structure). */
         uint64_t nodes = (uint64_t)p->probe_count + p->hanging_count;
-        if (p->structure == PB_SHPROBE_OCTREE) {
+        if (p->structure == PB_SHPROBE_OCTREE || p->structure == PB_SHPROBE_KDTREE) {
             for (size_t i = 0; i < (size_t)p->element_count * 8u; i++)
                 if (p->leaf_corners[i] < 0 || (uint64_t)p->leaf_corners[i] >= nodes) abort();
+            /* kd tree: leaf nodes name leaves (or none), splits name children inside the tree */
+            for (uint32_t i = 0; p->structure == PB_SHPROBE_KDTREE && i < p->split_node_count; i++) {
+                uint32_t v = p->split_nodes[i], arg = v >> 2;
+                if ((v & 3u) == 0 ? arg != PB_SHPROBE_SPLIT_EMPTY && arg >= p->element_count
+                                  : arg <= i || arg + 1u >= p->split_node_count)
+                    abort();
+            }
         } else {
             for (size_t i = 0; i < (size_t)p->element_count * 4u; i++)
                 if (p->tets[i] >= p->probe_count) abort();

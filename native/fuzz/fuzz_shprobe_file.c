@@ -50,7 +50,8 @@ static bool same_header(const pb_shprobe *a, const pb_shprobe *b)
            memcmp(&a->grid_spacing, &b->grid_spacing, sizeof a->grid_spacing) == 0 &&
            memcmp(a->grid_axes, b->grid_axes, sizeof a->grid_axes) == 0 && a->representation == b->representation &&
            a->storage == b->storage && a->structure == b->structure && a->element_count == b->element_count &&
-           a->hanging_count == b->hanging_count;
+           a->hanging_count == b->hanging_count && a->root_level == b->root_level &&
+           a->split_node_count == b->split_node_count;
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
@@ -86,11 +87,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if (file->structure == PB_SHPROBE_GRID) {
             size_t cells = (size_t)file->grid_dims[0] * file->grid_dims[1] * file->grid_dims[2];
             if (memcmp(file->grid, mem->grid, cells * sizeof(int32_t)) != 0) abort();
-        } else if (file->structure == PB_SHPROBE_OCTREE) {
+        } else if (file->structure == PB_SHPROBE_OCTREE || file->structure == PB_SHPROBE_KDTREE) {
             if (memcmp(file->leaves, mem->leaves, n * 16) != 0 ||
                 memcmp(file->leaf_corners, mem->leaf_corners, n * 32) ||
                 memcmp(file->hanging_sources, mem->hanging_sources, (size_t)file->hanging_count * 16) != 0 ||
                 memcmp(file->hanging_weights, mem->hanging_weights, (size_t)file->hanging_count * 16) != 0)
+                abort();
+            if (file->structure == PB_SHPROBE_KDTREE &&
+                memcmp(file->split_nodes, mem->split_nodes, (size_t)file->split_node_count * 4) != 0)
                 abort();
         } else if (memcmp(file->tets, mem->tets, n * 16) != 0 ||
                    memcmp(file->tet_neighbours, mem->tet_neighbours, n * 16) != 0) {

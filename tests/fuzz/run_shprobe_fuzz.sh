@@ -14,7 +14,8 @@ CC="${CLANG:-clang}"
 flags=(-std=c11 -g -O1 -Inative/include -Wall -Wextra -Werror -Wno-unused-parameter)
 # The core's sources that the readers need (the .shprobe files, the interpolation, errors).
 core=(native/src/pb_shprobe.c native/src/pb_shprobe_read.c native/src/pb_shprobe_v3.c native/src/pb_shprobe_write.c
-  native/src/pb_interp.c native/src/pb_cotree.c native/src/pb_tetra.c native/src/pb_interp_v3.c native/src/pb_common.c)
+  native/src/pb_interp.c native/src/pb_cotree.c native/src/pb_cotree_boxes.c native/src/pb_tetra.c
+  native/src/pb_interp_v3.c native/src/pb_common.c)
 san=(-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer)
 
 for target in fuzz_shprobe fuzz_shprobe_file; do
@@ -22,7 +23,8 @@ for target in fuzz_shprobe fuzz_shprobe_file; do
 done
 
 # Seeds: a v1 (band 2) and a v2 (band 4, positions, rotated axes, validity) written by the writer, and
-# version 3 files: an octree with hanging nodes (SH band 1, binary16) and tetrahedra (ambient cubes).
+# version 3 files: an octree with hanging nodes (SH band 1, binary16) and tetrahedra (ambient cubes);
+# a version 4 kd corner tree (boxes, split tree).
 cat > "$work/make_seeds.c" <<'SEED'
 #include "schnee/pb_interp.h"
 #include "schnee/pb_shprobe.h"
@@ -78,6 +80,20 @@ int main(int argc, char **argv)
     if (pb_shprobe_write(path, p, &err)) { fprintf(stderr, "%s\n", err.message); return 1; }
     pb_shprobe_destroy(p);
     pb_tetra_destroy(tt);
+    /* v4 kd corner tree: the left root halved along y, the right one along x and its upper half along z
+     * (slabs, hanging nodes, the nesting rule's forced splits), SH band 0. */
+    uint8_t axes[2] = {2, 1};
+    const uint32_t roots4[3] = {2, 1, 1};
+    if (pb_cotree_create(o, 0.5, 1, roots4, &t, &err) || pb_cotree_split_axes(t, axes, NULL, &err)) return 1;
+    uint8_t more[4] = {0, 0, 0, 4};
+    if (pb_cotree_split_axes(t, more, NULL, &err) || pb_cotree_finalize(t, &err) ||
+        pb_shprobe_from_cotree(t, PB_SHPROBE_SH, 0, &p, &err) || p->version != 4)
+        return 1;
+    p->coeffs[0] = 1.5f;
+    snprintf(path, sizeof path, "%s/seed_v4_kdtree.shprobe", argv[1]);
+    if (pb_shprobe_write(path, p, &err)) { fprintf(stderr, "%s\n", err.message); return 1; }
+    pb_shprobe_destroy(p);
+    pb_cotree_destroy(t);
     return 0;
 }
 SEED
