@@ -65,6 +65,9 @@ PROBE_REPRESENTATIONS = ("sh", "ambientCube")
 # Version 3 files (docs/shprobe-format.md): the entry's "structure" values are native.STRUCTURES
 # (imported above), its "storage" values these.
 STORAGES = ("float32", "float16")
+# Version 4 files (docs/shprobe-format.md "Version 4"): the kd corner tree of boxes with per-axis levels
+# (the per-axis Adaptive refinement), structure 3.
+V4_STRUCTURES = ("kdtree",)
 
 
 # --------------------------------------------------------------------------------------------
@@ -304,16 +307,18 @@ def _grid_entry(path, header, probes=None):
 
 
 def _v3_fields(header, probes):
-    """Version 3 (docs/export.md): the interpolation structure, what the records hold and how.
+    """Versions 3 and 4 (docs/export.md): the interpolation structure, what the records hold and how.
     For an octree gridOrigin / gridSpacing / gridDims are the lattice origin, Min Cell Size and the
     lattice extent in min cells; for tetrahedra gridDims is [0, 0, 0]."""
-    if int(header["version"]) < 3 or probes is None:
+    version = int(header["version"])
+    if version < 3 or probes is None:
         return {}
-    if probes.structure not in STRUCTURES or probes.representation not in PROBE_REPRESENTATIONS \
+    known = STRUCTURES if version == 3 else V4_STRUCTURES
+    if version > 4 or probes.structure not in known or probes.representation not in PROBE_REPRESENTATIONS \
             or probes.storage not in STORAGES:
-        raise ValueError(f"unknown version 3 layout: structure {probes.structure!r}, representation "
+        raise ValueError(f"unknown version {version} layout: structure {probes.structure!r}, representation "
                          f"{probes.representation!r}, storage {probes.storage!r}")
-    return {"version": 3, "structure": probes.structure, "representation": probes.representation,
+    return {"version": version, "structure": probes.structure, "representation": probes.representation,
             "storage": probes.storage}
 
 
