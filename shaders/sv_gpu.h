@@ -316,7 +316,8 @@ SV_END(sv_gpu_light)
 SV_SIZE_CHECK(sv_gpu_light, 64)
 
 /* Probe-view instance (std430, SV_BINDING_CELLS): centre + radius, probe.x = probe-buffer index,
- * probe.y = grid index. */
+ * probe.y = grid index, probe.z = an outline's packed levels lx | ly << 8 | lz << 16 (its edges are 2^l_a
+ * grid spacings: 0 for a dense cell, the box of an octree or kd tree leaf). */
 SV_STRUCT(sv_gpu_cell)
 {
     SV_VEC4(center_radius);

@@ -374,12 +374,33 @@ bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_
     return true;
 }
 
+/* One probe-view outline per leaf of an octree or kd tree grid: the box's centre, probe.z its packed
+ * levels (lx | ly << 8 | lz << 16; the outline's edges are 2^l_a min cells, a dense cell's 0 gives one
+ * spacing). Octree frames have identity axes (pb_interp_from_shprobe). Returns the outlines written. */
+static uint32_t leaf_outlines(const pb_shprobe *f, uint32_t g, uint32_t base, sv_gpu_cell *out)
+{
+    for (uint32_t i = 0; i < f->element_count; ++i) {
+        const uint32_t *l = f->leaves + 4u * i;
+        uint32_t packed = f->structure == PB_SHPROBE_KDTREE ? l[3] : PB_LEVELS_PACK(l[3], l[3], l[3]);
+        for (int k = 0; k < 3; ++k) {
+            double size = (double)(1u << (packed >> (8 * k) & 255u));
+            out[i].center_radius[k] = (float)(f->grid_origin[k] + f->grid_spacing * ((double)l[k] + 0.5 * size));
+        }
+        out[i].center_radius[3] = 0.0f;
+        out[i].probe[0] = base + (uint32_t)f->leaf_corners[8u * i]; /* the leaf's corner 0 */
+        out[i].probe[1] = g;
+        out[i].probe[2] = packed;
+    }
+    return f->element_count;
+}
+
 sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, uint32_t *cell_count)
 {
     size_t n = 0;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         const pb_shprobe *f = probes->grids[g].file;
-        if (!f->grid) continue; /* octree, tetrahedra: spheres only, no cell outlines */
+        if (probes->grids[g].tree) n += f->element_count; /* octree, kd tree: one outline per leaf */
+        if (!f->grid) continue;                            /* tetrahedra: spheres only */
         size_t cells = (size_t)f->grid_dims[0] * f->grid_dims[1] * f->grid_dims[2];
         for (size_t i = 0; i < cells; ++i) n += f->grid[i] >= 0;
     }
@@ -396,6 +417,7 @@ sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, ui
     uint32_t nc = 0;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         const pb_shprobe *f = probes->grids[g].file;
+        if (probes->grids[g].tree) nc += leaf_outlines(f, g, probes->grids[g].base, cells + nc);
         if (!f->grid) continue;
         uint32_t X = f->grid_dims[0], Y = f->grid_dims[1], Z = f->grid_dims[2];
         for (uint32_t z = 0; z < Z; ++z)

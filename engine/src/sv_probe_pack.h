@@ -52,8 +52,8 @@ bool sv_probes_gpu_grids(const sv_probes *probes, const sv_scene *scene, sv_gpu_
                          uint32_t *cell_count);
 
 /* One sphere per probe (at its v2 position, else the mean centre of the cells that map to it;
- * radius 0.1 x the grid spacing), then one entry per occupied cell (its centre, for the
- * outlines). Caller frees. */
+ * radius 0.1 x the grid spacing), then one outline per occupied cell (its centre) and per leaf of an
+ * octree or kd tree grid (its box: centre, packed levels in probe.z). Caller frees. */
 sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, uint32_t *cell_count);
 
 #endif

@@ -200,3 +200,39 @@ def test_kd_tree_static_surface_uses_per_axis_back_face_weights(tmp_path):
     err = np.abs(img - want).max()
     assert err < 1e-5 + 1e-5 * want.max(), (err, want.max())
     assert np.abs(one_size - want).max() > 100 * (1e-5 + 1e-5 * want.max())  # the case tells them apart
+
+
+OUTLINE = np.array([0.9, 0.75, 0.2])  # shaders/probe_outline.frag
+
+
+def test_probe_view_outlines_each_box(tmp_path):
+    # --probe-view draws the 12 edges of every leaf's box (sv_probe_pack.c leaf_outlines): from above, the
+    # union of the boxes' x-z rectangles. Along each lattice line x = const (and z = const) at 0.5 m
+    # steps, every 0.5 m piece between two probes is drawn exactly where some box has a side there,
+    # computed here from the file's leaves (the pieces' middles, away from the probes' spheres).
+    tree = kd_tree()
+    entry = write_grid(tmp_path, tree, random_sh(tree.probe_count, 5))
+    b = sg.GltfBuilder()
+    b.node("Far", mesh=b.mesh("far", sg.cube(0.01), b.material("m")), translation=(50, -50, 50))
+    b.node("Camera", camera=b.ortho_camera("top", 2.1), translation=(2.0, 3.0, 2.0), rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids([entry])
+    scene = b.write(tmp_path / "view.gltf")
+    n = 253
+    out = tmp_path / "v.exr"
+    viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", n, "--height", n, "--probe-view"))
+    is_line = np.all(np.abs(viewer.read_image(out) - OUTLINE) < 1e-6, axis=-1)
+    t = 2.0 + (2 * (np.arange(n) + 0.5) / n - 1) * 2.1  # pixel centres: column -> x, row -> z
+    f = native.read_shprobe(str(tmp_path / "sh_coeffs" / "p.shprobe"))
+    lo = f.leaves[:, :3] * 0.5
+    hi = lo + 0.5 * 2.0 ** np.stack([f.leaves[:, 3] >> (8 * k) & 255 for k in range(3)], axis=1)
+    drawn = {True: 0, False: 0}
+    for a, b_ in ((0, 2), (2, 0)):  # lines x = c (a = 0) along z, and z = c along x
+        for c in np.arange(0.0, 4.01, 0.5):
+            for m in np.arange(0.25, 4.0, 0.5):
+                want = bool((((lo[:, a] == c) | (hi[:, a] == c)) & (lo[:, b_] < m) & (m < hi[:, b_])).any())
+                i = int(np.argmin(np.abs(t - c)))
+                seg = (np.abs(t - m) < 0.12)
+                got = is_line[seg][:, max(i - 1, 0):i + 2] if a == 0 else is_line[max(i - 1, 0):i + 2][:, seg].T
+                assert bool(got.any(axis=1).all()) == want and (want or not got.any()), (a, c, m, want)
+                drawn[want] += 1
+    assert drawn[True] > 40 and drawn[False] > 10, drawn
