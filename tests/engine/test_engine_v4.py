@@ -14,8 +14,9 @@ import struct
 import numpy as np
 import pytest
 
-from test_engine_v3 import (CUBE_CENTRES, N, Y0, cpu_object_e, floor_mask, half, interpolate, lattice_scene,
-                            linear, linear_sh, pixel_of, pixel_points, random_sh, ref, render, sg, sh_e, viewer)
+from test_engine_v3 import (CUBE_CENTRES, N, SHELF, Y0, cpu_object_e, floor_mask, half, interpolate, lattice_scene,
+                            linear, linear_sh, pixel_of, pixel_points, random_sh, ref, render, sg, sh_e,
+                            shelf_first_hit, viewer)
 from schnee_probes import native
 
 
@@ -236,3 +237,59 @@ def test_probe_view_outlines_each_box(tmp_path):
                 assert bool(got.any(axis=1).all()) == want and (want or not got.any()), (a, c, m, want)
                 drawn[want] += 1
     assert drawn[True] > 40 and drawn[False] > 10, drawn
+
+
+def box_pair_table(tree, first_hit):
+    """(leaf_count, 8, 8) uint8 of pb_cotree_pair_visibility for boxes from the closed-form segment test:
+    [leaf, k, c] = round(255 t), t = first hit on the way from corner c to corner k (255 clear), corners
+    at the box's per-axis sizes."""
+    info = tree.info()
+    origin, h = np.asarray(info["origin"], float), float(info["min_cell"])
+    out = np.full((len(info["leaves"]), 8, 8), 255, np.uint8)
+    for i, (row, lv) in enumerate(zip(info["leaves"], info["levels"])):
+        s = 2.0 ** lv.astype(float)
+        corner = [origin + h * (row[:3] + s * np.array([c & 1, c >> 1 & 1, c >> 2 & 1])) for c in range(8)]
+        for k in range(8):
+            for c in range(8):
+                if k != c:
+                    t = first_hit(corner[c], corner[k])
+                    out[i, k, c] = 255 if t >= 1 else min(max(int(np.floor(255 * t + 0.5)), 1), 255)
+    return out
+
+
+def test_kd_tree_visibility_field_under_a_shelf_is_the_cpu_model(tmp_path):
+    # Two 1 m roots, the left halved along x (slabs 0.5 x 1 x 1 m), the right along y (1 x 0.5 x 1 m);
+    # probes at y = 1 hold radiance 5, at y = 0.5 radiance 1, at y = 0 radiance 0.05. The static shelf of
+    # test_engine_v3 (x, z in [0.55, 0.95], y = 0.75) blocks segments between the left slab's corners; a
+    # movable receiver at y = 0.4 across the border x = 1 is shaded per pixel with the boxes' visibility
+    # field: every pixel equals the CPU model with the table built here from the closed-form segment test.
+    tree = native.CornerOctree.uniform((0.0, 0.0, 0.0), 0.5, 1, (2, 1, 1))
+    tree.split_axes(np.array([1, 2], np.uint8))
+    tree.finalize()
+    assert tree.leaf_count == 4 and tree.forced_splits == 0
+    pos = tree.positions()
+    level = np.where(pos[:, 1] > 0.75, 5.0, np.where(pos[:, 1] > 0.25, 1.0, 0.05))
+    coeffs = np.stack([ref.uniform_coeffs(v) for v in level])
+    entry = write_grid(tmp_path, tree, coeffs)
+    b = sg.GltfBuilder()
+    m = b.material("White", sh_scale=1.0, ambient_term=0.0, probe_mode="pixel")
+    lo, hi, y = SHELF
+    b.node("Shelf", mesh=b.mesh("shelf", sg.quad(hi - lo, hi - lo, 1), m), translation=(0.5 * (lo + hi), y, 0.5 * (lo + hi)))
+    b.node("Receiver", mesh=b.mesh("receiver", sg.quad(0.6, 0.6, 1), m), translation=(9.0, 9.0, 9.0))
+    cx, cz, mag = 1.0, 0.25, 0.24  # the receiver's pixels: z < 0.49, clear of the shelf above it
+    b.node("Camera", camera=b.ortho_camera("top", mag), translation=(cx, 3.0, cz), rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids([entry])
+    scene = b.write(tmp_path / "beam.gltf")
+    img, proc = render(scene, tmp_path / "b.exr", "--move", "Receiver", cx, 0.4, cz)
+    assert "probe visibility masks: 224 segment(s)" in proc.stderr  # 4 boxes x 56 corner pairs
+    p = pixel_points(cx, cz, mag, 0.4)
+    table = box_pair_table(tree, shelf_first_hit)
+    assert (table < 255).sum() > 0
+    probes, weights = tree.query(p.reshape(-1, 3), pair_visibility=table)
+    assert (probes[:, 0] >= 0).all()
+    want = np.einsum("mk,mk->m", weights, level[np.maximum(probes, 0)]).reshape(N, N)
+    pp, pw = tree.query(p.reshape(-1, 3))
+    plain = np.einsum("mk,mk->m", pw, level[np.maximum(pp, 0)]).reshape(N, N)
+    lum = img[..., 1]
+    assert np.abs(lum - want).max() < 1e-5 * want.max(), np.abs(lum - want).max()
+    assert np.abs(plain - want).max() > 0.05  # the shelf changes the picture
