@@ -536,8 +536,8 @@ def write_shprobe_v3(path: str, structure: _Interpolation, coeffs: np.ndarray, *
 
 
 def resample_shprobe_dense(path: str, spacing: float = 0.0) -> ShProbeFile:
-    """A version 3 SH file's field resampled onto a dense grid (each covered cell = one probe with the
-    value interpolated at its centre); write it with :func:`write_shprobe` (version 1 for L <= 2).
+    """A version 3 or 4 SH file's field resampled onto a dense grid (each covered cell = one probe with
+    the value interpolated at its centre); write it with :func:`write_shprobe` (version 1 for L <= 2).
     ``spacing`` 0 = the octree's min cell (required for tetrahedra)."""
     return _shprobe_from_dict(_lib().shprobe_resample_dense(path, float(spacing)))
 

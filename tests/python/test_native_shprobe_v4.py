@@ -89,3 +89,22 @@ def test_corrupt_split_tree_is_refused_with_its_message(tmp_path):
     with pytest.raises(native.SchneeError, match=rf"split-tree node {split} \(offset {at + 4 * split}\) names "
                                                  r"children 0 and 1; they must come after it"):
         native.read_shprobe_bytes(bytes(b))
+
+
+def test_dense_resample_of_a_linear_field(tmp_path):
+    # Boxes with hanging rules reproduce a field linear in position: the dense version 1 grid of the
+    # version 4 file holds it at every cell centre (closed form; float32 storage).
+    t = box_tree(5)
+    pos = t.positions()
+    f = 1.0 + 0.5 * pos[:, 0] - 0.25 * pos[:, 1] + 0.75 * pos[:, 2]
+    coeffs = np.zeros((t.probe_count, 9, 3))
+    coeffs[:, 0, :] = f[:, None]
+    path = tmp_path / "kd.shprobe"
+    native.write_shprobe_v3(str(path), t, coeffs)
+    d = native.resample_shprobe_dense(str(path))
+    assert d.grid_dims == (8, 4, 8) and d.probe_count == 256
+    X, Y, Z = d.grid_dims
+    idx = np.arange(X * Y * Z)
+    centre = np.array(d.grid_origin) + d.grid_spacing * (np.stack([idx % X, idx // X % Y, idx // (X * Y)], 1) + 0.5)
+    want = 1.0 + 0.5 * centre[:, 0] - 0.25 * centre[:, 1] + 0.75 * centre[:, 2]
+    assert np.abs(d.coeffs[d.grid, 0, 0] - want).max() < 1e-5
