@@ -293,3 +293,22 @@ def test_kd_tree_visibility_field_under_a_shelf_is_the_cpu_model(tmp_path):
     lum = img[..., 1]
     assert np.abs(lum - want).max() < 1e-5 * want.max(), np.abs(lum - want).max()
     assert np.abs(plain - want).max() > 0.05  # the shelf changes the picture
+
+
+def test_corrupt_split_tree_ends_the_run_naming_the_node(tmp_path):
+    # The engine reads version 4 with the core's reader: a split whose children are not after it ends the
+    # run before any frame with the reader's words, the node and its offset.
+    tree = kd_tree()
+    entry = write_grid(tmp_path, tree, random_sh(tree.probe_count, 2))
+    path = tmp_path / "sh_coeffs" / "p.shprobe"
+    b = bytearray(path.read_bytes())
+    K = struct.unpack_from("<I", b, 116)[0]
+    at = len(b) - 4 * K
+    struct.pack_into("<I", b, at, 0 << 2 | 1)  # root 0 split along x with children 0 and 1
+    path.write_bytes(bytes(b))
+    scene, moves = lattice_scene(tmp_path, entry)
+    proc = viewer.run(scene, "--headless", "--output", tmp_path / "x.png", "--width", 8, "--height", 8, *moves)
+    assert proc.returncode == 1, proc.stderr
+    assert (f"schnee-view: error: shProbeGrids[0] 'p': cannot read {path}: split-tree node 0 (offset {at}) names "
+            "children 0 and 1; they must come after it") in proc.stderr, proc.stderr
+    assert not (tmp_path / "x.png").exists()
