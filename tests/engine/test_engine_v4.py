@@ -312,3 +312,34 @@ def test_corrupt_split_tree_ends_the_run_naming_the_node(tmp_path):
     assert (f"schnee-view: error: shProbeGrids[0] 'p': cannot read {path}: split-tree node 0 (offset {at}) names "
             "children 0 and 1; they must come after it") in proc.stderr, proc.stderr
     assert not (tmp_path / "x.png").exists()
+
+
+def test_kd_tree_floor_next_to_a_wall_does_not_leak(tmp_path):
+    # test_engine_v3's leak case on slabs: three 1 m roots along x, each halved along y (1 x 0.5 x 1 m
+    # boxes); probes at x = 0, 1 see radiance 0.05, at x = 2, 3 radiance 5. A static two-sided wall at
+    # x = 1.7 and a floor at y = 0.1 for x in [0, 1.68]: the back-face weights (per axis: the corners
+    # at y = 0 lie 0.2 box heights below the floor) keep the slab's upper corners, and every segment
+    # from the bright ones to the dark ones meets the wall 0.3 of the way, so the visibility field keeps
+    # the floor dark. Moved walls (no occluder): the plain rule's gradient towards x = 2.
+    tree = native.CornerOctree.uniform((0.0, 0.0, 0.0), 0.5, 1, (3, 1, 1))
+    tree.split_axes(np.full(3, 2, np.uint8))
+    tree.finalize()
+    pos = tree.positions()
+    coeffs = np.stack([ref.uniform_coeffs(0.05 if x < 1.5 else 5.0) for x in pos[:, 0]])
+    entry = write_grid(tmp_path, tree, coeffs)
+    b = sg.GltfBuilder()
+    m = b.material("White", sh_scale=1.0, ambient_term=0.0, probe_mode="pixel")
+    b.node("Floor", mesh=b.mesh("floor", sg.quad(1.0, 1.68, 1), m), translation=(0.84, 0.1, 0.5))
+    b.node("WallA", mesh=b.mesh("wall_a", sg.quad(1.0, 1.0, 0, -1.0), m), translation=(1.7, 0.5, 0.5))
+    b.node("WallB", mesh=b.mesh("wall_b", sg.quad(1.0, 1.0, 0, 1.0), m), translation=(1.7, 0.5, 0.5))
+    b.node("Camera", camera=b.ortho_camera("top", 0.84), translation=(0.84, 3.1, 0.5), rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids([entry])
+    scene = b.write(tmp_path / "wall.gltf")
+    p = pixel_points(0.84, 0.5, 0.84, 0.1)
+    on_floor = (p[..., 2] > 0.02) & (p[..., 2] < 0.98)
+    img, proc = render(scene, tmp_path / "w.exr")
+    assert "probe visibility masks: 336 segment(s)" in proc.stderr  # 6 boxes x 56 corner pairs
+    assert np.allclose(img[on_floor], 0.05, rtol=1e-5), img[on_floor].max()
+    img, _ = render(scene, tmp_path / "m.exr", "--move", "WallA", 1.71, 0.5, 0.5, "--move", "WallB", 1.71, 0.5, 0.5)
+    # No occluder: near x = 1.68 the upper corners' t_x = 0.68 of the bright ones.
+    assert img[on_floor].max() > 0.05 + 0.6 * 4.95
