@@ -27,10 +27,11 @@ def test_main_job_end_to_end(tmp_path):
     assert f"main job: image   {out / 'frame.png'}" in proc.stdout
 
     probes = native.read_shprobe(str(out / "sh_coeffs" / "probes.shprobe"))
-    # Adaptive placement (the default) writes a version 3 corner octree: its lattice of Min Cell Size
-    # 2 m spans whole 4 m root cells over the 10 x 4 x 10 m room, ceil(10 / 4) x 4 / 2 = 6 and
-    # 4 / 2 = 2 min cells per axis (docs/placement.md, docs/shprobe-format.md "Version 3").
-    assert probes.version == 3
+    # Adaptive placement (the default) refines per axis and writes a version 4 kd corner tree (a
+    # version 3 octree where every leaf stays a cube): its lattice of Min Cell Size 2 m spans whole
+    # 4 m root cells over the 10 x 4 x 10 m room, ceil(10 / 4) x 4 / 2 = 6 and 4 / 2 = 2 min cells
+    # per axis (docs/placement.md, docs/shprobe-format.md "Version 3", "Version 4").
+    assert (probes.version, probes.structure) in ((3, "octree"), (4, "kdtree"))
     assert probes.grid_dims == (6, 2, 6)
     assert probes.probe_count > 0
 
@@ -38,6 +39,7 @@ def test_main_job_end_to_end(tmp_path):
     grids = gltf["scenes"][0]["extensions"]["VULKAN_SCHNEE_engine_properties"]["shProbeGrids"]
     assert len(grids) == 1 and grids[0]["probeCount"] == probes.probe_count
     assert grids[0]["gridDims"] == list(probes.grid_dims)
+    assert (grids[0]["version"], grids[0]["structure"]) == (probes.version, probes.structure)
     assert (out / "gltf" / grids[0]["uri"]).read_bytes() == (out / "sh_coeffs" / "probes.shprobe").read_bytes()
     assert "VULKAN_SCHNEE_engine_properties" not in gltf.get("extensionsRequired", [])
 

@@ -255,10 +255,10 @@ static bool parse_light(ectx_ *c, uint32_t i, sv_light_mode *mode_out, float *sc
 
 static const char *const grid_representations[] = {"sh", "ambientCube", NULL};
 static const char *const grid_storages[] = {"float32", "float16", NULL};
-static const char *const grid_structures[] = {"grid", "octree", "tetrahedra", NULL};
+static const char *const grid_structures[] = {"grid", "octree", "tetrahedra", "kdtree", NULL};
 const char *sv_ext_grid_representation_name(uint32_t v) { return v < 2 ? grid_representations[v] : NULL; }
 const char *sv_ext_grid_storage_name(uint32_t v) { return v < 2 ? grid_storages[v] : NULL; }
-const char *sv_ext_grid_structure_name(uint32_t v) { return v < 3 ? grid_structures[v] : NULL; }
+const char *sv_ext_grid_structure_name(uint32_t v) { return v < 4 ? grid_structures[v] : NULL; }
 
 /* An optional string field of an entry that must be one of `names` (NULL-terminated); absent = 0. */
 static bool get_choice(ectx_ *c, const cJSON *j, const char *key, const char *gpath, const char *const *names,

@@ -42,9 +42,12 @@ def test_native_reader_table_and_message_match():
 
 
 def test_engine_table_matches():
+    # The glTF entry names version 4's structure 3 too ("kdtree", gltf_export.V4_STRUCTURES).
     names = _c_string_table("engine/ext/sv_ext.c", "grid_structures")  # (its NULL end is no literal)
-    assert names == native.STRUCTURES
+    assert names == native.STRUCTURES + ("kdtree",)
+    text = (REPO / "addon/schnee_probes/gltf_export.py").read_text()
+    assert re.search(r'^V4_STRUCTURES = \("kdtree",\)', text, re.M)
     # sv_ext_grid_structure_name bounds its index by the count.
     text = (REPO / "engine/ext/sv_ext.c").read_text()
     m = re.search(r"sv_ext_grid_structure_name\(uint32_t v\)\s*\{\s*return v < (\d+) \?", text)
-    assert m and int(m.group(1)) == len(native.STRUCTURES)
+    assert m and int(m.group(1)) == len(native.STRUCTURES) + 1

@@ -67,7 +67,7 @@ static void test_refusals(void)
         {"\"representation\":\"cube\"", "representation: 'cube' is not sh or ambientCube"},
         {"\"representation\":\"SH\"", "representation: 'SH' is not sh or ambientCube"},
         {"\"storage\":\"half\"", "storage: 'half' is not float32 or float16"},
-        {"\"structure\":\"tree\"", "structure: 'tree' is not grid, octree or tetrahedra"},
+        {"\"structure\":\"tree\"", "structure: 'tree' is not grid, octree, tetrahedra or kdtree"},
         {"\"structure\":1", "structure: expected a string, got a number"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
@@ -90,7 +90,8 @@ static void test_name_tables(void)
     TU_CHECK(strcmp(sv_ext_grid_structure_name(GRID), "grid") == 0);
     TU_CHECK(strcmp(sv_ext_grid_structure_name(OCTREE), "octree") == 0);
     TU_CHECK(strcmp(sv_ext_grid_structure_name(TETRA), "tetrahedra") == 0);
-    TU_CHECK(sv_ext_grid_structure_name(3) == NULL);
+    TU_CHECK(strcmp(sv_ext_grid_structure_name(3), "kdtree") == 0); /* version 4's structure 3 */
+    TU_CHECK(sv_ext_grid_structure_name(4) == NULL);
 }
 
 int main(void)
