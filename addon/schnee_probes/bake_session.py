@@ -29,7 +29,7 @@ import time
 import bpy
 import numpy as np
 
-from . import compat, native, render_settings, scene_export
+from . import compat, images, native, render_settings, scene_export
 from .settings import BakeError
 
 # Temporary folders: schnee_bake_<pid>_<random> in the system temporary folder; a folder whose
@@ -151,7 +151,9 @@ class RenderSession:
         image.save_render(exr, scene=self.scene)
         t2 = time.perf_counter()
         try:
-            coeffs = native.project_file(exr, s.max_band, negative="clamp")
+            # Read once: the projection and (Sky Light exact) the film's alpha both come from it.
+            pixels = images.read_image(exr)
+            coeffs = native.project_pixels(pixels, s.max_band, negative="clamp", name=exr)
         except native.SchneeError as exc:
             where = tuple(float(c) for c in scene_export.engine_to_blender(position))
             hint = ""
@@ -162,7 +164,7 @@ class RenderSession:
             raise BakeError(f"Projecting the panorama of probe {index + 1} at Blender "
                             f"({where[0]:.3f}, {where[1]:.3f}, {where[2]:.3f}) failed: {exc}{hint}") from exc
         if direct is not None:         # --- issue 11 hook: the world seen directly
-            sky = direct.sky_coeffs(self, exr)
+            sky = direct.sky_coeffs(self, exr, pixels[:, :, 3] if pixels.shape[2] == 4 else None)
             if sky is not None:
                 coeffs = coeffs + sky
         t3 = time.perf_counter()

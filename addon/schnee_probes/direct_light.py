@@ -185,9 +185,11 @@ class DirectLightPlan:
             self.world(session)
         return None if self.sun is None else self.sun.lamp()
 
-    def sky_coeffs(self, session, exr_path: str) -> Optional[np.ndarray]:
+    def sky_coeffs(self, session, exr_path: str, alpha: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
         """Σ_cells vis(cell) · ∫_cell L_world Y dω for the panorama just rendered with a transparent
-        film (the world hidden from camera rays): vis = 1 − alpha. None when the sky is path traced."""
+        film (the world hidden from camera rays): vis = 1 − alpha. ``alpha`` (H, W), row 0 at the top:
+        the panorama's alpha already read (else read from ``exr_path``). None when the sky is path
+        traced."""
         if not self.sky:
             return None
         t0 = time.perf_counter()
@@ -198,7 +200,9 @@ class DirectLightPlan:
             self._world = None           # binned: the image is not needed any more
             session.timings["sky_table"] = time.perf_counter() - t0
             t0 = time.perf_counter()
-        vis = 1.0 - read_alpha(exr_path, w, h)
+        if alpha is not None and np.shape(alpha) != (h, w):
+            raise RuntimeError(f"panorama {exr_path} alpha is {np.shape(alpha)}, expected ({h}, {w})")
+        vis = 1.0 - (read_alpha(exr_path, w, h) if alpha is None else np.asarray(alpha, dtype=np.float64))
         np.clip(vis, 0.0, 1.0, out=vis)
         out = np.einsum("hw,hwic->ic", vis, self._table)
         session.timings["sky_direct"] = session.timings.get("sky_direct", 0.0) + time.perf_counter() - t0

@@ -206,15 +206,22 @@ def project_file(path: str, max_band: int = 2, rotation: Optional[np.ndarray] = 
     """Same as :func:`project_equirect` for an image file, read by :func:`images.read_image` (the
     bake's own EXR files by exr.py, other images through Blender, or oiiotool outside Blender).
     Errors are SchneeError: "I/O error" (missing/unreadable file), "malformed file"."""
+    from . import images
+    return project_pixels(images.read_image(path), max_band, rotation, negative, name=path)
+
+
+def project_pixels(pixels: np.ndarray, max_band: int = 2, rotation: Optional[np.ndarray] = None,
+                   negative: str = "error", name: str = "") -> np.ndarray:
+    """:func:`project_file` of pixels already read (float32 (H, W, C), row 0 at the top, as
+    :func:`images.read_image` gives them); ``name`` prefixes error messages."""
     rot = _rotation(rotation)
     policy = _choice(negative, _NEGATIVE, "negative")
-    from . import images
-    pixels = images.read_image(path)
+    pixels = np.ascontiguousarray(pixels, dtype=np.float32)
     h, w, c = pixels.shape
     try:
         raw = _lib().project_equirect(pixels, w, h, c, max_band, rot, policy)
     except SchneeError as exc:
-        raise SchneeError(f"{os.fspath(path)}: {exc}", exc.code) from None
+        raise SchneeError(f"{os.fspath(name)}: {exc}" if name else str(exc), exc.code) from None
     return np.frombuffer(raw, dtype=np.float64).reshape(-1, 3)
 
 
