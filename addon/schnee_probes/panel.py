@@ -34,11 +34,15 @@ class VIEW3D_PT_schnee_probes(bpy.types.Panel):
         _draw_journal(layout, props)
 
 
+# The panel lists the Cycles devices at most this often (every redraw would probe them).
+PANEL_DEVICE_SECONDS = 5.0
+
+
 def _draw_device(layout, scene, props):
     """What will render the panoramas with Render Device as set ("GPU: none available, CPU (2
     threads)" when a GPU is asked for and the Preferences give none); nothing without Cycles."""
     try:
-        label = render_settings.device_label(scene, props.render_device)
+        label = render_settings.device_label(scene, props.render_device, max_age=PANEL_DEVICE_SECONDS)
     except bake_core.BakeError:
         return
     layout.label(text=f"Renders on {label}")

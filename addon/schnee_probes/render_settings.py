@@ -6,6 +6,8 @@ state before anything changes and puts it back afterwards, on success, error and
 the bake itself (``bake_core.ProbeBake``), the sky capture and placement's render evaluation
 (:class:`RenderEvaluation`) all use it.
 """
+import time
+
 import bpy
 
 from . import compat
@@ -236,7 +238,19 @@ def _cpu_label(scene) -> str:
     return f"CPU ({n} thread{'' if n == 1 else 's'})"
 
 
-def _device_plan(scene, render_device):
+_GPU_LIST = [float("-inf"), None]      # (time.monotonic() of the listing, its result)
+
+
+def _gpu_devices(max_age: float = 0.0):
+    """compat.cycles_gpu_devices of the Preferences, listed again when the last listing is older than
+    ``max_age`` seconds (the panel redraws often; listing makes Cycles probe its devices)."""
+    now = time.monotonic()
+    if _GPU_LIST[1] is None or now - _GPU_LIST[0] > max_age:
+        _GPU_LIST[:] = [now, compat.cycles_gpu_devices(compat.cycles_preferences())]
+    return _GPU_LIST[1]
+
+
+def _device_plan(scene, render_device, max_age: float = 0.0):
     """``(value for scene.cycles.device or None to leave it, label, why no GPU or None)`` for the
     Render Device setting ``render_device`` ('SCENE', 'CPU', 'GPU'); changes nothing."""
     cycles = require_cycles(scene)
@@ -244,7 +258,7 @@ def _device_plan(scene, render_device):
     setting = None if render_device == 'SCENE' else wanted
     if wanted != 'GPU':
         return setting, _cpu_label(scene), None
-    kind, names, with_cpu = compat.cycles_gpu_devices(compat.cycles_preferences())
+    kind, names, with_cpu = _gpu_devices(max_age)
     if names:
         return setting, f"GPU: {', '.join(names)} ({kind}{' + CPU' if with_cpu else ''})", None
     if kind == 'NONE':
@@ -255,13 +269,13 @@ def _device_plan(scene, render_device):
     return ('CPU' if setting else None), f"GPU: none available, {_cpu_label(scene)}", why
 
 
-def device_label(scene, render_device='SCENE') -> str:
+def device_label(scene, render_device='SCENE', max_age: float = 0.0) -> str:
     """What renders the panoramas of ``scene`` with Render Device ``render_device``, as a short label
     ("CPU (2 threads)", "GPU: NVIDIA ... (OPTIX)", "GPU: none available, CPU (2 threads)"); the
     default 'SCENE' says what renders now (after :func:`apply_render_device`: what the bake uses).
     Changes no scene setting (listing the devices refreshes the Preferences' device list, as
-    Cycles' own panels do)."""
-    return _device_plan(scene, render_device)[1]
+    Cycles' own panels do); ``max_age`` > 0 reuses a listing that recent (the panel's redraws)."""
+    return _device_plan(scene, render_device, max_age)[1]
 
 
 def apply_render_device(scene, render_device, log=print) -> str:
