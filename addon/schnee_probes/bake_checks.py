@@ -1,13 +1,17 @@
 """What the bake refuses before it changes anything, and the errors it raises.
 
 Part of the bake (bake_core.ProbeBake drives it): NaN/Inf in what lights the scene
-(:func:`check_finite_emission`), a bad light mode (:func:`check_light_modes`), more probes than the
+(:func:`check_finite_emission`), image files the render would not find (:func:`check_missing_images`), a bad light mode (:func:`check_light_modes`), more probes than the
 limit (:class:`BakeTooLarge`), a cancel (:class:`BakeCancelled`). Whether an existing file may be
 replaced is bake_outputs.check_replaceable.
 """
 from __future__ import annotations
 
 import math
+import os
+from typing import Optional
+
+import bpy
 
 from . import compat, light_modes
 from .estimate import format_duration
@@ -78,9 +82,9 @@ def _non_finite(value):
 
 def _tree_problems(tree, where, seen):
     out = []
-    if tree is None or tree.name_full in seen:
+    if tree is None or tree.as_pointer() in seen:
         return out
-    seen.add(tree.name_full)
+    seen.add(tree.as_pointer())  # embedded trees all share the name "Shader Nodetree"
     for node in tree.nodes:
         for sock in node.inputs:
             if sock.is_linked or not hasattr(sock, "default_value"):
@@ -122,3 +126,59 @@ def check_finite_emission(scene):
         raise BakeError("Values the probes cannot represent (Cycles drops NaN/Inf, so this light "
                         "would be missing without a warning): " + "; ".join(problems[:3]) + more
                         + ". Set finite values")
+
+
+def _tree_images(tree, where, seen):
+    """(image, where) of the image nodes of ``tree`` and its groups (Image / Environment Texture)."""
+    out = []
+    if tree is None or tree.as_pointer() in seen:
+        return out
+    seen.add(tree.as_pointer())  # embedded trees all share the name "Shader Nodetree"
+    for node in tree.nodes:
+        image = getattr(node, "image", None)
+        if image is not None:
+            out.append((image, f"{where} (node '{node.name}')"))
+        if node.type == 'GROUP' and node.node_tree is not None:
+            out += _tree_images(node.node_tree, f"{where} (group '{node.node_tree.name}')", seen)
+    return out
+
+
+def image_missing(image) -> Optional[str]:
+    """The absolute path of an image file that is not there, else None: a packed, generated or
+    rendered image, a UDIM set or a movie (their files are Blender's to resolve) is never missing."""
+    if image.source not in ('FILE', 'SEQUENCE') or image.packed_file is not None or not image.filepath:
+        return None
+    path = bpy.path.abspath(image.filepath, library=image.library)
+    return None if os.path.isfile(path) else path
+
+
+def check_missing_images(scene):
+    """Refuse image files the render would not find: an Image or Environment Texture of the world,
+    of a lamp or of a material of a render-visible object whose file is missing renders magenta
+    (Cycles' missing-texture colour) and the probes would hold that colour without a warning."""
+    found, seen_trees, seen_images = [], set(), set()
+    trees = []
+    if scene.world is not None and scene.world.use_nodes:
+        trees.append((scene.world.node_tree, f"world '{scene.world.name}'"))
+    for ob in scene.objects:
+        if ob.hide_render:
+            continue
+        if ob.type == 'LIGHT':
+            if ob.data.use_nodes:
+                trees.append((ob.data.node_tree, f"light '{ob.name}'"))
+            continue
+        for slot in getattr(ob, "material_slots", ()):
+            mat = slot.material
+            if mat is not None and mat.use_nodes:
+                trees.append((mat.node_tree, f"material '{mat.name}' (on object '{ob.name}')"))
+    for tree, where in trees:
+        for image, at in _tree_images(tree, where, seen_trees):
+            path = image_missing(image)
+            if path is not None and image.name_full not in seen_images:
+                seen_images.add(image.name_full)
+                found.append(f"image '{image.name}' of {at}: {path}")
+    if found:
+        more = f" (and {len(found) - 3} more)" if len(found) > 3 else ""
+        raise BakeError("Image files are missing (Cycles would render them magenta, and the probes would "
+                        "hold that colour): " + "; ".join(found[:3]) + more + ". Find them (File > "
+                        "External Data > Find Missing Files) or pack them")

@@ -374,6 +374,24 @@ def test_non_finite_emission_is_refused_naming_it(scenes, tmp_path, blend_name, 
     assert not (tmp_path / "sh_coeffs").exists()
 
 
+@pytest.mark.parametrize("blend_name,words", [
+    ("image_missing.blend", ["image 'brick.png'", "material 'Bricks'", "object 'Brick'",
+                             os.path.join("textures", "brick.png")]),
+    ("world_missing.blend", ["image 'lost_sky.exr'", "world 'Lost'", os.path.join("hdri", "lost_sky.exr")]),
+], ids=["material", "world"])
+def test_a_missing_image_file_is_refused_naming_it(scenes, tmp_path, blend_name, words):
+    # Cycles renders a missing texture magenta; the bake used to hold that colour without a word.
+    # (Every other scene here renders Blender's own courtyard.exr: a found image passes.)
+    blend = copy_blend(scenes, blend_name, tmp_path)
+    proc = bake(blend, *CELLS_2M, *TINY)
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    msg = last_error(proc)
+    for w in words + ["magenta", "Find Missing Files"]:
+        assert w in msg, msg
+    assert str(tmp_path) in msg                      # the absolute path the render looked for
+    assert not (tmp_path / "sh_coeffs").exists()
+
+
 def test_inf_in_a_panorama_names_the_probe_and_its_position(scenes, tmp_path):
     # Emission 1e38 is finite (not refused up front), but 4 samples of it sum past float32's
     # range: the panorama holds Inf, which the native projection refuses. The bake says which

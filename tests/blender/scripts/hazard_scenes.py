@@ -8,6 +8,10 @@ emission_nan.blend   the same box, "GlowBox", material "NaNGlow": Principled BSD
 emission_huge.blend  a 2 m box "HugeBox" beside the volume, material "Huge": Emission Strength 1e38
                      (finite, so not refused up front; at 4 spp the render's sum of samples
                      overflows float32 to Inf in the panorama).
+image_missing.blend  sky.blend plus the box "Brick" whose material "Bricks" has an Image Texture of
+                     the image "brick.png" at //textures/brick.png, a file that does not exist.
+world_missing.blend  one volume under a world whose Environment Texture image "lost_sky.exr" points at
+                     //hdri/lost_sky.exr, which does not exist.
 emission_1e30.blend  the same box, "BrightBox", material "Bright": Emission Strength 1e30 (finite in
                      float32 at any sample count here, but far beyond half floats' 65504).
 """
@@ -65,4 +69,31 @@ emissive("HugeBox", "Huge", lambda t: emission_node(t, 1e38), (2.5, -1.0, 0.0), 
 lib.save(os.path.join(out, "emission_huge.blend"))
 emissive("BrightBox", "Bright", lambda t: emission_node(t, 1e30), (2.5, -1.0, 0.0), (4.5, 1.0, 2.0))
 lib.save(os.path.join(out, "emission_1e30.blend"))
+
+
+def missing_image(name, rel):
+    img = bpy.data.images.new(name, 4, 4, float_buffer=True)
+    img.source = 'FILE'
+    img.filepath = rel
+    return img
+
+
+def image_texture(tree, image):
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    bsdf = next(n for n in tree.nodes if n.type == 'BSDF_PRINCIPLED')
+    tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+
+
+emissive("Brick", "Bricks", lambda t: image_texture(t, missing_image("brick.png", "//textures/brick.png")))
+lib.save(os.path.join(out, "image_missing.blend"))
+lib.clear_scene()
+world = bpy.data.worlds.new("Lost")
+world.use_nodes = True
+env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+env.image = missing_image("lost_sky.exr", "//hdri/lost_sky.exr")
+world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+bpy.context.scene.world = world
+lib.probe_volume("SkyVolume", (-2.0, -2.0, 0.0), (2.0, 2.0, 2.0))
+lib.save(os.path.join(out, "world_missing.blend"))
 common.emit(ok=True)
