@@ -41,8 +41,7 @@ from .metric import _rel, irradiance_error, irradiance_norm  # noqa: F401 (re-ex
 TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
 # The sampling scheme's name in the journal's fingerprint (journal.py): a journal of another scheme
 # holds records of other sample counts and is not resumed.
-# "axes-1": the per-axis refinement (Policy.axes), whose journals hold other points than the octree's.
-SAMPLING = "rounds-1/axes-1"
+SAMPLING = "rounds-1"
 
 
 @dataclass(frozen=True)
@@ -96,9 +95,12 @@ class Policy:
     direct_divisions: int = 4
     # Per-axis refinement (docs/aniso-refinement.md): a leaf is a box with a level per axis and splits
     # only along the axes its tests disagree on (12 edge midpoints + the middle point; the direct
-    # check the same way). False: the octree's all-axes splits with 7 tests (Refinement Tests "Centre"
-    # always uses those).
-    axes: bool = True
+    # check the same way). Off by default, measured in Cycles at the add-on's defaults
+    # (bench/results/placement.md "Per-axis refinement"): fewer probes (room 1368 vs 1646, courtyard
+    # 528 vs 916) but more renders (2975 vs 2400, 1750 vs 1481: the slabs' long axes keep being
+    # tested) and a larger error at the points (1.97 vs 1.77 %, 1.51 vs 1.04 %). True: bench and
+    # tests (bench_placement.py --axes on); Refinement Tests "Centre" always uses the octree.
+    axes: bool = False
 
 
 DEFAULT_POLICY = Policy()

@@ -52,6 +52,11 @@ def shadow(scenes, tmp_path_factory):
     return run_case(scenes, "shadow", "shadow", tmp_path_factory.mktemp("shadow"))
 
 
+@pytest.fixture(scope="module")
+def shadow_axes(scenes, tmp_path_factory):
+    return run_case(scenes, "shadow", "shadow_axes", tmp_path_factory.mktemp("shadow_axes"))
+
+
 def _leaf_boxes(r):
     """(min corner, max corner, size) per leaf and axis, metres: version 4 leaves hold packed
     per-axis levels (docs/shprobe-format.md), version 3 one level."""
@@ -66,11 +71,13 @@ def _leaf_boxes(r):
     return lo, lo + size, size
 
 
-def test_shadow_boundary_draws_refinement_to_it_and_nowhere_else(shadow):
-    r = shadow
-    # Per-axis refinement (the default): the penumbra is a plane nearly normal to x (its x shifts by
-    # 0.02 m per metre of z), so leaves split along x and stay whole along y: boxes, version 4.
-    assert r["version"] == 4 and r["structure"] == "kdtree"
+@pytest.mark.parametrize("axes", [False, True], ids=["octree", "per_axis"])
+def test_shadow_boundary_draws_refinement_to_it_and_nowhere_else(shadow, shadow_axes, axes):
+    r = shadow_axes if axes else shadow
+    # The octree (the default) writes version 3. Per axis (adaptive.Policy.axes): the penumbra is a
+    # plane nearly normal to x (its x shifts by 0.02 m per metre of z), so leaves split along x and
+    # stay whole along y: boxes, version 4.
+    assert (r["version"], r["structure"]) == ((4, "kdtree") if axes else (3, "octree"))
     lo, hi, sizes = _leaf_boxes(r)
     size = sizes[:, 0]
     # The transition slab: every x where some point of the leaf's z range is in the penumbra.
@@ -90,7 +97,8 @@ def test_shadow_boundary_draws_refinement_to_it_and_nowhere_else(shadow):
     outer = (hi[:, 0] <= -2.0) | (lo[:, 0] >= 2.0)
     assert np.all(sizes[outer] == MAX_CELL)
     assert outer.sum() == 2
-    assert np.all(sizes[:, 1] == MAX_CELL)          # nothing varies along y (the wall's height)
+    if axes:
+        assert np.all(sizes[:, 1] == MAX_CELL)      # nothing varies along y (the wall's height)
     # Min Cell Size leaves only near the slab: within one Min Cell Size... of the parent (1 m).
     fine = size == MIN_CELL
     assert np.all(gap[fine] < 2 * MIN_CELL), gap[fine]
@@ -102,13 +110,15 @@ def test_shadow_boundary_draws_refinement_to_it_and_nowhere_else(shadow):
     assert r["passes"][-1]["split"] == 0
 
 
-def test_v3_interpolation_matches_probes_baked_at_random_points(shadow):
+@pytest.mark.parametrize("axes", [False, True], ids=["octree", "per_axis"])
+def test_v3_interpolation_matches_probes_baked_at_random_points(shadow, shadow_axes, axes):
     # 16 seeded points; reference probes baked there at 4x the samples. Away from the penumbra
     # (more than one Min Cell Size beyond it) the light is smooth or black, and the file's corner
     # octree interpolation must be within the refinement's own bound: Error Tolerance 0.07 and 2x the
     # measured noise (about 0.02 at 16 samples) in quadrature, about 0.08, with the reference's own
     # noise -> 0.10 at any point, 0.05 on average (measured at 0.05 with the linear sum tol + 2σ,
     # about 0.09: 0.069 max, 0.017 mean; dark points exactly 0).
+    shadow = shadow_axes if axes else shadow   # (version 4 per axis: the same bound)
     pts = np.array(shadow["points"])
     err = np.array(shadow["point_error"])
     b, w = boundary(pts[:, 2])

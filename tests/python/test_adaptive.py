@@ -60,6 +60,7 @@ def drive(group, field, noise=0.0, jitter=None):
 
 VOLUME = box_mesh("hall", (0.0, 0.0, 0.0), (8.0, 2.0, 2.0))
 OCTREE = adaptive.Policy(axes=False)
+AXES = adaptive.Policy(axes=True)
 
 
 def x_cells(group, h=0.5):
@@ -100,10 +101,11 @@ def test_combine_halves_mean_and_noise():
     assert noise == pytest.approx(0.04 / 0.99 * math.sqrt(3) / 4)  # relative to the mean, 0.99
 
 
-@pytest.mark.parametrize("tests", adaptive.TEST_MODES)
-def test_shadow_plane_refines_only_the_cells_it_crosses(tests):
+@pytest.mark.parametrize("tests,axes", [("CENTRE_FACES", False), ("CENTRE", False), ("CENTRE_FACES", True)])
+def test_shadow_plane_refines_only_the_cells_it_crosses(tests, axes):
     # A sun switched on for x > 3.3: only leaves crossed by x = 3.3 may split, down to Min Cell Size.
-    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests)
+    group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, tests,
+                                   policy=adaptive.Policy(axes=axes))
 
     def field(p):
         return np.array([sh_of(1.0, 3.0 if x > 3.3 else 0.0) for x in p[:, 0]])
@@ -114,9 +116,8 @@ def test_shadow_plane_refines_only_the_cells_it_crosses(tests):
     # Leaves below Max Cell Size only inside the 2 m cell [2, 4] that holds the plane.
     assert np.all((lo[size < 2] >= 2.0) & (lo[size < 2] + size[size < 2] <= 4.0))
     assert [p.smallest_cell for p in group.passes] == [2.0, 1.0, 0.5]
-    # The light varies along x only: per axis (the default, with face tests) nothing splits along y
-    # or z, the octree halves those too.
-    assert np.all(other == 2.0) == (tests == "CENTRE_FACES")
+    # The light varies along x only: per axis nothing splits along y or z, the octree halves those too.
+    assert np.all(other == 2.0) == axes
 
 
 @pytest.mark.parametrize("tests", adaptive.TEST_MODES)
@@ -189,10 +190,10 @@ def test_more_samples_find_the_error_the_noise_hid():
     assert cache.samples.max() == cache.most == 8 and cache.samples[cache.rendered].min() == 4
     # The stages: per pass probes, tests and more rounds, and the last probes' more rounds (the farm
     # submits one job array per stage).
+    assert found.stage_count() == 3 * found.root_level + 2 == adaptive.stage_bound(0.5, 2.0, found.policy)
     # Per axis a leaf may split one axis a pass: up to 3 passes per level.
-    assert found.stage_count() == 3 * 3 * found.root_level + 2 == adaptive.stage_bound(0.5, 2.0, found.policy)
-    octree = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, policy=OCTREE)
-    assert octree.stage_count() == 3 * octree.root_level + 2 == adaptive.stage_bound(0.5, 2.0, OCTREE)
+    boxes = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, policy=AXES)
+    assert boxes.stage_count() == 3 * 3 * boxes.root_level + 2 == adaptive.stage_bound(0.5, 2.0, AXES)
 
 
 def test_a_clear_decision_stops_at_the_first_rounds():
@@ -388,13 +389,20 @@ def test_direct_light_draws_refinement_to_a_beam_the_tests_miss():
     drive(plain, total)
     assert len(plain.passes) == 1 and plain.passes[0].split == 0      # the beam is missed
 
+    boxes = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, direct=direct, policy=AXES)
+    drive(boxes, total)
+    lo, size, other = x_cells(boxes)
+    holds = (lo < 2.9) & (lo + size > 2.4)
+    assert holds.any() and np.all(size[holds] == 0.5)
+    assert np.all(other == 2.0)     # per axis the check's failing points lie on x edges: x only
+
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05, direct=direct)
     cache = drive(group, total)
     lo, size, other = x_cells(group)
     holds = (lo < 2.9) & (lo + size > 2.4)
     assert holds.any() and np.all(size[holds] == 0.5)
     assert np.all((lo[size < 2] >= 2.0) & (lo[size < 2] + size[size < 2] <= 4.0))
-    assert np.all(other == 2.0)     # the direct check's failing points lie on x edges: x only
+    assert np.all(other[holds] == 0.5)      # the octree halves y and z with x
     assert sum(p.direct_split for p in group.passes) > 0
     # Every render is a probe or a test: the direct check itself renders nothing.
     assert int(cache.rendered.sum()) == len(cache)
@@ -565,7 +573,8 @@ def test_policy_is_frozen_and_defaults_to_the_measured_knobs():
     with pytest.raises(dataclasses.FrozenInstanceError):
         p.predict = 2.0
     assert dataclasses.replace(p, predict=2.0).predict == 2.0 and p.predict == 4.0
-    assert p.axes and adaptive.stage_bound(0.5, 2.0) == 3 * 3 * 2 + 2
+    assert not p.axes and adaptive.stage_bound(0.5, 2.0) == 3 * 2 + 2
+    assert adaptive.stage_bound(0.5, 2.0, AXES) == 3 * 3 * 2 + 2
 
 
 def test_child_keys_halve_only_the_masked_axes_above_level_0():

@@ -20,11 +20,11 @@ const JOB_TYPE = {
         {
             key: "stages",
             type: "int32",
-            default: 47,
+            default: 17,
             required: true,
             visible: "submission",
-            description: "Placement stages: 9 x floor(log2(Max / Min Cell Size)) + 2 for Adaptive placement " +
-                "(47 at the defaults 0.5 / 16 m; bake.py --farm prints it), 1 for the geometry octree. " +
+            description: "Placement stages: 3 x floor(log2(Max / Min Cell Size)) + 2 for Adaptive placement " +
+                "(17 at the defaults 0.5 / 16 m; bake.py --farm prints it), 1 for the geometry octree. " +
                 "More than needed costs only a quick task per shard.",
         },
         {

@@ -5,6 +5,7 @@ Usage: blender -b SCENE.blend --factory-startup -P refine_bake.py -- CASE OUT_DI
 CASE:
   shadow   bake the shadow scene (refine_scenes.py), then bake reference probes at seeded random
            points and compare them with the file's interpolation there
+  shadow_axes  the same with the per-axis refinement (adaptive.Policy(axes=True): version 4 boxes)
   open     bake the uniformly lit open scene (V3, then File Version 1)
   cancel   bake once, then bake again and cancel in pass 2 (Esc/SIGINT path) and fail in pass 2
            (an error while rendering): the first file must stay byte for byte, temp folders gone,
@@ -79,7 +80,7 @@ def temp_dirs():
     return sorted(glob.glob(os.path.join(tempfile.gettempdir(), f"{bake_core.TMP_PREFIX}{os.getpid()}_*")))
 
 
-if CASE == "shadow":
+if CASE in ("shadow", "shadow_axes"):
     # Error Tolerance 0.2. At 0.07 (the noise adds to the light's error in quadrature, threshold
     # sqrt(tol² + (2σ)²)) the cells far from the shadow passed only while the noise of the dark
     # probes hid the bright plane's falloff: since the probes get the samples the tolerance asks
@@ -88,7 +89,7 @@ if CASE == "shadow":
     # light, and splits. The penumbra's error is ~100 %: at 0.2 it refines to Min Cell Size as
     # before, and the falloff does not.
     s = settings(error_tolerance=0.2)
-    b, r = bake(s)
+    b, r = bake(s, policy=adaptive.Policy(axes=CASE == "shadow_axes"))
     f, out = file_summary(r.files[0])
     out["passes"] = [vars(p) for p in r.passes]
     out["renders"] = r.renders
