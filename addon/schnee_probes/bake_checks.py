@@ -182,3 +182,10 @@ def check_missing_images(scene):
         raise BakeError("Image files are missing (Cycles would render them magenta, and the probes would "
                         "hold that colour): " + "; ".join(found[:3]) + more + ". Find them (File > "
                         "External Data > Find Missing Files) or pack them")
+
+
+def check_shading(scene):
+    """What the render would get wrong without a word: NaN/Inf (:func:`check_finite_emission`) and
+    missing image files (:func:`check_missing_images`)."""
+    check_finite_emission(scene)
+    check_missing_images(scene)

@@ -52,7 +52,7 @@ import numpy as np
 from . import bake_sky, direct_light, fingerprint, journal, native, render_settings
 from .adaptive import DEFAULT_POLICY, Policy
 # The parts, and the names scripts import from bake_core (re-exported).
-from .bake_checks import (BakeCancelled, BakeTooLarge, check_finite_emission, check_missing_images,  # noqa: F401
+from .bake_checks import (BakeCancelled, BakeTooLarge, check_finite_emission, check_shading,  # noqa: F401
                           check_light_modes)
 from .bake_outputs import (DEBUG_SHPROBE_NAME, DEBUG_SUBDIR, DEBUG_TEXT_FIRST_LINE,  # noqa: F401
                            DEBUG_TEXT_NAME, EXR_MAGIC, HALF_MAX, SHPROBE_MAGIC, SKY_FILE_NAME,
@@ -185,8 +185,7 @@ class ProbeBake:
         s = self.settings
         s.validate()
         realtime, mixed = check_light_modes(self.scene, self.messages)
-        check_finite_emission(self.scene)
-        check_missing_images(self.scene)
+        check_shading(self.scene)
         min_w, min_h = native.min_panorama_size(s.max_band)
         if s.panorama_resolution < min_w or s.panorama_resolution // 2 < min_h:
             raise BakeError(f"Panorama Resolution {s.panorama_resolution} is too small for Max SH Band "
