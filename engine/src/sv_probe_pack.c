@@ -400,7 +400,7 @@ sv_gpu_cell *sv_probes_cells(const sv_probes *probes, uint32_t *sphere_count, ui
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         const pb_shprobe *f = probes->grids[g].file;
         if (probes->grids[g].tree) n += f->element_count; /* octree, kd tree: one outline per leaf */
-        if (!f->grid) continue;                            /* tetrahedra: spheres only */
+        if (!f->grid) continue;                           /* tetrahedra: spheres only */
         size_t cells = (size_t)f->grid_dims[0] * f->grid_dims[1] * f->grid_dims[2];
         for (size_t i = 0; i < cells; ++i) n += f->grid[i] >= 0;
     }

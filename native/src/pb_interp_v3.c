@@ -116,10 +116,10 @@ static pb_result cotree_from_file(const pb_shprobe *f, pb_cotree **out, pb_error
     double origin[3] = {f->grid_origin[0], f->grid_origin[1], f->grid_origin[2]};
     bool kd = f->structure == PB_SHPROBE_KDTREE;
     pb_cotree *t;
-    pb_result r = kd ? pb_cotree_create_boxes(origin, f->grid_spacing, f->root_level, f->grid_dims, f->leaves,
-                                              f->element_count, &t, err)
-                     : pb_cotree_create_leaves(origin, f->grid_spacing, f->grid_dims, f->leaves, f->element_count, &t,
-                                               err);
+    pb_result r =
+        kd ? pb_cotree_create_boxes(origin, f->grid_spacing, f->root_level, f->grid_dims, f->leaves, f->element_count,
+                                    &t, err)
+           : pb_cotree_create_leaves(origin, f->grid_spacing, f->grid_dims, f->leaves, f->element_count, &t, err);
     if (r != PB_SUCCESS) return r;
     uint32_t *levels = malloc(((size_t)f->element_count * 3 + 1) * sizeof(uint32_t));
     if (!levels) {

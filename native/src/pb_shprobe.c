@@ -83,8 +83,8 @@ static uint64_t kd_root_cells(const uint32_t dims[3], uint32_t root_level)
 static pb_result check_kd_header(const pb_shprobe *h, pb_result code, pb_error *err)
 {
     if (h->root_level > V3_MAX_LEVEL)
-        return pb_error_set(err, code, "root level %u at offset %u is out of range 0..%u", h->root_level,
-                            V4_ROOT_LEVEL, V3_MAX_LEVEL);
+        return pb_error_set(err, code, "root level %u at offset %u is out of range 0..%u", h->root_level, V4_ROOT_LEVEL,
+                            V3_MAX_LEVEL);
     if (h->split_node_count > PB_SHPROBE_MAX_SPLIT_NODES)
         return pb_error_set(err, PB_ERROR_TOO_LARGE, "%u split-tree nodes (offset %u) are above the limit of %u",
                             h->split_node_count, V4_NODE_COUNT, PB_SHPROBE_MAX_SPLIT_NODES);
@@ -93,8 +93,8 @@ static pb_result check_kd_header(const pb_shprobe *h, pb_result code, pb_error *
         return pb_error_set(err, code,
                             "split-tree node count %u (offset %u) is below the %llu root cells of a %u x %u x %u "
                             "lattice at root level %u",
-                            h->split_node_count, V4_NODE_COUNT, (unsigned long long)g, h->grid_dims[0],
-                            h->grid_dims[1], h->grid_dims[2], h->root_level);
+                            h->split_node_count, V4_NODE_COUNT, (unsigned long long)g, h->grid_dims[0], h->grid_dims[1],
+                            h->grid_dims[2], h->root_level);
     return PB_SUCCESS;
 }
 

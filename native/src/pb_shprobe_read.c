@@ -90,8 +90,7 @@ static pb_result parse_header(const uint8_t *data, size_t avail, uint64_t file_s
                     return pb_error_set(err, PB_ERROR_FORMAT, "reserved word at offset %u is 0x%X; it must be 0",
                                         V4_RESERVED + 4u * k, get_u32(data + V4_RESERVED + 4u * k));
         }
-        pb_result kr =
-            pb_shprobe_check_v3_kind_(version, h, (flags & V2_FLAG_POSITIONS) != 0, PB_ERROR_FORMAT, err);
+        pb_result kr = pb_shprobe_check_v3_kind_(version, h, (flags & V2_FLAG_POSITIONS) != 0, PB_ERROR_FORMAT, err);
         if (kr != PB_SUCCESS) return kr;
     }
     for (int i = 0; i < 3; i++) {

@@ -34,14 +34,13 @@ static pb_result check_hanging(const pb_shprobe *p, const layout *lay, pb_result
                 return pb_error_set(err, PB_ERROR_NON_FINITE, "hanging node %u weight %d is %g (offset %llu)", j, k,
                                     (double)w, (unsigned long long)(off + 16u + 4u * (uint32_t)k));
             if (w < 0.0f || w > 1.0f)
-                return pb_error_set(err, code,
-                                    "hanging node %u weight %d is %g (offset %llu); it must be in [0, 1]", j, k,
-                                    (double)w, (unsigned long long)(off + 16u + 4u * (uint32_t)k));
+                return pb_error_set(err, code, "hanging node %u weight %d is %g (offset %llu); it must be in [0, 1]", j,
+                                    k, (double)w, (unsigned long long)(off + 16u + 4u * (uint32_t)k));
             sum += w;
         }
         if (fabs(sum - 1.0) > HANGING_SUM_TOL)
-            return pb_error_set(err, code, "hanging node %u weights sum to %.9g (offset %llu); they must sum to 1",
-                                j, sum, (unsigned long long)(off + 16u));
+            return pb_error_set(err, code, "hanging node %u weights sum to %.9g (offset %llu); they must sum to 1", j,
+                                sum, (unsigned long long)(off + 16u));
     }
     return PB_SUCCESS;
 }
@@ -83,8 +82,9 @@ static pb_result check_kd_leaves(const pb_shprobe *p, const layout *lay, pb_resu
         for (int c = 0; c < 8; c++) {
             int32_t v = p->leaf_corners[8u * i + (uint32_t)c];
             if (v < 0 || (uint64_t)v >= nodes)
-                return pb_error_set(err, code, "leaf %u corner %d (offset %llu) is %d; it must be a node index below %llu",
-                                    i, c, off + 16u + 4u * (uint32_t)c, (int)v, (unsigned long long)nodes);
+                return pb_error_set(err, code,
+                                    "leaf %u corner %d (offset %llu) is %d; it must be a node index below %llu", i, c,
+                                    off + 16u + 4u * (uint32_t)c, (int)v, (unsigned long long)nodes);
         }
     }
     return PB_SUCCESS;
@@ -124,7 +124,8 @@ static pb_result kd_visit(const pb_shprobe *p, const layout *lay, uint32_t G, co
         return pb_error_set(err, code,
                             "split-tree node %u (offset %llu) splits along %c a box of level 0 on that axis, at (%u, "
                             "%u, %u) levels (%u, %u, %u)",
-                            b->node, off, "xyz"[a], b->min[0], b->min[1], b->min[2], b->lv[0], b->lv[1], b->lv[2]);
+                            b->node, off, "xyz"[a], b -> min[0], b -> min[1], b -> min[2], b -> lv[0], b -> lv[1],
+                            b -> lv[2]);
     if (arg <= b->node || arg < G || arg >= K - 1u)
         return pb_error_set(err, code,
                             "split-tree node %u (offset %llu) names children %u and %u; they must come after it and "
@@ -132,8 +133,9 @@ static pb_result kd_visit(const pb_shprobe *p, const layout *lay, uint32_t G, co
                             b->node, off, arg, arg + 1u, G, K);
     for (uint32_t c = arg; c <= arg + 1u; c++) {
         if (seen[c >> 3] & (1u << (c & 7u)))
-            return pb_error_set(err, code, "split-tree node %u (offset %llu) is the child of two splits (the second: node %u)",
-                                c, (unsigned long long)(lay->split_offset + (uint64_t)V4_NODE_SIZE * c), b->node);
+            return pb_error_set(err, code,
+                                "split-tree node %u (offset %llu) is the child of two splits (the second: node %u)", c,
+                                (unsigned long long)(lay->split_offset + (uint64_t)V4_NODE_SIZE * c), b->node);
         seen[c >> 3] |= (uint8_t)(1u << (c & 7u));
     }
     /* Each split lowers the level sum (at most 3R) by one: the stack holds at most 3R + 1 boxes. */

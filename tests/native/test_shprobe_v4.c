@@ -52,7 +52,7 @@ static uint8_t *read_all(const char *path, size_t *n)
 #define HM_H       2u
 #define HM_N       3u
 #define HM_K       4u
-#define HM_RECORDS 128u                   /* 14 records of 16 + 16 bytes */
+#define HM_RECORDS 128u                     /* 14 records of 16 + 16 bytes */
 #define HM_POS     (HM_RECORDS + 32u * 14u) /* 576 */
 #define HM_LEAVES  (HM_POS + 16u * 14u)     /* 800 */
 #define HM_HANG    (HM_LEAVES + 48u * 3u)   /* 944 */
@@ -90,8 +90,8 @@ static void hm_bytes(uint8_t b[HM_SIZE])
     set_u32(b, 0, 0x52485053u);
     set_u32(b, 4, 4);
     set_u32(b, 8, HM_P);
-    set_u32(b, 12, 0);    /* max band */
-    set_u32(b, 16, 1);    /* positions */
+    set_u32(b, 12, 0); /* max band */
+    set_u32(b, 16, 1); /* positions */
     set_u32(b, 20, 4);
     set_u32(b, 24, 2);
     set_u32(b, 28, 2);
@@ -108,11 +108,11 @@ static void hm_bytes(uint8_t b[HM_SIZE])
     set_u32(b, 116, HM_K);
     for (uint32_t i = 0; i < HM_P; i++) {
         size_t r = HM_RECORDS + 32u * i;
-        set_f32(b, r, 1.0f + (float)i);          /* L00 red */
-        set_f32(b, r + 4, 2.0f * (float)i);      /* green */
-        set_f32(b, r + 8, 0.25f);                /* blue */
-        set_f32(b, r + 16, 1.0f);                /* scale */
-        set_f32(b, r + 20, 0.1f);                /* ambient */
+        set_f32(b, r, 1.0f + (float)i);           /* L00 red */
+        set_f32(b, r + 4, 2.0f * (float)i);       /* green */
+        set_f32(b, r + 8, 0.25f);                 /* blue */
+        set_f32(b, r + 16, 1.0f);                 /* scale */
+        set_f32(b, r + 20, 0.1f);                 /* ambient */
         set_f32(b, r + 24, i == 5 ? 0.5f : 1.0f); /* validity */
         for (int k = 0; k < 3; k++)
             set_f32(b, HM_POS + 16u * i + 4u * (uint32_t)k, origin[k] + 0.5f * (float)hm_probes[i][k]);
@@ -195,7 +195,7 @@ static void test_hand_made_file_reads_field_by_field(void)
     TU_CHECK(pb_shprobe_write(path, p, &err) == PB_ERROR_INVALID_ARGUMENT);
     TU_CHECK_CONTAINS(err.message, "version 3 cannot hold a kd corner tree (structure 3); write version 4");
     p->version = 4;
-    err = (pb_error){0}; /* a context keeps its first error */
+    err = (pb_error){0};         /* a context keeps its first error */
     p->split_nodes[1] = 7u << 2; /* the writer runs the reader's checks */
     TU_CHECK(pb_shprobe_write(path, p, &err) == PB_ERROR_INVALID_ARGUMENT);
     TU_CHECK_CONTAINS(err.message, "split-tree node 1 (offset 1012) names leaf 7; leaves are below 3");
@@ -240,9 +240,11 @@ static void test_each_check_refuses_one_corrupt_field(void)
         {116, 1, 0, PB_ERROR_FORMAT,
          "split-tree node count 1 (offset 116) is below the 2 root cells of a 4 x 2 x 2 lattice at root level 1"},
         {112, 0, 0, PB_ERROR_FORMAT, "is below the 16 root cells of a 4 x 2 x 2 lattice at root level 0"},
-        {116, 5, 0, PB_ERROR_FORMAT, "truncated: 1024 bytes, but 14 probes (max band 0, positions) and a 4 x 2 x 2 "
-                                     "kd corner tree need 1028"},
-        {SIZE_MAX, 0, 4, PB_ERROR_FORMAT, "4 bytes of trailing data after the kd corner tree, which ends at offset 1024"},
+        {116, 5, 0, PB_ERROR_FORMAT,
+         "truncated: 1024 bytes, but 14 probes (max band 0, positions) and a 4 x 2 x 2 "
+         "kd corner tree need 1028"},
+        {SIZE_MAX, 0, 4, PB_ERROR_FORMAT,
+         "4 bytes of trailing data after the kd corner tree, which ends at offset 1024"},
         {HM_LEAVES + 12, 0x01010001u, 0, PB_ERROR_FORMAT,
          "leaf 0 levels word 0x01010001 (offset 812) has a nonzero top byte"},
         {HM_LEAVES + 96 + 12, 0x010102u, 0, PB_ERROR_FORMAT,
@@ -250,11 +252,13 @@ static void test_each_check_refuses_one_corrupt_field(void)
         {HM_LEAVES + 96, 3, 0, PB_ERROR_FORMAT,
          "leaf 2 at (3, 0, 0) levels (1, 1, 1) (offset 896) is not aligned to its size or reaches past the lattice "
          "extent 4 x 2 x 2"},
-        {20, 3, 0, PB_ERROR_FORMAT, "leaf 2 at (2, 0, 0) levels (1, 1, 1) (offset 896) is not aligned to its size or "
-                                    "reaches past the lattice extent 3 x 2 x 2"},
+        {20, 3, 0, PB_ERROR_FORMAT,
+         "leaf 2 at (2, 0, 0) levels (1, 1, 1) (offset 896) is not aligned to its size or "
+         "reaches past the lattice extent 3 x 2 x 2"},
         {HM_LEAVES + 48 + 4, 0, 0, PB_ERROR_FORMAT,
          "leaf 1 at (0, 0, 0) (offset 848) is not after the leaf before it in Morton order of min corners"},
-        {HM_LEAVES + 16 + 12, 16, 0, PB_ERROR_FORMAT, "leaf 0 corner 3 (offset 828) is 16; it must be a node index below 16"},
+        {HM_LEAVES + 16 + 12, 16, 0, PB_ERROR_FORMAT,
+         "leaf 0 corner 3 (offset 828) is 16; it must be a node index below 16"},
         {HM_HANG, 14, 0, PB_ERROR_FORMAT,
          "hanging node 0 source 0 (offset 944) is 14; it must be a probe or an earlier hanging node, below 14"},
         {HM_NODES + 8, 4u << 2 | 2u, 0, PB_ERROR_FORMAT,
@@ -312,7 +316,8 @@ static void test_version_3_structures_are_unchanged(void)
     pb_shprobe *p = NULL;
     pb_error err = {0};
     TU_CHECK(pb_shprobe_read_memory(b, HM_SIZE, &p, &err) == PB_ERROR_FORMAT);
-    TU_CHECK_CONTAINS(err.message, "unknown structure 4 at offset 100; this reader knows 0 = grid, 1 = octree, 2 = tetrahedra");
+    TU_CHECK_CONTAINS(err.message,
+                      "unknown structure 4 at offset 100; this reader knows 0 = grid, 1 = octree, 2 = tetrahedra");
 }
 
 /* ---- with the box tree of pb_cotree.h -------------------------------------------------------------- */

@@ -73,9 +73,9 @@ pb_result pb_cotree_create_leaves(const double origin[3], double min_cell, const
  * level as before for a cube); pb_cotree_leaf_levels() gives the three. A tree of cubes behaves exactly
  * as before. */
 #define PB_LEVELS_PACK(lx, ly, lz) ((uint32_t)(lx) | (uint32_t)(ly) << 8 | (uint32_t)(lz) << 16)
-#define PB_LEVEL_X(p)             ((p) & 0xffu)
-#define PB_LEVEL_Y(p)             ((p) >> 8 & 0xffu)
-#define PB_LEVEL_Z(p)             ((p) >> 16 & 0xffu)
+#define PB_LEVEL_X(p)              ((p)&0xffu)
+#define PB_LEVEL_Y(p)              ((p) >> 8 & 0xffu)
+#define PB_LEVEL_Z(p)              ((p) >> 16 & 0xffu)
 /* A tree from explicit boxes (4 uint32 each: x, y, z lattice min corner, packed levels
  * PB_LEVELS_PACK), e.g. a version-4 file's. root_level R: Max Cell Size = 2^R min cells (every level
  * ≤ R; the split tree's root grid is ceil(dims / 2^R)). Boxes must be aligned, inside `dims`, not
