@@ -157,7 +157,7 @@ def main():
     good = digest(output)
 
     # 2. failure in the middle: the projection of the second probe raises
-    original = native.project_file
+    original = native.project_pixels
     calls = [0]
 
     def failing(*a, **k):
@@ -166,14 +166,14 @@ def main():
             raise native.SchneeError("injected failure", "io error")
         return original(*a, **k)
 
-    native.project_file = failing
+    native.project_pixels = failing
     try:
         bake_core.ProbeBake(scene, bpy.context.view_layer, settings).run()
         results["failure_raised"] = False
     except bake_core.BakeError as exc:
         results["failure_raised"] = "injected failure" in str(exc)
     finally:
-        native.project_file = original
+        native.project_pixels = original
     results["failure"] = diff(before, snapshot())
     results["failure_file_unchanged"] = digest(output) == good
 
