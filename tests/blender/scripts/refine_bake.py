@@ -175,7 +175,7 @@ elif CASE == "cancel":
     results["cancel_state"] = scene_state() == state0
     results["cancel_temp"] = temp_dirs()
     # An error while rendering in pass 2 (the projection fails): run() restores and raises.
-    real = native.project_file
+    real = native.project_pixels
     calls = {"n": 0}
 
     def failing(*a, **k):
@@ -183,7 +183,7 @@ elif CASE == "cancel":
         if calls["n"] > 100:  # pass 1 renders 20 probes and 25 tests, 2 halves each
             raise native.SchneeError("injected failure", "I/O error")
         return real(*a, **k)
-    native.project_file = failing
+    native.project_pixels = failing
     b = bake_core.ProbeBake(bpy.context.scene, bpy.context.view_layer, settings(), log=print)
     try:
         b.run()
@@ -191,7 +191,7 @@ elif CASE == "cancel":
     except bake_core.BakeError as exc:
         results["error"] = str(exc)
     finally:
-        native.project_file = real
+        native.project_pixels = real
     results["error_pass"] = len(b.plan.groups[0].passes)
     results["error_same_file"] = open(path, "rb").read() == before
     results["error_state"] = scene_state() == state0
