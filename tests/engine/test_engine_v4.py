@@ -45,7 +45,9 @@ def write_grid(d, tree, coeffs, name="p", storage="float32"):
     assert struct.unpack_from("<I", path.read_bytes(), 4)[0] == 4  # a version 4 file
     f = native.read_shprobe(str(path))
     e = sg.grid_entry(name, f"sh_coeffs/{name}.shprobe", count, f.grid_origin, f.grid_dims, f.grid_spacing)
-    e.update(representation=f.representation, storage=f.storage)  # the glTF has no name for "kdtree"
+    # The exporter's entry for a version 4 file (gltf_export._v3_fields, docs/export.md).
+    e.update(version=4, structure="kdtree", representation=f.representation, storage=f.storage)
+    assert f.structure == "kdtree"
     return e
 
 
