@@ -35,7 +35,7 @@ from typing import Callable, List, Optional, Tuple
 
 import numpy as np
 
-from . import native
+from . import native, refine_axes
 from .metric import _rel, irradiance_error, irradiance_norm  # noqa: F401 (re-exported)
 
 TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
@@ -167,11 +167,6 @@ def unclear_tests(leaf_tests, above_min, ok, err_t, noise, thr, direct, z: float
         near = d < z * noise[cols]
         gap[cols[near]] = np.minimum(gap[cols[near]], d[near])
     return gap
-
-
-def _axes():
-    from . import refine_axes       # the per-axis tests' wrappers (native)
-    return refine_axes
 
 
 def leaf_levels(info: dict) -> np.ndarray:
@@ -655,7 +650,7 @@ class AdaptiveGroup:
             return []
         if self.stage == "probes":
             more = self._probe_rounds(cache)
-            tests = _axes().tests_axes(self.tree) if self.axes else self.tree.refine_tests()
+            tests = refine_axes.tests_axes(self.tree) if self.axes else self.tree.refine_tests()
             if self.test_mode == "CENTRE":
                 tests = centre_only(tests)
             if self.settled:
@@ -720,7 +715,7 @@ class AdaptiveGroup:
         kw = dict(probe_noise=probe_noise, test_noise=test_noise, probe_validity=cache.validity(pidx),
                   test_valid=test_valid, tolerance=self.tolerance, noise_k=self.policy.noise_k)
         if self.axes:
-            split, err, thr = _axes().decide_axes(self.tree, tests, probe_coeffs, test_coeffs, **kw)
+            split, err, thr = refine_axes.decide_axes(self.tree, tests, probe_coeffs, test_coeffs, **kw)
         else:
             split, err, thr = self.tree.refine_decide(tests, probe_coeffs, test_coeffs, **kw)
             split = np.where(split, 7, 0).astype(np.uint8)
@@ -797,10 +792,7 @@ class AdaptiveGroup:
     def _split(self, split: np.ndarray, cache: PointCache) -> List[int]:
         """Split the flagged leaves, drop children outside the volumes, request the new probes."""
         self._direct_split = None
-        if self.axes:
-            self.tree.split_axes(np.asarray(split, dtype=np.uint8))
-        else:
-            self.tree.split(np.asarray(split) != 0)
+        self.tree.split_axes(np.asarray(split, dtype=np.uint8))   # the octree's masks are 7
         self.tree.finalize()
         self._drop_outside()
         self.tree.finalize()
