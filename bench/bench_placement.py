@@ -170,6 +170,9 @@ def main():
                             "axes": axes == "on", "leaves": int(sum(g.tree.leaf_count for g in b.plan.groups)),
                             "forced_splits": int(sum(getattr(g.tree, "forced_splits", 0) for g in b.plan.groups)),
                             "file_version": int(f.version), "seconds": sec,
+                            "forecast": None if b.plan.first_forecast is None else
+                            {"points": round(b.plan.first_forecast[0], 1),
+                             "seconds": round(b.plan.first_forecast[1], 1)},
                             "cpu_seconds": cpu,
                             "probes": r.probe_count, "render_seconds": r.timings["render"],
                             "timings": {k: round(v, 2) for k, v in r.timings.items()},

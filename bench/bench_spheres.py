@@ -347,7 +347,10 @@ def main():
         bake = bake_core.ProbeBake(scene, layer, settings(), log=print)
         r = bake.run()
         timings["bake"] = {"seconds": time.perf_counter() - t, "cpu_seconds": cpu_seconds() - cpu}
+        fc = getattr(bake.plan, "first_forecast", None)
         result["bake"] = {"probes": r.probe_count, "renders": getattr(r, "renders", None),
+                          "points": r.points, "samples": r.samples,
+                          "forecast": None if fc is None else {"points": round(fc[0], 1), "seconds": round(fc[1], 1)},
                           "resumed": bake.resumed, "file_bytes": os.path.getsize(path),
                           "lights": {ob.name: light_modes.light_mode(ob) for ob in scene.objects
                                      if ob.type == 'LIGHT'}}

@@ -34,7 +34,8 @@ from .bake_checks import BakeCancelled
 from .bake_outputs import (DEBUG_SHPROBE_NAME, DEBUG_SUBDIR, DEBUG_TEXT_NAME, SKY_FILE_NAME, SUN_FILE_NAME,
                            Output, abspath, check_replaceable, debug_text, dense_output, is_single_probe_file,
                            octree_output)
-from .estimate import SECONDS_PER_PIXEL_SAMPLE, format_duration, grid_cell_bound
+from .estimate import (SECONDS_PER_PIXEL_SAMPLE, adaptive_points, forecast_seconds, format_duration,
+                       grid_cell_bound)
 from .settings import BakeError
 
 
@@ -245,7 +246,7 @@ class _VolumePlan(PlacementPlan):
             placing.log("Schnee: could not restore " + ", ".join(evaluation.failed))
         placing.log(f"Schnee: {len(volumes)} volume(s), {len(geometry)} geometry mesh(es), "
                     f"{sum(len(g[2]) for g in geometry)} triangles")
-        bound = grid_cell_bound(volumes, s.min_cell_size, s.per_volume_files)
+        bound = self.cells = grid_cell_bound(volumes, s.min_cell_size, s.per_volume_files)
         placing.log(f"Schnee: placing probes (at most {bound} = the grid cells of Min Cell Size "
                     f"{s.min_cell_size:g} m; Esc / Ctrl+C cancels)")
         return groups, geometry
@@ -305,6 +306,12 @@ class AdaptivePlan(_VolumePlan):
         self.groups: List[adaptive.AdaptiveGroup] = []
         self.lamps = RefinementLamps(settings)
         self.log = print
+        self.cells = 0                  # grid_cell_bound of the volumes (the expected points' base)
+        self.measured = 0               # points this run rendered (not taken from journals)
+        self._t_start = None            # when placement began (the bake's clock, for the forecast)
+        self._first_end = None          # when the first rendered point was done (after the scene upload)
+        self.first_forecast = None      # (points, seconds in all) estimated after the first pass
+        self.known_points = 0           # points rendered or queued when the last stage was queued
 
     @property
     def positions(self):
@@ -326,6 +333,7 @@ class AdaptivePlan(_VolumePlan):
         """The first layer of every group's corner octree; its probes start the queue."""
         s = self.settings
         self.log = placing.log
+        self._t_start = time.perf_counter()
         groups, geometry = self._gather(placing)
         t = time.perf_counter()
         self.cache = adaptive.PointCache(s.max_band, self.policy, s.samples)
@@ -392,6 +400,9 @@ class AdaptivePlan(_VolumePlan):
             mean, noise = adaptive.combine_halves(a, b, cache.first, cache.first)
             cache.set_first(i, mean, noise)
             value, noise = mean, float(noise)
+            self.measured += 1
+            if self._first_end is None:
+                self._first_end = time.perf_counter()
         else:
             n = int(cache.pending[i])
             value = self._render(n, s.seed + k, i, pos, session, direct)
@@ -415,6 +426,19 @@ class AdaptivePlan(_VolumePlan):
 
     def points_rendered(self, done):
         return int(self.cache.rendered.sum()) if self.cache is not None else done
+
+    def forecast(self):
+        """(expected points, seconds in all) of the bake, None before two points are rendered: the
+        expected points (estimate.adaptive_points of the grid bound, or the points known so far if
+        more: rendered and queued) at the wall time per point this run measured after its first
+        point (which also paid the scene's upload)."""
+        if self.measured < 2 or self._first_end is None:
+            return None
+        now = time.perf_counter()
+        per = (now - self._first_end) / (self.measured - 1)
+        rendered = self.points_rendered(0)
+        expected = max(adaptive_points(self.cells, self.settings.error_tolerance), self.known_points, rendered)
+        return expected, forecast_seconds(now - self._t_start, rendered, expected, per)
 
     def advance(self) -> List[int]:
         """Every queued point is rendered: move each group on (tests -> decision -> split -> new
@@ -443,7 +467,19 @@ class AdaptivePlan(_VolumePlan):
                 rec = g.passes[-1]
                 log(f"Schnee: '{g.name}': refinement done after {rec.pass_index} pass(es): "
                     f"{rec.leaves} cells, {rec.probes} probes")
+        self.known_points = self.points_rendered(0) + sum(1 for i in todo if self.cache.rounds[i] == 0)
+        if self.first_forecast is None and not self.finished and len(self.passes) >= 2:
+            self.first_forecast = self.forecast()
+            if self.first_forecast is not None:
+                points, seconds = self.first_forecast
+                log(f"Schnee: estimated {format_duration(seconds)} in all (about {points:.0f} points: "
+                    f"{adaptive_points(1, self.settings.error_tolerance):.2f} per cell of Min Cell Size, "
+                    f"at this scene's {self._seconds_per_point():.2f} s per point so far; "
+                    "the progress line refines it)")
         return todo
+
+    def _seconds_per_point(self):
+        return (time.perf_counter() - self._first_end) / max(1, self.measured - 1)
 
     def finish_values(self, direct, timings):
         pass  # Adaptive adds the lamps' direct light per point, before deciding
@@ -471,9 +507,11 @@ class AdaptivePlan(_VolumePlan):
         what = {"tests": "test points", "rounds": "unclear tests", "last": "more rounds"}.get(g.stage, "probes")
         if self.finished:
             what = "done"
+        fc = None if self.finished else self.forecast()
+        in_all = "" if fc is None else f", ~{format_duration(max(0.0, fc[1] - elapsed))} left in all"
         return (f"Schnee bake: pass {rec.pass_index} ({what}, cells down to {rec.smallest_cell:g} m): "
                 f"{done - pass_start}/{total - pass_start}, {points} points rendered (+{done - points} "
-                f"more rounds), {elapsed:.1f} s elapsed, ~{eta:.0f} s left in this pass")
+                f"more rounds), {elapsed:.1f} s elapsed, ~{eta:.0f} s left in this pass{in_all}")
 
     def fraction(self, done, total, pass_start):
         """By stages (each stage's share of the most stages the refinement can take), as the number

@@ -42,6 +42,28 @@ def estimate_seconds(probes, settings, sky=False, renders=None) -> float:
     return total
 
 
+# The Adaptive bake's points (probes and test points, each rendered in rounds) per cell of
+# grid_cell_bound, at Error Tolerance 0.03 and the render defaults: the bench scenes' bakes of issue
+# 29 (bench/results/placement.md "The time estimate"): the room 0.75, the courtyard 0.46, the hall
+# (sun mixed) 0.57; their geometric mean. Fewer at a larger tolerance: points ~ tolerance^-0.65
+# (the room: 2400 points at 0.03, 1699 at 0.05; 1982 / 1485 / 837 at 0.05 / 0.1 / 0.2 in an
+# earlier run).
+ADAPTIVE_POINTS_PER_CELL = 0.58
+ADAPTIVE_TOLERANCE_EXPONENT = 0.65
+
+
+def adaptive_points(cells, tolerance) -> float:
+    """The points an Adaptive bake is expected to render in ``cells`` cells of Min Cell Size
+    (:func:`grid_cell_bound`) at ``tolerance`` (see ADAPTIVE_POINTS_PER_CELL)."""
+    return ADAPTIVE_POINTS_PER_CELL * cells * (max(tolerance, 1e-6) / 0.03) ** -ADAPTIVE_TOLERANCE_EXPONENT
+
+
+def forecast_seconds(elapsed, rendered, expected, per_point) -> float:
+    """An Adaptive bake's time in all: ``elapsed`` so far plus the ``expected`` points not rendered
+    yet (of ``rendered``) at the measured wall time ``per_point``."""
+    return elapsed + max(0.0, expected - rendered) * per_point
+
+
 def device_note(label: str) -> str:
     """What the estimate and progress lines append for the device that renders
     (``render_settings.device_label``): "on CPU (2 threads)". The cost model above was measured on

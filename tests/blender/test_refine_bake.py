@@ -110,6 +110,24 @@ def test_shadow_boundary_draws_refinement_to_it_and_nowhere_else(shadow, shadow_
     assert r["passes"][-1]["split"] == 0
 
 
+def test_the_estimate_in_all_after_the_first_pass(shadow):
+    # Issue 29 item 5: after the first pass the bake logs its time in all: the expected points
+    # (estimate.adaptive_points of the grid bound: 0.58 per cell at Error Tolerance 0.03, times
+    # (tol / 0.03)^-0.65) at the wall time per point it measured. The shadow scene's volume is
+    # 8 x 2 x 2 m: 16 x 4 x 4 = 256 cells of 0.5 m; at tolerance 0.2, 0.58 x 256 x (0.2/0.03)^-0.65
+    # = 43.3 points, fewer than the first passes' known points (the probes of 4 cells of 2 m, their
+    # tests and the 1 m pass queued: more than 43), so the forecast takes the known points.
+    points, seconds = shadow["forecast"]
+    assert shadow["cells"] == 256
+    expected = 0.58 * 256 * (0.2 / 0.03) ** -0.65
+    assert expected == pytest.approx(43.26, abs=0.01)
+    assert points >= expected
+    assert points <= shadow["points_rendered"]           # the known points are points the bake rendered
+    assert 0 < seconds
+    assert len(shadow["forecast_lines"]) == 1, shadow["forecast_lines"]
+    assert f"about {points:.0f} points" in shadow["forecast_lines"][0]
+
+
 @pytest.mark.parametrize("axes", [False, True], ids=["octree", "per_axis"])
 def test_v3_interpolation_matches_probes_baked_at_random_points(shadow, shadow_axes, axes):
     # 16 seeded points; reference probes baked there at 4x the samples. Away from the penumbra

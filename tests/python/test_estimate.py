@@ -3,7 +3,6 @@ on (bench/results/estimate_calibration.json: the 12.3-min run of bench/sweep/run
 figures later runs on a busier machine replaced in sweep.json), and the probe-count bound (plain
 Python, < 1 s)."""
 import json
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -72,3 +71,14 @@ def test_grid_cell_bound_counts_min_cells_of_the_bounding_boxes():
     assert estimate.grid_cell_bound([a, b], 0.5, per_volume=True) == 8 * 4 * 8 + 8
     # 10 m at 0.5 m stays 20 cells despite rounding (docs/placement.md's tolerance).
     assert estimate.grid_cell_bound([cube((0, 0, 0), (10, 10, 10))], 0.5, False) == 20 ** 3
+
+
+def test_adaptive_points_and_forecast():
+    # Issue 29 item 5: the Adaptive bake's expected points per cell of the grid bound (0.58 at
+    # Error Tolerance 0.03, the bench scenes' geometric mean) and its tolerance power law.
+    assert estimate.adaptive_points(3200, 0.03) == pytest.approx(0.58 * 3200)
+    assert estimate.adaptive_points(3200, 0.06) == pytest.approx(0.58 * 3200 * 2 ** -0.65)
+    assert estimate.adaptive_points(0, 0.03) == 0.0
+    # Elapsed + the points not rendered yet at the measured time per point; never below elapsed.
+    assert estimate.forecast_seconds(10.0, 100, 1000, 0.5) == pytest.approx(460.0)
+    assert estimate.forecast_seconds(10.0, 1200, 1000, 0.5) == pytest.approx(10.0)
