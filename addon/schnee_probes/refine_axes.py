@@ -1,7 +1,7 @@
 """Per-axis refinement of boxes with per-axis levels (issue 29 item 3, docs/aniso-refinement.md "Tests
 and the split rule"): the test points of every leaf in 14 columns and the axes each leaf splits along,
 computed by the C core (pb_refine_tests_create_axes, pb_refine_decide_axes through
-native/python/mod_refine_axes.c), wrapped as :meth:`native.CornerOctree.refine_tests` and
+native/python/mod_refine.c), wrapped as :meth:`native.CornerOctree.refine_tests` and
 :meth:`~native.CornerOctree.refine_decide` wrap the octree's tests.
 
 Columns of ``leaf_tests`` (L, 14): ``4 a + e`` the midpoint of the edge along axis ``a`` whose other two

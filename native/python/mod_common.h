@@ -22,6 +22,7 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
+#include "schnee/pb_cotree.h"
 #include "schnee/pb_octree.h"
 
 #include <stdbool.h>
@@ -31,12 +32,15 @@
 #define PB_PY_CAP_COTREE "schnee_probes.cotree"
 #define PB_PY_CAP_TETRA  "schnee_probes.tetra"
 
+/* The corner octree of a capsule made by mod_interp.c; NULL with a TypeError for anything else. */
+pb_cotree *_pb_py_get_cotree(PyObject *o);
+
 /* The methods of each area (NULL-terminated), added to the module by PyInit__schnee_native. */
 extern PyMethodDef _pb_py_sh_methods[];
 extern PyMethodDef _pb_py_placement_methods[];
 extern PyMethodDef _pb_py_shprobe_methods[];
 extern PyMethodDef _pb_py_interp_methods[];
-extern PyMethodDef _pb_py_refine_axes_methods[]; /* mod_refine_axes.c: pb_refine.h per-axis tests, decisions */
+extern PyMethodDef _pb_py_refine_methods[]; /* mod_refine.c: pb_refine.h tests, decisions, metric */
 extern PyMethodDef _pb_py_direct_methods[];
 
 /* Raises the registered error class (native.SchneeError) with the core's message and `.code`.

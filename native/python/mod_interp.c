@@ -1,5 +1,5 @@
 /* _schnee_native: Interpolation on probe positions (pb_interp.h: corner octree, tetrahedra, queries) and error-driven
- * refinement (pb_refine.h: test points, decisions, the irradiance metric); handles are capsules;
+ * refinement's tree (its bindings: mod_refine.c); handles are capsules;
  * native.py "interpolation" section. */
 #include "mod_common.h"
 
@@ -16,7 +16,7 @@
 static void cotree_capsule_free(PyObject *cap) { pb_cotree_destroy(PyCapsule_GetPointer(cap, PB_PY_CAP_COTREE)); }
 static void tetra_capsule_free(PyObject *cap) { pb_tetra_destroy(PyCapsule_GetPointer(cap, PB_PY_CAP_TETRA)); }
 
-static pb_cotree *get_cotree(PyObject *o)
+pb_cotree *_pb_py_get_cotree(PyObject *o)
 {
     if (!PyCapsule_IsValid(o, PB_PY_CAP_COTREE)) {
         PyErr_SetString(PyExc_TypeError, "expected a corner octree handle (from cotree_create)");
@@ -112,7 +112,7 @@ static PyObject *cotree_flags_op(PyObject *module, PyObject *args, int op)
 {
     PyObject *t_obj, *f_obj;
     if (!PyArg_ParseTuple(args, "OO", &t_obj, &f_obj)) return NULL;
-    pb_cotree *t = get_cotree(t_obj);
+    pb_cotree *t = _pb_py_get_cotree(t_obj);
     if (!t) return NULL;
     pb_py_buffer flags;
     if (_pb_py_get_buffer(f_obj, op == FLAGS_SPLIT_AXES ? "axes" : "flags", 'B', 0, pb_cotree_leaf_count(t), &flags) <
@@ -141,7 +141,7 @@ static PyObject *py_cotree_drop(PyObject *module, PyObject *args) { return cotre
 /* cotree_split_tree(tree) -> bytearray uint32[K]: the canonical split tree (pb_cotree_split_tree). */
 static PyObject *py_cotree_split_tree(PyObject *module, PyObject *t_obj)
 {
-    pb_cotree *t = get_cotree(t_obj);
+    pb_cotree *t = _pb_py_get_cotree(t_obj);
     if (!t) return NULL;
     pb_error err = {0};
     uint32_t k = 0;
@@ -162,7 +162,7 @@ static PyObject *py_cotree_locate(PyObject *module, PyObject *args)
 {
     PyObject *t_obj, *p_obj;
     if (!PyArg_ParseTuple(args, "OO:cotree_locate", &t_obj, &p_obj)) return NULL;
-    pb_cotree *t = get_cotree(t_obj);
+    pb_cotree *t = _pb_py_get_cotree(t_obj);
     if (!t) return NULL;
     pb_py_buffer pts;
     if (_pb_py_get_buffer(p_obj, "points", 'd', 3, -1, &pts) < 0) return NULL;
@@ -179,7 +179,7 @@ static PyObject *py_cotree_locate(PyObject *module, PyObject *args)
 
 static PyObject *py_cotree_finalize(PyObject *module, PyObject *t_obj)
 {
-    pb_cotree *t = get_cotree(t_obj);
+    pb_cotree *t = _pb_py_get_cotree(t_obj);
     if (!t) return NULL;
     pb_error err = {0};
     pb_result r;
@@ -190,7 +190,7 @@ static PyObject *py_cotree_finalize(PyObject *module, PyObject *t_obj)
 
 static PyObject *py_cotree_info(PyObject *module, PyObject *t_obj)
 {
-    pb_cotree *t = get_cotree(t_obj);
+    pb_cotree *t = _pb_py_get_cotree(t_obj);
     if (!t) return NULL;
     double origin[3], cell;
     uint32_t dims[3];
@@ -353,122 +353,6 @@ static PyObject *py_interp_query(PyObject *module, PyObject *args)
     return Py_BuildValue("(NNI)", po, wo, K);
 }
 
-static PyObject *py_refine_tests(PyObject *module, PyObject *args)
-{
-    PyObject *t_obj, *a_obj = Py_None;
-    if (!PyArg_ParseTuple(args, "O|O:refine_tests", &t_obj, &a_obj)) return NULL;
-    pb_cotree *t = get_cotree(t_obj);
-    if (!t) return NULL;
-    pb_py_buffer active = {0};
-    if (a_obj != Py_None && _pb_py_get_buffer(a_obj, "active", 'B', 0, pb_cotree_leaf_count(t), &active) < 0)
-        return NULL;
-    pb_refine_tests *tests = NULL;
-    pb_error err = {0};
-    pb_result r = pb_refine_tests_create(t, active.view.obj ? active.view.buf : NULL, &tests, &err);
-    _pb_py_release(&active);
-    if (r != PB_SUCCESS) return _pb_py_raise_core(module, r, &err);
-    size_t n = tests->point_count, L = tests->leaf_count;
-    PyObject *d = PyDict_New();
-    if (d &&
-        (_pb_py_dict_put(d, "lattice", _pb_py_bytes_out(tests->lattice, n * 12)) < 0 ||
-         _pb_py_dict_put(d, "positions", _pb_py_bytes_out(tests->positions, n * 24)) < 0 ||
-         _pb_py_dict_put(d, "probe", _pb_py_bytes_out(tests->probe, n * 4)) < 0 ||
-         _pb_py_dict_put(d, "leaf_tests", _pb_py_bytes_out(tests->leaf_tests, L * PB_REFINE_TESTS_PER_LEAF * 4)) < 0))
-        Py_CLEAR(d);
-    pb_refine_tests_destroy(tests);
-    return d;
-}
-
-static PyObject *py_refine_decide(PyObject *module, PyObject *args, PyObject *kw)
-{
-    static char *kwlist[] = {"tree",         "leaf_tests",  "test_positions", "test_probe", "max_band",
-                             "probe_coeffs", "test_coeffs", "probe_noise",    "test_noise", "probe_validity",
-                             "test_valid",   "tolerance",   "noise_k",        NULL};
-    PyObject *t_obj, *lt_obj, *tp_obj, *tpr_obj, *pc_obj, *tc_obj;
-    PyObject *pn_obj = Py_None, *tn_obj = Py_None, *pv_obj = Py_None, *tv_obj = Py_None;
-    long band;
-    double tol = 0.0, k = 0.0;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOOOlOO|OOOOdd:refine_decide", kwlist, &t_obj, &lt_obj, &tp_obj,
-                                     &tpr_obj, &band, &pc_obj, &tc_obj, &pn_obj, &tn_obj, &pv_obj, &tv_obj, &tol, &k))
-        return NULL;
-    pb_cotree *t = get_cotree(t_obj);
-    if (!t || _pb_py_check_band(band) < 0) return NULL;
-    Py_ssize_t L = pb_cotree_leaf_count(t), P = pb_cotree_probe_count(t), C = (Py_ssize_t)pb_sh_count((uint32_t)band);
-    pb_py_buffer lt = {0}, tp = {0}, tpr = {0}, pc = {0}, tc = {0}, pn = {0}, tn = {0}, pv = {0}, tv = {0};
-    PyObject *result = NULL;
-    if (_pb_py_get_buffer(lt_obj, "leaf_tests", 'i', 0, L * PB_REFINE_TESTS_PER_LEAF, &lt) < 0 ||
-        _pb_py_get_buffer(tp_obj, "test_positions", 'd', 3, -1, &tp) < 0)
-        goto done;
-    Py_ssize_t T = tp.count / 3;
-    if (_pb_py_get_buffer(tpr_obj, "test_probe", 'i', 0, T, &tpr) < 0 ||
-        _pb_py_get_buffer(pc_obj, "probe_coeffs", 'd', 0, P * C * 3, &pc) < 0 ||
-        _pb_py_get_buffer(tc_obj, "test_coeffs", 'd', 0, T * C * 3, &tc) < 0 ||
-        (pn_obj != Py_None && _pb_py_get_buffer(pn_obj, "probe_noise", 'f', 0, P, &pn) < 0) ||
-        (tn_obj != Py_None && _pb_py_get_buffer(tn_obj, "test_noise", 'f', 0, T, &tn) < 0) ||
-        (pv_obj != Py_None && _pb_py_get_buffer(pv_obj, "probe_validity", 'f', 0, P, &pv) < 0) ||
-        (tv_obj != Py_None && _pb_py_get_buffer(tv_obj, "test_valid", 'B', 0, T, &tv) < 0))
-        goto done;
-    {
-        const int32_t *ltv = lt.view.buf, *tprv = tpr.view.buf;
-        for (Py_ssize_t i = 0; i < L * PB_REFINE_TESTS_PER_LEAF; i++)
-            if (ltv[i] < -1 || ltv[i] >= T) {
-                PyErr_Format(PyExc_ValueError, "leaf_tests[%zd] = %d is not a test point index", i, (int)ltv[i]);
-                goto done;
-            }
-        for (Py_ssize_t i = 0; i < T; i++)
-            if (tprv[i] < -1 || tprv[i] >= P) {
-                PyErr_Format(PyExc_ValueError, "test_probe[%zd] = %d is not a probe index", i, (int)tprv[i]);
-                goto done;
-            }
-        pb_refine_tests tests = {.point_count = (uint32_t)T,
-                                 .positions = tp.view.buf,
-                                 .probe = tpr.view.buf,
-                                 .leaf_count = (uint32_t)L,
-                                 .leaf_tests = lt.view.buf};
-        pb_refine_desc d = {.max_band = (uint32_t)band,
-                            .probe_coeffs = pc.view.buf,
-                            .test_coeffs = tc.view.buf,
-                            .probe_noise = pn.view.obj ? pn.view.buf : NULL,
-                            .test_noise = tn.view.obj ? tn.view.buf : NULL,
-                            .probe_validity = pv.view.obj ? pv.view.buf : NULL,
-                            .test_valid = tv.view.obj ? tv.view.buf : NULL,
-                            .tolerance = tol,
-                            .noise_k = k};
-        PyObject *so = PyByteArray_FromStringAndSize(NULL, L);
-        PyObject *eo = PyByteArray_FromStringAndSize(NULL, L * 8);
-        PyObject *ho = PyByteArray_FromStringAndSize(NULL, L * 8);
-        if (!so || !eo || !ho) {
-            Py_XDECREF(so);
-            Py_XDECREF(eo);
-            Py_XDECREF(ho);
-            goto done;
-        }
-        pb_error err = {0};
-        pb_result r = pb_refine_decide(t, &tests, &d, (uint8_t *)PyByteArray_AsString(so),
-                                       (double *)(void *)PyByteArray_AsString(eo),
-                                       (double *)(void *)PyByteArray_AsString(ho), &err);
-        if (r != PB_SUCCESS) {
-            Py_DECREF(so);
-            Py_DECREF(eo);
-            Py_DECREF(ho);
-            _pb_py_raise_core(module, r, &err);
-            goto done;
-        }
-        result = Py_BuildValue("(NNN)", so, eo, ho);
-    }
-done:
-    _pb_py_release(&lt);
-    _pb_py_release(&tp);
-    _pb_py_release(&tpr);
-    _pb_py_release(&pc);
-    _pb_py_release(&tc);
-    _pb_py_release(&pn);
-    _pb_py_release(&tn);
-    _pb_py_release(&pv);
-    _pb_py_release(&tv);
-    return result;
-}
-
 static PyObject *py_interp_from_file(PyObject *module, PyObject *args)
 {
     PyObject *path = NULL;
@@ -484,47 +368,6 @@ static PyObject *py_interp_from_file(PyObject *module, PyObject *args)
     pb_shprobe_destroy(f);
     if (r != PB_SUCCESS) return _pb_py_raise_core(module, r, &err);
     return tree ? cotree_capsule(tree) : tetra_capsule(tetra);
-}
-
-/* refine_error(a: float64[N*C*3], ref: float64[N*C*3], max_band) -> bytearray float64[N]: the
- * refinement's metric (pb_refine_irradiance_error) per point; refine_norm(c, max_band) -> float64[N]. */
-static PyObject *py_refine_error(PyObject *module, PyObject *args)
-{
-    PyObject *a_obj, *r_obj;
-    long band;
-    if (!PyArg_ParseTuple(args, "OOl:refine_error", &a_obj, &r_obj, &band) || _pb_py_check_band(band) < 0) return NULL;
-    Py_ssize_t per = (Py_ssize_t)pb_sh_count((uint32_t)band) * 3;
-    pb_py_buffer a, ref;
-    if (_pb_py_get_buffer(a_obj, "a", 'd', per, -1, &a) < 0) return NULL;
-    if (_pb_py_get_buffer(r_obj, "ref", 'd', 0, a.count, &ref) < 0) {
-        _pb_py_release(&a);
-        return NULL;
-    }
-    Py_ssize_t n = a.count / per;
-    PyObject *out = PyByteArray_FromStringAndSize(NULL, n * 8);
-    if (out)
-        pb_refine_irradiance_error_many((uint32_t)band, (size_t)n, a.view.buf, ref.view.buf,
-                                        (double *)(void *)PyByteArray_AsString(out));
-    _pb_py_release(&a);
-    _pb_py_release(&ref);
-    return out;
-}
-
-static PyObject *py_refine_norm(PyObject *module, PyObject *args)
-{
-    PyObject *c_obj;
-    long band;
-    if (!PyArg_ParseTuple(args, "Ol:refine_norm", &c_obj, &band) || _pb_py_check_band(band) < 0) return NULL;
-    Py_ssize_t per = (Py_ssize_t)pb_sh_count((uint32_t)band) * 3;
-    pb_py_buffer c;
-    if (_pb_py_get_buffer(c_obj, "c", 'd', per, -1, &c) < 0) return NULL;
-    Py_ssize_t n = c.count / per;
-    PyObject *out = PyByteArray_FromStringAndSize(NULL, n * 8);
-    if (out)
-        pb_refine_irradiance_norm_many((uint32_t)band, (size_t)n, c.view.buf,
-                                       (double *)(void *)PyByteArray_AsString(out));
-    _pb_py_release(&c);
-    return out;
 }
 
 PyMethodDef _pb_py_interp_methods[] = {
@@ -547,15 +390,6 @@ PyMethodDef _pb_py_interp_methods[] = {
     {"tetra_info", py_tetra_info, METH_O, "tetra_info(tetra) -> dict (tets, neighbours)"},
     {"interp_query", py_interp_query, METH_VARARGS,
      "interp_query(handle, points: float64[N*3], validity=None, pair_visibility=None) -> (int32[N*K], float64[N*K], K)"},
-    {"refine_tests", py_refine_tests, METH_VARARGS, "refine_tests(tree, active=None) -> dict of test points"},
-    {"refine_decide", (PyCFunction)(void (*)(void))py_refine_decide, METH_VARARGS | METH_KEYWORDS,
-     "refine_decide(tree, leaf_tests, test_positions, test_probe, max_band, probe_coeffs, test_coeffs, ...) -> "
-     "(split uint8[L], error float64[L], threshold float64[L])"},
-    {"refine_error", py_refine_error, METH_VARARGS,
-     "refine_error(a: float64[N*count*3], ref: float64[N*count*3], max_band) -> bytearray float64[N] "
-     "(pb_refine_irradiance_error per point)"},
-    {"refine_norm", py_refine_norm, METH_VARARGS,
-     "refine_norm(c: float64[N*count*3], max_band) -> bytearray float64[N] (pb_refine_irradiance_norm_many)"},
     {"interp_from_file", py_interp_from_file, METH_VARARGS, "interp_from_file(path) -> handle of the file's structure"},
     {NULL, NULL, 0, NULL},
 };

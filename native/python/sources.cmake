@@ -6,6 +6,6 @@ set(PB_PYTHON_SOURCES
   python/mod_placement.c
   python/mod_shprobe.c
   python/mod_interp.c
-  python/mod_refine_axes.c
+  python/mod_refine.c
   python/mod_direct.c
 )
