@@ -157,14 +157,14 @@ def floor_mask():
     return keep, p
 
 
-@pytest.mark.parametrize("storage", ["float32", "float16"])
-def test_octree_per_pixel_and_per_object_equal_the_cpu_model(tmp_path, storage):
-    tree = octree()
-    coeffs = random_sh(tree.probe_count, 3)
-    entry = write_grid(tmp_path, tree, coeffs, storage=storage)
+def assert_engine_equals_cpu_model(tmp_path, tree, entry, coeffs, storage, exr_name):
+    """The lattice scene lit by the file of ``entry`` (``tree``'s probes holding ``coeffs``): per pixel
+    the floor equals the CPU model's interpolation, per object each cube the CPU's query at its
+    centre, and --print-assignments lists the CPU's probes and weights for every cube (version 3
+    here, version 4 in test_engine_v4.py)."""
     scene, moves = lattice_scene(tmp_path, entry)
     args = ["--probe-storage", "half"] if storage == "float16" else []
-    img, proc = render(scene, tmp_path / "v3.exr", *moves, *args)
+    img, proc = render(scene, tmp_path / exr_name, *moves, *args)
     # The entry repeats the file with the Python reader's names ("sh", "float16", "octree", ...): the
     # engine's names are the same, so nothing is reported.
     assert "but the file has" not in proc.stderr, proc.stderr
@@ -187,11 +187,20 @@ def test_octree_per_pixel_and_per_object_equal_the_cpu_model(tmp_path, storage):
     out = viewer.run(scene, "--headless", "--print-assignments", *moves)
     slots = re.findall(r"^  grid 0 weights (\d+):((?: \d+:[0-9.e-]+)+)", out.stdout, re.M)
     assert len(slots) == 1 + len(CUBE_CENTRES)  # the floor's centre too (a lattice point)
-    probes, weights = tree.query(CUBE_CENTRES[:1])
-    got = {int(a) - 1: float(b) for a, b in (t.split(":") for t in slots[1][1].split())}
-    want_w = {int(q): w for q, w in zip(probes[0], weights[0]) if q >= 0}
-    assert got.keys() == want_w.keys()
-    assert max(abs(got[q] - want_w[q]) for q in got) < 1e-7
+    for k in range(len(CUBE_CENTRES)):
+        probes, weights = tree.query(CUBE_CENTRES[k:k + 1])
+        got = {int(a) - 1: float(b) for a, b in (t.split(":") for t in slots[1 + k][1].split())}
+        want_w = {int(q): w for q, w in zip(probes[0], weights[0]) if q >= 0}
+        assert got.keys() == want_w.keys(), k
+        assert max(abs(got[q] - want_w[q]) for q in got) < 1e-7
+
+
+@pytest.mark.parametrize("storage", ["float32", "float16"])
+def test_octree_per_pixel_and_per_object_equal_the_cpu_model(tmp_path, storage):
+    tree = octree()
+    coeffs = random_sh(tree.probe_count, 3)
+    entry = write_grid(tmp_path, tree, coeffs, storage=storage)
+    assert_engine_equals_cpu_model(tmp_path, tree, entry, coeffs, storage, "v3.exr")
 
 
 def test_linear_field_is_reproduced(tmp_path):

@@ -8,14 +8,13 @@ forced splits) through the writer, which picks version 4 for it. Expected values
 (CornerOctree.query, tested against closed forms in tests/python/test_native_boxes.py), the closed form
 of a field linear in position, and a numpy transcription of the documented per-pixel rule from the
 file's own arrays."""
-import re
 import struct
 
 import numpy as np
 import pytest
 
-from test_engine_v3 import (CUBE_CENTRES, N, SHELF, Y0, cpu_object_e, floor_mask, half, interpolate, lattice_scene,
-                            linear, linear_sh, pixel_of, pixel_points, random_sh, ref, render, sg, sh_e,
+from test_engine_v3 import (CUBE_CENTRES, N, SHELF, Y0, assert_engine_equals_cpu_model, floor_mask, interpolate,
+                            lattice_scene, linear, linear_sh, pixel_of, pixel_points, random_sh, ref, render, sg,
                             shelf_first_hit, viewer)
 from schnee_probes import native
 
@@ -53,35 +52,12 @@ def write_grid(d, tree, coeffs, name="p", storage="float32"):
 
 @pytest.mark.parametrize("storage", ["float32", "float16"])
 def test_kd_tree_per_pixel_and_per_object_equal_the_cpu_model(tmp_path, storage):
+    # As the octree's test (float32 on the GPU against float64; half storage rounds probes, resolved
+    # hanging nodes and slots to binary16), on boxes.
     tree = kd_tree()
     coeffs = random_sh(tree.probe_count, 3)
     entry = write_grid(tmp_path, tree, coeffs, storage=storage)
-    scene, moves = lattice_scene(tmp_path, entry)
-    args = ["--probe-storage", "half"] if storage == "float16" else []
-    img, proc = render(scene, tmp_path / "v4.exr", *moves, *args)
-    assert "but the file has" not in proc.stderr, proc.stderr
-    c = half(coeffs) if storage == "float16" else coeffs
-    keep, p = floor_mask()
-    want = np.maximum(sh_e(interpolate(tree, p[keep], c)), 0) / np.pi
-    err = np.abs(img[keep] - want).max()
-    # As the octree's test: float32 on the GPU against float64; half storage rounds probes, resolved
-    # hanging nodes and slots to binary16.
-    bound = 1e-5 + 1e-5 * want.max() if storage == "float32" else 1e-3 * want.max()
-    assert err < bound, (err, bound)
-    assert keep.sum() > 0.8 * N * N
-    for k, centre in enumerate(CUBE_CENTRES):
-        e = np.maximum(cpu_object_e(tree, c, centre), 0) / np.pi
-        got = img[pixel_of(centre[0], centre[2], 2.0, 2.0, 2.0)]
-        assert np.abs(got - e).max() < (1e-5 + 1e-5 * e.max() if storage == "float32" else 1e-3 * e.max()), (k, got, e)
-    out = viewer.run(scene, "--headless", "--print-assignments", *moves)
-    slots = re.findall(r"^  grid 0 weights (\d+):((?: \d+:[0-9.e-]+)+)", out.stdout, re.M)
-    assert len(slots) == 1 + len(CUBE_CENTRES)
-    for k in range(len(CUBE_CENTRES)):
-        probes, weights = tree.query(CUBE_CENTRES[k:k + 1])
-        got = {int(a) - 1: float(b) for a, b in (t.split(":") for t in slots[1 + k][1].split())}
-        want_w = {int(q): w for q, w in zip(probes[0], weights[0]) if q >= 0}
-        assert got.keys() == want_w.keys(), k
-        assert max(abs(got[q] - want_w[q]) for q in got) < 1e-7
+    assert_engine_equals_cpu_model(tmp_path, tree, entry, coeffs, storage, "v4.exr")
 
 
 def test_kd_tree_reproduces_a_linear_field(tmp_path):
