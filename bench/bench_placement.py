@@ -173,6 +173,7 @@ def main():
                             "forecast": None if b.plan.first_forecast is None else
                             {"points": round(b.plan.first_forecast[0], 1),
                              "seconds": round(b.plan.first_forecast[1], 1)},
+                            "forecasts": b.plan.forecasts,
                             "cpu_seconds": cpu,
                             "probes": r.probe_count, "render_seconds": r.timings["render"],
                             "timings": {k: round(v, 2) for k, v in r.timings.items()},

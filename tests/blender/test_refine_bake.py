@@ -110,10 +110,10 @@ def test_shadow_boundary_draws_refinement_to_it_and_nowhere_else(shadow, shadow_
     assert r["passes"][-1]["split"] == 0
 
 
-def test_the_estimate_in_all_after_the_first_pass(shadow):
-    # Issue 29 item 5: after the first pass the bake logs its time in all: the expected points
-    # (estimate.adaptive_points of the grid bound: 0.58 per cell at Error Tolerance 0.03, times
-    # (tol / 0.03)^-0.65) at the wall time per point it measured. The shadow scene's volume is
+def test_the_estimate_in_all_after_the_first_points(shadow):
+    # Issue 29 item 5: at the end of the first stage with 40 points measured the bake logs its time
+    # in all: the expected points (estimate.adaptive_points of the grid bound: 0.58 per cell at Error
+    # Tolerance 0.03, times (tol / 0.03)^-0.65) at the wall time per point it measured. The shadow scene's volume is
     # 8 x 2 x 2 m: 16 x 4 x 4 = 256 cells of 0.5 m; at tolerance 0.2, 0.58 x 256 x (0.2/0.03)^-0.65
     # = 43.3 points, fewer than the first passes' known points (the probes of 4 cells of 2 m, their
     # tests and the 1 m pass queued: more than 43), so the forecast takes the known points.
@@ -126,6 +126,10 @@ def test_the_estimate_in_all_after_the_first_pass(shadow):
     assert 0 < seconds
     assert len(shadow["forecast_lines"]) == 1, shadow["forecast_lines"]
     assert f"about {points:.0f} points" in shadow["forecast_lines"][0]
+    # One record per pass after it (the benchmarks' forecasts), each with the points known then.
+    recs = shadow["forecasts"]
+    assert [r["pass"] for r in recs] == list(range(1, 1 + len(recs))) and len(recs) >= 1
+    assert all(r["points"] >= r["points_rendered"] for r in recs)
 
 
 @pytest.mark.parametrize("axes", [False, True], ids=["octree", "per_axis"])

@@ -99,12 +99,13 @@ if CASE in ("shadow", "shadow_axes"):
     f, out = file_summary(r.files[0])
     out["passes"] = [vars(p) for p in r.passes]
     out["renders"] = r.renders
-    # The estimate in all after the first pass (bake_plans.AdaptivePlan.forecast).
+    # The estimate in all (bake_plans.AdaptivePlan.forecast), logged once 40 points are measured.
     out["forecast"] = list(b.plan.first_forecast)
     out["cells"] = b.plan.cells
     out["points_rendered"] = r.points
     out["seconds"] = r.seconds
     out["forecast_lines"] = [line for line in LOG if " in all (about " in line]
+    out["forecasts"] = b.plan.forecasts
     # Reference probes at seeded random points of the volume (engine x in [-4, 4], y in [0, 2],
     # z in [-1, 1]) baked at 4x the samples, against the file's interpolation there.
     rng = np.random.default_rng(12)
