@@ -1,0 +1,136 @@
+/* Schnee probes — probe bricks (issue 30, docs/probe-bricks.md): the corner octree's / kd corner tree's
+ * field resampled into bricks of 5 × 5 × 5 texels at the finest level each region overlaps, with an
+ * indirection grid, so that a GPU samples it with one indirection fetch and filtered fetches. This module
+ * is the C definition of that field: it builds the bricks and samples them exactly (float64 texels, exact
+ * trilinear fractions), and the GLSL is to mirror pb_bricks_sample() line by line.
+ *
+ * How to use it, step by step:
+ *   1. A finalized pb_cotree (pb_cotree.h; octree or kd tree) and per-probe SH coefficients in float64
+ *      (probe_count × coeff_count × 3), optionally validity and scale per probe.
+ *   2. pb_bricks_build(&desc, &bricks, &err): the level rule, the brick pool, the indirection grid, and
+ *      the texels N = Σ W m s c and D = Σ W m (W the file's expanded weights from pb_interp without
+ *      validity, m = 1 for validity > 0 else 0, s the scale, c the colours). N / D is the file's rule.
+ *   3. pb_bricks_sample(bricks, p, coeffs, &d): the field at an engine-space point (the sampling rule of
+ *      docs/probe-bricks.md, steps 1–4, exact weights). pb_bricks_locate() gives the brick and the
+ *      brick-local texel coordinate the GPU would filter at.
+ *   4. For an upload: pb_bricks_get_info() (pool and indirection dimensions), pb_bricks_indirection()
+ *      (RGBA32UI texels), pb_bricks_pool_f32() / pb_bricks_pool_f16() (the channel textures).
+ *   5. pb_bricks_destroy(). The bricks do not refer to the tree or the coefficients after the build.
+ *
+ * Layout (normative, docs/probe-bricks.md "Layout"):
+ *   - Lattice: the tree's origin, min cell h and extent E (min cells). A brick of level L has texels at
+ *     the lattice points r + 2^L (i, j, k), 0 ≤ i, j, k ≤ 4; its region is [r, r + 4·2^L) per axis, r a
+ *     multiple of 2^(L+2). Level rule: regions top down from the root level R; a region overlapping no
+ *     leaf has no brick; one whose overlapped leaves all have every axis level ≥ L is a brick of level
+ *     L (isotropic bricks: a kd box counts with its smallest axis level); otherwise its 8 children.
+ *   - Brick order: the level-R regions (x fastest, then y, z), each depth first with its children in the
+ *     order of their bits (bit 0 = +x, 1 = +y, 2 = +z).
+ *   - Channels at the file's band, C = coeff_count: channel 0–2 = N_0 (RGB), 3 = D, then N_1 … N_{C−1}
+ *     RGB consecutively; channels = 3C + 1, groups = ceil(channels / 4) RGBA textures (unused channels
+ *     of the last group are 0). L2: 28 channels, 7 groups.
+ *   - Pool: bricks side by side on a grid of pool_bricks[0] × [1] × [2] bricks (the smallest cube side
+ *     p with p³ ≥ brick_count on x and y, then as few layers in z as hold them); brick b's texel origin
+ *     is 5 · (b mod p, (b / p) mod p, b / p²). Texels of the pool past the last brick are 0.
+ *   - Indirection: one RGBA32UI entry per level-0 region (4³ min cells), ceil(E/4) per axis, x fastest:
+ *     x = brick | level << 27 (PB_BRICKS_NONE = no brick), y / z = the occupancy bits of the region's
+ *     64 unit cells (bit i + 4j + 16k, bits 0–31 in y, 32–63 in z: a leaf holds that min cell), w = 0.
+ * Coordinates: engine space, metres, double; octree axes are the identity.
+ * Not here yet (docs/probe-bricks.md "Implemented in the core"): dense v1/v2 grids, visibility texels
+ * and records, back faces, quantised filter weights.
+ */
+#ifndef SCHNEE_PB_BRICKS_H
+#define SCHNEE_PB_BRICKS_H
+
+#include "schnee/pb_common.h"
+#include "schnee/pb_cotree.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define PB_BRICK_TEXELS_AXIS 5u                    /* B: texels per axis of a brick */
+#define PB_BRICK_CELLS_AXIS  4u                    /* B − 1: cells per axis of a brick */
+#define PB_BRICK_TEXELS      125u                  /* B³ */
+#define PB_BRICKS_INDEX_BITS 27u                   /* indirection x: brick index bits, then the level */
+#define PB_BRICKS_MAX        (UINT32_C(1) << 27)   /* bricks one pool may hold */
+#define PB_BRICKS_NONE       UINT32_C(0xFFFFFFFF)  /* indirection x of a region without a brick */
+#define PB_BRICKS_MARGIN     0.01                  /* min cells: the lattice's and the faces' margin */
+#define PB_BRICKS_MAX_COEFFS 25u                   /* L4 */
+#define PB_BRICKS_DEFAULT_MAX_BYTES (UINT64_C(1) << 30) /* the build's memory cap when desc.max_bytes = 0 */
+#define PB_HALF_MAX          65504.0               /* the largest binary16 */
+
+typedef struct pb_bricks pb_bricks;
+
+/* Zero-initialise; 0 / NULL fields take the defaults written beside them. */
+typedef struct pb_bricks_desc {
+    const pb_cotree *tree;  /* required: finalized (pb_cotree_finalize) */
+    uint32_t coeff_count;   /* required: SH coefficients per probe, (band + 1)²: 1, 4, 9, 16 or 25 */
+    const double *coeffs;   /* required: probe_count × coeff_count × 3 (probe-major, coeff, RGB), finite */
+    const float *validity;  /* NULL = every probe valid; else probe_count, a probe with validity <= 0 has m = 0 */
+    const float *scale;     /* NULL = 1; else probe_count finite scales (the file's probe_scale) */
+    uint64_t max_bytes;     /* 0 = PB_BRICKS_DEFAULT_MAX_BYTES: refuse (PB_ERROR_TOO_LARGE) past this */
+} pb_bricks_desc;
+
+typedef struct pb_bricks_info {
+    double origin[3];               /* the lattice (the tree's frame) */
+    double min_cell;                /* h, metres */
+    uint32_t dims[3];               /* E, min cells */
+    uint32_t root_level;            /* R: the coarsest brick level the rule starts from */
+    uint32_t coeff_count;           /* C */
+    uint32_t channels;              /* 3C + 1 */
+    uint32_t groups;                /* RGBA textures: ceil(channels / 4) */
+    uint32_t brick_count;
+    uint32_t level_counts[PB_COTREE_MAX_LEVEL + 1]; /* bricks per level */
+    uint32_t pool_bricks[3];        /* the pool's grid of bricks */
+    uint32_t pool_texels[3];        /* 5 × pool_bricks: each channel texture's size */
+    uint32_t indirection_dims[3];   /* ceil(E / 4) */
+    uint64_t texel_count;           /* brick_count × 125 (used texels; the pool may hold a few more) */
+    uint64_t indirection_bytes;     /* 16 per entry */
+    uint64_t pool_bytes_f16;        /* every pool texel of every group, RGBA16F */
+    uint64_t pool_bytes_f32;        /* RGBA32F */
+} pb_bricks_info;
+
+/* Builds the bricks (the layout above). Errors: NULL or unfinalized tree, coeff_count not a square in
+ * 1..25, non-finite coefficients or scales (PB_ERROR_NON_FINITE), more than PB_BRICKS_MAX bricks or more
+ * memory than max_bytes (PB_ERROR_TOO_LARGE, the message gives the size). *out owned by the caller. */
+pb_result pb_bricks_build(const pb_bricks_desc *desc, pb_bricks **out, pb_error *err);
+void pb_bricks_destroy(pb_bricks *bricks);
+
+void pb_bricks_get_info(const pb_bricks *bricks, pb_bricks_info *out);
+
+/* The sampling rule (docs/probe-bricks.md steps 1–3): u = (p − origin)/h; outside the lattice by more
+ * than PB_BRICKS_MARGIN on an axis: false; u clamped into [0, E]; its unit cell q (max faces closed);
+ * when no leaf holds q, the face margin of pb_interp.c's locate_point_cell (within PB_BRICKS_MARGIN
+ * above q's lower faces, masks x, y, xy, z, ...: the cell below, u clamped into it); none: false.
+ * Else *brick and the brick-local texel coordinate x in [0, 4]³ (the GPU's texture coordinate is
+ * (texel origin + 0.5 + x) / pool_texels). Unlike pb_interp_query_cotree, points within the margin
+ * outside the lattice's box take the value on its face. */
+bool pb_bricks_locate(const pb_bricks *bricks, const double p[3], uint32_t *brick, double x[3]);
+/* Exact trilinear sample of the brick's channels at brick-local x in [0, 4]³: cell k0 = min(floor(x), 3),
+ * fraction x − k0, the 8 texels of the cell weighted (step 4 with exact weights). out: `channels`
+ * doubles in the channel order above. */
+void pb_bricks_filter(const pb_bricks *bricks, uint32_t brick, const double x[3], double *out);
+/* The field at engine-space point p: locate, filter, N / D. Returns whether the point has a value (a
+ * brick, and D > 0; false also where every probe with weight is invalid, as the CPU's "no probe").
+ * coeffs_out (optional): coeff_count × 3 doubles, N / D (0 without a value); d_out (optional): D. */
+bool pb_bricks_sample(const pb_bricks *bricks, const double p[3], double *coeffs_out, double *d_out);
+
+/* ---- arrays for an upload and for tests --------------------------------------------------------- */
+
+/* Indirection: indirection_dims product × 4 uint32 (x fastest), as described above. */
+const uint32_t *pb_bricks_indirection(const pb_bricks *bricks);
+/* brick_count × 4 uint32: the region's min corner x, y, z (lattice) and the level. */
+const uint32_t *pb_bricks_regions(const pb_bricks *bricks);
+/* The float64 texels: brick_count × 125 × channels, brick-local texel i + 5j + 25k (i along x). */
+const double *pb_bricks_texels(const pb_bricks *bricks);
+/* The pool as `groups` RGBA textures, group-major, then z, y, x, then RGBA: out[(((g · pz + z) · py + y)
+ * · px + x) · 4 + c] with (px, py, pz) = pool_texels; capacity in elements (floats / halves) must be at
+ * least groups × pool texels × 4. f16: IEEE binary16, round to nearest even; PB_ERROR_TOO_LARGE when a
+ * value exceeds PB_HALF_MAX in magnitude (then upload f32 for the whole pool, docs/probe-bricks.md). */
+pb_result pb_bricks_pool_f32(const pb_bricks *bricks, float *out, uint64_t capacity, pb_error *err);
+pb_result pb_bricks_pool_f16(const pb_bricks *bricks, uint16_t *out, uint64_t capacity, pb_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
