@@ -933,3 +933,89 @@ def sky_sun_split(world: np.ndarray, peak_fraction: float = 0.0, max_radius: flo
                      background=tuple(info["background"]), extent=float(info["extent"]),
                      peak=tuple(int(v) for v in info["peak"]), texels=int(info["texels"]))
     return SkySplit(sun=sun, rest=rest, verdict=str(info["verdict"]))
+
+
+# ---- probe bricks (issue 30, docs/probe-bricks.md; native/python/mod_bricks.c) ----------------------
+#
+#     bricks = Bricks.build(tree, coeffs, validity, scale)   # tree: a finalized CornerOctree
+#     coeffs, has_value = bricks.sample(points)              # the field the engine is to shade with
+
+
+class Bricks:
+    """A corner octree's / kd corner tree's field resampled into bricks of 5^3 texels with an
+    indirection grid (native/include/schnee/pb_bricks.h): texels N = sum W m s c and D = sum W m from
+    the core's interpolation weights, sampled with exact trilinear weights as N / D. The C definition
+    the engine's GLSL is to mirror; independent of the tree once built."""
+
+    def __init__(self, handle):
+        self._handle = handle
+        self._raw = _lib().bricks_info(handle)  # immutable once built: sizes and array copies, read once
+
+    @classmethod
+    def build(cls, tree: CornerOctree, coeffs: np.ndarray, validity: Optional[np.ndarray] = None,
+              scale: Optional[np.ndarray] = None, max_bytes: int = 0) -> "Bricks":
+        """``coeffs`` (P, sh_count, 3) radiance SH per probe of the finalized ``tree`` (float64 in the
+        C), ``validity`` (P,) (<= 0: the probe is dropped, as the file's rule), ``scale`` (P,) (the
+        file's probe_scale, inside N). ``max_bytes``: the build's memory cap, 0 = 1 GiB (SchneeError
+        past it)."""
+        if not isinstance(tree, CornerOctree):
+            raise TypeError(f"tree must be a CornerOctree, got {type(tree).__name__}")
+        P = tree.probe_count
+        c = _array(coeffs, "coeffs", np.float64, _FLOAT_KINDS)
+        if c.ndim != 3 or c.shape[0] != P or c.shape[2] != 3:
+            raise _shape_error("coeffs", f"({P}, sh_count, 3)", c)
+        _band_of(c.shape[1], "coeffs")
+        return cls(_lib().bricks_build(tree._handle, c.reshape(-1), c.shape[1], _per_probe(validity, "validity", P),
+                                       _per_probe(scale, "scale", P), int(max_bytes)))
+
+    def info(self) -> dict:
+        """Sizes (pb_bricks_info): dims, root_level, coeff_count, channels (3C + 1), groups (RGBA
+        textures), brick_count, level_counts {level: bricks}, pool_bricks, pool_texels,
+        indirection_dims, texel_count, the bytes (indirection, pool_bytes_f16 / _f32,
+        bytes_per_texel_f16, bytes_per_probe_f16 given ``probe_count``); arrays regions (n, 4) (region min
+        x, y, z, level), indirection (ind_z, ind_y, ind_x, 4) uint32, texels (n, 5, 5, 5, channels)
+        float64 indexed [brick, k (z), j (y), i (x)]."""
+        d = dict(self._raw)
+        d["level_counts"] = {L: int(n) for L, n in enumerate(d["level_counts"]) if n}
+        n, ch = d["brick_count"], d["channels"]
+        d["regions"] = np.frombuffer(d["regions"], dtype=np.uint32).reshape(n, 4)
+        d["indirection"] = np.frombuffer(d["indirection"], dtype=np.uint32).reshape(
+            tuple(reversed(d["indirection_dims"])) + (4,))
+        d["texels"] = np.frombuffer(d["texels"], dtype=np.float64).reshape(n, 5, 5, 5, ch)
+        d["bytes_per_texel_f16"] = 8 * d["groups"]
+        return d
+
+    def bytes_per_probe(self, probe_count: int, half: bool = True) -> float:
+        """GPU bytes per probe of the file: the pool's used texels (8 B per RGBA16F texel and group, 16
+        for RGBA32F), the indirection, and 16 B per brick for the brick table docs/probe-bricks.md
+        plans (not built here), over ``probe_count``."""
+        d = self._raw
+        texel = d["groups"] * (8 if half else 16)
+        return (d["texel_count"] * texel + d["indirection_bytes"] + 16 * d["brick_count"]) / probe_count
+
+    def sample(self, points: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """The field at engine-space points (N, 3): (coeffs (N, C, 3) = N / D, NaN without a value;
+        has_value (N,) bool). Within 0.01 min cells outside the lattice's box a point takes the face's
+        value (the sampling rule's margin), where the CPU query has none."""
+        c, _, has, _, _ = self.sample_raw(points)
+        c = c.copy()
+        c[~has] = np.nan
+        return c, has
+
+    def sample_raw(self, points: np.ndarray):
+        """(coeffs (N, C, 3) (0 without a value), D (N,), has_value (N,) bool, brick (N,) int32 (-1 none),
+        x (N, 3) brick-local texel coordinates in [0, 4]) at engine-space points (N, 3)."""
+        p, _ = _vectors(points, "points")
+        co, d, has, br, x = _lib().bricks_sample(self._handle, p)
+        C = self._raw["coeff_count"]
+        return (np.frombuffer(co, dtype=np.float64).reshape(-1, C, 3), np.frombuffer(d, dtype=np.float64),
+                np.frombuffer(has, dtype=np.uint8).astype(bool), np.frombuffer(br, dtype=np.int32),
+                np.frombuffer(x, dtype=np.float64).reshape(-1, 3))
+
+    def pool(self, half: bool = True) -> np.ndarray:
+        """The channel textures (groups, pz, py, px, 4): float16 (SchneeError when a value exceeds
+        65504: upload float32) or float32."""
+        d = self._raw
+        px, py, pz = d["pool_texels"]
+        raw = _lib().bricks_pool(self._handle, bool(half))
+        return np.frombuffer(raw, dtype=np.float16 if half else np.float32).reshape(d["groups"], pz, py, px, 4)

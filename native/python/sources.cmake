@@ -8,4 +8,5 @@ set(PB_PYTHON_SOURCES
   python/mod_interp.c
   python/mod_refine.c
   python/mod_direct.c
+  python/mod_bricks.c
 )

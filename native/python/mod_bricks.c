@@ -1,0 +1,187 @@
+/* _schnee_native: probe bricks (pb_bricks.h, docs/probe-bricks.md): build from a corner octree handle,
+ * exact sampling, the arrays for an upload; handles are capsules; native.py "probe bricks" section. */
+#include "mod_common.h"
+
+#include "schnee/pb_bricks.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#define PB_PY_CAP_BRICKS "schnee_probes.bricks"
+
+static void bricks_capsule_free(PyObject *cap) { pb_bricks_destroy(PyCapsule_GetPointer(cap, PB_PY_CAP_BRICKS)); }
+
+static pb_bricks *get_bricks(PyObject *o)
+{
+    if (!PyCapsule_IsValid(o, PB_PY_CAP_BRICKS)) {
+        PyErr_SetString(PyExc_TypeError, "expected a probe bricks handle (from bricks_build)");
+        return NULL;
+    }
+    return PyCapsule_GetPointer(o, PB_PY_CAP_BRICKS);
+}
+
+/* bricks_build(tree, coeffs float64[P*C*3], coeff_count, validity float32[P] | None, scale float32[P] | None,
+ * max_bytes) -> handle. */
+static PyObject *py_bricks_build(PyObject *module, PyObject *args)
+{
+    PyObject *t_obj, *c_obj, *v_obj = Py_None, *s_obj = Py_None;
+    Py_ssize_t count_in, max_in = 0;
+    if (!PyArg_ParseTuple(args, "OOn|OOn:bricks_build", &t_obj, &c_obj, &count_in, &v_obj, &s_obj, &max_in))
+        return NULL;
+    pb_cotree *t = _pb_py_get_cotree(t_obj);
+    if (!t) return NULL;
+    if (!pb_cotree_probe_lattice(t)) {
+        PyErr_SetString(PyExc_ValueError, "the corner octree is not finalized (call cotree_finalize)");
+        return NULL;
+    }
+    uint32_t C;
+    if (_pb_py_check_u32(count_in, "coeff_count", &C) < 0) return NULL;
+    if (max_in < 0) return PyErr_Format(PyExc_ValueError, "max_bytes %zd is negative", max_in);
+    Py_ssize_t P = (Py_ssize_t)pb_cotree_probe_count(t), want = _pb_py_product3(P, (Py_ssize_t)C, 3, "coeffs");
+    if (want < 0) return NULL;
+    pb_py_buffer co = {0}, val = {0}, sc = {0};
+    if (_pb_py_get_buffer(c_obj, "coeffs", 'd', 0, want, &co) < 0 ||
+        (v_obj != Py_None && _pb_py_get_buffer(v_obj, "validity", 'f', 0, P, &val) < 0) ||
+        (s_obj != Py_None && _pb_py_get_buffer(s_obj, "scale", 'f', 0, P, &sc) < 0)) {
+        _pb_py_release(&co);
+        _pb_py_release(&val);
+        return NULL;
+    }
+    pb_bricks_desc d = {.tree = t,
+                        .coeff_count = C,
+                        .coeffs = co.view.buf,
+                        .validity = val.view.obj ? val.view.buf : NULL,
+                        .scale = sc.view.obj ? sc.view.buf : NULL,
+                        .max_bytes = (uint64_t)max_in};
+    pb_bricks *b = NULL;
+    pb_error err = {0};
+    pb_result r;
+    Py_BEGIN_ALLOW_THREADS r = pb_bricks_build(&d, &b, &err);
+    Py_END_ALLOW_THREADS _pb_py_release(&co);
+    _pb_py_release(&val);
+    _pb_py_release(&sc);
+    if (r != PB_SUCCESS) return _pb_py_raise_core(module, r, &err);
+    PyObject *cap = PyCapsule_New(b, PB_PY_CAP_BRICKS, bricks_capsule_free);
+    if (!cap) pb_bricks_destroy(b);
+    return cap;
+}
+
+static PyObject *triple_u32(const uint32_t v[3]) { return Py_BuildValue("(III)", v[0], v[1], v[2]); }
+
+/* bricks_info(handle) -> dict of pb_bricks_info, and the arrays: regions uint32[n*4], indirection
+ * uint32[entries*4], texels float64[n*125*channels] (bytearrays). */
+static PyObject *py_bricks_info(PyObject *module, PyObject *h)
+{
+    (void)module;
+    pb_bricks *b = get_bricks(h);
+    if (!b) return NULL;
+    pb_bricks_info in;
+    pb_bricks_get_info(b, &in);
+    PyObject *levels = PyTuple_New(PB_COTREE_MAX_LEVEL + 1), *d = PyDict_New();
+    for (uint32_t L = 0; levels && L <= PB_COTREE_MAX_LEVEL; L++) {
+        PyObject *v = PyLong_FromUnsignedLong(in.level_counts[L]);
+        if (!v || PyTuple_SetItem(levels, L, v) < 0) Py_CLEAR(levels);
+    }
+    uint64_t ind = (uint64_t)in.indirection_dims[0] * in.indirection_dims[1] * in.indirection_dims[2];
+    if (!d || !levels || _pb_py_dict_put(d, "level_counts", Py_NewRef(levels)) < 0 ||
+        _pb_py_dict_put(d, "origin", Py_BuildValue("(ddd)", in.origin[0], in.origin[1], in.origin[2])) < 0 ||
+        _pb_py_dict_put(d, "min_cell", PyFloat_FromDouble(in.min_cell)) < 0 ||
+        _pb_py_dict_put(d, "dims", triple_u32(in.dims)) < 0 ||
+        _pb_py_dict_put(d, "root_level", PyLong_FromUnsignedLong(in.root_level)) < 0 ||
+        _pb_py_dict_put(d, "coeff_count", PyLong_FromUnsignedLong(in.coeff_count)) < 0 ||
+        _pb_py_dict_put(d, "channels", PyLong_FromUnsignedLong(in.channels)) < 0 ||
+        _pb_py_dict_put(d, "groups", PyLong_FromUnsignedLong(in.groups)) < 0 ||
+        _pb_py_dict_put(d, "brick_count", PyLong_FromUnsignedLong(in.brick_count)) < 0 ||
+        _pb_py_dict_put(d, "pool_bricks", triple_u32(in.pool_bricks)) < 0 ||
+        _pb_py_dict_put(d, "pool_texels", triple_u32(in.pool_texels)) < 0 ||
+        _pb_py_dict_put(d, "indirection_dims", triple_u32(in.indirection_dims)) < 0 ||
+        _pb_py_dict_put(d, "texel_count", PyLong_FromUnsignedLongLong(in.texel_count)) < 0 ||
+        _pb_py_dict_put(d, "indirection_bytes", PyLong_FromUnsignedLongLong(in.indirection_bytes)) < 0 ||
+        _pb_py_dict_put(d, "pool_bytes_f16", PyLong_FromUnsignedLongLong(in.pool_bytes_f16)) < 0 ||
+        _pb_py_dict_put(d, "pool_bytes_f32", PyLong_FromUnsignedLongLong(in.pool_bytes_f32)) < 0 ||
+        _pb_py_dict_put(d, "regions", _pb_py_bytes_out(pb_bricks_regions(b), (size_t)in.brick_count * 16u)) < 0 ||
+        _pb_py_dict_put(d, "indirection", _pb_py_bytes_out(pb_bricks_indirection(b), (size_t)ind * 16u)) < 0 ||
+        _pb_py_dict_put(d, "texels", _pb_py_bytes_out(pb_bricks_texels(b), (size_t)in.texel_count * in.channels * 8u)) <
+            0) {
+        Py_XDECREF(levels);
+        Py_XDECREF(d);
+        return NULL;
+    }
+    Py_DECREF(levels);
+    return d;
+}
+
+/* bricks_sample(handle, points float64[N*3]) -> (coeffs float64[N*C*3], d float64[N], has uint8[N],
+ * brick int32[N] (−1 none), x float64[N*3] brick-local texel coordinates). */
+static PyObject *py_bricks_sample(PyObject *module, PyObject *args)
+{
+    (void)module;
+    PyObject *h, *p_obj;
+    if (!PyArg_ParseTuple(args, "OO:bricks_sample", &h, &p_obj)) return NULL;
+    pb_bricks *b = get_bricks(h);
+    if (!b) return NULL;
+    pb_bricks_info in;
+    pb_bricks_get_info(b, &in);
+    pb_py_buffer pts;
+    if (_pb_py_get_buffer(p_obj, "points", 'd', 3, -1, &pts) < 0) return NULL;
+    Py_ssize_t n = pts.count / 3, C3 = 3 * (Py_ssize_t)in.coeff_count;
+    PyObject *co = PyByteArray_FromStringAndSize(NULL, n * C3 * 8), *dd = PyByteArray_FromStringAndSize(NULL, n * 8),
+             *has = PyByteArray_FromStringAndSize(NULL, n), *br = PyByteArray_FromStringAndSize(NULL, n * 4),
+             *xo = PyByteArray_FromStringAndSize(NULL, n * 24);
+    if (co && dd && has && br && xo) {
+        double *c = (double *)(void *)PyByteArray_AsString(co), *d = (double *)(void *)PyByteArray_AsString(dd),
+               *x = (double *)(void *)PyByteArray_AsString(xo);
+        uint8_t *hv = (uint8_t *)PyByteArray_AsString(has);
+        int32_t *bi = (int32_t *)(void *)PyByteArray_AsString(br);
+        const double *pp = pts.view.buf;
+        Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < n; i++)
+        {
+            uint32_t brick = 0;
+            bool found = pb_bricks_locate(b, pp + 3 * i, &brick, x + 3 * i);
+            bi[i] = found ? (int32_t)brick : -1;
+            if (!found) x[3 * i] = x[3 * i + 1] = x[3 * i + 2] = 0.0;
+            hv[i] = pb_bricks_sample(b, pp + 3 * i, c + C3 * i, d + i);
+        }
+        Py_END_ALLOW_THREADS
+    }
+    _pb_py_release(&pts);
+    if (!co || !dd || !has || !br || !xo) {
+        Py_XDECREF(co), Py_XDECREF(dd), Py_XDECREF(has), Py_XDECREF(br), Py_XDECREF(xo);
+        return NULL;
+    }
+    return Py_BuildValue("(NNNNN)", co, dd, has, br, xo);
+}
+
+/* bricks_pool(handle, half) -> bytearray: the pool (pb_bricks_pool_f16 / _f32). */
+static PyObject *py_bricks_pool(PyObject *module, PyObject *args)
+{
+    PyObject *h;
+    int half = 0;
+    if (!PyArg_ParseTuple(args, "Op:bricks_pool", &h, &half)) return NULL;
+    pb_bricks *b = get_bricks(h);
+    if (!b) return NULL;
+    pb_bricks_info in;
+    pb_bricks_get_info(b, &in);
+    uint64_t n = (uint64_t)in.pool_texels[0] * in.pool_texels[1] * in.pool_texels[2] * in.groups * 4u;
+    if (n > (uint64_t)PY_SSIZE_T_MAX / 4u) return PyErr_NoMemory();
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(n * (half ? 2u : 4u)));
+    if (!out) return NULL;
+    pb_error err = {0};
+    void *buf = PyByteArray_AsString(out);
+    pb_result r = half ? pb_bricks_pool_f16(b, buf, n, &err) : pb_bricks_pool_f32(b, buf, n, &err);
+    if (r != PB_SUCCESS) {
+        Py_DECREF(out);
+        return _pb_py_raise_core(module, r, &err);
+    }
+    return out;
+}
+
+PyMethodDef _pb_py_bricks_methods[] = {
+    {"bricks_build", py_bricks_build, METH_VARARGS,
+     "bricks_build(tree, coeffs: float64[P*C*3], coeff_count, validity=None, scale=None, max_bytes=0) -> handle"},
+    {"bricks_info", py_bricks_info, METH_O, "bricks_info(handle) -> dict (sizes, regions, indirection, texels)"},
+    {"bricks_sample", py_bricks_sample, METH_VARARGS,
+     "bricks_sample(handle, points: float64[N*3]) -> (coeffs, d, has_value, brick, x) bytearrays"},
+    {"bricks_pool", py_bricks_pool, METH_VARARGS, "bricks_pool(handle, half: bool) -> bytearray (RGBA16F / RGBA32F)"},
+    {NULL, NULL, 0, NULL},
+};
