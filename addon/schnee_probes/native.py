@@ -993,20 +993,21 @@ class Bricks:
         texel = d["groups"] * (8 if half else 16)
         return (d["texel_count"] * texel + d["indirection_bytes"] + 16 * d["brick_count"]) / probe_count
 
-    def sample(self, points: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    def sample(self, points: np.ndarray, subtexel_bits: int = 0) -> Tuple[np.ndarray, np.ndarray]:
         """The field at engine-space points (N, 3): (coeffs (N, C, 3) = N / D, NaN without a value;
         has_value (N,) bool). Within 0.01 min cells outside the lattice's box a point takes the face's
-        value (the sampling rule's margin), where the CPU query has none."""
-        c, _, has, _, _ = self.sample_raw(points)
+        value (the sampling rule's margin), where the CPU query has none. ``subtexel_bits`` > 0: the
+        filter's fractions rounded to 2**-bits (8 on desktop GPUs); 0 = exact."""
+        c, _, has, _, _ = self.sample_raw(points, subtexel_bits)
         c = c.copy()
         c[~has] = np.nan
         return c, has
 
-    def sample_raw(self, points: np.ndarray):
+    def sample_raw(self, points: np.ndarray, subtexel_bits: int = 0):
         """(coeffs (N, C, 3) (0 without a value), D (N,), has_value (N,) bool, brick (N,) int32 (-1 none),
         x (N, 3) brick-local texel coordinates in [0, 4]) at engine-space points (N, 3)."""
         p, _ = _vectors(points, "points")
-        co, d, has, br, x = _lib().bricks_sample(self._handle, p)
+        co, d, has, br, x = _lib().bricks_sample(self._handle, p, int(subtexel_bits))
         C = self._raw["coeff_count"]
         return (np.frombuffer(co, dtype=np.float64).reshape(-1, C, 3), np.frombuffer(d, dtype=np.float64),
                 np.frombuffer(has, dtype=np.uint8).astype(bool), np.frombuffer(br, dtype=np.int32),

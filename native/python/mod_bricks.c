@@ -111,13 +111,14 @@ static PyObject *py_bricks_info(PyObject *module, PyObject *h)
     return d;
 }
 
-/* bricks_sample(handle, points float64[N*3]) -> (coeffs float64[N*C*3], d float64[N], has uint8[N],
+/* bricks_sample(handle, points float64[N*3], subtexel_bits=0) -> (coeffs float64[N*C*3], d float64[N], has uint8[N],
  * brick int32[N] (−1 none), x float64[N*3] brick-local texel coordinates). */
 static PyObject *py_bricks_sample(PyObject *module, PyObject *args)
 {
     (void)module;
     PyObject *h, *p_obj;
-    if (!PyArg_ParseTuple(args, "OO:bricks_sample", &h, &p_obj)) return NULL;
+    unsigned int bits = 0;
+    if (!PyArg_ParseTuple(args, "OO|I:bricks_sample", &h, &p_obj, &bits)) return NULL;
     pb_bricks *b = get_bricks(h);
     if (!b) return NULL;
     pb_bricks_info in;
@@ -140,7 +141,7 @@ static PyObject *py_bricks_sample(PyObject *module, PyObject *args)
             bool found = pb_bricks_locate(b, pp + 3 * i, &brick, x + 3 * i);
             bi[i] = found ? (int32_t)brick : -1;
             if (!found) x[3 * i] = x[3 * i + 1] = x[3 * i + 2] = 0.0;
-            hv[i] = pb_bricks_sample(b, pp + 3 * i, c + C3 * i, d + i);
+            hv[i] = pb_bricks_sample_bits(b, pp + 3 * i, bits, c + C3 * i, d + i);
         }
         Py_END_ALLOW_THREADS
     }
@@ -181,7 +182,7 @@ PyMethodDef _pb_py_bricks_methods[] = {
      "bricks_build(tree, coeffs: float64[P*C*3], coeff_count, validity=None, scale=None, max_bytes=0) -> handle"},
     {"bricks_info", py_bricks_info, METH_O, "bricks_info(handle) -> dict (sizes, regions, indirection, texels)"},
     {"bricks_sample", py_bricks_sample, METH_VARARGS,
-     "bricks_sample(handle, points: float64[N*3]) -> (coeffs, d, has_value, brick, x) bytearrays"},
+     "bricks_sample(handle, points: float64[N*3], subtexel_bits=0) -> (coeffs, d, has_value, brick, x) bytearrays"},
     {"bricks_pool", py_bricks_pool, METH_VARARGS, "bricks_pool(handle, half: bool) -> bytearray (RGBA16F / RGBA32F)"},
     {NULL, NULL, 0, NULL},
 };

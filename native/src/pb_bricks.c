@@ -71,7 +71,8 @@ static pb_result check_desc(const pb_bricks_desc *d, pb_error *err)
     uint64_t n = (uint64_t)t->probe_count * C * 3u;
     for (uint64_t i = 0; i < n; i++)
         if (!isfinite(d->coeffs[i]))
-            return pb_error_set(err, PB_ERROR_NON_FINITE, "pb_bricks_build: coefficient %llu of probe %llu is %g",
+            return pb_error_set(err, PB_ERROR_NON_FINITE,
+                                "pb_bricks_build: value %llu (coefficient × 3 + colour) of probe %llu is %g",
                                 (unsigned long long)(i % (3u * C)), (unsigned long long)(i / (3u * C)), d->coeffs[i]);
     for (uint32_t i = 0; d->scale && i < t->probe_count; i++)
         if (!isfinite(d->scale[i]))
@@ -403,7 +404,7 @@ bool pb_bricks_locate(const pb_bricks *b, const double p[3], uint32_t *brick, do
     return true;
 }
 
-void pb_bricks_filter(const pb_bricks *b, uint32_t brick, const double x[3], double *out)
+void pb_bricks_filter(const pb_bricks *b, uint32_t brick, const double x[3], uint32_t bits, double *out)
 {
     uint32_t k0[3];
     double f[3];
@@ -411,6 +412,8 @@ void pb_bricks_filter(const pb_bricks *b, uint32_t brick, const double x[3], dou
         double v = x[a] < 0.0 ? 0.0 : (x[a] > 4.0 ? 4.0 : x[a]), fl = floor(v);
         k0[a] = fl > 3.0 ? 3u : (uint32_t)fl;
         f[a] = v - (double)k0[a];
+        if (bits && bits <= 24u)
+            f[a] = ldexp(nearbyint(ldexp(f[a], (int)bits)), -(int)bits); /* in [0, 1]: k0 + 1 ≤ 4 */
     }
     double w8[8];
     trilinear8(f, w8);
@@ -427,10 +430,15 @@ void pb_bricks_filter(const pb_bricks *b, uint32_t brick, const double x[3], dou
 
 bool pb_bricks_sample(const pb_bricks *b, const double p[3], double *coeffs_out, double *d_out)
 {
+    return pb_bricks_sample_bits(b, p, 0u, coeffs_out, d_out);
+}
+
+bool pb_bricks_sample_bits(const pb_bricks *b, const double p[3], uint32_t bits, double *coeffs_out, double *d_out)
+{
     double nd[3u * PB_BRICKS_MAX_COEFFS + 1u], x[3];
     uint32_t brick = 0;
     bool found = pb_bricks_locate(b, p, &brick, x);
-    if (found) pb_bricks_filter(b, brick, x, nd);
+    if (found) pb_bricks_filter(b, brick, x, bits, nd);
     double D = found ? nd[3] : 0.0;
     bool value = D > 0.0;
     if (d_out) *d_out = D;

@@ -312,6 +312,39 @@ static void test_pool_layout(void)
     pb_cotree_destroy(t);
 }
 
+/* The filter's weight quantisation (step 6): a fraction off by ≤ 2^−(bits+1) per axis moves the sample by
+ * ≤ 2^L h / 2^(bits+1) per axis, so a linear field errs by at most that times its gradient (closed form). */
+static void test_quantised_weights_bound(void)
+{
+    pb_cotree *t = random_tree(81, true, false);
+    TU_REQUIRE(t);
+    double *c = linear_coeffs(t);
+    pb_bricks *b = build(t, c, NULL, NULL);
+    TU_REQUIRE(b);
+    pb_bricks_info in;
+    pb_bricks_get_info(b, &in);
+    uint32_t top = 0;
+    for (uint32_t L = 0; L <= PB_COTREE_MAX_LEVEL; L++)
+        if (in.level_counts[L]) top = L;
+    const double grad = 0.3 + 0.2 + 0.07; /* linear(): the largest sum of |gradient| per metre over j */
+    double bound = grad * ldexp(1.0, (int)top) * H / 512.0, worst = 0.0, exact_diff = 0.0, q[3 * C], e[3 * C];
+    for (int n = 0; n < 4000; n++) {
+        double p[3];
+        random_point(t, p);
+        TU_CHECK(pb_bricks_sample_bits(b, p, 8, q, NULL) && pb_bricks_sample_bits(b, p, 0, e, NULL));
+        for (uint32_t j = 0; j < C; j++)
+            for (uint32_t k = 0; k < 3; k++) worst = fmax(worst, fabs(q[3 * j + k] - linear(j, k, p)));
+        TU_CHECK(pb_bricks_sample(b, p, q, NULL));
+        for (uint32_t j = 0; j < 3 * C; j++) exact_diff = fmax(exact_diff, fabs(q[j] - e[j]));
+    }
+    printf("  8-bit weights: linear field max error %.2e, bound %.2e (top level %u)\n", worst, bound, top);
+    TU_CHECK(worst > 1e-6 && worst <= bound + 1e-12);
+    TU_CHECK(exact_diff == 0.0);
+    pb_bricks_destroy(b);
+    free(c);
+    pb_cotree_destroy(t);
+}
+
 /* Within the margin outside the lattice's box: the face's value (docs/probe-bricks.md step 1); beyond: none. */
 static void test_lattice_margin(void)
 {
@@ -393,6 +426,7 @@ int main(void)
     TU_RUN(test_continuous_across_brick_borders);
     TU_RUN(test_brick_cells_in_one_leaf);
     TU_RUN(test_pool_layout);
+    TU_RUN(test_quantised_weights_bound);
     TU_RUN(test_lattice_margin);
     TU_RUN(test_hostile_input);
     return TU_EXIT();

@@ -36,7 +36,7 @@
  *     64 unit cells (bit i + 4j + 16k, bits 0–31 in y, 32–63 in z: a leaf holds that min cell), w = 0.
  * Coordinates: engine space, metres, double; octree axes are the identity.
  * Not here yet (docs/probe-bricks.md "Implemented in the core"): dense v1/v2 grids, visibility texels
- * and records, back faces, quantised filter weights.
+ * and records, back faces.
  */
 #ifndef SCHNEE_PB_BRICKS_H
 #define SCHNEE_PB_BRICKS_H
@@ -48,46 +48,46 @@
 extern "C" {
 #endif
 
-#define PB_BRICK_TEXELS_AXIS 5u                    /* B: texels per axis of a brick */
-#define PB_BRICK_CELLS_AXIS  4u                    /* B − 1: cells per axis of a brick */
-#define PB_BRICK_TEXELS      125u                  /* B³ */
-#define PB_BRICKS_INDEX_BITS 27u                   /* indirection x: brick index bits, then the level */
-#define PB_BRICKS_MAX        (UINT32_C(1) << 27)   /* bricks one pool may hold */
-#define PB_BRICKS_NONE       UINT32_C(0xFFFFFFFF)  /* indirection x of a region without a brick */
-#define PB_BRICKS_MARGIN     0.01                  /* min cells: the lattice's and the faces' margin */
-#define PB_BRICKS_MAX_COEFFS 25u                   /* L4 */
-#define PB_BRICKS_DEFAULT_MAX_BYTES (UINT64_C(1) << 30) /* the build's memory cap when desc.max_bytes = 0 */
-#define PB_HALF_MAX          65504.0               /* the largest binary16 */
+#define PB_BRICK_TEXELS_AXIS        5u                   /* B: texels per axis of a brick */
+#define PB_BRICK_CELLS_AXIS         4u                   /* B − 1: cells per axis of a brick */
+#define PB_BRICK_TEXELS             125u                 /* B³ */
+#define PB_BRICKS_INDEX_BITS        27u                  /* indirection x: brick index bits, then the level */
+#define PB_BRICKS_MAX               (UINT32_C(1) << 27)  /* bricks one pool may hold */
+#define PB_BRICKS_NONE              UINT32_C(0xFFFFFFFF) /* indirection x of a region without a brick */
+#define PB_BRICKS_MARGIN            0.01                 /* min cells: the lattice's and the faces' margin */
+#define PB_BRICKS_MAX_COEFFS        25u                  /* L4 */
+#define PB_BRICKS_DEFAULT_MAX_BYTES (UINT64_C(1) << 30)  /* the build's memory cap when desc.max_bytes = 0 */
+#define PB_HALF_MAX                 65504.0              /* the largest binary16 */
 
 typedef struct pb_bricks pb_bricks;
 
 /* Zero-initialise; 0 / NULL fields take the defaults written beside them. */
 typedef struct pb_bricks_desc {
-    const pb_cotree *tree;  /* required: finalized (pb_cotree_finalize) */
-    uint32_t coeff_count;   /* required: SH coefficients per probe, (band + 1)²: 1, 4, 9, 16 or 25 */
-    const double *coeffs;   /* required: probe_count × coeff_count × 3 (probe-major, coeff, RGB), finite */
-    const float *validity;  /* NULL = every probe valid; else probe_count, a probe with validity <= 0 has m = 0 */
-    const float *scale;     /* NULL = 1; else probe_count finite scales (the file's probe_scale) */
-    uint64_t max_bytes;     /* 0 = PB_BRICKS_DEFAULT_MAX_BYTES: refuse (PB_ERROR_TOO_LARGE) past this */
+    const pb_cotree *tree; /* required: finalized (pb_cotree_finalize) */
+    uint32_t coeff_count;  /* required: SH coefficients per probe, (band + 1)²: 1, 4, 9, 16 or 25 */
+    const double *coeffs;  /* required: probe_count × coeff_count × 3 (probe-major, coeff, RGB), finite */
+    const float *validity; /* NULL = every probe valid; else probe_count, a probe with validity <= 0 has m = 0 */
+    const float *scale;    /* NULL = 1; else probe_count finite scales (the file's probe_scale) */
+    uint64_t max_bytes;    /* 0 = PB_BRICKS_DEFAULT_MAX_BYTES: refuse (PB_ERROR_TOO_LARGE) past this */
 } pb_bricks_desc;
 
 typedef struct pb_bricks_info {
-    double origin[3];               /* the lattice (the tree's frame) */
-    double min_cell;                /* h, metres */
-    uint32_t dims[3];               /* E, min cells */
-    uint32_t root_level;            /* R: the coarsest brick level the rule starts from */
-    uint32_t coeff_count;           /* C */
-    uint32_t channels;              /* 3C + 1 */
-    uint32_t groups;                /* RGBA textures: ceil(channels / 4) */
+    double origin[3];     /* the lattice (the tree's frame) */
+    double min_cell;      /* h, metres */
+    uint32_t dims[3];     /* E, min cells */
+    uint32_t root_level;  /* R: the coarsest brick level the rule starts from */
+    uint32_t coeff_count; /* C */
+    uint32_t channels;    /* 3C + 1 */
+    uint32_t groups;      /* RGBA textures: ceil(channels / 4) */
     uint32_t brick_count;
     uint32_t level_counts[PB_COTREE_MAX_LEVEL + 1]; /* bricks per level */
-    uint32_t pool_bricks[3];        /* the pool's grid of bricks */
-    uint32_t pool_texels[3];        /* 5 × pool_bricks: each channel texture's size */
-    uint32_t indirection_dims[3];   /* ceil(E / 4) */
-    uint64_t texel_count;           /* brick_count × 125 (used texels; the pool may hold a few more) */
-    uint64_t indirection_bytes;     /* 16 per entry */
-    uint64_t pool_bytes_f16;        /* every pool texel of every group, RGBA16F */
-    uint64_t pool_bytes_f32;        /* RGBA32F */
+    uint32_t pool_bricks[3];                        /* the pool's grid of bricks */
+    uint32_t pool_texels[3];                        /* 5 × pool_bricks: each channel texture's size */
+    uint32_t indirection_dims[3];                   /* ceil(E / 4) */
+    uint64_t texel_count;                           /* brick_count × 125 (used texels; the pool may hold a few more) */
+    uint64_t indirection_bytes;                     /* 16 per entry */
+    uint64_t pool_bytes_f16;                        /* every pool texel of every group, RGBA16F */
+    uint64_t pool_bytes_f32;                        /* RGBA32F */
 } pb_bricks_info;
 
 /* Builds the bricks (the layout above). Errors: NULL or unfinalized tree, coeff_count not a square in
@@ -106,14 +106,19 @@ void pb_bricks_get_info(const pb_bricks *bricks, pb_bricks_info *out);
  * (texel origin + 0.5 + x) / pool_texels). Unlike pb_interp_query_cotree, points within the margin
  * outside the lattice's box take the value on its face. */
 bool pb_bricks_locate(const pb_bricks *bricks, const double p[3], uint32_t *brick, double x[3]);
-/* Exact trilinear sample of the brick's channels at brick-local x in [0, 4]³: cell k0 = min(floor(x), 3),
- * fraction x − k0, the 8 texels of the cell weighted (step 4 with exact weights). out: `channels`
- * doubles in the channel order above. */
-void pb_bricks_filter(const pb_bricks *bricks, uint32_t brick, const double x[3], double *out);
-/* The field at engine-space point p: locate, filter, N / D. Returns whether the point has a value (a
- * brick, and D > 0; false also where every probe with weight is invalid, as the CPU's "no probe").
- * coeffs_out (optional): coeff_count × 3 doubles, N / D (0 without a value); d_out (optional): D. */
+/* Trilinear sample of the brick's channels at brick-local x in [0, 4]³: cell k0 = min(floor(x), 3),
+ * fraction f = x − k0, the 8 texels of the cell weighted (step 4). subtexel_bits 0 (or > 24): exact f;
+ * else f rounded to the nearest multiple of 2^−bits per axis (step 6, the filter's weight quantisation,
+ * e.g. 8 = subTexelPrecisionBits of desktop GPUs and lavapipe; the device's rounding mode and its fp32
+ * texture coordinate are not emulated). out: `channels` doubles in the channel order above. */
+void pb_bricks_filter(const pb_bricks *bricks, uint32_t brick, const double x[3], uint32_t subtexel_bits, double *out);
+/* The field at engine-space point p: locate, filter (exact), N / D. Returns whether the point has a
+ * value (a brick, and D > 0; false also where every probe with weight is invalid, as the CPU's "no
+ * probe"). coeffs_out (optional): coeff_count × 3 doubles, N / D (0 without a value); d_out (optional): D. */
 bool pb_bricks_sample(const pb_bricks *bricks, const double p[3], double *coeffs_out, double *d_out);
+/* pb_bricks_sample with quantised filter weights (pb_bricks_filter's subtexel_bits; 0 = exact). */
+bool pb_bricks_sample_bits(const pb_bricks *bricks, const double p[3], uint32_t subtexel_bits, double *coeffs_out,
+                           double *d_out);
 
 /* ---- arrays for an upload and for tests --------------------------------------------------------- */
 
