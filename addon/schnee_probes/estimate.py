@@ -3,7 +3,9 @@
 The panel and the dialog show :func:`grid_cell_bound` of the volumes' bounding boxes with
 :func:`estimate_seconds` of it; ``bake_core.ProbeBake.prepare`` logs the exact count after
 placement with its estimate, and refuses above ``probe_limit`` unless confirmed; the progress line
-refines the estimate with the measured times (``ProbeBake.remaining_seconds``). Both name the device
+refines the estimate with the measured times (``ProbeBake.remaining_seconds``). An Adaptive bake, whose
+points are known only pass by pass, estimates its time in all from :func:`adaptive_points` at the
+wall time per point it measures (``bake_plans.AdaptivePlan.forecast``). Both name the device
 that renders (:func:`device_note`); the model is the CPU's whatever the device (Render Device GPU:
 an upper estimate until the first probes are measured).
 """
