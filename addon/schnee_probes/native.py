@@ -20,7 +20,6 @@ See docs/python-api.md.
 from __future__ import annotations
 
 import os
-import sys
 from dataclasses import dataclass
 from typing import Callable, Optional, Sequence, Tuple
 
