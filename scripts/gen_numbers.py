@@ -129,7 +129,7 @@ def table_placement_defaults():
     (uniform grids, ≈)."""
     scenes = [
         ("bundled room", ROOM_DEFAULTS, "placement_room_defaults_uniform", room_defaults_alone_seconds()),
-        ("courtyard", "placement_courtyard_defaults", "placement_courtyard_defaults", None),
+        ("courtyard", "placement_courtyard_estimate", "placement_courtyard_defaults", None),
         ("hall, sun **Mixed**", "placement_hall_mixed_defaults", "placement_hall_mixed_defaults_uniform", None),
     ]
     grids = ("0.5", "0.75", "1")
