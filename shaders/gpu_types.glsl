@@ -35,6 +35,11 @@ layout(set = SV_SET_SCENE, binding = SV_BINDING_BRDF_LUT) uniform sampler2D brdf
 // directional light, one per spot light, six per point light (cube faces), sampled with a LESS_OR_EQUAL comparison (1 = lit); a
 // 1x1 layer when no light is shadowed.
 layout(set = SV_SET_SCENE, binding = SV_BINDING_SHADOW) uniform sampler2DArrayShadow shadow_tex;
+// Probe bricks (docs/probe-bricks.md, --probe-path bricks): the pool of N/D texels (linear filter, clamp
+// to edge; one slab of z per channel group) and the RGBA32UI indirection (read with texelFetch). 1x1x1
+// stand-ins when the bricks are off.
+layout(set = SV_SET_SCENE, binding = SV_BINDING_BRICK_POOL) uniform sampler3D brick_pool;
+layout(set = SV_SET_SCENE, binding = SV_BINDING_BRICK_INDEX) uniform usampler3D brick_index;
 // Set 1: the draw's material textures (a 1x1 white texel when the material has none).
 layout(set = SV_SET_MATERIAL, binding = SV_BINDING_BASE_COLOR_TEX) uniform sampler2D base_color_tex;
 layout(set = SV_SET_MATERIAL, binding = SV_BINDING_EMISSIVE_TEX) uniform sampler2D emissive_tex;

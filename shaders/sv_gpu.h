@@ -68,7 +68,9 @@
 #define SV_BINDING_BRDF_LUT    10 /* sampler2D: split-sum BRDF LUT */
 #define SV_BINDING_CUBES_HALF  11 /* SSBO sv_gpu_cube_half[] (ambient cubes, half storage) */
 #define SV_BINDING_SHADOW      12 /* sampler2DArrayShadow: shadow maps, one layer per sun/spot, six per point */
-#define SV_SCENE_BINDING_COUNT 13 /* bindings in set 0 */
+#define SV_BINDING_BRICK_POOL  13 /* sampler3D: probe-brick pool, RGBA16F/32F, linear (--probe-path bricks) */
+#define SV_BINDING_BRICK_INDEX 14 /* usampler3D: probe-brick indirection, RGBA32UI, nearest (texelFetch) */
+#define SV_SCENE_BINDING_COUNT 15 /* bindings in set 0 */
 /* Set 1 (per material). */
 #define SV_SET_MATERIAL           1
 #define SV_BINDING_BASE_COLOR_TEX 0
@@ -125,6 +127,8 @@
 #define SV_GRID_KDTREE                                                                                                 \
     8u /* with SV_GRID_OCTREE: a kd corner tree (.shprobe v4 structure 3): leaf int 3 holds the packed
           levels lx | ly << 8 | lz << 16, leaves are found by descending the file's split tree (tree) */
+#define SV_GRID_BRICKS                                                                                                 \
+    16u /* with SV_GRID_OCTREE: the grid's field is in the brick pool (--probe-path bricks; sv_gpu_grid.bricks) */
 /* Ints per octree leaf in the cell buffer: x, y, z (lattice min corner), level (kd tree: the packed levels),
  * blocked (1 when its visibility field's table holds a surface, else 0: the field is then 1 everywhere),
  * 3 reserved (0), then the 8 corner nodes (corner bit 0 = +x, 1 = +y, 2 = +z; node = probe-buffer index
@@ -136,10 +140,11 @@
 #define SV_VIS_RAMP      0.25 /* = PB_VIS_RAMP of pb_interp.h (tests/engine/test_engine_v3.py compares the two) */
 
 /* Frame flags (sv_gpu_frame.flags). */
-#define SV_FRAME_NO_DIRECT   1u /* skip KHR_lights_punctual direct light */
-#define SV_FRAME_SKY         2u /* a sky is loaded: background + image-based specular */
-#define SV_FRAME_NO_SPECULAR 4u /* no specular: the sky's reflections and the lights' lobe (--no-specular) */
-#define SV_FRAME_NO_RENORM   8u /* do not scale sky specular by probe / sky irradiance */
+#define SV_FRAME_NO_DIRECT   1u  /* skip KHR_lights_punctual direct light */
+#define SV_FRAME_SKY         2u  /* a sky is loaded: background + image-based specular */
+#define SV_FRAME_NO_SPECULAR 4u  /* no specular: the sky's reflections and the lights' lobe (--no-specular) */
+#define SV_FRAME_NO_RENORM   8u  /* do not scale sky specular by probe / sky irradiance */
+#define SV_FRAME_BRICKS      16u /* --probe-path bricks: grids with SV_GRID_BRICKS are sampled from the bricks */
 
 /* VULKAN_SCHNEE_light.mode on the GPU (sv_gpu_light.spot.z, as a float). */
 #define SV_LIGHT_REALTIME 0u /* "realtime" or no extension: direct term always */
@@ -295,9 +300,14 @@ SV_STRUCT(sv_gpu_grid)
     SV_UVEC4(tree);          /* kd tree (SV_GRID_KDTREE): x = offset of split-tree node 0 in the cell buffer
                                 (the file's nodes as stored), y = root level R, z, w = root cells along
                                 x and y (ceil(dims / 2^R)); 0 otherwise */
+    SV_UVEC4(bricks);        /* SV_GRID_BRICKS (docs/probe-bricks.md, docs/engine.md "Probe bricks"): x = z offset
+                                of the grid's entries in the indirection texture, y = its pool's bricks along
+                                x | along y << 16 (brick b at 5 (b mod px, (b / px) mod py, b / (px py))), z = z
+                                offset of its bricks in each channel group's slab of the pool, w = SH coefficients
+                                C | the slab's depth in texels << 8 (group g at z + g * slab); 0 otherwise */
 }
 SV_END(sv_gpu_grid)
-SV_SIZE_CHECK(sv_gpu_grid, 112)
+SV_SIZE_CHECK(sv_gpu_grid, 128)
 /* Cell buffer (SV_BINDING_CELL_INDEX): int32 per cell, x + y*X + z*X*Y from dims.w on, the grid's
  * own probe index or -1 (the .shprobe occupancy grid as stored), then the visibility masks. */
 

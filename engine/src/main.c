@@ -38,6 +38,9 @@ static void usage(FILE *f)
         "                           material = each material's VULKAN_SCHNEE_materials.probeRepresentation,\n"
         "                           itself default sh); ambientCube = the cube fitted to each probe's SH\n"
         "  --probe-storage float|half  GPU storage of the SH coefficients and ambient cubes (default float)\n"
+        "  --probe-path buffers|bricks  per-pixel probe lighting from the storage buffers (default; the leaf search,\n"
+        "                           back faces, visibility) or from probe bricks in 3D textures, hardware-filtered\n"
+        "                           (octree and kd-tree grids; no back-face weight, no visibility yet: docs/engine.md)\n"
         "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
         "  --shadow-res N           texels per side of each shadow map layer of a mixed/realtime light (a sun:\n"
         "                           one per cascade, a spot: one, a point light: six; default %u; at most %u;\n"
@@ -100,7 +103,7 @@ static const struct {
     {"--look", 6},           {"--write-brdf-lut", 1},
     {"--write-sky-mips", 1}, {"--fallback-radiance", 1},
     {"--move", 4},           {"--frames", 1},
-    {"--screenshot", 1},
+    {"--screenshot", 1},     {"--probe-path", 1},
 };
 
 /* The values option `a` takes, 0 when it takes none or is not an option. */
@@ -171,6 +174,9 @@ static int parse_choice(const char *a, const char *v, sv_options *o)
     } else if (strcmp(a, "--probe-storage") == 0) {
         if (strcmp(v, "float") != 0 && strcmp(v, "half") != 0) return bad_value(a, v);
         o->half_probes = strcmp(v, "half") == 0;
+    } else if (strcmp(a, "--probe-path") == 0) {
+        if (strcmp(v, "buffers") != 0 && strcmp(v, "bricks") != 0) return bad_value(a, v);
+        o->bricks = strcmp(v, "bricks") == 0;
     } else {
         return -1;
     }

@@ -118,6 +118,7 @@ sv_renderer_desc sv_app_renderer_desc(const sv_options *opt, const sv_sky *sky)
     sv_renderer_desc d = SV_RENDERER_DESC_DEFAULT;
     d.fallback_radiance = opt->fallback_radiance;
     d.half_probes = opt->half_probes;
+    d.bricks = opt->bricks;
     d.shadow_res = opt->shadow_res;
     d.shadow_cascades = opt->shadow_cascades;
     d.cube_probes = opt->probe_representation == SV_PROBE_REP_AMBIENT_CUBE;

@@ -44,7 +44,7 @@ static const uint32_t shadow_vert_spv[] =
 
 /* ---- samplers and descriptors --------------------------------------------------------------- */
 
-/* Set 0: the first 10 are buffers (in the order of scene_buffers() below), the last 3 images. */
+/* Set 0: the first 10 are buffers (in the order of scene_buffers() below), the last 5 images. */
 enum { SCENE_BUFFERS = 10 };
 #define SV_VF (VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT)
 static const VkDescriptorSetLayoutBinding scene_bindings[SV_SCENE_BINDING_COUNT] = {
@@ -61,6 +61,8 @@ static const VkDescriptorSetLayoutBinding scene_bindings[SV_SCENE_BINDING_COUNT]
     {SV_BINDING_SKY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     {SV_BINDING_BRDF_LUT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     {SV_BINDING_SHADOW, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+    {SV_BINDING_BRICK_POOL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+    {SV_BINDING_BRICK_INDEX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
 };
 /* Set 1, per material: separate sets rather than a sampler array, since lavapipe (and Vulkan 1.0 in
  * general) need not support dynamically indexed sampler arrays. */
@@ -110,7 +112,7 @@ static bool create_sets(sv_renderer *r)
     VkDescriptorPoolSize sizes[] = {
         {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
         {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 9},
-        {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2 * r->material_count + 4},
+        {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2 * r->material_count + 6},
     };
     VkDescriptorPoolCreateInfo pi = {
         .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
@@ -177,10 +179,12 @@ static void write_scene_set(sv_renderer *r)
         {r->cell_index.buffer, 0, VK_WHOLE_SIZE}, {r->probes_half.buffer, 0, VK_WHOLE_SIZE},
         {r->cubes.buffer, 0, VK_WHOLE_SIZE},      {r->cubes_half.buffer, 0, VK_WHOLE_SIZE},
     };
-    VkDescriptorImageInfo imgs[3] = {
+    VkDescriptorImageInfo imgs[SV_SCENE_BINDING_COUNT - SCENE_BUFFERS] = {
         {r->sky_sampler, r->sky.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
         {r->lut_sampler, r->brdf_lut.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
         {r->shadow_sampler, r->shadow.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+        {r->brick_sampler, r->brick_pool.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+        {r->brick_index_sampler, r->brick_index.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
     };
     VkWriteDescriptorSet w[SV_SCENE_BINDING_COUNT];
     for (uint32_t i = 0; i < SV_SCENE_BINDING_COUNT; ++i)

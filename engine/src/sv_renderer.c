@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sv_bricks.h"
 #include "sv_math.h"
 #include "sv_pipelines.h"
 #include "sv_shadows.h"
@@ -170,7 +171,7 @@ static void fill_frame(const sv_renderer *r, const sv_scene *scene, const sv_vie
     frame->camera_pos[3] = r->has_sky ? (float)r->sky.mip_levels : 0.0f;
     frame->light_count = r->light_count;
     frame->debug_mode = view->debug_mode;
-    frame->flags = view->flags | (r->has_sky ? SV_FRAME_SKY : 0u);
+    frame->flags = view->flags | (r->has_sky ? SV_FRAME_SKY : 0u) | (r->bricks ? SV_FRAME_BRICKS : 0u);
     frame->probe_count = r->probe_count;
     frame->grid_count = r->grid_count;
     frame->probe_mode = view->probe_mode;
@@ -375,6 +376,7 @@ void sv_renderer_destroy(sv_renderer *r)
     if (r->timestamps) vkDestroyQueryPool(dev, r->timestamps, NULL);
     sv_pipelines_destroy(r);
     sv_shadows_destroy(r);
+    sv_bricks_destroy(r);
     sv_image_destroy(ctx, &r->sky);
     sv_image_destroy(ctx, &r->brdf_lut);
     for (uint32_t i = 0; i < r->texture_count; ++i) sv_image_destroy(ctx, &r->textures[i]);

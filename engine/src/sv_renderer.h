@@ -53,6 +53,8 @@ typedef struct sv_renderer_desc {
     uint32_t shadow_cascades; /* layers (cascades) per shadowed directional light, 1..SV_MAX_SHADOW_CASCADES
                                  (--shadow-cascades, default SV_SHADOW_DEFAULT_CASCADES; 0 selects it); 1 = one
                                  map over the whole scene bounds */
+    bool bricks;              /* --probe-path bricks: corner/kd tree grids also resampled into probe bricks
+                                 (3D textures, sv_bricks.h) that per-pixel shading samples */
 } sv_renderer_desc;
 #define SV_SHADOW_DEFAULT_RES 2048u
 #define SV_SHADOW_MAX_RES     8192u
@@ -97,6 +99,12 @@ typedef struct sv_renderer {
     bool slot_clamp_warned;      /* a half-storage slot was clamped to the half range (warned once) */
     sv_image sky, brdf_lut;      /* prefiltered equirect mips (1x1 black without a sky), split-sum LUT */
     VkSampler sky_sampler, lut_sampler;
+
+    /* Probe bricks (sv_bricks.h, --probe-path bricks): the pool (one slab of z per channel group) and the
+     * indirection; 1x1x1 stand-ins when off. */
+    sv_image brick_pool, brick_index;
+    VkSampler brick_sampler, brick_index_sampler; /* linear / nearest, clamp to edge */
+    bool bricks;                                  /* the bricks are uploaded: SV_FRAME_BRICKS */
 
     sv_image *textures; /* per glTF texture (image NULL when it could not be read) */
     uint32_t texture_count;

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "schnee/pb_image.h"
+#include "sv_bricks.h"
 #include "sv_shadows.h"
 
 static void fail_msg(const char *what) { fprintf(stderr, "schnee-view: error: %s\n", what); }
@@ -163,8 +164,8 @@ bool sv_upload_materials(sv_renderer *r, const sv_gltf *g, const sv_ext *ext)
 
 /* Copies `regions` of a filled staging buffer into `out` (all its levels go UNDEFINED → transfer
  * → shader-read), blocking, then frees the staging buffer. Shared by every sampled-image upload. */
-static bool copy_staging_to_image(sv_renderer *r, sv_buffer *staging, sv_image *out, const VkBufferImageCopy *regions,
-                                  uint32_t count)
+bool sv_upload_staging_to_image(sv_renderer *r, sv_buffer *staging, sv_image *out, const VkBufferImageCopy *regions,
+                                uint32_t count)
 {
     VkCommandBuffer cmd = sv_begin_one_shot(r->ctx);
     bool ok = cmd != VK_NULL_HANDLE;
@@ -197,7 +198,7 @@ static bool upload_rgba8(sv_renderer *r, const uint8_t *pixels, uint32_t w, uint
         .imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
         .imageExtent = {w, h, 1},
     };
-    return copy_staging_to_image(r, &staging, out, &region, 1);
+    return sv_upload_staging_to_image(r, &staging, out, &region, 1);
 }
 
 /* Reads a glTF image through the core's image layer (the same checks and limits either way): a file
@@ -393,7 +394,10 @@ static bool create_probe_buffers(sv_renderer *r, const sv_probes *probes, const 
 bool sv_upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, const sv_renderer_desc *desc)
 {
     probe_pack k = {0};
-    bool ok = pack_probes(scene, probes, desc, &k) && create_probe_buffers(r, probes, &k);
+    bool ok = pack_probes(scene, probes, desc, &k);
+    r->half_probes = k.half;
+    /* The bricks (--probe-path bricks) mark their grids' records before the grid buffer is made. */
+    ok = ok && sv_bricks_upload(r, probes, k.grids, desc->bricks) && create_probe_buffers(r, probes, &k);
     r->probe_count = k.count;
     r->grid_count = probes->grid_count;
     r->probes_src = probes;
@@ -445,7 +449,7 @@ static bool upload_float_image(sv_renderer *r, VkFormat format, uint32_t texel_b
         };
         off += bytes;
     }
-    return copy_staging_to_image(r, &staging, out, regions, count);
+    return sv_upload_staging_to_image(r, &staging, out, regions, count);
 }
 
 /* Sky mips (or a 1x1 black stand-in) and the BRDF LUT (always: the binding must hold an image). */

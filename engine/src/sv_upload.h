@@ -27,6 +27,11 @@ bool sv_upload_lights(sv_renderer *r, const sv_gltf *g, const sv_ext *ext, uint3
 bool sv_upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, const sv_renderer_desc *desc);
 bool sv_upload_sky(sv_renderer *r, const sv_sky *sky);
 
+/* Copies `regions` of a filled staging buffer into `out` (UNDEFINED -> transfer -> shader read), blocking,
+ * then frees the staging buffer. */
+bool sv_upload_staging_to_image(sv_renderer *r, sv_buffer *staging, sv_image *out, const VkBufferImageCopy *regions,
+                                uint32_t count);
+
 /* The glTF texture a material's texture reference samples, or -1 (none, or a texture without an image). */
 int32_t sv_texture_slot(const sv_gltf *g, const sv_gltf_texture_ref *ref);
 

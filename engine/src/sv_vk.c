@@ -338,15 +338,17 @@ bool sv_image_create_mips(sv_context *ctx, uint32_t width, uint32_t height, uint
     return sv_image_create_layers(ctx, width, height, mip_levels, 0, format, usage, aspect, out);
 }
 
-bool sv_image_create_layers(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, uint32_t layers,
-                            VkFormat format, VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out)
+/* A 2D image (depth 0) with its 2D or 2D-array view, or a 3D image (depth > 0, one level and layer). */
+static bool image_create(sv_context *ctx, uint32_t width, uint32_t height, uint32_t depth, uint32_t mip_levels,
+                         uint32_t layers, VkFormat format, VkImageUsageFlags usage, VkImageAspectFlags aspect,
+                         sv_image *out)
 {
     memset(out, 0, sizeof(*out));
     VkImageCreateInfo info = {
         .sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO,
-        .imageType = VK_IMAGE_TYPE_2D,
+        .imageType = depth ? VK_IMAGE_TYPE_3D : VK_IMAGE_TYPE_2D,
         .format = format,
-        .extent = {width, height, 1},
+        .extent = {width, height, depth ? depth : 1},
         .mipLevels = mip_levels,
         .arrayLayers = layers ? layers : 1,
         .samples = VK_SAMPLE_COUNT_1_BIT,
@@ -366,7 +368,9 @@ bool sv_image_create_layers(sv_context *ctx, uint32_t width, uint32_t height, ui
     VkImageViewCreateInfo view = {
         .sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO,
         .image = out->image,
-        .viewType = layers ? VK_IMAGE_VIEW_TYPE_2D_ARRAY : VK_IMAGE_VIEW_TYPE_2D,
+        .viewType = depth    ? VK_IMAGE_VIEW_TYPE_3D
+                    : layers ? VK_IMAGE_VIEW_TYPE_2D_ARRAY
+                             : VK_IMAGE_VIEW_TYPE_2D,
         .format = format,
         .subresourceRange = {aspect, 0, mip_levels, 0, layers ? layers : 1},
     };
@@ -379,6 +383,18 @@ bool sv_image_create_layers(sv_context *ctx, uint32_t width, uint32_t height, ui
 fail:
     sv_image_destroy(ctx, out);
     return false;
+}
+
+bool sv_image_create_layers(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, uint32_t layers,
+                            VkFormat format, VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out)
+{
+    return image_create(ctx, width, height, 0, mip_levels, layers, format, usage, aspect, out);
+}
+
+bool sv_image_create_3d(sv_context *ctx, uint32_t width, uint32_t height, uint32_t depth, VkFormat format,
+                        VkImageUsageFlags usage, sv_image *out)
+{
+    return image_create(ctx, width, height, depth ? depth : 1, 1, 0, format, usage, VK_IMAGE_ASPECT_COLOR_BIT, out);
 }
 
 void sv_image_destroy(sv_context *ctx, sv_image *img)

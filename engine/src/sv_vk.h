@@ -90,6 +90,9 @@ bool sv_image_create_mips(sv_context *ctx, uint32_t width, uint32_t height, uint
  * plain 2D view (sv_image_create_mips). */
 bool sv_image_create_layers(sv_context *ctx, uint32_t width, uint32_t height, uint32_t mip_levels, uint32_t layers,
                             VkFormat format, VkImageUsageFlags usage, VkImageAspectFlags aspect, sv_image *out);
+/* A 3D colour image of width x height x depth texels, one level, with a 3D view. */
+bool sv_image_create_3d(sv_context *ctx, uint32_t width, uint32_t height, uint32_t depth, VkFormat format,
+                        VkImageUsageFlags usage, sv_image *out);
 void sv_image_destroy(sv_context *ctx, sv_image *img);
 
 /* One-shot command buffer: begin, (record), end + submit + wait. */

@@ -1,0 +1,296 @@
+/* Probe bricks in the engine (see sv_bricks.h): build each tree grid's bricks with the core's pb_bricks,
+ * lay the grids' pools and indirection grids side by side along z, upload both as 3D textures. */
+#include "sv_bricks.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "schnee/pb_bricks.h"
+#include "schnee/pb_sh.h"
+#include "sv_upload.h"
+
+/* Every grid's bricks (NULL where not bricked) and the combined textures' sizes. */
+typedef struct brick_set {
+    pb_bricks **b;
+    pb_bricks_info *info;
+    uint32_t pool[3];  /* pool texels: x, y, groups * slab */
+    uint32_t slab;     /* z texels of one channel group (every grid's pool depth, summed) */
+    uint32_t groups;   /* channel groups of the grid with the most coefficients */
+    uint32_t index[3]; /* indirection texels */
+    uint64_t probes;   /* file probes of the bricked grids */
+    bool f32;          /* the pool in RGBA32F (a texel beyond the half range) */
+} brick_set;
+
+static bool brickable(const sv_probe_grid *gr)
+{
+    return gr->tree && gr->file->representation != PB_SHPROBE_AMBIENT_CUBE;
+}
+
+/* pb_bricks_build on the file's coefficients (float64 copies), validity and scale. */
+static bool build_grid(const sv_probe_grid *gr, uint32_t g, pb_bricks **out)
+{
+    const pb_shprobe *f = gr->file;
+    uint32_t nc = pb_sh_count(f->max_band);
+    size_t n = (size_t)f->probe_count * nc * 3u;
+    double *c = malloc((n ? n : 1) * sizeof(double));
+    if (!c) {
+        fprintf(stderr, "schnee-view: error: --probe-path bricks: out of memory for shProbeGrids[%u]\n", g);
+        return false;
+    }
+    for (size_t i = 0; i < n; ++i) c[i] = f->coeffs[i];
+    pb_bricks_desc d = {
+        .tree = gr->tree, .coeff_count = nc, .coeffs = c, .validity = f->validity, .scale = f->probe_scale};
+    pb_error err = {0};
+    pb_result rc = pb_bricks_build(&d, out, &err);
+    free(c);
+    if (rc == PB_SUCCESS) return true;
+    fprintf(stderr, "schnee-view: error: --probe-path bricks: shProbeGrids[%u] '%s': %s\n", g, gr->name,
+            err.message[0] ? err.message : pb_result_string(rc));
+    return false;
+}
+
+static uint32_t max_u32(uint32_t a, uint32_t b) { return a > b ? a : b; }
+
+/* The combined layout and each bricked grid's record (SV_GRID_BRICKS, sv_gpu_grid.bricks). */
+static void plan(const sv_probes *probes, brick_set *s, sv_gpu_grid *grids)
+{
+    for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        if (!s->b[g]) continue;
+        const pb_bricks_info *in = &s->info[g];
+        sv_gpu_grid *d = &grids[g];
+        d->base[2] |= SV_GRID_BRICKS;
+        d->bricks[0] = s->index[2];
+        d->bricks[1] = in->pool_bricks[0] | in->pool_bricks[1] << 16;
+        d->bricks[2] = s->slab;
+        d->bricks[3] = in->coeff_count;
+        s->pool[0] = max_u32(s->pool[0], in->pool_texels[0]);
+        s->pool[1] = max_u32(s->pool[1], in->pool_texels[1]);
+        s->slab += in->pool_texels[2];
+        s->groups = max_u32(s->groups, in->groups);
+        s->index[0] = max_u32(s->index[0], in->indirection_dims[0]);
+        s->index[1] = max_u32(s->index[1], in->indirection_dims[1]);
+        s->index[2] += in->indirection_dims[2];
+        s->probes += probes->grids[g].file->probe_count;
+    }
+    s->pool[2] = s->groups * s->slab;
+    for (uint32_t g = 0; g < probes->grid_count; ++g)
+        if (s->b[g]) grids[g].bricks[3] |= s->slab << 8;
+}
+
+/* The device takes 3D images of these sizes in these formats, sampled (the pool: with linear filtering). */
+static bool fits_device(sv_renderer *r, const brick_set *s, VkFormat pool_format)
+{
+    uint32_t lim = r->ctx->properties.limits.maxImageDimension3D;
+    const uint32_t *dims[2] = {s->pool, s->index};
+    const char *what[2] = {"brick pool", "brick indirection"};
+    VkFormat fmts[2] = {pool_format, VK_FORMAT_R32G32B32A32_UINT};
+    for (int k = 0; k < 2; ++k) {
+        VkImageFormatProperties ip;
+        VkResult res = vkGetPhysicalDeviceImageFormatProperties(
+            r->ctx->physical, fmts[k], VK_IMAGE_TYPE_3D, VK_IMAGE_TILING_OPTIMAL,
+            VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, 0, &ip);
+        uint32_t mx = res == VK_SUCCESS ? ip.maxExtent.width : 0;
+        if (dims[k][0] > lim || dims[k][1] > lim || dims[k][2] > lim || res != VK_SUCCESS ||
+            dims[k][0] > ip.maxExtent.width || dims[k][1] > ip.maxExtent.height || dims[k][2] > ip.maxExtent.depth) {
+            fprintf(stderr,
+                    "schnee-view: error: --probe-path bricks: the %s needs a %u x %u x %u 3D texture, beyond the "
+                    "device's limit (maxImageDimension3D %u, format extent %u); use --probe-path buffers\n",
+                    what[k], dims[k][0], dims[k][1], dims[k][2], lim, mx);
+            return false;
+        }
+    }
+    VkFormatProperties fp;
+    vkGetPhysicalDeviceFormatProperties(r->ctx->physical, pool_format, &fp);
+    if (!(fp.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT)) {
+        fprintf(stderr,
+                "schnee-view: error: --probe-path bricks: the device cannot filter %s 3D textures linearly; "
+                "use --probe-path buffers\n",
+                pool_format == VK_FORMAT_R32G32B32A32_SFLOAT ? "RGBA32F" : "RGBA16F");
+        return false;
+    }
+    return true;
+}
+
+/* Grid g's pool (pb_bricks_pool_f16/_f32: groups, z, y, x, RGBA) into the combined pool at its slab offset. */
+static bool copy_pool(const brick_set *s, uint32_t g, uint32_t zoff, uint8_t *out, bool *overflow)
+{
+    const pb_bricks_info *in = &s->info[g];
+    size_t elem = s->f32 ? 4 : 2, px = in->pool_texels[0], py = in->pool_texels[1], pz = in->pool_texels[2];
+    uint64_t cap = (uint64_t)in->groups * px * py * pz * 4u;
+    uint8_t *tmp = malloc((size_t)cap * elem);
+    if (!tmp) return false;
+    pb_error err = {0};
+    pb_result rc = s->f32 ? pb_bricks_pool_f32(s->b[g], (float *)tmp, cap, &err)
+                          : pb_bricks_pool_f16(s->b[g], (uint16_t *)tmp, cap, &err);
+    *overflow = rc == PB_ERROR_TOO_LARGE;
+    for (size_t grp = 0; rc == PB_SUCCESS && grp < in->groups; ++grp)
+        for (size_t z = 0; z < pz; ++z)
+            for (size_t y = 0; y < py; ++y) {
+                size_t src = ((grp * pz + z) * py + y) * px * 4u;
+                size_t dz = grp * s->slab + zoff + z, dst = ((dz * s->pool[1] + y) * s->pool[0]) * 4u;
+                memcpy(out + dst * elem, tmp + src * elem, px * 4u * elem);
+            }
+    free(tmp);
+    return rc == PB_SUCCESS;
+}
+
+/* The combined pool in RGBA16F, or RGBA32F (s->f32 set) when some texel exceeds the half range. */
+static void *fill_pool(const sv_probes *probes, brick_set *s, size_t *bytes)
+{
+    for (int pass = 0; pass < 2; ++pass) {
+        size_t elem = s->f32 ? 4 : 2;
+        *bytes = (size_t)s->pool[0] * s->pool[1] * s->pool[2] * 4u * elem;
+        uint8_t *out = calloc(*bytes ? *bytes : 1, 1);
+        if (!out) return NULL;
+        bool ok = true, overflow = false;
+        uint32_t zoff = 0;
+        for (uint32_t g = 0; ok && g < probes->grid_count; ++g) {
+            if (!s->b[g]) continue;
+            ok = copy_pool(s, g, zoff, out, &overflow);
+            zoff += s->info[g].pool_texels[2];
+        }
+        if (ok) return out;
+        free(out);
+        if (!overflow || s->f32) return NULL;
+        fprintf(stderr, "schnee-view: warning: --probe-path bricks: a brick texel exceeds the half-float range; "
+                        "the pool is RGBA32F\n");
+        s->f32 = true;
+    }
+    return NULL;
+}
+
+/* The combined indirection: each grid's entries at its z offset, PB_BRICKS_NONE elsewhere. */
+static uint32_t *fill_index(const sv_probes *probes, const brick_set *s, size_t *bytes)
+{
+    size_t n = (size_t)s->index[0] * s->index[1] * s->index[2];
+    *bytes = n * 16u;
+    uint32_t *out = calloc(n ? 4 * n : 4, sizeof(uint32_t));
+    if (!out) return NULL;
+    for (size_t i = 0; i < n; ++i) out[4 * i] = PB_BRICKS_NONE;
+    uint32_t zoff = 0;
+    for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        if (!s->b[g]) continue;
+        const uint32_t *src = pb_bricks_indirection(s->b[g]), *d = s->info[g].indirection_dims;
+        for (size_t z = 0; z < d[2]; ++z)
+            for (size_t y = 0; y < d[1]; ++y)
+                memcpy(out + (((zoff + z) * s->index[1] + y) * s->index[0]) * 4u, src + ((z * d[1] + y) * d[0]) * 4u,
+                       (size_t)d[0] * 16u);
+        zoff += d[2];
+    }
+    return out;
+}
+
+/* A sampled 3D image of dims filled from `data` (blocking). */
+static bool upload_3d(sv_renderer *r, const uint32_t dims[3], VkFormat format, const void *data, size_t bytes,
+                      sv_image *out)
+{
+    if (!sv_image_create_3d(r->ctx, dims[0], dims[1], dims[2], format,
+                            VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, out))
+        return false;
+    sv_buffer staging;
+    if (!sv_buffer_create(r->ctx, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true, &staging)) return false;
+    memcpy(staging.mapped, data, bytes);
+    VkBufferImageCopy region = {
+        .imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
+        .imageExtent = {dims[0], dims[1], dims[2]},
+    };
+    return sv_upload_staging_to_image(r, &staging, out, &region, 1);
+}
+
+/* The storage buffers the same grids take on the default path: their entries (probes and hanging
+ * nodes), their leaves with visibility tables, the kd trees' split nodes. */
+static uint64_t buffer_bytes(const sv_renderer *r, const sv_probes *probes, const brick_set *s)
+{
+    uint64_t bytes = 0;
+    for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        if (!s->b[g]) continue;
+        const pb_shprobe *f = probes->grids[g].file;
+        bytes +=
+            (uint64_t)probes->grids[g].entries * (r->half_probes ? sizeof(sv_gpu_probe_half) : sizeof(sv_gpu_probe));
+        bytes += (uint64_t)f->element_count * (SV_LEAF_INTS + SV_LEAF_VIS_INTS) * 4u;
+        if (f->structure == PB_SHPROBE_KDTREE) bytes += (uint64_t)f->split_node_count * 4u;
+    }
+    return bytes;
+}
+
+static void report(const sv_renderer *r, const sv_probes *probes, const brick_set *s, size_t pool_bytes,
+                   size_t index_bytes)
+{
+    uint64_t bricks = 0, texels = 0;
+    for (uint32_t g = 0; g < probes->grid_count; ++g)
+        if (s->b[g]) bricks += s->info[g].brick_count, texels += s->info[g].texel_count;
+    double per = s->probes ? 1.0 / (double)s->probes : 0.0, buf = (double)buffer_bytes(r, probes, s);
+    fprintf(stderr,
+            "schnee-view: probe bricks: %llu bricks (%llu texels) of %llu probes; pool %u x %u x %u %s (%u groups), "
+            "%zu B; indirection %u x %u x %u, %zu B; GPU memory %.1f B per probe (storage buffers, %s: %.1f B per "
+            "probe)\n",
+            (unsigned long long)bricks, (unsigned long long)texels, (unsigned long long)s->probes, s->pool[0],
+            s->pool[1], s->pool[2], s->f32 ? "RGBA32F" : "RGBA16F", s->groups, pool_bytes, s->index[0], s->index[1],
+            s->index[2], index_bytes, (double)(pool_bytes + index_bytes) * per, r->half_probes ? "half" : "float",
+            buf * per);
+}
+
+/* Builds every bricked grid's bricks, plans, checks and uploads the pool and the indirection. */
+static bool upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s, sv_gpu_grid *grids)
+{
+    bool any = false;
+    for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        if (!brickable(&probes->grids[g])) continue;
+        if (!build_grid(&probes->grids[g], g, &s->b[g])) return false;
+        pb_bricks_get_info(s->b[g], &s->info[g]);
+        any = true;
+    }
+    if (!any) return true; /* no tree grid: the stand-ins stay bound, every grid takes the buffers */
+    plan(probes, s, grids);
+    size_t pool_bytes = 0, index_bytes = 0;
+    void *pool = fill_pool(probes, s, &pool_bytes);
+    uint32_t *index = pool ? fill_index(probes, s, &index_bytes) : NULL;
+    VkFormat pf = s->f32 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R16G16B16A16_SFLOAT;
+    bool ok = pool && index && fits_device(r, s, pf);
+    if (!pool || !index) fprintf(stderr, "schnee-view: error: --probe-path bricks: out of memory for the pool\n");
+    if (ok) {
+        sv_image_destroy(r->ctx, &r->brick_pool);
+        sv_image_destroy(r->ctx, &r->brick_index);
+        ok = upload_3d(r, s->pool, pf, pool, pool_bytes, &r->brick_pool) &&
+             upload_3d(r, s->index, VK_FORMAT_R32G32B32A32_UINT, index, index_bytes, &r->brick_index);
+    }
+    if (ok) report(r, probes, s, pool_bytes, index_bytes);
+    r->bricks = ok;
+    free(pool);
+    free(index);
+    return ok;
+}
+
+bool sv_bricks_upload(sv_renderer *r, const sv_probes *probes, sv_gpu_grid *grids, bool enabled)
+{
+    VkSamplerCreateInfo si = sv_sampler_info(VK_FILTER_LINEAR, VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE);
+    VK_CHECK(vkCreateSampler(r->ctx->device, &si, NULL, &r->brick_sampler));
+    si = sv_sampler_info(VK_FILTER_NEAREST, VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE);
+    VK_CHECK(vkCreateSampler(r->ctx->device, &si, NULL, &r->brick_index_sampler));
+    static const uint16_t zero_half[4] = {0, 0, 0, 0};
+    static const uint32_t no_brick[4] = {PB_BRICKS_NONE, 0, 0, 0};
+    const uint32_t one[3] = {1, 1, 1};
+    if (!upload_3d(r, one, VK_FORMAT_R16G16B16A16_SFLOAT, zero_half, sizeof zero_half, &r->brick_pool) ||
+        !upload_3d(r, one, VK_FORMAT_R32G32B32A32_UINT, no_brick, sizeof no_brick, &r->brick_index))
+        return false;
+    if (!enabled || !probes->grid_count) return true;
+    brick_set s = {0};
+    s.b = calloc(probes->grid_count, sizeof *s.b);
+    s.info = calloc(probes->grid_count, sizeof *s.info);
+    bool ok = s.b && s.info && upload_bricks(r, probes, &s, grids);
+    for (uint32_t g = 0; s.b && g < probes->grid_count; ++g) pb_bricks_destroy(s.b[g]);
+    free(s.b);
+    free(s.info);
+    return ok;
+fail:
+    return false;
+}
+
+void sv_bricks_destroy(sv_renderer *r)
+{
+    sv_image_destroy(r->ctx, &r->brick_pool);
+    sv_image_destroy(r->ctx, &r->brick_index);
+    if (r->brick_sampler) vkDestroySampler(r->ctx->device, r->brick_sampler, NULL);
+    if (r->brick_index_sampler) vkDestroySampler(r->ctx->device, r->brick_index_sampler, NULL);
+    r->brick_sampler = r->brick_index_sampler = VK_NULL_HANDLE;
+}

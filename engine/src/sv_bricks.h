@@ -1,0 +1,24 @@
+/* Probe bricks in the engine (docs/probe-bricks.md, docs/engine.md "Probe bricks"; --probe-path bricks):
+ * every corner octree / kd corner tree grid of SH probes is resampled at load by the core's pb_bricks
+ * (the file's coefficients at its band, validity and probe scale: N = sum W m s c, D = sum W m, the
+ * field octree_irradiance shades for a movable object) and uploaded as two 3D textures:
+ *   pool         RGBA16F (RGBA32F when a texel exceeds the half range), linear filtering, clamp to edge:
+ *                one slab of z per channel group (group g of every grid at z + g * slab), the grids'
+ *                pools side by side along z within a slab;
+ *   indirection  RGBA32UI, nearest (read with texelFetch): the grids' indirection grids along z.
+ * Each bricked grid's record gets SV_GRID_BRICKS and its offsets (sv_gpu_grid.bricks). Grids of other
+ * structures (dense, tetrahedra) or holding ambient cubes keep the storage-buffer path. */
+#ifndef SV_BRICKS_H
+#define SV_BRICKS_H
+
+#include "sv_renderer.h"
+
+/* With `enabled`, builds and uploads the bricks of `probes` and fills `grids` (one per probe grid);
+ * otherwise uploads 1x1x1 stand-ins (the bindings must hold images). Creates the two samplers either
+ * way. False with a clear message when a grid cannot be bricked (the core's refusal, e.g. its memory
+ * cap), when the pool or the indirection exceeds the device's maxImageDimension3D, or when the device
+ * cannot filter the pool's format linearly. Prints the bricks' GPU memory per probe when enabled. */
+bool sv_bricks_upload(sv_renderer *r, const sv_probes *probes, sv_gpu_grid *grids, bool enabled);
+void sv_bricks_destroy(sv_renderer *r);
+
+#endif
