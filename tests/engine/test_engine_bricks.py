@@ -292,3 +292,35 @@ def test_oversized_and_bad_options_are_clear_errors(tmp_path):
     assert bad.returncode == 2 and "bad value 'textures' for --probe-path" in bad.stderr
     usage = viewer.run("--help", validation=False)
     assert "--probe-path buffers|bricks" in usage.stdout + usage.stderr
+
+
+def test_pool_beyond_the_device_3d_limit_is_a_clear_error(tmp_path):
+    # 44 one-brick L4 grids: each adds a 5-texel layer to every channel group's slab, and L4 has 19 groups
+    # (76 channels), so the pool is 5 x 5 x 19 * 220 = 4180 texels deep, past lavapipe's
+    # maxImageDimension3D of 4096: a clear error naming the size and the limit (exit 1), no crash; the
+    # buffers path renders the same scene.
+    (tmp_path / "sh_coeffs").mkdir()
+    entries = []
+    for g in range(44):
+        t = native.CornerOctree.uniform((0.0, 0.0, 0.0), 0.5, 2, (1, 1, 1))
+        t.finalize()
+        c = np.zeros((t.probe_count, 25, 3))
+        c[:, 0] = 1.0 + 0.01 * g
+        path = tmp_path / "sh_coeffs" / f"g{g}.shprobe"
+        n = native.write_shprobe_v3(str(path), t, c)
+        f = native.read_shprobe(str(path))
+        e = sg.grid_entry(f"g{g}", f"sh_coeffs/g{g}.shprobe", n, f.grid_origin, f.grid_dims, f.grid_spacing)
+        e.update(representation=f.representation, storage=f.storage, structure=f.structure, maxBand=4)
+        entries.append(e)
+    b = sg.GltfBuilder()
+    m = b.material("White", sh_scale=1.0, ambient_term=0.0, probe_mode="pixel")
+    b.node("Quad", mesh=b.mesh("quad", sg.quad(2.0, 2.0, 1), m), translation=(1.0, 1.0, 1.0))
+    b.node("Camera", camera=b.ortho_camera("top", 1.0), translation=(1.0, 3.0, 1.0), rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids(entries)
+    scene = b.write(tmp_path / "many.gltf")
+    args = ["--headless", "--output", tmp_path / "o.exr", "--width", 16, "--height", 16]
+    proc = viewer.run(scene, *args, *BRICKS)
+    assert proc.returncode == 1, (proc.returncode, proc.stderr)
+    assert "the brick pool needs a 5 x 5 x 4180 3D texture, beyond the device's limit" in proc.stderr, proc.stderr
+    assert "use --probe-path buffers" in proc.stderr
+    viewer.check(viewer.run(scene, *args))
