@@ -79,6 +79,8 @@ def test_adaptive_points_and_forecast():
     assert estimate.adaptive_points(3200, 0.03) == pytest.approx(0.58 * 3200)
     assert estimate.adaptive_points(3200, 0.06) == pytest.approx(0.58 * 3200 * 2 ** -0.65)
     assert estimate.adaptive_points(0, 0.03) == 0.0
-    # Elapsed + the points not rendered yet at the measured time per point; never below elapsed.
-    assert estimate.forecast_seconds(10.0, 100, 1000, 0.5) == pytest.approx(460.0)
+    # Elapsed + the points not rendered yet at the measured time per point times the later points'
+    # factor 1 + 0.3 (1 - rendered / expected); never below elapsed.
+    assert estimate.forecast_seconds(10.0, 100, 1000, 0.5) == pytest.approx(10.0 + 900 * 0.5 * 1.27)
+    assert estimate.forecast_seconds(10.0, 0, 1000, 0.5) == pytest.approx(10.0 + 1000 * 0.5 * 1.3)
     assert estimate.forecast_seconds(10.0, 1200, 1000, 0.5) == pytest.approx(10.0)
