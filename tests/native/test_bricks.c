@@ -13,15 +13,6 @@
 #include <stdint.h>
 #include <stdlib.h>
 
-static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
-static double rnd(void) /* xorshift64*, [0, 1) */
-{
-    rng_state ^= rng_state >> 12;
-    rng_state ^= rng_state << 25;
-    rng_state ^= rng_state >> 27;
-    return (double)((rng_state * 0x2545F4914F6CDD1Dull) >> 11) / 9007199254740992.0;
-}
-
 static const double ORIGIN[3] = {-1.0, 0.5, 2.0};
 #define H 0.25
 #define C 9u /* L2 */
@@ -30,7 +21,7 @@ static const double ORIGIN[3] = {-1.0, 0.5, 2.0};
  * optionally a third of the leaves dropped (outer faces inside the lattice). */
 static pb_cotree *random_tree(uint64_t seed, bool kd, bool drop)
 {
-    rng_state = seed;
+    tu_rng_state = seed;
     const uint32_t roots[3] = {4, 3, 4};
     pb_cotree *t = NULL;
     pb_error err = {0};
@@ -38,7 +29,7 @@ static pb_cotree *random_tree(uint64_t seed, bool kd, bool drop)
     for (int pass = 0; pass < 3; pass++) {
         uint32_t n = pb_cotree_leaf_count(t);
         uint8_t *f = calloc(n, 1);
-        for (uint32_t i = 0; i < n; i++) f[i] = rnd() < 0.35 ? (kd ? (uint8_t)(1 + (int)(rnd() * 7)) : 1) : 0;
+        for (uint32_t i = 0; i < n; i++) f[i] = tu_rnd() < 0.35 ? (kd ? (uint8_t)(1 + (int)(tu_rnd() * 7)) : 1) : 0;
         pb_result r = kd ? pb_cotree_split_axes(t, f, NULL, &err) : pb_cotree_split(t, f, NULL, &err);
         if (r == PB_SUCCESS) r = pb_cotree_finalize(t, &err);
         free(f);
@@ -77,7 +68,7 @@ static double *linear_coeffs(const pb_cotree *t)
 static double *random_coeffs(uint32_t P)
 {
     double *c = malloc((size_t)P * C * 3u * sizeof *c);
-    for (uint32_t i = 0; i < P * C * 3u; i++) c[i] = i % (3u * C) < 3u ? 0.5 + 1.5 * rnd() : -0.3 + 0.6 * rnd();
+    for (uint32_t i = 0; i < P * C * 3u; i++) c[i] = i % (3u * C) < 3u ? 0.5 + 1.5 * tu_rnd() : -0.3 + 0.6 * tu_rnd();
     return c;
 }
 
@@ -95,7 +86,7 @@ static void random_point(const pb_cotree *t, double p[3]) /* anywhere in the lat
     double o[3], h;
     uint32_t dims[3];
     pb_cotree_frame(t, o, &h, dims);
-    for (int a = 0; a < 3; a++) p[a] = o[a] + rnd() * dims[a] * h;
+    for (int a = 0; a < 3; a++) p[a] = o[a] + tu_rnd() * dims[a] * h;
 }
 
 static void test_linear_field_exact(void)
@@ -160,9 +151,9 @@ static void test_random_fields_equal_the_query(void)
             float *val = malloc(P * sizeof *val), *scale = malloc(P * sizeof *scale);
             int invalid = 0;
             for (uint32_t i = 0; i < P; i++) {
-                val[i] = rnd() < 0.25 ? 0.0f : (float)(0.2 + rnd());
+                val[i] = tu_rnd() < 0.25 ? 0.0f : (float)(0.2 + tu_rnd());
                 invalid += val[i] == 0.0f;
-                scale[i] = (float)(0.5 + rnd());
+                scale[i] = (float)(0.5 + tu_rnd());
             }
             double worst = 0.0, worst_v = 0.0;
             int mismatch = 0, mismatch_v = 0;
@@ -204,7 +195,7 @@ static void test_continuous_across_brick_borders(void)
                 for (int n = 0; n < 16; n++) {
                     int a = face / 2;
                     double u[3], ext = 4.0 * (double)(1u << reg[4 * i + 3]);
-                    for (int k = 0; k < 3; k++) u[k] = reg[4 * i + k] + rnd() * ext;
+                    for (int k = 0; k < 3; k++) u[k] = reg[4 * i + k] + tu_rnd() * ext;
                     u[a] = reg[4 * i + a] + (face & 1 ? ext : 0.0);
                     if (u[a] <= 0.0 || u[a] >= in.dims[a]) continue;
                     double pl[3], ph[3];

@@ -15,15 +15,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static uint64_t rng_state = 0x2545F4914F6CDD1Dull;
-static double rnd(void) /* xorshift64*, [0, 1) */
-{
-    rng_state ^= rng_state >> 12;
-    rng_state ^= rng_state << 25;
-    rng_state ^= rng_state >> 27;
-    return (double)((rng_state * 0x2545F4914F6CDD1Dull) >> 11) / 9007199254740992.0;
-}
-
 static const double ORIGIN[3] = {-2.0, 0.5, 1.0};
 #define H 0.25
 
@@ -41,7 +32,7 @@ static pb_cotree *random_tree(uint32_t passes, uint32_t *forced_total)
         uint8_t *m = calloc(L + 1u, 1);
         for (uint32_t i = 0; i < L; i++)
             for (int a = 0; a < 3; a++)
-                if (rnd() < 0.3) m[i] |= (uint8_t)(1u << a);
+                if (tu_rnd() < 0.3) m[i] |= (uint8_t)(1u << a);
         pb_result r = pb_cotree_split_axes(t, m, NULL, &err);
         free(m);
         if (r == PB_SUCCESS) r = pb_cotree_finalize(t, &err);
@@ -89,7 +80,7 @@ static void test_random_trees_linear_and_c0(void)
         for (uint32_t p = 0; p < P; p++) {
             double u[3] = {lat[3 * p], lat[3 * p + 1], lat[3 * p + 2]};
             lin[p] = linear(u);
-            rv[p] = rnd();
+            rv[p] = tu_rnd();
         }
         double worst_lin = 0.0, worst_jump = 0.0, worst_sum = 0.0, worst_vis = 0.0;
         /* The visibility field with every pair clear (255) is the plain field. */
@@ -98,7 +89,7 @@ static void test_random_trees_linear_and_c0(void)
         const pb_interp_options vis = {.pair_visibility = clear};
         for (int n = 0; n < 4000; n++) {
             double u[3], x[3];
-            for (int k = 0; k < 3; k++) u[k] = rnd() * dims[k], x[k] = ORIGIN[k] + H * u[k];
+            for (int k = 0; k < 3; k++) u[k] = tu_rnd() * dims[k], x[k] = ORIGIN[k] + H * u[k];
             pb_interp_weights w;
             TU_REQUIRE(pb_interp_query_cotree(t, x, NULL, &w) == PB_SUCCESS && w.count > 0);
             double s = 0.0;
@@ -112,12 +103,12 @@ static void test_random_trees_linear_and_c0(void)
         free(clear);
         /* (b) random points on random leaves' upper faces: both leaves' own fields. */
         for (int n = 0; n < 6000; n++) {
-            uint32_t i = (uint32_t)(rnd() * L), a = (uint32_t)(rnd() * 3);
+            uint32_t i = (uint32_t)(tu_rnd() * L), a = (uint32_t)(tu_rnd() * 3);
             const uint32_t *l = leaves + 4 * i;
             uint32_t hi = l[a] + (1u << lv[3 * i + a]);
             if (hi >= dims[a]) continue;
             double x[3];
-            for (int k = 0; k < 3; k++) x[k] = ORIGIN[k] + H * (l[k] + rnd() * (double)(1u << lv[3 * i + k]));
+            for (int k = 0; k < 3; k++) x[k] = ORIGIN[k] + H * (l[k] + tu_rnd() * (double)(1u << lv[3 * i + k]));
             x[a] = ORIGIN[a] + H * hi;
             int32_t j = pb_cotree_locate(t, x);
             TU_REQUIRE(j >= 0 && (uint32_t)j != i);
@@ -241,9 +232,9 @@ static void test_forced_splits_of_crosses(void)
     /* The field after the forced splits is C0 across x = 2 (random values at the probes). */
     uint32_t P = pb_cotree_probe_count(t);
     double *v = malloc(P * sizeof(double)), worst = 0.0;
-    for (uint32_t p = 0; p < P; p++) v[p] = rnd();
+    for (uint32_t p = 0; p < P; p++) v[p] = tu_rnd();
     for (int n = 0; n < 2000; n++) {
-        double x[3] = {ORIGIN[0] + H * 2.0, ORIGIN[1] + H * 4.0 * rnd(), ORIGIN[2] + H * 4.0 * rnd()};
+        double x[3] = {ORIGIN[0] + H * 2.0, ORIGIN[1] + H * 4.0 * tu_rnd(), ORIGIN[2] + H * 4.0 * tu_rnd()};
         double xl[3] = {x[0] - 1e-3 * H, x[1], x[2]};
         int32_t a = pb_cotree_locate(t, xl), b = pb_cotree_locate(t, x);
         pb_interp_weights wa, wb;
@@ -308,7 +299,7 @@ static void test_split_tree(void)
             double x[3];
             uint32_t q[3], steps;
             for (int k = 0; k < 3; k++) {
-                double u = rnd() * dims[k];
+                double u = tu_rnd() * dims[k];
                 q[k] = (uint32_t)u;
                 x[k] = ORIGIN[k] + H * u;
             }
@@ -327,7 +318,7 @@ static void test_split_tree(void)
         /* The same leaves, shuffled, through create_boxes: same leaf order, same tree. */
         uint32_t *pk = packed_leaves(t);
         for (uint32_t i = L - 1; i > 0; i--) {
-            uint32_t j = (uint32_t)(rnd() * (i + 1)), tmp[4];
+            uint32_t j = (uint32_t)(tu_rnd() * (i + 1)), tmp[4];
             memcpy(tmp, pk + 4 * i, sizeof tmp);
             memcpy(pk + 4 * i, pk + 4 * j, sizeof tmp);
             memcpy(pk + 4 * j, tmp, sizeof tmp);
@@ -417,7 +408,7 @@ static void test_cube_trees_unchanged(void)
         for (int pass = 0; pass < 3; pass++) {
             uint32_t L = pb_cotree_leaf_count(a);
             uint8_t *f = calloc(L + 1u, 1), *m = calloc(L + 1u, 1);
-            for (uint32_t i = 0; i < L; i++) f[i] = rnd() < 0.35, m[i] = f[i] ? 7u : 0u;
+            for (uint32_t i = 0; i < L; i++) f[i] = tu_rnd() < 0.35, m[i] = f[i] ? 7u : 0u;
             uint32_t na = 0, nb = 0;
             TU_REQUIRE(pb_cotree_split(a, f, &na, &err) == PB_SUCCESS);
             TU_REQUIRE(pb_cotree_split_axes(b, m, &nb, &err) == PB_SUCCESS);
@@ -642,14 +633,14 @@ static void test_hostile_boxes(void)
     const uint32_t dims[3] = {8, 4, 8};
     uint32_t accepted = 0, finalized = 0;
     for (int iter = 0; iter < 20000; iter++) {
-        uint32_t n = 1 + (uint32_t)(rnd() * 6), R = (uint32_t)(rnd() * 4), leaves[24];
+        uint32_t n = 1 + (uint32_t)(tu_rnd() * 6), R = (uint32_t)(tu_rnd() * 4), leaves[24];
         for (uint32_t i = 0; i < n; i++) {
             uint32_t lv[3];
             for (int k = 0; k < 3; k++) {
-                lv[k] = (uint32_t)(rnd() * (R + 1.5));
+                lv[k] = (uint32_t)(tu_rnd() * (R + 1.5));
                 uint32_t s = 1u << (lv[k] > 8 ? 8 : lv[k]);
                 leaves[4 * i + (uint32_t)k] =
-                    rnd() < 0.9 ? s * (uint32_t)(rnd() * (dims[k] / s + 1)) : (uint32_t)(rnd() * 9);
+                    tu_rnd() < 0.9 ? s * (uint32_t)(tu_rnd() * (dims[k] / s + 1)) : (uint32_t)(tu_rnd() * 9);
             }
             leaves[4 * i + 3] = PB_LEVELS_PACK(lv[0], lv[1], lv[2]);
         }
@@ -685,7 +676,7 @@ static void test_hostile_boxes(void)
             }
             for (int k = 0; k < 50; k++) {
                 double u[3], x[3];
-                for (int a = 0; a < 3; a++) u[a] = rnd() * dims[a], x[a] = ORIGIN[a] + H * u[a];
+                for (int a = 0; a < 3; a++) u[a] = tu_rnd() * dims[a], x[a] = ORIGIN[a] + H * u[a];
                 pb_interp_weights w;
                 if (pb_interp_query_cotree(t, x, NULL, &w) == PB_SUCCESS && w.count && covered(t, u))
                     worst = fmax(worst, fabs(eval(&w, lin) - linear(u)));
@@ -701,6 +692,7 @@ static void test_hostile_boxes(void)
 
 int main(void)
 {
+    tu_rng_state = 0x2545F4914F6CDD1Dull; /* this file's seed (the random trees' digest depends on it) */
     TU_RUN(test_random_trees_linear_and_c0);
     TU_RUN(test_forced_splits_of_crosses);
     TU_RUN(test_split_tree);

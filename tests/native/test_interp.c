@@ -10,15 +10,6 @@
 #include <stdint.h>
 #include <stdlib.h>
 
-static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
-static double rnd(void) /* xorshift64*, [0, 1) */
-{
-    rng_state ^= rng_state >> 12;
-    rng_state ^= rng_state << 25;
-    rng_state ^= rng_state >> 27;
-    return (double)((rng_state * 0x2545F4914F6CDD1Dull) >> 11) / 9007199254740992.0;
-}
-
 static double linear_field(const double p[3]) { return 0.7 + 1.3 * p[0] - 0.4 * p[1] + 2.1 * p[2]; }
 
 /* A tree with hanging nodes over several levels: 2×2×2 roots of 4 min cells (min cell 0.25 m at
@@ -127,7 +118,7 @@ static void test_cotree_linear_exact(void)
     double worst = 0.0;
     uint32_t max_count = 0;
     for (int s = 0; s < 4000; s++) {
-        double p[3] = {-1.0 + 2.0 * rnd(), 0.5 + 2.0 * rnd(), 2.0 + 2.0 * rnd()};
+        double p[3] = {-1.0 + 2.0 * tu_rnd(), 0.5 + 2.0 * tu_rnd(), 2.0 + 2.0 * tu_rnd()};
         pb_interp_weights w;
         TU_REQUIRE(pb_interp_query_cotree(t, p, NULL, &w) == PB_SUCCESS);
         check_weights(&w);
@@ -154,7 +145,7 @@ static void test_cotree_continuous(void)
     TU_REQUIRE(t != NULL);
     uint32_t P = pb_cotree_probe_count(t);
     double *val = malloc(P * sizeof(double));
-    for (uint32_t i = 0; i < P; i++) val[i] = rnd();
+    for (uint32_t i = 0; i < P; i++) val[i] = tu_rnd();
     const double h = 0.25, step = 1e-4 * h;
     /* Inside a leaf of size s the trilinear field's gradient is at most √3·(value spread)/s per unit
      * length, the smallest leaf here is h: each step moves the value by at most √3·step/h. */
@@ -343,13 +334,13 @@ static void test_pair_visibility_continuous_across_leaves(void)
     for (int trial = 0; trial < 20; trial++) {
         tris T = {6, {{0}}};
         for (int i = 0; i < T.count; i++)
-            for (int k = 0; k < 9; k++) T.v[i][k] = k % 3 == 0 ? 2.0 * rnd() : rnd();
-        for (uint32_t i = 0; i < P; i++) val[i] = rnd();
+            for (int k = 0; k < 9; k++) T.v[i][k] = k % 3 == 0 ? 2.0 * tu_rnd() : tu_rnd();
+        for (uint32_t i = 0; i < P; i++) val[i] = tu_rnd();
         uint8_t table[2 * 64];
         TU_REQUIRE(pb_cotree_pair_visibility(t, tris_first_hit, &T, table, NULL) == PB_SUCCESS);
         pb_interp_options opt = {.pair_visibility = table};
         for (int i = 0; i < 200; i++) {
-            double y = rnd(), z = rnd(), lo[3] = {1.0 - 1e-9, y, z}, hi[3] = {1.0 + 1e-9, y, z};
+            double y = tu_rnd(), z = tu_rnd(), lo[3] = {1.0 - 1e-9, y, z}, hi[3] = {1.0 + 1e-9, y, z};
             pb_interp_weights wl, wh, wp;
             TU_REQUIRE(pb_interp_query_cotree(t, lo, &opt, &wl) == PB_SUCCESS && wl.count > 0);
             TU_REQUIRE(pb_interp_query_cotree(t, hi, &opt, &wh) == PB_SUCCESS && wh.count > 0);
@@ -377,10 +368,10 @@ static void test_tetra_linear_exact_and_continuous(void)
             for (uint32_t i = 0; i < 8; i++) /* the box's corners: the hull is the box */
                 for (int k = 0; k < 3; k++) pos[3 * i + k] = (i >> k & 1) ? 1.0 : 0.0;
             for (uint32_t i = 8; i < P * 3 / 3; i++)
-                for (int k = 0; k < 3; k++) pos[3 * i + k] = rnd();
+                for (int k = 0; k < 3; k++) pos[3 * i + k] = tu_rnd();
         }
         pb_cotree_destroy(t);
-        for (uint32_t i = 0; i < P; i++) val[i] = linear_field(pos + 3 * i), rv[i] = rnd();
+        for (uint32_t i = 0; i < P; i++) val[i] = linear_field(pos + 3 * i), rv[i] = tu_rnd();
         pb_tetra *tt = NULL;
         pb_error err = {0};
         TU_REQUIRE(pb_tetra_create(pos, P, &tt, &err) == PB_SUCCESS);
@@ -390,7 +381,7 @@ static void test_tetra_linear_exact_and_continuous(void)
         int found = 0;
         for (int s = 0; s < 4000; s++) {
             double p[3];
-            for (int k = 0; k < 3; k++) p[k] = lo[set][k] + ext * rnd();
+            for (int k = 0; k < 3; k++) p[k] = lo[set][k] + ext * tu_rnd();
             pb_interp_weights w;
             TU_REQUIRE(pb_interp_query_tetra(tt, p, NULL, &w) == PB_SUCCESS);
             if (w.count == 0) continue;

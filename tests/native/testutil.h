@@ -13,12 +13,23 @@
 #define SCHNEE_TESTUTIL_H
 
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <string.h>
 #include <time.h>
 
 static int tu_failures_ = 0;
 static int tu_checks_ = 0;
+
+/* The tests' seeded random numbers: xorshift64*, uniform in [0, 1). Seed by assigning tu_rng_state. */
+static uint64_t tu_rng_state = 0x9E3779B97F4A7C15ull;
+static inline double tu_rnd(void)
+{
+    tu_rng_state ^= tu_rng_state >> 12;
+    tu_rng_state ^= tu_rng_state << 25;
+    tu_rng_state ^= tu_rng_state >> 27;
+    return (double)((tu_rng_state * 0x2545F4914F6CDD1Dull) >> 11) / 9007199254740992.0;
+}
 
 #define TU_FAIL_(...)                                                                                                  \
     do {                                                                                                               \
