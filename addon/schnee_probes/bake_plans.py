@@ -443,11 +443,10 @@ class AdaptivePlan(_VolumePlan):
         point (which also paid the scene's upload)."""
         if self.measured < 2 or self._first_end is None:
             return None
-        now = time.perf_counter()
-        per = (now - self._first_end) / (self.measured - 1)
         rendered = self.points_rendered(0)
         expected = max(adaptive_points(self.cells, self.settings.error_tolerance), self.known_points, rendered)
-        return expected, forecast_seconds(now - self._t_start, rendered, expected, per)
+        return expected, forecast_seconds(time.perf_counter() - self._t_start, rendered, expected,
+                                          self._seconds_per_point())
 
     def advance(self) -> List[int]:
         """Every queued point is rendered: move each group on (tests -> decision -> split -> new
@@ -493,6 +492,7 @@ class AdaptivePlan(_VolumePlan):
         return todo
 
     def _seconds_per_point(self):
+        """The mean wall time per point this run rendered, after its first (the scene's upload)."""
         return (time.perf_counter() - self._first_end) / max(1, self.measured - 1)
 
     def finish_values(self, direct, timings):
