@@ -14,6 +14,7 @@ set(PB_BASE_SOURCES
   src/pb_tetra.c
   src/pb_interp_v3.c
   src/pb_bricks.c
+  src/pb_grid_field.c
   src/pb_refine.c
   src/pb_refine_axes.c
   src/pb_sky_sun.c
