@@ -110,8 +110,10 @@ def _positive(text):
 
 
 def _parser(settings):
+    # allow_abbrev=False: a mistyped or shortened option is an error, not another option taken by
+    # its prefix (issue 31: "--sbatch PATH" became --sbatch-option and an "#SBATCH PATH" line).
     p = argparse.ArgumentParser(
-        prog="blender -b scene.blend -P bake.py --",
+        prog="blender -b scene.blend -P bake.py --", allow_abbrev=False,
         description="Bake Schnee SH light probes headless. Settings default to the values saved in "
                     "the .blend (Scene > Schnee Engine panel); the defaults shown are the add-on's.")
     settings.add_arguments(p)  # one option per setting (settings.py)
@@ -132,6 +134,8 @@ def _parser(settings):
     a("--sbatch-option", action="append", default=[], metavar="OPT",
       help="with --farm slurm: an #SBATCH option for every job, e.g. --sbatch-option=--partition=bake "
            "(repeatable)")
+    a("--sbatch", default="sbatch", metavar="PATH",
+      help="with --farm slurm: the sbatch program that submits the jobs (default: sbatch found on PATH)")
     a("--restart", action="store_true",
       help="discard this bake's journal (the probes a cancelled or crashed run kept) and bake from scratch")
     a("--scene", help="scene name (default: the active scene)")
@@ -164,6 +168,7 @@ def _main():
     parser = _parser(settings)
     # argparse exits 2 by itself on bad usage (with a usage line) and 0 after --help.
     args = parser.parse_args(_script_args())
+    _check_combinations(parser, args)
 
     if not hasattr(bpy.types.Scene, "schnee_probes"):
         addon.register()
@@ -174,7 +179,7 @@ def _main():
 
     overrides = {k: v for k, v in vars(args).items()
                  if v is not None and k not in ("cursor", "scene", "quiet", "allow_large", "shard", "merge_shards",
-                                                "restart", "farm", "shards", "sbatch_option")}
+                                                "restart", "farm", "shards", "sbatch_option", "sbatch")}
     bake_settings = settings.BakeSettings.from_props(scene.schnee_probes, **overrides)
     if args.farm:
         _submit(args, bake_core, bake_settings)
@@ -219,6 +224,17 @@ def _main():
     _report(result)
 
 
+def _check_combinations(parser, args):
+    """Options that exclude each other: argparse's usage error (exit 2) naming both."""
+    if args.shard is not None and args.merge_shards is not None:
+        parser.error("--shard and --merge-shards cannot be combined: a farm job either bakes one shard "
+                     "(--shard K/N) or, once every shard is baked, merges the N shard journals into the "
+                     "output (--merge-shards N); run them as separate jobs")
+    if args.cursor is not None and (args.shard is not None or args.merge_shards is not None):
+        parser.error(f"--cursor cannot be combined with {'--shard' if args.shard else '--merge-shards'}: "
+                     "farm shards bake volumes; Bake SH at Cursor is one probe, baked here")
+
+
 def _submit(args, bake_core, bake_settings):
     """--farm slurm: write the batch scripts next to the output and submit them; bake nothing here."""
     import importlib
@@ -238,7 +254,7 @@ def _submit(args, bake_core, bake_settings):
         output = bake_core.abspath(bake_settings.output_path)
         ids = farm.submit_slurm(bpy.app.binary_path, os.path.abspath(bpy.data.filepath), os.path.abspath(__file__),
                                 farm.forwarded_args(_script_args(), output=output), args.shards, output,
-                                sbatch_options=args.sbatch_option, stages=stages)
+                                sbatch_options=args.sbatch_option, sbatch=args.sbatch, stages=stages)
     except (farm.FarmError, bake_core.BakeError, OSError) as exc:
         _fail(EXIT_BAKE, f"farm submission failed: {exc}")
     print(f"bake.py: submitted {stages} shard array(s) {', '.join(ids[:-1])} ({args.shards} tasks each, one per "

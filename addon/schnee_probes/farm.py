@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import re
 import shlex
+import shutil
 import subprocess
 from typing import List, Optional, Sequence
 
@@ -63,8 +64,8 @@ def slurm_scripts(blender: str, blend: str, bake_py: str, bake_args: Sequence[st
 def _sbatch(sbatch: str, script: str, extra: Sequence[str] = ()) -> str:
     try:
         proc = subprocess.run([sbatch, "--parsable", *extra, script], capture_output=True, text=True, timeout=120)
-    except FileNotFoundError:
-        raise FarmError(f"'{sbatch}' not found: run the submission on a Slurm login node (or pass --sbatch)") from None
+    except FileNotFoundError:  # removed since find_sbatch() found it
+        raise FarmError(f"'{sbatch}' not found: {_SBATCH_HINT}") from None
     except subprocess.TimeoutExpired:
         raise FarmError(f"{sbatch} did not answer within 120 s: is slurmctld reachable?") from None
     if proc.returncode != 0:
@@ -76,6 +77,22 @@ def _sbatch(sbatch: str, script: str, extra: Sequence[str] = ()) -> str:
     return m.group(1)
 
 
+_SBATCH_HINT = ("run the submission on a Slurm login node, add the folder that holds sbatch to PATH, or give "
+                "its path with --sbatch PATH (e.g. --sbatch /usr/bin/sbatch)")
+
+
+def find_sbatch(sbatch: str = "sbatch") -> str:
+    """The absolute path of the ``sbatch`` program to run: ``sbatch`` as given (a path) or looked up
+    on PATH (a bare name). :class:`FarmError` naming the option when there is none."""
+    found = shutil.which(sbatch)
+    if found:
+        return os.path.abspath(found)
+    if os.sep in sbatch:
+        raise FarmError(f"--sbatch {sbatch}: no executable file there; give the path of Slurm's sbatch "
+                        "program (e.g. --sbatch /usr/bin/sbatch)")
+    raise FarmError(f"'{sbatch}' not found on PATH ({os.environ.get('PATH', '')}): {_SBATCH_HINT}")
+
+
 def submit_slurm(blender: str, blend: str, bake_py: str, bake_args: Sequence[str], shards: int, output: str,
                  sbatch_options: Sequence[str] = (), sbatch: str = "sbatch", stages: int = 1) -> List[str]:
     """Write the batch scripts into ``<output>.farm/`` and submit: one shard array per stage of the
@@ -83,9 +100,11 @@ def submit_slurm(blender: str, blend: str, bake_py: str, bake_args: Sequence[str
     with ``--dependency=afterok:<previous array>``, then the merge after the last (each runs only
     once every task before it succeeded, requeues included). Every array runs the same command: a
     shard takes the finished stages from the journals and bakes its share of the first unfinished
-    one. Returns [array job ids..., merge job id]."""
+    one. ``sbatch``: the program (a path, or a name looked up on PATH), checked before anything is
+    written. Returns [array job ids..., merge job id]."""
     if not os.path.isabs(blend):
         raise FarmError(f"the .blend path must be absolute for farm nodes: {blend}")
+    sbatch = find_sbatch(sbatch)
     folder = output + ".farm"
     os.makedirs(folder, exist_ok=True)
     paths = {}
@@ -107,8 +126,8 @@ def submit_slurm(blender: str, blend: str, bake_py: str, bake_args: Sequence[str
     return arrays + [merge]
 
 
-def forwarded_args(argv: Sequence[str], drop_with_value=("--farm", "--shards", "--sbatch-option", "--shard",
-                                                         "--merge-shards"),
+def forwarded_args(argv: Sequence[str], drop_with_value=("--farm", "--shards", "--sbatch-option", "--sbatch",
+                                                         "--shard", "--merge-shards"),
                    drop_flags=("--restart",), output: Optional[str] = None) -> List[str]:
     """bake.py's own options minus the farm ones, with ``--output`` made absolute (farm nodes may
     start in another folder)."""

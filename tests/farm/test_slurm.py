@@ -88,3 +88,33 @@ def test_farm_bake_with_a_requeued_task_equals_a_local_bake(cluster, tmp_path):
     resumed = re.search(r"resuming from .*shard-1-of-2\.journal: \d+ of \d+ probes already baked", shard_log)
     assert resumed, shard_log[-3000:]
     assert _sha(out / "probes.shprobe") == _sha(local / "sh_coeffs" / "probes.shprobe")
+
+
+def test_sbatch_option_names_the_program_when_path_has_none(cluster, tmp_path):
+    # Issue 31: with no sbatch on PATH the message suggests --sbatch PATH. That option is real: the
+    # jobs are submitted with the program it names (held with --hold and cancelled here: what is
+    # checked is the submission), and it is not taken for --sbatch-option by its prefix (before,
+    # argparse wrote "#SBATCH /usr/bin/sbatch" into both batch scripts).
+    run_blender(SCRIPTS / "resume_scene.py", tmp_path, timeout=120)
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "blender").symlink_to(shutil.which("blender"))
+    env = {"SLURM_CONF": cluster.env["SLURM_CONF"], "PATH": str(bin_dir)}
+    sbatch = shutil.which("sbatch")
+    proc = run_blender(REPO / "bake.py", *BAKE_ARGS, "--farm", "slurm", "--shards", "2", "--sbatch", sbatch,
+                       "--sbatch-option=--hold", blend=tmp_path / "window_room.blend", env=env, timeout=300)
+    m = re.search(r"submitted (\d+) shard array\(s\) ([\d, ]+) \(2 tasks each.* merge job (\d+)", proc.stdout)
+    assert m, proc.stdout[-2000:] + proc.stderr[-2000:]
+    ids = [j.strip() for j in m.group(2).split(",")] + [m.group(3)]
+    assert len(ids) == adaptive.stage_bound(0.5, 1.0) + 1
+    try:
+        for job in ids:
+            out = cluster.run("scontrol", "-o", "show", "job", job).stdout
+            assert "JobState=PENDING" in out and "Reason=JobHeldUser" in out, out
+    finally:
+        cluster.run("scancel", *ids, check=False)
+    folder = tmp_path / "sh_coeffs" / "probes.shprobe.farm"
+    for name in ("shards.sbatch", "merge.sbatch"):
+        lines = (folder / name).read_text().splitlines()
+        assert [l for l in lines if l.startswith("#SBATCH --hold")] == ["#SBATCH --hold"]
+        assert not any(sbatch in l for l in lines), lines  # neither an #SBATCH line nor a bake option

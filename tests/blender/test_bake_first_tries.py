@@ -1,0 +1,110 @@
+"""Five errors a new user hit on their first tries with bake.py (issue 31 item 5), in real headless
+Blender 3.4: each ends with one clear line on stderr naming what is wrong and what to do, no Python
+traceback, and nothing lost or half written.
+
+1. two bakes of the same output started together: the second refuses, naming the first's process;
+   the first's output is the bytes of a lone bake;
+2. ``--shard`` with ``--merge-shards``: a usage error naming both;
+3. ``--farm slurm`` without sbatch on PATH: the message names the real ``--sbatch PATH`` option,
+   and a shortened option is an error, not another option taken by its prefix (the real
+   submission through ``--sbatch``: tests/farm/test_slurm.py);
+4. a 240-character output name: the bake completes and resumes (no temporary name over 255 bytes);
+5. ``--min-cell-size 20 --max-cell-size 40``: no maximum of 16 m that was never given.
+
+Scenes: test_bake_hazards.py's generated sky.blend (one 4 x 4 x 2 m volume under the courtyard
+sky). Runtime: about a minute on 2 cores.
+"""
+import os
+import re
+import shutil
+
+import pytest
+
+from conftest import requires_native, run_blender
+from test_bake_hazards import BAKE_PY, CELLS_2M, SCRIPTS, TINY, copy_blend, last_error
+
+pytestmark = requires_native
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory):
+    out = tmp_path_factory.mktemp("first_tries_scenes")
+    run_blender(SCRIPTS / "hazard_scenes.py", out, timeout=120)
+    return out
+
+
+def bake_py(blend, *args, env=None, timeout=300):
+    return run_blender(BAKE_PY, *args, blend=blend, check=False, timeout=timeout, env=env)
+
+
+def files_under(folder):
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
+
+
+# ------------------------------------------------------------------ 2. --shard with --merge-shards
+@pytest.mark.parametrize("args,both", [
+    (["--shard", "0/2", "--merge-shards", "2"], ("--shard", "--merge-shards")),
+    (["--cursor", "0", "0", "1", "--shard", "1/2"], ("--cursor", "--shard")),
+    (["--cursor", "0", "0", "1", "--merge-shards", "2"], ("--cursor", "--merge-shards")),
+], ids=["shard+merge", "cursor+shard", "cursor+merge"])
+def test_options_that_exclude_each_other_are_a_usage_error(scenes, tmp_path, args, both):
+    # Before: "bake.py: error: unexpected ValueError: a bake is either one shard or the merge of the
+    # shards" after a traceback (exit 1), and --cursor --shard a TypeError at the end of the bake.
+    blend = copy_blend(scenes, "sky.blend", tmp_path)
+    proc = bake_py(blend, *CELLS_2M, *TINY, *args)
+    assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
+    msg = last_error(proc)
+    assert msg.startswith("blender -b scene.blend -P bake.py --: error: "), msg
+    assert all(re.search(re.escape(o) + r"(?![\w-])", msg) for o in both) and "cannot be combined" in msg, msg
+    assert "Traceback" not in proc.stderr
+    assert files_under(tmp_path) == ["sky.blend"]  # nothing written
+
+
+# ------------------------------------------------------------------ 3. --farm slurm without sbatch
+@pytest.fixture
+def path_without_sbatch(tmp_path):
+    """An environment whose PATH holds blender (linked) and nothing else: no sbatch."""
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "blender").symlink_to(shutil.which("blender"))
+    return {"PATH": str(bin_dir)}
+
+
+def test_farm_without_sbatch_names_a_real_option(scenes, tmp_path, path_without_sbatch):
+    # Before: "'sbatch' not found: ... (or pass --sbatch)", an option that did not exist; argparse
+    # then took "--sbatch /usr/bin/sbatch" as --sbatch-option and wrote "#SBATCH /usr/bin/sbatch".
+    blend = copy_blend(scenes, "sky.blend", tmp_path / "scene")
+    proc = bake_py(blend, *CELLS_2M, *TINY, "--farm", "slurm", env=path_without_sbatch)
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    msg = last_error(proc)
+    assert msg == ("bake.py: error: farm submission failed: 'sbatch' not found on PATH "
+                   f"({path_without_sbatch['PATH']}): run the submission on a Slurm login node, add the "
+                   "folder that holds sbatch to PATH, or give its path with --sbatch PATH (e.g. --sbatch "
+                   "/usr/bin/sbatch)"), msg
+    assert "Traceback" not in proc.stderr
+    assert files_under(blend.parent) == ["sky.blend"]  # checked before any batch script is written
+
+    # The suggested option exists: it is taken as the sbatch program (a path that is not one is
+    # refused naming it), not as --sbatch-option.
+    missing = tmp_path / "no" / "sbatch"
+    proc = bake_py(blend, *CELLS_2M, *TINY, "--farm", "slurm", "--sbatch", missing, env=path_without_sbatch)
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert last_error(proc) == (f"bake.py: error: farm submission failed: --sbatch {missing}: no executable "
+                                "file there; give the path of Slurm's sbatch program (e.g. --sbatch "
+                                "/usr/bin/sbatch)"), last_error(proc)
+    assert files_under(blend.parent) == ["sky.blend"]
+    assert "--sbatch PATH" in bake_py(None, "--help").stdout
+
+
+@pytest.mark.parametrize("short,meant", [("--sbatch-opt=--partition=bake", "--sbatch-option"),
+                                         ("--merge", "--merge-shards"), ("--out", "--output")])
+def test_a_shortened_option_is_an_error(scenes, tmp_path, short, meant):
+    # allow_abbrev=False: argparse no longer completes a prefix to the one option it starts.
+    blend = copy_blend(scenes, "sky.blend", tmp_path)
+    extra = [] if "=" in short else ["2" if short == "--merge" else "//x.shprobe"]
+    proc = bake_py(blend, *CELLS_2M, *TINY, short, *extra)
+    assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert last_error(proc) == ("blender -b scene.blend -P bake.py --: error: unrecognized arguments: "
+                                + " ".join([short, *extra])), last_error(proc)
+    assert meant in proc.stderr  # the usage lines above it show the real option
+    assert files_under(tmp_path) == ["sky.blend"]
