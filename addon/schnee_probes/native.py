@@ -950,13 +950,19 @@ class Bricks:
         self._handle = handle
         self._raw = _lib().bricks_info(handle)  # immutable once built: sizes and array copies, read once
 
+    STATIC = 1  # PB_BRICKS_STATIC: a static surface of the bake (back-face weights)
+    EIGHT_TAP = 2  # PB_BRICKS_8TAP: 8 texel fetches with exact weights (else one filtered tap)
+
     @classmethod
     def build(cls, tree: CornerOctree, coeffs: np.ndarray, validity: Optional[np.ndarray] = None,
-              scale: Optional[np.ndarray] = None, max_bytes: int = 0) -> "Bricks":
+              scale: Optional[np.ndarray] = None, max_bytes: int = 0,
+              planes: Optional[np.ndarray] = None) -> "Bricks":
         """``coeffs`` (P, sh_count, 3) radiance SH per probe of the finalized ``tree`` (float64 in the
         C), ``validity`` (P,) (<= 0: the probe is dropped, as the file's rule), ``scale`` (P,) (the
         file's probe_scale, inside N). ``max_bytes``: the build's memory cap, 0 = 1 GiB (SchneeError
-        past it)."""
+        past it). ``planes`` (K, 4) (nx, ny, nz, d: the plane n.p = d, engine space): the static scene
+        as infinite planes, for the build with visibility (leaf tables, visibility texels, brick table
+        and records, docs/probe-bricks.md "Back faces and visibility"); None = without."""
         if not isinstance(tree, CornerOctree):
             raise TypeError(f"tree must be a CornerOctree, got {type(tree).__name__}")
         P = tree.probe_count
@@ -964,16 +970,24 @@ class Bricks:
         if c.ndim != 3 or c.shape[0] != P or c.shape[2] != 3:
             raise _shape_error("coeffs", f"({P}, sh_count, 3)", c)
         _band_of(c.shape[1], "coeffs")
+        pl = None
+        if planes is not None:
+            pl = np.ascontiguousarray(planes, dtype=np.float64)
+            if pl.ndim != 2 or pl.shape[1] != 4 or not np.isfinite(pl).all():
+                raise ValueError(f"planes must be finite (K, 4) (nx, ny, nz, d), got shape {pl.shape}")
+            pl = pl.reshape(-1)
         return cls(_lib().bricks_build(tree._handle, c.reshape(-1), c.shape[1], _per_probe(validity, "validity", P),
-                                       _per_probe(scale, "scale", P), int(max_bytes)))
+                                       _per_probe(scale, "scale", P), int(max_bytes), pl))
 
     def info(self) -> dict:
         """Sizes (pb_bricks_info): dims, root_level, coeff_count, channels (3C + 1), groups (RGBA
         textures), brick_count, level_counts {level: bricks}, pool_bricks, pool_texels,
         indirection_dims, texel_count, the bytes (indirection, pool_bytes_f16 / _f32,
-        bytes_per_texel_f16, bytes_per_probe_f16 given ``probe_count``); arrays regions (n, 4) (region min
-        x, y, z, level), indirection (ind_z, ind_y, ind_x, 4) uint32, texels (n, 5, 5, 5, channels)
-        float64 indexed [brick, k (z), j (y), i (x)]."""
+        bytes_per_texel_f16, bytes_per_probe_f16 given ``probe_count``), blocked_leaves, traced_cells,
+        vis_record_count, table_bytes, vis_record_bytes; arrays regions (n, 4) (region min x, y, z,
+        level), indirection (ind_z, ind_y, ind_x, 4) uint32, texels (n, 5, 5, 5, channels) float64
+        indexed [brick, k (z), j (y), i (x)], table (n, 4) uint32 (first record, blocked-cell bits 0-31,
+        32-63, 0), vis_records (records, 8, 8) uint8 [record, k, c]."""
         d = dict(self._raw)
         d["level_counts"] = {L: int(n) for L, n in enumerate(d["level_counts"]) if n}
         n, ch = d["brick_count"], d["channels"]
@@ -981,13 +995,15 @@ class Bricks:
         d["indirection"] = np.frombuffer(d["indirection"], dtype=np.uint32).reshape(
             tuple(reversed(d["indirection_dims"])) + (4,))
         d["texels"] = np.frombuffer(d["texels"], dtype=np.float64).reshape(n, 5, 5, 5, ch)
+        d["table"] = np.frombuffer(d["table"], dtype=np.uint32).reshape(n, 4)
+        d["vis_records"] = np.frombuffer(d["vis_records"], dtype=np.uint8).reshape(-1, 8, 8)
         d["bytes_per_texel_f16"] = 8 * d["groups"]
         return d
 
     def bytes_per_probe(self, probe_count: int, half: bool = True) -> float:
         """GPU bytes per probe of the file: the pool's used texels (8 B per RGBA16F texel and group, 16
-        for RGBA32F), the indirection, and 16 B per brick for the brick table docs/probe-bricks.md
-        plans (not built here), over ``probe_count``."""
+        for RGBA32F), the indirection, and 16 B per brick for the brick table (visibility records not
+        counted), over ``probe_count``."""
         d = self._raw
         texel = d["groups"] * (8 if half else 16)
         return (d["texel_count"] * texel + d["indirection_bytes"] + 16 * d["brick_count"]) / probe_count
@@ -1012,6 +1028,31 @@ class Bricks:
                 np.frombuffer(has, dtype=np.uint8).astype(bool), np.frombuffer(br, dtype=np.int32),
                 np.frombuffer(x, dtype=np.float64).reshape(-1, 3))
 
+    def sample_surface(self, points: np.ndarray, normals: Optional[np.ndarray] = None,
+                       surface: Optional[np.ndarray] = None, static: bool = False, eight_tap: bool = False,
+                       subtexel_bits: int = 0) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Step 5 of the sampling rule (pb_bricks_sample_surface) at engine-space ``points`` (N, 3) (the
+        lookup point): (coeffs (N, C, 3) = N / D, NaN without a value; D (N,); has_value (N,) bool).
+        ``static``: back-face weights against ``normals`` (N, 3) at ``surface`` (N, 3; None = points);
+        the visibility record of a blocked brick cell applies on every object. ``eight_tap``: 8 texel
+        fetches with the weights exact, else one filtered tap at the weights' per-axis mean with the
+        fractions rounded to 2**-subtexel_bits (0 = exact). SchneeError names a refused point (non-finite
+        or zero normal)."""
+        p, _ = _vectors(points, "points")
+        n = len(p)
+        nv = None if normals is None else _vectors(normals, "normals")[0]
+        sv = None if surface is None else _vectors(surface, "surface")[0]
+        for name, v in (("normals", nv), ("surface", sv)):
+            if v is not None and v.size != 3 * n:
+                raise ValueError(f"{name} must be ({n}, 3) like points, got {v.size // 3} rows")
+        flags = (self.STATIC if static else 0) | (self.EIGHT_TAP if eight_tap else 0)
+        co, d, has = _lib().bricks_sample_surface(self._handle, p, sv, nv, flags, int(subtexel_bits))
+        C = self._raw["coeff_count"]
+        c = np.frombuffer(co, dtype=np.float64).reshape(-1, C, 3).copy()
+        has = np.frombuffer(has, dtype=np.uint8).astype(bool)
+        c[~has] = np.nan
+        return c, np.frombuffer(d, dtype=np.float64), has
+
     def pool(self, half: bool = True) -> np.ndarray:
         """The channel textures (groups, pz, py, px, 4): float16 (SchneeError when a value exceeds
         65504: upload float32) or float32."""
@@ -1019,3 +1060,88 @@ class Bricks:
         px, py, pz = d["pool_texels"]
         raw = _lib().bricks_pool(self._handle, bool(half))
         return np.frombuffer(raw, dtype=np.float16 if half else np.float32).reshape(d["groups"], pz, py, px, 4)
+
+
+# ---- dense grid field (pb_grid_field.h, docs/grid-field.md) ----------------------------------------
+
+GRID_FIELD_STATUS = ("outside", "none", "weights", "fallback")
+
+
+class GridField:
+    """The dense probe grid's field (native/include/schnee/pb_grid_field.h): the one definition of
+    shading.glsl's grid_irradiance (trilinear between cell centres with clamped indices, validity,
+    optional back faces and home-cell neighbour masks, empty cells, renormalisation, home-cell
+    fallback, the 0.01-cell margin, rotated axes) and its cell-centred texture form (N = v s c, D = v)."""
+
+    def __init__(self, handle):
+        self._handle = handle
+        self._raw = _lib().grid_field_info(handle)
+
+    @classmethod
+    def build(cls, cells: np.ndarray, origin, spacing: float, coeffs: np.ndarray, axes=None,
+              validity: Optional[np.ndarray] = None, scale: Optional[np.ndarray] = None,
+              masks: Optional[np.ndarray] = None, max_bytes: int = 0) -> "GridField":
+        """``cells`` int (Z, Y, X) of probe indices or -1 (the .shprobe grid, x fastest in memory);
+        ``coeffs`` (P, C, 3) colours per probe (SH coefficients, or 6 ambient-cube faces); ``axes``
+        (3, 3) rows = the grid's unit axes (None = identity); ``validity`` / ``scale`` (P,);
+        ``masks`` uint32 (Z, Y, X) 27-bit neighbour masks (None = all visible)."""
+        g = _array(cells, "cells", np.int32, "iu")
+        if g.ndim != 3:
+            raise _shape_error("cells", "(Z, Y, X)", g)
+        c = _array(coeffs, "coeffs", np.float64, _FLOAT_KINDS)
+        if c.ndim != 3 or c.shape[2] != 3:
+            raise _shape_error("coeffs", "(P, C, 3)", c)
+        P = c.shape[0]
+        ax = None if axes is None else _array(axes, "axes", np.float64, _FLOAT_KINDS)
+        if ax is not None and ax.shape != (3, 3):
+            raise _shape_error("axes", "(3, 3)", ax)
+        m = None if masks is None else _array(masks, "masks", np.uint32, "iu")
+        if m is not None and m.shape != g.shape:
+            raise _shape_error("masks", str(g.shape), m)
+        Z, Y, X = g.shape
+        o = tuple(float(v) for v in origin)
+        return cls(_lib().grid_field_build((X, Y, Z), o, float(spacing), None if ax is None else ax.reshape(-1),
+                                           g.reshape(-1), c.reshape(-1), c.shape[1],
+                                           _per_probe(validity, "validity", P), _per_probe(scale, "scale", P),
+                                           None if m is None else m.reshape(-1), int(max_bytes)))
+
+    def info(self) -> dict:
+        """dims (X, Y, Z), origin, spacing, probe_count, coeff_count, channels (3C + 1), groups, the
+        texture bytes, and texels (Z, Y, X, channels) float64."""
+        d = dict(self._raw)
+        X, Y, Z = d["dims"]
+        d["texels"] = np.frombuffer(d["texels"], dtype=np.float64).reshape(Z, Y, X, d["channels"])
+        return d
+
+    def query(self, points: np.ndarray, normals: Optional[np.ndarray] = None, static_surface: bool = False,
+              normal_bias: float = 0.0) -> dict:
+        """The rule at surface points (N, 3) with unit normals (N, 3) (None: no normal): status (N,)
+        (GRID_FIELD_STATUS index), probe (N, 8) (-1 empty or unused), weight (N, 8) (sum 1 with a value),
+        coeffs (N, C, 3) = sum w s c (0 without a value), home (N, 3)."""
+        p, _ = _vectors(points, "points")
+        n = None if normals is None else _vectors(normals, "normals")[0]
+        if n is not None and n.shape != p.shape:
+            raise _shape_error("normals", str(p.shape), n)
+        st, pr, wt, co, hm = _lib().grid_field_query(self._handle, p, n, bool(static_surface), float(normal_bias))
+        C = self._raw["coeff_count"]
+        return {"status": np.frombuffer(st, dtype=np.uint8), "probe": np.frombuffer(pr, dtype=np.int32).reshape(-1, 8),
+                "weight": np.frombuffer(wt, dtype=np.float64).reshape(-1, 8),
+                "coeffs": np.frombuffer(co, dtype=np.float64).reshape(-1, C, 3),
+                "home": np.frombuffer(hm, dtype=np.uint32).reshape(-1, 3)}
+
+    def sample_texture(self, points: np.ndarray, subtexel_bits: int = 0):
+        """The texture form at points (N, 3): (coeffs (N, C, 3) = N / D (0 without a value), D (N,),
+        has_value (N,) bool (in the box and D > 1e-6), t (N, 3) texel coordinates in [0, dims - 1]).
+        ``subtexel_bits`` > 0: fractions rounded to 2**-bits (the filter's weights)."""
+        p, _ = _vectors(points, "points")
+        co, d, has, t = _lib().grid_field_sample_texture(self._handle, p, int(subtexel_bits))
+        C = self._raw["coeff_count"]
+        return (np.frombuffer(co, dtype=np.float64).reshape(-1, C, 3), np.frombuffer(d, dtype=np.float64),
+                np.frombuffer(has, dtype=np.uint8).astype(bool), np.frombuffer(t, dtype=np.float64).reshape(-1, 3))
+
+    def texture(self, half: bool = True) -> np.ndarray:
+        """The channel textures (groups, Z, Y, X, 4): float16 (SchneeError past 65504) or float32."""
+        d = self._raw
+        X, Y, Z = d["dims"]
+        raw = _lib().grid_field_texture(self._handle, bool(half))
+        return np.frombuffer(raw, dtype=np.float16 if half else np.float32).reshape(d["groups"], Z, Y, X, 4)

@@ -10,6 +10,7 @@
  *   mod_interp.c     pb_interp.h, pb_refine.h: corner octree, tetrahedra, queries, refinement, metric
  *   mod_direct.c     pb_direct.h, pb_sky_sun.h: direct light of lamps, sky table, the sky's sun
  *   mod_bricks.c     pb_bricks.h: probe bricks (build, exact sampling, pool arrays)
+ *   mod_grid_field.c pb_grid_field.h: the dense grid's field (weights, sample, texture form)
  *
  * Who checks what (validated once): native.py converts arguments (numpy dtype, C order) and checks
  * the shapes the C cannot see (a flat buffer has no shape) and the names of choices ("clamp",
@@ -44,6 +45,7 @@ extern PyMethodDef _pb_py_interp_methods[];
 extern PyMethodDef _pb_py_refine_methods[]; /* mod_refine.c: pb_refine.h tests, decisions, metric */
 extern PyMethodDef _pb_py_direct_methods[];
 extern PyMethodDef _pb_py_bricks_methods[];
+extern PyMethodDef _pb_py_grid_field_methods[];
 
 /* Raises the registered error class (native.SchneeError) with the core's message and `.code`.
  * Returns NULL. */

@@ -314,7 +314,7 @@ PyMODINIT_FUNC PyInit__schnee_native(void)
     }
     PyMethodDef *areas[] = {_pb_py_sh_methods,     _pb_py_placement_methods, _pb_py_shprobe_methods,
                             _pb_py_interp_methods, _pb_py_direct_methods,    _pb_py_refine_methods,
-                            _pb_py_bricks_methods};
+                            _pb_py_bricks_methods, _pb_py_grid_field_methods};
     for (size_t i = 0; i < sizeof areas / sizeof areas[0]; i++)
         if (PyModule_AddFunctions(m, areas[i]) < 0) {
             Py_DECREF(m);

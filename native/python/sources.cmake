@@ -9,4 +9,5 @@ set(PB_PYTHON_SOURCES
   python/mod_refine.c
   python/mod_direct.c
   python/mod_bricks.c
+  python/mod_grid_field.c
 )
