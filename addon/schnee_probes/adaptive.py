@@ -241,10 +241,12 @@ def split_masks(leaf_count: int, levels: np.ndarray, leaf_of: np.ndarray, edge: 
     return (out & splittable).astype(np.uint8)
 
 
-def outside_boxes(origin, min_cell: float, volumes, geometry, leaves: np.ndarray, levels: np.ndarray) -> np.ndarray:
+def outside_boxes(origin, min_cell: float, volumes, geometry, leaves: np.ndarray, levels: np.ndarray,
+                  max_cell: Optional[float] = None) -> np.ndarray:
     """(L,) bool: the leaf boxes outside the volumes: class 0 (``classify_placement``) for each of the
     cubes of the box's smallest side that tile it (at most 8 per axis: beyond that, the cubes
-    around 8 × 8 × 8 sub-boxes, which may keep a box just outside)."""
+    around 8 × 8 × 8 sub-boxes, which may keep a box just outside). ``max_cell``: the bake's Max
+    Cell Size (default ``min_cell``); see :meth:`AdaptiveGroup.classify_points`."""
     levels = np.asarray(levels, dtype=np.int64).reshape(-1, 3)
     side = levels.min(axis=1, keepdims=True)
     split = np.minimum(levels - side, 3)          # cubes per axis 2^split (≤ 8)
@@ -259,8 +261,8 @@ def outside_boxes(origin, min_cell: float, volumes, geometry, leaves: np.ndarray
         halves.append(np.full(len(sel) * len(grid), 0.5 * min_cell * cube.max()))
         owner.append(np.repeat(sel, len(grid)))
     boxes = np.concatenate([np.concatenate(centres), np.concatenate(halves)[:, None]], axis=1)
-    _, _, cls = native.classify_placement(volumes, geometry, boxes=boxes,
-                                          min_cell_size=min_cell)
+    _, _, cls = native.classify_placement(volumes, geometry, boxes=boxes, min_cell_size=min_cell,
+                                          max_cell_size=min_cell if max_cell is None else max_cell)
     inside = np.zeros(len(leaves), dtype=bool)
     inside[np.concatenate(owner)[np.asarray(cls) != 0]] = True
     return ~inside
@@ -535,6 +537,7 @@ class AdaptiveGroup:
         self.policy = policy
         self.volumes, self.geometry = volumes, geometry
         self.min_cell = float(min_cell)
+        self.max_cell = float(max_cell)
         self.tolerance = float(tolerance)
         self.test_mode = tests
         self.axes = bool(policy.axes) and tests == "CENTRE_FACES"
@@ -575,15 +578,20 @@ class AdaptiveGroup:
         leaves = info["leaves"]
         if len(leaves) == 0:
             return 0
-        outside = outside_boxes(self.origin, self.min_cell, self.volumes, self.geometry, leaves, leaf_levels(info))
+        outside = outside_boxes(self.origin, self.min_cell, self.volumes, self.geometry, leaves, leaf_levels(info),
+                                self.max_cell)
         if outside.any():
             self.tree.drop(outside)
         return int(outside.sum())
 
     def classify_points(self, points: np.ndarray) -> np.ndarray:
         """Back-face ratio of the solid test at each point."""
+        # The bake's own Max Cell Size: the classification does not use it, but the native
+        # placement checks it against Min Cell Size, and left out it is the native default of
+        # 16 m, which refused any Min Cell Size above 16 m "(16 m) is smaller than min_cell_size"
+        # (issue 31).
         _, ratio, _ = native.classify_placement(self.volumes, self.geometry, points=points,
-                                                min_cell_size=self.min_cell)
+                                                min_cell_size=self.min_cell, max_cell_size=self.max_cell)
         return ratio
 
     def lattice_positions(self, lattice: np.ndarray) -> np.ndarray:

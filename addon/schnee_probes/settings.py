@@ -150,7 +150,8 @@ SETTINGS: Tuple[Setting, ...] = (
     Setting("max_cell_size", "float", 16.0, "Max Cell Size (m)",
             "Largest octree cell: Adaptive's first layer, Geometry Octree's cells away from geometry",
             doc="Largest cell: the first layer Adaptive bakes and refines (wherever the light is "
-                "smooth it stays); Geometry Octree's cells in open space. At least Min Cell Size.",
+                "smooth it stays); Geometry Octree's cells in open space. At least Min Cell Size; no "
+                "upper limit (16 m is only the default), so 20 / 40 m cells are valid.",
             minimum=0.01, soft_max=64.0, unit='LENGTH', suffix="m", ui="volumes"),
     Setting("placement", "enum", 'ADAPTIVE', "Placement",
             "Where the probes go: Adaptive bakes a coarse layer of Max Cell Size and refines, pass by "

@@ -21,6 +21,7 @@ import shutil
 import pytest
 
 from conftest import requires_native, run_blender
+from schnee_probes import native
 from test_bake_hazards import BAKE_PY, CELLS_2M, SCRIPTS, TINY, copy_blend, last_error
 
 pytestmark = requires_native
@@ -108,3 +109,26 @@ def test_a_shortened_option_is_an_error(scenes, tmp_path, short, meant):
                                 + " ".join([short, *extra])), last_error(proc)
     assert meant in proc.stderr  # the usage lines above it show the real option
     assert files_under(tmp_path) == ["sky.blend"]
+
+
+# ------------------------------------------------------------------ 5. cells above 16 m
+def test_cells_of_20_to_40_m_bake_without_a_bound_never_given(scenes, tmp_path):
+    # Before: "bake.py: error: Probe placement failed: max_cell_size (16 m) is smaller than
+    # min_cell_size (20 m)" (exit 3): the Adaptive placement's classification left Max Cell Size
+    # out and the native default of 16 m was checked instead. Now the given sizes hold: the 4 x 4 x 2 m
+    # volume lies in one 40 m cell, whose 8 corners are the probes.
+    blend = copy_blend(scenes, "sky.blend", tmp_path)
+    proc = bake_py(blend, "--placement", "ADAPTIVE", "--min-cell-size", "20", "--max-cell-size", "40", *TINY)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "16 m" not in proc.stdout + proc.stderr
+    assert "bake.py: 8 probes in" in proc.stdout
+    f = native.read_shprobe(str(tmp_path / "sh_coeffs" / "probes.shprobe"))
+    assert f.probe_count == 8 and f.structure == "octree"
+    assert f.grid_spacing == 20.0 and [int(l[3]) for l in f.leaves] == [1]  # one leaf of 20 m x 2^1
+    # The geometry octree's message for the same sizes names the real limit: the volume is thinner
+    # than Min Cell Size.
+    proc = bake_py(blend, "--placement", "OCTREE", "--min-cell-size", "20", "--max-cell-size", "40", *TINY)
+    assert proc.returncode == 3
+    assert last_error(proc) == ("bake.py: error: Probe placement failed: no probe could be placed: no "
+                                "occupancy-grid cell centre (spacing 20 m) lies inside the probe volumes; are "
+                                "the volumes thinner than Min Cell Size?"), last_error(proc)

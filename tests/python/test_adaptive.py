@@ -633,3 +633,17 @@ def test_split_masks_follow_the_per_axis_rule():
     assert list(adaptive.split_masks(1, levels[:1], leaf[1:2], edge[1:2], fail[1:2], True)) == [0b101]
     # the octree: every splittable axis where anything failed
     assert list(adaptive.split_masks(3, levels, leaf, edge, fail, False)) == [0b101, 0b111, 0]
+
+
+def test_cells_above_16_m_are_placed_with_the_given_sizes():
+    # Issue 31: Min / Max Cell Size 20 / 40 m was refused with "max_cell_size (16 m) is smaller than
+    # min_cell_size (20 m)": the volume and solid classification passed no Max Cell Size, and the
+    # native placement's built-in default of 16 m was checked against the given Min Cell Size.
+    vol = box_mesh("plain", (0.0, 0.0, 0.0), (80.0, 40.0, 40.0))
+    group = adaptive.AdaptiveGroup("plain", "", [vol], [], 20.0, 40.0, 0.05)
+    assert group.root_level == 1 and group.tree.leaf_count == 2  # two 40 m cells
+    # A step in the light at x = 30 m (inside the first cell): the tests there fail and that cell
+    # splits into 20 m cells; the second cell stays whole. Its tests are classified (classify_points).
+    drive(group, lambda p: np.array([sh_of(1.0, 0.5 if x > 30.0 else 0.0) for x in p[:, 0]]))
+    x0, size_x, _ = x_cells(group, h=20.0)
+    assert sorted(set(size_x[x0 < 40.0])) == [20.0] and list(size_x[x0 >= 40.0]) == [40.0]
