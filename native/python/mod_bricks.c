@@ -4,6 +4,7 @@
 
 #include "schnee/pb_bricks.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -20,13 +21,33 @@ static pb_bricks *get_bricks(PyObject *o)
     return PyCapsule_GetPointer(o, PB_PY_CAP_BRICKS);
 }
 
+/* The static scene of a test as infinite planes n·p = d (4 doubles each): the first crossing of a -> b as a
+ * fraction of its length (pb_segment_fn); a segment that only touches a plane is clear. */
+typedef struct planes {
+    const double *p;
+    Py_ssize_t count;
+} planes;
+
+static double planes_segment(void *user, const double a[3], const double b[3])
+{
+    const planes *pl = user;
+    double t = 1.0;
+    for (Py_ssize_t i = 0; i < pl->count; i++) {
+        const double *q = pl->p + 4 * i;
+        double sa = q[0] * a[0] + q[1] * a[1] + q[2] * a[2] - q[3], sb = q[0] * b[0] + q[1] * b[1] + q[2] * b[2] - q[3];
+        if (sa * sb < 0.0 && sa / (sa - sb) < t) t = sa / (sa - sb);
+    }
+    return t;
+}
+
 /* bricks_build(tree, coeffs float64[P*C*3], coeff_count, validity float32[P] | None, scale float32[P] | None,
- * max_bytes) -> handle. */
+ * max_bytes, planes float64[K*4] | None) -> handle. With planes: the build with visibility (the planes as
+ * the static scene). */
 static PyObject *py_bricks_build(PyObject *module, PyObject *args)
 {
-    PyObject *t_obj, *c_obj, *v_obj = Py_None, *s_obj = Py_None;
+    PyObject *t_obj, *c_obj, *v_obj = Py_None, *s_obj = Py_None, *p_obj = Py_None;
     Py_ssize_t count_in, max_in = 0;
-    if (!PyArg_ParseTuple(args, "OOn|OOn:bricks_build", &t_obj, &c_obj, &count_in, &v_obj, &s_obj, &max_in))
+    if (!PyArg_ParseTuple(args, "OOn|OOnO:bricks_build", &t_obj, &c_obj, &count_in, &v_obj, &s_obj, &max_in, &p_obj))
         return NULL;
     pb_cotree *t = _pb_py_get_cotree(t_obj);
     if (!t) return NULL;
@@ -39,20 +60,25 @@ static PyObject *py_bricks_build(PyObject *module, PyObject *args)
     if (max_in < 0) return PyErr_Format(PyExc_ValueError, "max_bytes %zd is negative", max_in);
     Py_ssize_t P = (Py_ssize_t)pb_cotree_probe_count(t), want = _pb_py_product3(P, (Py_ssize_t)C, 3, "coeffs");
     if (want < 0) return NULL;
-    pb_py_buffer co = {0}, val = {0}, sc = {0};
+    pb_py_buffer co = {0}, val = {0}, sc = {0}, pl = {0};
     if (_pb_py_get_buffer(c_obj, "coeffs", 'd', 0, want, &co) < 0 ||
         (v_obj != Py_None && _pb_py_get_buffer(v_obj, "validity", 'f', 0, P, &val) < 0) ||
-        (s_obj != Py_None && _pb_py_get_buffer(s_obj, "scale", 'f', 0, P, &sc) < 0)) {
+        (s_obj != Py_None && _pb_py_get_buffer(s_obj, "scale", 'f', 0, P, &sc) < 0) ||
+        (p_obj != Py_None && _pb_py_get_buffer(p_obj, "planes", 'd', 4, -1, &pl) < 0)) {
         _pb_py_release(&co);
         _pb_py_release(&val);
+        _pb_py_release(&sc);
         return NULL;
     }
+    planes scene = {.p = pl.view.obj ? pl.view.buf : NULL, .count = pl.view.obj ? pl.count / 4 : 0};
     pb_bricks_desc d = {.tree = t,
                         .coeff_count = C,
                         .coeffs = co.view.buf,
                         .validity = val.view.obj ? val.view.buf : NULL,
                         .scale = sc.view.obj ? sc.view.buf : NULL,
-                        .max_bytes = (uint64_t)max_in};
+                        .max_bytes = (uint64_t)max_in,
+                        .segment = pl.view.obj ? planes_segment : NULL,
+                        .segment_user = &scene};
     pb_bricks *b = NULL;
     pb_error err = {0};
     pb_result r;
@@ -60,6 +86,7 @@ static PyObject *py_bricks_build(PyObject *module, PyObject *args)
     Py_END_ALLOW_THREADS _pb_py_release(&co);
     _pb_py_release(&val);
     _pb_py_release(&sc);
+    _pb_py_release(&pl);
     if (r != PB_SUCCESS) return _pb_py_raise_core(module, r, &err);
     PyObject *cap = PyCapsule_New(b, PB_PY_CAP_BRICKS, bricks_capsule_free);
     if (!cap) pb_bricks_destroy(b);
@@ -99,6 +126,14 @@ static PyObject *py_bricks_info(PyObject *module, PyObject *h)
         _pb_py_dict_put(d, "indirection_bytes", PyLong_FromUnsignedLongLong(in.indirection_bytes)) < 0 ||
         _pb_py_dict_put(d, "pool_bytes_f16", PyLong_FromUnsignedLongLong(in.pool_bytes_f16)) < 0 ||
         _pb_py_dict_put(d, "pool_bytes_f32", PyLong_FromUnsignedLongLong(in.pool_bytes_f32)) < 0 ||
+        _pb_py_dict_put(d, "blocked_leaves", PyLong_FromUnsignedLong(in.blocked_leaves)) < 0 ||
+        _pb_py_dict_put(d, "traced_cells", PyLong_FromUnsignedLong(in.traced_cells)) < 0 ||
+        _pb_py_dict_put(d, "vis_record_count", PyLong_FromUnsignedLong(in.vis_record_count)) < 0 ||
+        _pb_py_dict_put(d, "table_bytes", PyLong_FromUnsignedLongLong(in.table_bytes)) < 0 ||
+        _pb_py_dict_put(d, "vis_record_bytes", PyLong_FromUnsignedLongLong(in.vis_record_bytes)) < 0 ||
+        _pb_py_dict_put(d, "table", _pb_py_bytes_out(pb_bricks_table(b), (size_t)in.table_bytes)) < 0 ||
+        _pb_py_dict_put(d, "vis_records", _pb_py_bytes_out(pb_bricks_vis_records(b), (size_t)in.vis_record_bytes)) <
+            0 ||
         _pb_py_dict_put(d, "regions", _pb_py_bytes_out(pb_bricks_regions(b), (size_t)in.brick_count * 16u)) < 0 ||
         _pb_py_dict_put(d, "indirection", _pb_py_bytes_out(pb_bricks_indirection(b), (size_t)ind * 16u)) < 0 ||
         _pb_py_dict_put(d, "texels", _pb_py_bytes_out(pb_bricks_texels(b), (size_t)in.texel_count * in.channels * 8u)) <
@@ -153,6 +188,63 @@ static PyObject *py_bricks_sample(PyObject *module, PyObject *args)
     return Py_BuildValue("(NNNNN)", co, dd, has, br, xo);
 }
 
+/* bricks_sample_surface(handle, points float64[N*3], surface float64[N*3] | None, normals float64[N*3] | None,
+ * flags, subtexel_bits) -> (coeffs float64[N*C*3], d float64[N], has uint8[N]): pb_bricks_sample_surface per
+ * point; the first refusal raises (its message names the point). */
+static PyObject *py_bricks_sample_surface(PyObject *module, PyObject *args)
+{
+    PyObject *h, *p_obj, *s_obj = Py_None, *n_obj = Py_None;
+    unsigned int flags = 0, bits = 0;
+    if (!PyArg_ParseTuple(args, "OO|OOII:bricks_sample_surface", &h, &p_obj, &s_obj, &n_obj, &flags, &bits))
+        return NULL;
+    pb_bricks *b = get_bricks(h);
+    if (!b) return NULL;
+    pb_bricks_info in;
+    pb_bricks_get_info(b, &in);
+    pb_py_buffer pts = {0}, sur = {0}, nor = {0};
+    if (_pb_py_get_buffer(p_obj, "points", 'd', 3, -1, &pts) < 0) return NULL;
+    Py_ssize_t n = pts.count / 3, C3 = 3 * (Py_ssize_t)in.coeff_count;
+    if ((s_obj != Py_None && _pb_py_get_buffer(s_obj, "surface", 'd', 0, 3 * n, &sur) < 0) ||
+        (n_obj != Py_None && _pb_py_get_buffer(n_obj, "normals", 'd', 0, 3 * n, &nor) < 0)) {
+        _pb_py_release(&pts);
+        _pb_py_release(&sur);
+        return NULL;
+    }
+    PyObject *co = PyByteArray_FromStringAndSize(NULL, n * C3 * 8), *dd = PyByteArray_FromStringAndSize(NULL, n * 8),
+             *has = PyByteArray_FromStringAndSize(NULL, n);
+    pb_error err = {0};
+    pb_result r = PB_SUCCESS;
+    Py_ssize_t bad = -1;
+    if (co && dd && has) {
+        double *c = (double *)(void *)PyByteArray_AsString(co), *d = (double *)(void *)PyByteArray_AsString(dd);
+        uint8_t *hv = (uint8_t *)PyByteArray_AsString(has);
+        const double *pp = pts.view.buf, *ps = sur.view.obj ? sur.view.buf : NULL,
+                     *pn = nor.view.obj ? nor.view.buf : NULL;
+        Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < n && r == PB_SUCCESS; i++)
+        {
+            bool v = false;
+            r = pb_bricks_sample_surface(b, pp + 3 * i, ps ? ps + 3 * i : NULL, pn ? pn + 3 * i : NULL, flags, bits,
+                                         c + C3 * i, d + i, &v, &err);
+            hv[i] = v;
+            if (r != PB_SUCCESS) bad = i;
+        }
+        Py_END_ALLOW_THREADS
+    }
+    _pb_py_release(&pts);
+    _pb_py_release(&sur);
+    _pb_py_release(&nor);
+    if (!co || !dd || !has || r != PB_SUCCESS) {
+        Py_XDECREF(co), Py_XDECREF(dd), Py_XDECREF(has);
+        if (r != PB_SUCCESS) {
+            pb_error at = {.code = r};
+            snprintf(at.message, sizeof at.message, "point %zd: %.400s", bad, err.message);
+            return _pb_py_raise_core(module, r, &at);
+        }
+        return NULL;
+    }
+    return Py_BuildValue("(NNN)", co, dd, has);
+}
+
 /* bricks_pool(handle, half) -> bytearray: the pool (pb_bricks_pool_f16 / _f32). */
 static PyObject *py_bricks_pool(PyObject *module, PyObject *args)
 {
@@ -179,10 +271,14 @@ static PyObject *py_bricks_pool(PyObject *module, PyObject *args)
 
 PyMethodDef _pb_py_bricks_methods[] = {
     {"bricks_build", py_bricks_build, METH_VARARGS,
-     "bricks_build(tree, coeffs: float64[P*C*3], coeff_count, validity=None, scale=None, max_bytes=0) -> handle"},
+     "bricks_build(tree, coeffs: float64[P*C*3], coeff_count, validity=None, scale=None, max_bytes=0, planes=None) "
+     "-> handle"},
     {"bricks_info", py_bricks_info, METH_O, "bricks_info(handle) -> dict (sizes, regions, indirection, texels)"},
     {"bricks_sample", py_bricks_sample, METH_VARARGS,
      "bricks_sample(handle, points: float64[N*3], subtexel_bits=0) -> (coeffs, d, has_value, brick, x) bytearrays"},
+    {"bricks_sample_surface", py_bricks_sample_surface, METH_VARARGS,
+     "bricks_sample_surface(handle, points, surface=None, normals=None, flags=0, subtexel_bits=0) -> (coeffs, d, "
+     "has_value) bytearrays"},
     {"bricks_pool", py_bricks_pool, METH_VARARGS, "bricks_pool(handle, half: bool) -> bytearray (RGBA16F / RGBA32F)"},
     {NULL, NULL, 0, NULL},
 };

@@ -26,6 +26,9 @@ struct pb_bricks {
     uint32_t *regions; /* brick_count × 4: region min (lattice), level */
     double *texels;    /* brick_count × 125 × channels */
     uint32_t pool_bricks[3];
+    uint32_t *table;  /* brick_count × 4 (pb_bricks.h "Brick table") */
+    uint8_t *records; /* record_count × 64 */
+    uint32_t record_count, record_cap, blocked_leaves, traced_cells;
 };
 
 /* The build's scratch: the pyramid of per-region smallest leaf levels (level k: regions of 2^(k+2) min
@@ -49,6 +52,8 @@ void pb_bricks_destroy(pb_bricks *b)
     free(b->ind);
     free(b->regions);
     free(b->texels);
+    free(b->table);
+    free(b->records);
     free(b);
 }
 
@@ -79,6 +84,12 @@ static pb_result check_desc(const pb_bricks_desc *d, pb_error *err)
             return pb_error_set(err, PB_ERROR_NON_FINITE, "pb_bricks_build: scale of probe %u is %g", i,
                                 (double)d->scale[i]);
     return PB_SUCCESS;
+}
+
+/* What the texels of n bricks count against the cap. */
+static uint64_t texels_bytes(const pb_bricks *b, uint32_t n)
+{
+    return (uint64_t)n * PB_BRICK_TEXELS * b->channels * 8u + 16u;
 }
 
 static pb_result too_large(build *B, const char *what, uint64_t bytes)
@@ -175,7 +186,7 @@ static pb_result add_brick(build *B, uint32_t L, const uint64_t r[3])
     pb_bricks *b = B->b;
     if (b->brick_count >= PB_BRICKS_MAX)
         return pb_error_set(B->err, PB_ERROR_TOO_LARGE, "pb_bricks_build: more than %u bricks", PB_BRICKS_MAX);
-    uint64_t texel_bytes = (uint64_t)(b->brick_count + 1u) * PB_BRICK_TEXELS * b->channels * 8u + 16u;
+    uint64_t texel_bytes = texels_bytes(b, b->brick_count + 1u);
     if (B->fixed_bytes + texel_bytes > B->max_bytes)
         return too_large(B, "the bricks' texels", B->fixed_bytes + texel_bytes);
     if (b->brick_count == b->brick_cap) {
@@ -236,7 +247,7 @@ static pb_result build_levels(build *B, const pb_cotree *t)
 /* N and D at lattice point X (docs/probe-bricks.md "Texels"): the weights of a leaf whose closed box
  * holds X (one of the 8 unit cells around it; the field is C0, so which one only changes rounding),
  * without validity; 0 outside every leaf. */
-static void texel_value(const pb_bricks_desc *d, const pb_bricks *b, const int64_t X[3], double *out)
+static void texel_value(const pb_bricks_desc *d, const pb_bricks *b, const uint8_t *pv, const int64_t X[3], double *out)
 {
     const pb_cotree *t = d->tree;
     memset(out, 0, b->channels * sizeof *out);
@@ -255,7 +266,8 @@ static void texel_value(const pb_bricks_desc *d, const pb_bricks *b, const int64
     double p[3];
     for (int a = 0; a < 3; a++) p[a] = b->origin[a] + (double)X[a] * b->h;
     pb_interp_weights w;
-    (void)pb_interp_query_cotree_leaf(t, (uint32_t)li, p, NULL, &w);
+    const pb_interp_options opt = {.pair_visibility = pv}; /* the visibility texels where pv is given */
+    (void)pb_interp_query_cotree_leaf(t, (uint32_t)li, p, &opt, &w);
     uint32_t C = b->coeff_count;
     for (uint32_t i = 0; i < w.count; i++) {
         uint32_t pr = w.probe[i];
@@ -268,7 +280,7 @@ static void texel_value(const pb_bricks_desc *d, const pb_bricks *b, const int64
     }
 }
 
-static pb_result build_texels(const pb_bricks_desc *d, pb_bricks *b)
+static pb_result build_texels(const pb_bricks_desc *d, pb_bricks *b, const uint8_t *pv)
 {
     size_t per = (size_t)PB_BRICK_TEXELS * b->channels;
     b->texels = malloc(((size_t)b->brick_count * per + 1u) * sizeof *b->texels);
@@ -279,7 +291,104 @@ static pb_result build_texels(const pb_bricks_desc *d, pb_bricks *b)
             uint32_t ijk[3] = {t % 5u, t / 5u % 5u, t / 25u};
             int64_t X[3];
             for (int a = 0; a < 3; a++) X[a] = (int64_t)reg[a] + ((int64_t)ijk[a] << reg[3]);
-            texel_value(d, b, X, b->texels + (size_t)i * per + (size_t)t * b->channels);
+            texel_value(d, b, pv, X, b->texels + (size_t)i * per + (size_t)t * b->channels);
+        }
+    }
+    return PB_SUCCESS;
+}
+
+/* ---- visibility (docs/probe-bricks.md "Back faces and visibility") -------------------------------- */
+
+/* The leaves' pair tables (pb_cotree_pair_visibility) for the visibility texels and for choosing the
+ * cells that get records; freed after the build, but counted against the cap while they live. */
+static pb_result leaf_tables(build *B, const pb_bricks_desc *d, uint8_t **pv)
+{
+    pb_bricks *b = B->b;
+    uint32_t n = d->tree->leaf_count;
+    uint64_t bytes = B->fixed_bytes + (uint64_t)PB_BRICKS_RECORD_BYTES * n;
+    if (bytes > B->max_bytes) return too_large(B, "the leaves' visibility tables", bytes);
+    if (!(*pv = malloc((size_t)PB_BRICKS_RECORD_BYTES * n + 1u)))
+        return pb_error_set(B->err, PB_ERROR_OUT_OF_MEMORY, "pb_bricks_build: out of memory (visibility tables)");
+    pb_result r = pb_cotree_pair_visibility(d->tree, d->segment, d->segment_user, *pv, B->err);
+    if (r != PB_SUCCESS) return r;
+    B->fixed_bytes += (uint64_t)PB_BRICKS_RECORD_BYTES * n;
+    for (uint32_t i = 0; i < n; i++)
+        for (uint32_t j = 0; j < PB_BRICKS_RECORD_BYTES; j++)
+            if ((*pv)[PB_BRICKS_RECORD_BYTES * i + j] != PB_VIS_CLEAR) {
+                b->blocked_leaves++;
+                break;
+            }
+    return PB_SUCCESS;
+}
+
+/* The pair table of the box [lo, lo + 2^L]³ (lattice), traced exactly as pb_cotree_pair_visibility
+ * traces a leaf (pb_cotree.c: the same corner positions, shifted segments and rounding), so a brick cell
+ * that is a leaf gets the leaf's table. Returns whether some pair is blocked. */
+static bool trace_cell(const pb_bricks *b, const pb_bricks_desc *d, const uint32_t lo[3], uint32_t L, uint8_t o[64])
+{
+    double p[8][3];
+    for (uint32_t c = 0; c < 8; c++)
+        for (int k = 0; k < 3; k++)
+            p[c][k] = b->origin[k] + ((double)lo[k] + ((c >> k) & 1u ? (double)(1u << L) : 0.0)) * b->h;
+    bool blocked = false;
+    for (uint32_t k = 0; k < 8; k++)
+        for (uint32_t c = 0; c < 8; c++) {
+            double f = 1.0;
+            uint32_t flat = 7u & ~(k ^ c); /* axes on which the two corners agree */
+            uint32_t combos = 1u << ((flat & 1u) + ((flat >> 1) & 1u) + ((flat >> 2) & 1u));
+            for (uint32_t m = 0; k != c && m < combos; m++) {
+                double a[3], e[3];
+                uint32_t bit = 0;
+                for (int ax = 0; ax < 3; ax++) {
+                    double s = 0.0;
+                    if ((flat >> ax) & 1u) s = ((m >> bit++) & 1u ? PB_VIS_SHIFT : -PB_VIS_SHIFT) * b->h;
+                    a[ax] = p[c][ax] + s;
+                    e[ax] = p[k][ax] + s;
+                }
+                double fm = d->segment(d->segment_user, a, e);
+                if (fm < f) f = fm;
+            }
+            long q = !(f < 1.0) ? (long)PB_VIS_CLEAR : lround(255.0 * (f > 0.0 ? f : 0.0));
+            o[8u * k + c] = (uint8_t)(q < 1 ? 1 : (q > (long)PB_VIS_CLEAR ? (long)PB_VIS_CLEAR : q));
+            blocked = blocked || o[8u * k + c] != PB_VIS_CLEAR;
+        }
+    return blocked;
+}
+
+/* The brick table and the records: every brick cell inside a blocked leaf is traced; a record where
+ * its own table is not all clear (pb_bricks.h "Visibility record"). */
+static pb_result build_records(build *B, const pb_bricks_desc *d, const uint8_t *pv)
+{
+    pb_bricks *b = B->b;
+    for (uint32_t i = 0; i < b->brick_count; i++) {
+        const uint32_t *reg = b->regions + 4u * i;
+        uint32_t L = reg[3], *e = b->table + 4u * i;
+        e[0] = b->record_count;
+        for (uint32_t cell = 0; cell < 64u; cell++) {
+            uint32_t lo[3] = {reg[0] + ((cell & 3u) << L), reg[1] + ((cell >> 2 & 3u) << L),
+                              reg[2] + ((cell >> 4) << L)};
+            if (lo[0] >= b->dims[0] || lo[1] >= b->dims[1] || lo[2] >= b->dims[2]) continue;
+            int32_t li = locate_cell(d->tree, lo); /* the brick cell lies in this leaf or in none */
+            if (li < 0) continue;
+            const uint8_t *lt = pv + PB_BRICKS_RECORD_BYTES * (uint32_t)li;
+            bool leaf_blocked = false;
+            for (uint32_t j = 0; j < PB_BRICKS_RECORD_BYTES && !leaf_blocked; j++) leaf_blocked = lt[j] != PB_VIS_CLEAR;
+            if (!leaf_blocked) continue;
+            b->traced_cells++;
+            uint8_t rec[PB_BRICKS_RECORD_BYTES];
+            if (!trace_cell(b, d, lo, L, rec)) continue;
+            uint64_t bytes = B->fixed_bytes + (uint64_t)PB_BRICKS_RECORD_BYTES * (b->record_count + 1u);
+            if (bytes > B->max_bytes) return too_large(B, "the visibility records", bytes);
+            if (b->record_count == b->record_cap) {
+                uint32_t cap = b->record_cap ? 2u * b->record_cap : 256u;
+                uint8_t *nr = realloc(b->records, (size_t)cap * PB_BRICKS_RECORD_BYTES);
+                if (!nr)
+                    return pb_error_set(B->err, PB_ERROR_OUT_OF_MEMORY, "pb_bricks_build: out of memory (records)");
+                b->records = nr;
+                b->record_cap = cap;
+            }
+            memcpy(b->records + (size_t)PB_BRICKS_RECORD_BYTES * b->record_count++, rec, PB_BRICKS_RECORD_BYTES);
+            e[1 + cell / 32u] |= UINT32_C(1) << (cell % 32u);
         }
     }
     return PB_SUCCESS;
@@ -313,8 +422,16 @@ pb_result pb_bricks_build(const pb_bricks_desc *desc, pb_bricks **out, pb_error 
     build B = {.b = b, .max_bytes = desc->max_bytes ? desc->max_bytes : PB_BRICKS_DEFAULT_MAX_BYTES, .err = err};
     r = build_levels(&B, t);
     for (uint32_t k = 0; k <= PB_COTREE_MAX_LEVEL; k++) free(B.pyr[k]);
-    if (r == PB_SUCCESS && (r = build_texels(desc, b)) != PB_SUCCESS)
+    B.fixed_bytes += texels_bytes(b, b->brick_count) + 16u * (uint64_t)b->brick_count;
+    if (r == PB_SUCCESS && B.fixed_bytes > B.max_bytes) r = too_large(&B, "the brick table", B.fixed_bytes);
+    uint8_t *pv = NULL; /* the leaves' pair tables, with a static scene */
+    if (r == PB_SUCCESS && desc->segment) r = leaf_tables(&B, desc, &pv);
+    if (r == PB_SUCCESS && (r = build_texels(desc, b, pv)) != PB_SUCCESS)
         pb_error_set(err, r, "pb_bricks_build: out of memory (texels of %u bricks)", b->brick_count);
+    if (r == PB_SUCCESS && !(b->table = calloc((size_t)b->brick_count + 1u, 16u)))
+        r = pb_error_set(err, PB_ERROR_OUT_OF_MEMORY, "pb_bricks_build: out of memory (brick table)");
+    if (r == PB_SUCCESS && pv) r = build_records(&B, desc, pv);
+    free(pv);
     if (r != PB_SUCCESS) {
         pb_bricks_destroy(b);
         return r;
@@ -344,6 +461,11 @@ void pb_bricks_get_info(const pb_bricks *b, pb_bricks_info *o)
     o->indirection_bytes = 16u * prod3(b->ind_dims);
     o->pool_bytes_f32 = prod3(o->pool_texels) * b->groups * 16u;
     o->pool_bytes_f16 = o->pool_bytes_f32 / 2u;
+    o->blocked_leaves = b->blocked_leaves;
+    o->traced_cells = b->traced_cells;
+    o->vis_record_count = b->record_count;
+    o->table_bytes = 16u * (uint64_t)b->brick_count;
+    o->vis_record_bytes = (uint64_t)PB_BRICKS_RECORD_BYTES * b->record_count;
 }
 
 /* ---- sampling (docs/probe-bricks.md "Sampling rule", steps 1–4) ----------------------------------- */
@@ -404,19 +526,9 @@ bool pb_bricks_locate(const pb_bricks *b, const double p[3], uint32_t *brick, do
     return true;
 }
 
-void pb_bricks_filter(const pb_bricks *b, uint32_t brick, const double x[3], uint32_t bits, double *out)
+/* Σ_c w8[c] T_c over the 8 texels of brick cell k0 (zero weights skipped): the 8-tap form. */
+static void cell_weighted(const pb_bricks *b, uint32_t brick, const uint32_t k0[3], const double w8[8], double *out)
 {
-    uint32_t k0[3];
-    double f[3];
-    for (int a = 0; a < 3; a++) {
-        double v = x[a] < 0.0 ? 0.0 : (x[a] > 4.0 ? 4.0 : x[a]), fl = floor(v);
-        k0[a] = fl > 3.0 ? 3u : (uint32_t)fl;
-        f[a] = v - (double)k0[a];
-        if (bits && bits <= 24u)
-            f[a] = ldexp(nearbyint(ldexp(f[a], (int)bits)), -(int)bits); /* in [0, 1]: k0 + 1 ≤ 4 */
-    }
-    double w8[8];
-    trilinear8(f, w8);
     uint32_t n = b->channels;
     memset(out, 0, n * sizeof *out);
     const double *tex = b->texels + (size_t)brick * PB_BRICK_TEXELS * n;
@@ -426,6 +538,35 @@ void pb_bricks_filter(const pb_bricks *b, uint32_t brick, const double x[3], uin
         const double *v = tex + (size_t)t * n;
         for (uint32_t i = 0; i < n; i++) out[i] += w8[c] * v[i];
     }
+}
+
+/* The filter at k0 + f (f in [0, 1]³), fractions rounded to 2^−bits (bits 1..24): one filtered fetch. */
+static void cell_filtered(const pb_bricks *b, uint32_t brick, const uint32_t k0[3], const double f_in[3], uint32_t bits,
+                          double *out)
+{
+    double f[3], w8[8];
+    for (int a = 0; a < 3; a++)
+        f[a] = bits && bits <= 24u ? ldexp(nearbyint(ldexp(f_in[a], (int)bits)), -(int)bits) : f_in[a];
+    trilinear8(f, w8);
+    cell_weighted(b, brick, k0, w8, out);
+}
+
+/* Step 4/5's cell: k0 = min(floor(x), 3), f = x − k0, x clamped into [0, 4]. */
+static void cell_of(const double x[3], uint32_t k0[3], double f[3])
+{
+    for (int a = 0; a < 3; a++) {
+        double v = x[a] < 0.0 ? 0.0 : (x[a] > 4.0 ? 4.0 : x[a]), fl = floor(v);
+        k0[a] = fl > 3.0 ? 3u : (uint32_t)fl;
+        f[a] = v - (double)k0[a];
+    }
+}
+
+void pb_bricks_filter(const pb_bricks *b, uint32_t brick, const double x[3], uint32_t bits, double *out)
+{
+    uint32_t k0[3];
+    double f[3];
+    cell_of(x, k0, f);
+    cell_filtered(b, brick, k0, f, bits, out); /* rounded f in [0, 1]: k0 + 1 ≤ 4 */
 }
 
 bool pb_bricks_sample(const pb_bricks *b, const double p[3], double *coeffs_out, double *d_out)
@@ -447,8 +588,124 @@ bool pb_bricks_sample_bits(const pb_bricks *b, const double p[3], uint32_t bits,
     return value;
 }
 
+/* ---- step 5: back faces and visibility ------------------------------------------------------------ */
+
+/* GLSL's smoothstep(e0, e1, x). */
+static double smoothstep(double e0, double e1, double x)
+{
+    double t = (x - e0) / (e1 - e0);
+    t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
+    return t * t * (3.0 - 2.0 * t);
+}
+
+static uint32_t popcount32(uint32_t v)
+{
+    uint32_t c = 0;
+    for (; v; v &= v - 1u) c++;
+    return c;
+}
+
+static bool finite3(const double v[3]) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
+
+pb_result pb_bricks_sample_surface(const pb_bricks *b, const double p_lookup[3], const double p_surface[3],
+                                   const double n[3], uint32_t flags, uint32_t bits, double *coeffs_out, double *d_out,
+                                   bool *has_value, pb_error *err)
+{
+    if (has_value) *has_value = false;
+    if (d_out) *d_out = 0.0;
+    if (!b || !p_lookup)
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_bricks_sample_surface: NULL %s",
+                            b ? "point" : "bricks");
+    for (uint32_t c = 0; coeffs_out && c < 3u * b->coeff_count; c++) coeffs_out[c] = 0.0;
+    if (flags & ~(PB_BRICKS_STATIC | PB_BRICKS_8TAP))
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                            "pb_bricks_sample_surface: unknown flags 0x%x (PB_BRICKS_STATIC 0x1, PB_BRICKS_8TAP 0x2)",
+                            flags);
+    bool is_static = flags & PB_BRICKS_STATIC, taps8 = flags & PB_BRICKS_8TAP;
+    const double *ps = p_surface ? p_surface : p_lookup;
+    if (is_static && (!n || !finite3(n) || n[0] * n[0] + n[1] * n[1] + n[2] * n[2] == 0.0))
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                            "pb_bricks_sample_surface: PB_BRICKS_STATIC needs a finite nonzero normal, got %s",
+                            !n ? "NULL" : (finite3(n) ? "(0, 0, 0)" : "a non-finite one"));
+    if (is_static && !finite3(ps))
+        return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT,
+                            "pb_bricks_sample_surface: PB_BRICKS_STATIC needs a finite surface point");
+    /* 1–3. */
+    double x[3], nd[3u * PB_BRICKS_MAX_COEFFS + 1u];
+    uint32_t brick = 0;
+    if (!pb_bricks_locate(b, p_lookup, &brick, x)) return PB_SUCCESS;
+    const uint32_t *reg = b->regions + 4u * brick, L = reg[3];
+    /* a. The brick cell and its blocked bit. */
+    uint32_t k0[3];
+    double f[3];
+    cell_of(x, k0, f);
+    uint32_t cell = k0[0] + 4u * k0[1] + 16u * k0[2];
+    const uint32_t *e = b->table + 4u * brick;
+    uint32_t word = e[1 + cell / 32u], below = word & ((UINT32_C(1) << (cell % 32u)) - 1u);
+    bool blocked = (word >> (cell % 32u)) & 1u;
+    bool done = false;
+    if (is_static || blocked) {
+        /* b. Trilinear weights; c. back faces. */
+        double w[8], wb[8], wv[8], s = ldexp(1.0, (int)L), wbsum = 0.0, sw = 0.0;
+        trilinear8(f, w);
+        double us[3];
+        for (int a = 0; a < 3; a++) us[a] = (ps[a] - b->origin[a]) / b->h;
+        for (uint32_t k = 0; k < 8; k++) {
+            wb[k] = w[k];
+            if (is_static) {
+                double dd = 0.0;
+                for (int a = 0; a < 3; a++)
+                    dd += ((double)reg[a] + s * (double)(k0[a] + (k >> a & 1u)) - us[a]) / s * n[a];
+                wb[k] *= smoothstep(-0.1, 0.1, dd);
+            }
+            wbsum += wb[k];
+        }
+        /* d. The visibility ramp of the cell's record. */
+        if (blocked) {
+            uint32_t idx = e[0] + popcount32(below) + (cell >= 32u ? popcount32(e[1]) : 0u);
+            const uint8_t *rec = b->records + (size_t)PB_BRICKS_RECORD_BYTES * idx;
+            for (uint32_t c = 0; c < 8; c++) {
+                double v = 0.0;
+                for (uint32_t k = 0; k < 8; k++) v += wb[k] * pb_vis_pair_value(rec[8u * k + c]);
+                v = wbsum > 0.0 ? v / wbsum : 0.0;
+                wv[c] = wb[c] * smoothstep(0.5, 0.5 + PB_VIS_RAMP, v);
+            }
+        } else {
+            memcpy(wv, wb, sizeof wv);
+        }
+        for (uint32_t k = 0; k < 8; k++) sw += wv[k];
+        /* e. The weighted sample: 8 taps, or one tap at the weights' per-axis mean. */
+        if (taps8) {
+            if (sw > 0.0) {
+                cell_weighted(b, brick, k0, wv, nd);
+                done = nd[3] > 0.0;
+            }
+        } else {
+            double f1[3];
+            for (int a = 0; a < 3; a++) {
+                double m = 0.0;
+                for (uint32_t k = 0; k < 8; k++) m += (k >> a & 1u) ? wv[k] : 0.0;
+                f1[a] = sw > 0.0 ? m / sw : f[a];
+            }
+            cell_filtered(b, brick, k0, f1, bits, nd);
+            done = nd[3] > 0.0;
+        }
+    }
+    /* f. The plain sample (also the second pass). */
+    if (!done) pb_bricks_filter(b, brick, x, taps8 ? 0u : bits, nd);
+    double D = nd[3];
+    bool value = D > 0.0;
+    if (d_out) *d_out = D;
+    if (has_value) *has_value = value;
+    for (uint32_t c = 0; coeffs_out && value && c < b->coeff_count; c++)
+        for (uint32_t k = 0; k < 3; k++) coeffs_out[3u * c + k] = nd[chan(c, k)] / D;
+    return PB_SUCCESS;
+}
+
 /* ---- arrays --------------------------------------------------------------------------------------- */
 
+const uint32_t *pb_bricks_table(const pb_bricks *b) { return b ? b->table : NULL; }
+const uint8_t *pb_bricks_vis_records(const pb_bricks *b) { return b && b->record_count ? b->records : NULL; }
 const uint32_t *pb_bricks_indirection(const pb_bricks *b) { return b ? b->ind : NULL; }
 const uint32_t *pb_bricks_regions(const pb_bricks *b) { return b ? b->regions : NULL; }
 const double *pb_bricks_texels(const pb_bricks *b) { return b ? b->texels : NULL; }

@@ -16,6 +16,11 @@
  *   4. For an upload: pb_bricks_get_info() (pool and indirection dimensions), pb_bricks_indirection()
  *      (RGBA32UI texels), pb_bricks_pool_f32() / pb_bricks_pool_f16() (the channel textures).
  *   5. pb_bricks_destroy(). The bricks do not refer to the tree or the coefficients after the build.
+ * With the static scene (desc.segment, docs/probe-bricks.md "Back faces and visibility"): the build also
+ * traces the leaves' pair-visibility tables (pb_cotree_pair_visibility), computes the texels with the
+ * visibility-ramped weights (the "visibility texels") and one 64-B record per blocked brick cell, found
+ * through the brick table; pb_bricks_sample_surface() applies step 5 (back faces, the visibility ramp,
+ * 1 or 8 taps); pb_bricks_table() / pb_bricks_vis_records() are the arrays for an upload.
  *
  * Layout (normative, docs/probe-bricks.md "Layout"):
  *   - Lattice: the tree's origin, min cell h and extent E (min cells). A brick of level L has texels at
@@ -34,9 +39,16 @@
  *   - Indirection: one RGBA32UI entry per level-0 region (4³ min cells), ceil(E/4) per axis, x fastest:
  *     x = brick | level << 27 (PB_BRICKS_NONE = no brick), y / z = the occupancy bits of the region's
  *     64 unit cells (bit i + 4j + 16k, bits 0–31 in y, 32–63 in z: a leaf holds that min cell), w = 0.
+ *   - Brick table: 4 uint32 per brick (16 B): x = its first visibility record, y / z = the blocked-cell
+ *     bits of its 64 cells (bit i + 4j + 16k of brick cell (i, j, k), bits 0–31 in y, 32–63 in z), w = 0.
+ *     A blocked cell's record is vis_records[64 · (x + popcount of the blocked bits below the cell)].
+ *   - Visibility record (64 B): the pair table of the brick cell's 8 corners, byte 8k + c = round(255 t)
+ *     for corner k looking at corner c, traced exactly as pb_cotree_pair_visibility traces a leaf (read
+ *     with pb_vis_pair_value, the GLSL's pair_vis()). Which cells get one: a cell inside a leaf whose own
+ *     table is not all clear ("blocked" leaf), and only when the cell's own table is not all clear. A cell
+ *     in a clear leaf gets none (today's per-leaf rule does not see such a surface either).
  * Coordinates: engine space, metres, double; octree axes are the identity.
- * Not here yet (docs/probe-bricks.md "Implemented in the core"): dense v1/v2 grids, visibility texels
- * and records, back faces.
+ * Not here yet (docs/probe-bricks.md "Implemented in the core"): dense v1/v2 grids.
  */
 #ifndef SCHNEE_PB_BRICKS_H
 #define SCHNEE_PB_BRICKS_H
@@ -58,6 +70,11 @@ extern "C" {
 #define PB_BRICKS_MAX_COEFFS        25u                  /* L4 */
 #define PB_BRICKS_DEFAULT_MAX_BYTES (UINT64_C(1) << 30)  /* the build's memory cap when desc.max_bytes = 0 */
 #define PB_HALF_MAX                 65504.0              /* the largest binary16 */
+#define PB_BRICKS_RECORD_BYTES      64u                  /* one visibility record: 8 × 8 pair bytes */
+
+/* pb_bricks_sample_surface() flags. */
+#define PB_BRICKS_STATIC 1u /* a static surface of the bake: back-face weights (0 = movable: none) */
+#define PB_BRICKS_8TAP   2u /* 8 texel fetches with the weights applied exactly (0 = one filtered tap) */
 
 typedef struct pb_bricks pb_bricks;
 
@@ -68,7 +85,12 @@ typedef struct pb_bricks_desc {
     const double *coeffs;  /* required: probe_count × coeff_count × 3 (probe-major, coeff, RGB), finite */
     const float *validity; /* NULL = every probe valid; else probe_count, a probe with validity <= 0 has m = 0 */
     const float *scale;    /* NULL = 1; else probe_count finite scales (the file's probe_scale) */
-    uint64_t max_bytes;    /* 0 = PB_BRICKS_DEFAULT_MAX_BYTES: refuse (PB_ERROR_TOO_LARGE) past this */
+    uint64_t max_bytes;    /* 0 = PB_BRICKS_DEFAULT_MAX_BYTES: refuse (PB_ERROR_TOO_LARGE) past this; it
+                            * covers the leaves' tables, the brick table and the records too */
+    /* NULL = no static scene: plain texels, an all-zero brick table, no records (steps 1–4 only). Else
+     * the occluders (pb_cotree.h): 152 calls per leaf, and 152 per brick cell inside a blocked leaf. */
+    pb_segment_fn segment;
+    void *segment_user; /* passed to segment */
 } pb_bricks_desc;
 
 typedef struct pb_bricks_info {
@@ -88,6 +110,11 @@ typedef struct pb_bricks_info {
     uint64_t indirection_bytes;                     /* 16 per entry */
     uint64_t pool_bytes_f16;                        /* every pool texel of every group, RGBA16F */
     uint64_t pool_bytes_f32;                        /* RGBA32F */
+    uint32_t blocked_leaves;                        /* leaves whose pair table is not all clear (0 without segment) */
+    uint32_t traced_cells;                          /* brick cells inside blocked leaves (traced) */
+    uint32_t vis_record_count;                      /* of those, the cells whose own table is not all clear */
+    uint64_t table_bytes;                           /* brick table: 16 per brick */
+    uint64_t vis_record_bytes;                      /* 64 per record */
 } pb_bricks_info;
 
 /* Builds the bricks (the layout above). Errors: NULL or unfinalized tree, coeff_count not a square in
@@ -120,7 +147,37 @@ bool pb_bricks_sample(const pb_bricks *bricks, const double p[3], double *coeffs
 bool pb_bricks_sample_bits(const pb_bricks *bricks, const double p[3], uint32_t subtexel_bits, double *coeffs_out,
                            double *d_out);
 
+/* Step 5 of the sampling rule for a shaded surface point (docs/probe-bricks.md), in this order, which
+ * the GLSL mirrors line by line:
+ *   1–3. locate p_lookup (the point moved by the normal bias): brick, L, region min r, x; no brick: false.
+ *   a. cell k0 = min(floor(x), 3), f = x − k0, cell index i + 4j + 16k; table entry of the brick;
+ *      blocked = the cell's bit. Neither STATIC nor blocked: the plain sample at x (b. to e. skipped).
+ *   b. w_k = trilinear(f) (corner k = bits x, y, z of k).
+ *   c. back faces (STATIC): wb_k = w_k · smoothstep(−0.1, 0.1, dot((r + 2^L (k0 + bits(k)) − u_s) / 2^L, n)),
+ *      u_s = (p_surface − origin) / h; else wb_k = w_k. wbsum = Σ wb_k.
+ *   d. visibility (blocked): v_c = Σ_k wb_k V(k, c) / wbsum (V = pb_vis_pair_value of the cell's record;
+ *      v_c = 0 when wbsum = 0), w'_c = wb_c · smoothstep(½, ½ + PB_VIS_RAMP, v_c); else w' = wb.
+ *      sw = Σ w'_c.
+ *   e. 8TAP: N' = Σ w'_k T_k, D' = Σ w'_k D_k over the cell's 8 texels; sw > 0 and D' > 0: N' / D'.
+ *      1 tap: f'_a = Σ_k w'_k bit_a(k) / sw (sw = 0: f' = f), one filtered sample at k0 + f' (fractions
+ *      rounded to subtexel_bits); D > 0: N / D.
+ *   f. Else the plain sample at x (the shader's second pass); D ≤ 0: false (no value).
+ * The plain sample: 8TAP exact weights (= pb_bricks_sample), else pb_bricks_filter with subtexel_bits
+ * (= pb_bricks_sample_bits). subtexel_bits applies to filtered fetches only (8TAP is exact).
+ * p_surface: NULL = p_lookup; n: the unit surface normal (not normalised here), needed for STATIC
+ * only. Returns PB_SUCCESS with *has_value; PB_ERROR_INVALID_ARGUMENT (message in err) for NULL bricks
+ * or p_lookup, unknown flags, or (STATIC) a NULL, non-finite or zero normal or a non-finite p_surface.
+ * coeffs_out (optional): coeff_count × 3 (0 without a value); d_out (optional): the D divided by. */
+pb_result pb_bricks_sample_surface(const pb_bricks *bricks, const double p_lookup[3], const double p_surface[3],
+                                   const double n[3], uint32_t flags, uint32_t subtexel_bits, double *coeffs_out,
+                                   double *d_out, bool *has_value, pb_error *err);
+
 /* ---- arrays for an upload and for tests --------------------------------------------------------- */
+
+/* The brick table: brick_count × 4 uint32 (layout above); all zero without a segment function. */
+const uint32_t *pb_bricks_table(const pb_bricks *bricks);
+/* vis_record_count × 64 bytes (layout above); NULL when there are none. */
+const uint8_t *pb_bricks_vis_records(const pb_bricks *bricks);
 
 /* Indirection: indirection_dims product × 4 uint32 (x fastest), as described above. */
 const uint32_t *pb_bricks_indirection(const pb_bricks *bricks);
