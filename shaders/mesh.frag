@@ -38,12 +38,17 @@ void main() {
 
     // diffuse = albedo * (shScale * max(E(n), 0) / pi + ambientTerm); the probe's own scale
     // multiplies the material's shScale (1.0 in a fresh bake). E comes from the object's probe,
-    // from the grids per pixel, or from the fallback probe 0 (mode off), by the material's
-    // probeMode unless --probe-mode overrides it.
-    uint mode = frame.probe_mode == SV_PROBE_MODE_MATERIAL ? m.probe_mode : frame.probe_mode;
+    // from the grids per pixel, or from the fallback probe 0 (mode off), by the object's own
+    // probeMode (its node's VULKAN_SCHNEE_node, in draw.flags + 1) or else the material's, unless
+    // --probe-mode overrides both.
+    uint node_mode = (draw.flags >> SV_DRAW_NODE_MODE_SHIFT) & 3u;
+    uint own_mode = node_mode != 0u ? node_mode - 1u : m.probe_mode;
+    uint mode = frame.probe_mode == SV_PROBE_MODE_MATERIAL ? own_mode : frame.probe_mode;
     // How E is evaluated (docs/ambient-cube.md §5): the probe's SH, or its ambient cube, by the
-    // material's probeRepresentation unless --probe-representation overrides it.
-    uint rep = frame.probe_representation == SV_PROBE_REP_MATERIAL ? m.probe_representation : frame.probe_representation;
+    // object's or else the material's probeRepresentation unless --probe-representation overrides it.
+    uint node_rep = (draw.flags >> SV_DRAW_NODE_REP_SHIFT) & 3u;
+    uint own_rep = node_rep != 0u ? node_rep - 1u : m.probe_representation;
+    uint rep = frame.probe_representation == SV_PROBE_REP_MATERIAL ? own_rep : frame.probe_representation;
     bool cube = rep == SV_PROBE_REP_AMBIENT_CUBE;
     vec3 e_probe;
     bool probe_lit; // E came from a baked probe rather than the fallback probe 0 (for baked lights)

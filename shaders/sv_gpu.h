@@ -120,6 +120,12 @@
     8u /* the object has moved (not in the static scene the probes were baked with): per pixel,
                               no back-face weights (every corner saw the light where the object now is) */
 
+/* sv_gpu_draw.flags bits 4-5 and 6-7: the object's own probe mode (SV_PROBE_MODE_*) and
+ * representation (SV_PROBE_REP_*) from its node's VULKAN_SCHNEE_node (docs/export.md "Node"), each
+ * stored + 1; 0 = as its materials say. Between the frame's override and the material's. */
+#define SV_DRAW_NODE_MODE_SHIFT 4u
+#define SV_DRAW_NODE_REP_SHIFT  6u
+
 /* Grid flags (sv_gpu_grid.base.z). */
 #define SV_GRID_OCTREE    1u /* corner octree (.shprobe v3 structure 1): leaves in the cell buffer */
 #define SV_GRID_CUBE_ONLY 2u /* the grid's file holds ambient cubes only (representation 1) */
@@ -213,7 +219,7 @@ SV_STRUCT(sv_gpu_draw)
     SV_UINT(material_index);
     SV_UINT(probe_index); /* index into the probe buffer (0 = fallback) */
     SV_UINT(object_index);
-    SV_UINT(flags); /* SV_DRAW_MIRRORED */
+    SV_UINT(flags); /* SV_DRAW_*, SV_DRAW_NODE_*_SHIFT fields */
 }
 SV_END(sv_gpu_draw)
 SV_SIZE_CHECK(sv_gpu_draw, 128) /* the guaranteed push-constant range */

@@ -12,7 +12,7 @@
 #include "sv_gpu.h"
 
 const char *const sv_ext_names[SV_EXT_NAME_COUNT] = {"VULKAN_SCHNEE_engine_properties", "VULKAN_SCHNEE_materials",
-                                                     "VULKAN_SCHNEE_light"};
+                                                     "VULKAN_SCHNEE_light", "VULKAN_SCHNEE_node"};
 
 typedef struct ectx_ {
     const sv_gltf *g;
@@ -251,6 +251,51 @@ static bool parse_light(ectx_ *c, uint32_t i, sv_light_mode *mode_out, float *sc
     return ok;
 }
 
+/* One field of VULKAN_SCHNEE_node: absent → `fallback`; one of the first `count` names of the table
+ * `name_of` (the glTF names, without the command line's "material") → its index; anything else →
+ * `fallback` with a warning naming the node, the field and the accepted names. */
+static uint32_t node_choice(ectx_ *c, const cJSON *j, const char *key, const char *path,
+                            const char *(*name_of)(uint32_t), uint32_t count, uint32_t fallback)
+{
+    const cJSON *v = get(j, key);
+    if (!v) return fallback;
+    char names[128] = "";
+    for (uint32_t k = 0; k < count; ++k) {
+        if (cJSON_IsString(v) && strcmp(v->valuestring, name_of(k)) == 0) return k;
+        size_t o = strlen(names);
+        snprintf(names + o, sizeof names - o, "%s%s", k == 0 ? "" : k + 1 == count ? " or " : ", ", name_of(k));
+    }
+    if (cJSON_IsString(v))
+        ewarn(c, "%s.%s: '%.40s' is not %s; the node follows its materials", path, key, v->valuestring, names);
+    else
+        ewarn(c, "%s.%s: expected a string (%s), got %s; the node follows its materials", path, key, names, type_of(v));
+    return fallback;
+}
+
+/* nodes[i].extensions.VULKAN_SCHNEE_node: the object's own probe mode and representation. Unlike a
+ * material's, a bad value is a warning: the node then follows its materials (docs/export.md "Node"). */
+static bool parse_node(ectx_ *c, uint32_t i, sv_ext_node *n)
+{
+    const sv_gltf_node *gn = &c->g->nodes[i];
+    n->probe_mode = SV_PROBE_MODE_MATERIAL;
+    n->probe_representation = SV_PROBE_REP_MATERIAL;
+    char path[160];
+    snprintf(path, sizeof path, "nodes[%u] ('%.40s').extensions", i, gn->name ? gn->name : "");
+    cJSON *j = parse_raw(c, gn->extensions, gn->extension_count, "VULKAN_SCHNEE_node", path);
+    if (!j) return c->result == SV_GLTF_SUCCESS;
+    snprintf(path, sizeof path, "nodes[%u] ('%.40s').extensions.VULKAN_SCHNEE_node", i, gn->name ? gn->name : "");
+    if (!cJSON_IsObject(j)) {
+        ewarn(c, "%s: expected an object, got %s; the node follows its materials", path, type_of(j));
+    } else {
+        n->probe_mode =
+            node_choice(c, j, "probeMode", path, sv_probe_mode_name, SV_PROBE_MODE_MATERIAL, SV_PROBE_MODE_MATERIAL);
+        n->probe_representation = node_choice(c, j, "probeRepresentation", path, sv_probe_representation_name,
+                                              SV_PROBE_REP_MATERIAL, SV_PROBE_REP_MATERIAL);
+    }
+    cJSON_Delete(j);
+    return true;
+}
+
 /* ---------------------------------------------------------------- probe grids, sky */
 
 static const char *const grid_representations[] = {"sh", "ambientCube", NULL};
@@ -442,12 +487,14 @@ sv_gltf_result sv_ext_parse(const sv_gltf *g, sv_ext *out, sv_gltf_error *err)
     out->materials = calloc(g->material_count + 1, sizeof *out->materials);
     out->light_modes = calloc(g->light_count + 1, sizeof *out->light_modes);
     out->light_scales = calloc(g->light_count + 1, sizeof *out->light_scales);
-    bool ok = out->materials && out->light_modes && out->light_scales;
+    out->nodes = calloc(g->node_count + 1, sizeof *out->nodes);
+    bool ok = out->materials && out->light_modes && out->light_scales && out->nodes;
     if (!ok) efail(&c, SV_GLTF_ERROR_OUT_OF_MEMORY, "out of memory");
     for (uint32_t i = 0; ok && i < g->material_count; i++, out->material_count++)
         ok = parse_material(&c, i, &out->materials[i]);
     for (uint32_t i = 0; ok && i < g->light_count; i++, out->light_count++)
         ok = parse_light(&c, i, &out->light_modes[i], &out->light_scales[i]);
+    for (uint32_t i = 0; ok && i < g->node_count; i++, out->node_count++) ok = parse_node(&c, i, &out->nodes[i]);
     ok = ok && parse_engine_properties(&c);
     if (!ok) {
         sv_ext_free(out);
@@ -462,6 +509,7 @@ void sv_ext_free(sv_ext *x)
     free(x->materials);
     free(x->light_modes);
     free(x->light_scales);
+    free(x->nodes);
     for (uint32_t i = 0; x->probe_grids && i < x->probe_grid_count; i++) {
         free(x->probe_grids[i].name);
         free(x->probe_grids[i].uri);

@@ -3,6 +3,7 @@
  *   scene   VULKAN_SCHNEE_engine_properties: shProbeGrids[] and sky
  *   material VULKAN_SCHNEE_materials: shScale, ambientTerm, probeMode, probeRepresentation
  *   light   VULKAN_SCHNEE_light: mode, intensityScale
+ *   node    VULKAN_SCHNEE_node: probeMode, probeRepresentation (the object's own, over its materials')
  *
  *   sv_gltf_desc desc = {.app_extensions = sv_ext_names, .app_extension_count = SV_EXT_NAME_COUNT};
  *   sv_gltf_load_file(path, &desc, &g, &err);
@@ -11,6 +12,7 @@
  *   sv_ext_free(&ext);
  *
  * A malformed material or light extension is an error (the message names the element); a malformed
+ * node field (docs/export.md "Node") is a warning and the node follows its materials; a malformed
  * shProbeGrids entry or sky is skipped with a warning (the rest of the scene still renders and falls
  * back to probe 0 there, DESIGN.md §7). Probe-grid and sky URIs resolve with sv_gltf_resolve_uri.
  */
@@ -19,8 +21,9 @@
 
 #include "sv_gltf.h"
 
-#define SV_EXT_NAME_COUNT 3u
-/* "VULKAN_SCHNEE_engine_properties", "VULKAN_SCHNEE_materials", "VULKAN_SCHNEE_light". */
+#define SV_EXT_NAME_COUNT 4u
+/* "VULKAN_SCHNEE_engine_properties", "VULKAN_SCHNEE_materials", "VULKAN_SCHNEE_light",
+ * "VULKAN_SCHNEE_node". */
 extern const char *const sv_ext_names[SV_EXT_NAME_COUNT];
 
 /* VULKAN_SCHNEE_materials defaults (also those of a material without the extension and of the glTF
@@ -44,6 +47,14 @@ typedef struct sv_ext_material {
     uint32_t probe_mode;           /* SV_PROBE_MODE_OFF/OBJECT/PIXEL (shaders/sv_gpu.h), default OBJECT */
     uint32_t probe_representation; /* SV_PROBE_REP_SH/AMBIENT_CUBE (shaders/sv_gpu.h), default SH */
 } sv_ext_material;
+
+/* nodes[i].extensions.VULKAN_SCHNEE_node (docs/export.md "Node: VULKAN_SCHNEE_node"): the object's
+ * own probe mode and representation, which replace its materials' for the node's mesh primitives.
+ * A field that is absent, or whose value is not understood (a warning says so), is _MATERIAL. */
+typedef struct sv_ext_node {
+    uint32_t probe_mode;           /* SV_PROBE_MODE_OFF/OBJECT/PIXEL, or SV_PROBE_MODE_MATERIAL = as its materials */
+    uint32_t probe_representation; /* SV_PROBE_REP_SH/AMBIENT_CUBE, or SV_PROBE_REP_MATERIAL = as its materials */
+} sv_ext_node;
 
 /* scenes[scene].extensions.VULKAN_SCHNEE_engine_properties.shProbeGrids[i]. */
 typedef struct sv_ext_probe_grid {
@@ -85,6 +96,8 @@ typedef struct sv_ext {
     sv_light_mode *light_modes; /* one per KHR_lights_punctual light */
     float *light_scales;        /* one per light: VULKAN_SCHNEE_light.intensityScale (default 1) */
     uint32_t light_count;
+    sv_ext_node *nodes; /* one per glTF node (_MATERIAL fields without the extension) */
+    uint32_t node_count;
     sv_ext_probe_grid *probe_grids;
     uint32_t probe_grid_count;
     sv_ext_sky sky;

@@ -268,6 +268,7 @@ void sv_gltf_free(sv_gltf *g)
     for (uint32_t i = 0; g->nodes && i < g->node_count; i++) {
         free(g->nodes[i].name);
         free(g->nodes[i].children);
+        svg_free_extensions(g->nodes[i].extensions, g->nodes[i].extension_count);
     }
     free(g->nodes);
     for (uint32_t i = 0; g->cameras && i < g->camera_count; i++) free(g->cameras[i].name);

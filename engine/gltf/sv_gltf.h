@@ -22,8 +22,8 @@
  * features are listed in docs/gltf-loader.md.
  *
  * Extensions: the loader parses the glTF core and the KHR extensions it lists as supported; every
- * other extension object of a material, a light, the default scene or the root is handed to the
- * application as raw JSON text (sv_gltf_extension, as cgltf does), for the application to parse
+ * other extension object of a material, a light, a node, the default scene or the root is handed to
+ * the application as raw JSON text (sv_gltf_extension, as cgltf does), for the application to parse
  * (the engine's VULKAN_SCHNEE_* parser is engine/ext/sv_ext.h). URIs inside such JSON resolve with
  * sv_gltf_resolve_uri, by the same rules as buffers and images.
  */
@@ -182,10 +182,12 @@ typedef struct sv_gltf_node {
     float translation[3]; /* TRS as in the file (identity when the node uses "matrix") */
     float rotation[4];    /* unit quaternion x, y, z, w */
     float scale[3];
-    bool has_matrix; /* the file gave "matrix" instead of TRS */
-    float local[16]; /* local transform (from matrix or T*R*S), column-major */
-    float world[16]; /* parent chain product, column-major; computed for every node */
-    bool in_scene;   /* reachable from the default scene */
+    bool has_matrix;               /* the file gave "matrix" instead of TRS */
+    float local[16];               /* local transform (from matrix or T*R*S), column-major */
+    float world[16];               /* parent chain product, column-major; computed for every node */
+    bool in_scene;                 /* reachable from the default scene */
+    sv_gltf_extension *extensions; /* the node's, other than KHR_lights_punctual */
+    uint32_t extension_count;
 } sv_gltf_node;
 
 typedef enum sv_gltf_camera_type {

@@ -180,6 +180,8 @@ bool svg_parse_nodes(ctx_ *c, const cJSON *root)
             snprintf(p, sizeof p, "%s.extensions.KHR_lights_punctual", path);
             if (khr && !svg_get_index(c, khr, "light", p, true, g->light_count, "lights", &n->light)) return false;
         }
+        static const char *const consumed[] = {"KHR_lights_punctual", NULL};
+        if (!svg_get_extensions(c, j, path, consumed, &n->extensions, &n->extension_count)) return false;
         if (n->has_matrix && (has_t || has_r || has_s)) {
             svg_fail(c, SV_GLTF_ERROR_FORMAT, "%s: has both matrix and translation/rotation/scale", path);
             return false;

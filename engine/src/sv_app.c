@@ -93,6 +93,12 @@ void sv_app_print_assignments(const sv_scene *scene, const sv_probes *probes)
         printf("object %u '%s' probe %u center (%g, %g, %g)\n", i, o->name, o->probe,
                0.5 * (o->aabb_min[0] + o->aabb_max[0]), 0.5 * (o->aabb_min[1] + o->aabb_max[1]),
                0.5 * (o->aabb_min[2] + o->aabb_max[2]));
+        if (o->probe_mode < SV_PROBE_MODE_MATERIAL || o->probe_representation < SV_PROBE_REP_MATERIAL)
+            printf("  own probe mode %s representation %s (VULKAN_SCHNEE_node)\n",
+                   o->probe_mode < SV_PROBE_MODE_MATERIAL ? sv_probe_mode_name(o->probe_mode) : "material",
+                   o->probe_representation < SV_PROBE_REP_MATERIAL
+                       ? sv_probe_representation_name(o->probe_representation)
+                       : "material");
         if (i >= probes->slot_count || o->probe != probes->total + i) continue;
         const sv_object_weights *w = &probes->slot_weights[i];
         printf("  grid %u weights %u:", w->grid, w->count);

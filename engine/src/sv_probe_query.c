@@ -56,12 +56,8 @@ static void warn_mismatch(sv_probes *P, const sv_scene *scene, const sv_object *
         int32_t mi = mesh->primitives[pi].material;
         uint32_t m = mi >= 0 && (uint32_t)mi < gl->material_count ? (uint32_t)mi : gl->material_count;
         const sv_ext_material *em = m < gl->material_count ? &scene->ext.materials[m] : NULL;
-        uint32_t mode = P->probe_mode_override < SV_PROBE_MODE_MATERIAL ? P->probe_mode_override
-                        : em                                            ? em->probe_mode
-                                                                        : SV_PROBE_MODE_OBJECT;
-        uint32_t rep = P->probe_rep_override < SV_PROBE_REP_MATERIAL ? P->probe_rep_override
-                       : em                                          ? em->probe_representation
-                                                                     : SV_PROBE_REP_SH;
+        uint32_t mode, rep; /* the object's own (VULKAN_SCHNEE_node) over its material's */
+        sv_object_probe_mode(o, em, P->probe_mode_override, P->probe_rep_override, &mode, &rep);
         if (rep != SV_PROBE_REP_SH || mode == SV_PROBE_MODE_OFF) continue;
         for (uint32_t g = 0; g < P->grid_count; ++g) {
             const pb_shprobe *f = P->grids[g].file;

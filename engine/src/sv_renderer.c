@@ -245,6 +245,10 @@ static void draw_objects(const sv_renderer *r, VkCommandBuffer cmd, const sv_sce
         float det = w[0] * (w[5] * w[10] - w[9] * w[6]) - w[4] * (w[1] * w[10] - w[9] * w[2]) +
                     w[8] * (w[1] * w[6] - w[5] * w[2]);
         draw.flags = (det < 0.0f ? SV_DRAW_MIRRORED : 0u) | (obj->movable ? SV_DRAW_MOVABLE : 0u) | obj->probe_flags;
+        /* The object's own probe mode / representation (VULKAN_SCHNEE_node), + 1; 0 = its materials'. */
+        if (obj->probe_mode < SV_PROBE_MODE_MATERIAL) draw.flags |= (obj->probe_mode + 1u) << SV_DRAW_NODE_MODE_SHIFT;
+        if (obj->probe_representation < SV_PROBE_REP_MATERIAL)
+            draw.flags |= (obj->probe_representation + 1u) << SV_DRAW_NODE_REP_SHIFT;
         const sv_gltf_mesh *mesh = &g->meshes[obj->mesh];
         for (uint32_t p = 0; p < mesh->primitive_count; ++p) {
             uint32_t pi = r->mesh_prim_base[obj->mesh] + p;

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sv_gpu.h"
 #include "sv_math.h"
 
 static void object_bounds(const sv_gltf_mesh *mesh, const float world[16], float mn[3], float mx[3])
@@ -87,6 +88,8 @@ bool sv_scene_load(const char *path, bool allow_outside_paths, sv_scene *out)
         memcpy(o->world, mi->world, sizeof(o->world));
         object_bounds(&g->meshes[mi->mesh], o->world, o->aabb_min, o->aabb_max);
         o->needs_probe = true;
+        o->probe_mode = out->ext.nodes[mi->node].probe_mode;
+        o->probe_representation = out->ext.nodes[mi->node].probe_representation;
     }
     update_scene_bounds(out);
     return true;
@@ -100,6 +103,26 @@ void sv_scene_destroy(sv_scene *scene)
     free(scene->node_world);
     free(scene->objects);
     memset(scene, 0, sizeof(*scene));
+}
+
+void sv_object_probe_mode(const sv_object *o, const sv_ext_material *m, uint32_t mode_override, uint32_t rep_override,
+                          uint32_t *mode, uint32_t *rep)
+{
+    *mode = mode_override < SV_PROBE_MODE_MATERIAL   ? mode_override
+            : o->probe_mode < SV_PROBE_MODE_MATERIAL ? o->probe_mode
+            : m                                      ? m->probe_mode
+                                                     : SV_PROBE_MODE_OBJECT;
+    *rep = rep_override < SV_PROBE_REP_MATERIAL              ? rep_override
+           : o->probe_representation < SV_PROBE_REP_MATERIAL ? o->probe_representation
+           : m                                               ? m->probe_representation
+                                                             : SV_PROBE_REP_SH;
+}
+
+bool sv_scene_nodes_want_cubes(const sv_scene *scene)
+{
+    for (uint32_t i = 0; i < scene->object_count; ++i)
+        if (scene->objects[i].probe_representation == SV_PROBE_REP_AMBIENT_CUBE) return true;
+    return false;
 }
 
 int32_t sv_scene_find_node(const sv_scene *scene, const char *name)

@@ -21,8 +21,11 @@ typedef struct sv_object {
     float aabb_max[3];
     uint32_t probe;       /* assigned index in the probe buffer (0 = fallback) */
     uint32_t probe_flags; /* SV_DRAW_CUBE_ONLY / SV_DRAW_TETRA of the grid the probe came from */
-    bool needs_probe;     /* moved since the last probe query */
-    bool movable;         /* moved at least once (--move, window keys): not part of the static scene whose
+    /* The object's own probe mode / representation (its node's VULKAN_SCHNEE_node), which replace its
+     * materials'; SV_PROBE_MODE_MATERIAL / SV_PROBE_REP_MATERIAL = as its materials say. */
+    uint32_t probe_mode, probe_representation;
+    bool needs_probe; /* moved since the last probe query */
+    bool movable;     /* moved at least once (--move, window keys): not part of the static scene whose
                          triangles judge probe visibility (docs/engine.md "Static scene") */
 } sv_object;
 
@@ -45,6 +48,15 @@ void sv_scene_destroy(sv_scene *scene);
 
 /* Index of the node named `name` (first match), or -1. */
 int32_t sv_scene_find_node(const sv_scene *scene, const char *name);
+
+/* The mode and representation object `o` shades material `m` (its ext entry, NULL = the glTF default
+ * material) with: the command line's override (`mode_override` / `rep_override` below _MATERIAL),
+ * else the object's own (its node's VULKAN_SCHNEE_node), else the material's (docs/export.md "Node"). */
+void sv_object_probe_mode(const sv_object *o, const sv_ext_material *m, uint32_t mode_override, uint32_t rep_override,
+                          uint32_t *mode, uint32_t *rep);
+
+/* Whether any object's node asks for ambient cubes (the renderer then builds the cube buffer). */
+bool sv_scene_nodes_want_cubes(const sv_scene *scene);
 
 /* Moves a node: sets its local translation (keeps rotation/scale; a node given by "matrix" gets
  * its translation column replaced), recomputes the world transforms of its subtree and marks every

@@ -331,9 +331,10 @@ static bool pack_probes(const sv_scene *scene, const sv_probes *probes, const sv
         fprintf(stderr, "schnee-view: warning: --probe-storage half: %s; using float storage\n", msg);
         k->half = false;
     }
-    /* Ambient cubes (docs/ambient-cube.md §5) only when asked for: by the command line or by a
-     * material. They follow the SH storage; a cube colour beyond the half range sends both to float. */
-    k->want_cubes = desc->cube_probes || sv_probes_have_cube_grids(probes);
+    /* Ambient cubes (docs/ambient-cube.md §5) only when asked for: by the command line, by a
+     * material or by an object (VULKAN_SCHNEE_node). They follow the SH storage; a cube colour
+     * beyond the half range sends both to float. */
+    k->want_cubes = desc->cube_probes || sv_probes_have_cube_grids(probes) || sv_scene_nodes_want_cubes(scene);
     for (uint32_t i = 0; i < scene->ext.material_count; ++i)
         k->want_cubes = k->want_cubes || scene->ext.materials[i].probe_representation == SV_PROBE_REP_AMBIENT_CUBE;
     k->cubes = k->p && k->want_cubes ? sv_probes_pack_all_cubes(probes, k->p) : NULL;
