@@ -12,7 +12,9 @@ it gathers the scene. Contract: DESIGN.md §5; user documentation: docs/export.m
   exporter cannot see inside a node group.
 - ``gather_tree_filter_tag_hook``: objects of the probe-volume collection are left out.
 - ``gather_node_hook``: each exported punctual light gets ``extensions.VULKAN_SCHNEE_light =
-  {"mode": "baked" | "mixed" | "realtime"}`` from its object's ``schnee_light_mode`` (light_modes.py).
+  {"mode": "baked" | "mixed" | "realtime"}`` from its object's ``schnee_light_mode`` (light_modes.py);
+  each mesh node whose object chose a probe mode (``Object.schnee_probe.mode``, probe_modes.py) gets
+  ``extensions.VULKAN_SCHNEE_node = {"probeMode": ..., "probeRepresentation": ...}``.
 - The sky the bake captured (``sh_coeffs/sky.exr`` next to the .blend) is copied likewise and
   listed as ``VULKAN_SCHNEE_engine_properties.sky`` with its radiance SH (L2, engine space).
 - The sky's sun the bake split off (Sky Sun "mixed": ``sh_coeffs/sun.json`` next to the .blend)
@@ -32,13 +34,14 @@ import urllib.parse
 
 import bpy
 
-from . import compat, light_modes, nodes
+from . import compat, light_modes, nodes, probe_modes
 from .native import STRUCTURES
 from .safe_open import RefusedFile, file_kind, open_regular
 
 EXT_ENGINE = "VULKAN_SCHNEE_engine_properties"
 EXT_MATERIALS = "VULKAN_SCHNEE_materials"
 EXT_LIGHT = "VULKAN_SCHNEE_light"
+EXT_NODE = probe_modes.EXTENSION  # "VULKAN_SCHNEE_node": an object's own probe mode (docs/export.md "Node")
 SH_DIR = "sh_coeffs"
 SH_SUFFIX = ".shprobe"
 DEFAULT_VOLUME_COLLECTION = "ProbeVolumes"
@@ -611,7 +614,10 @@ class glTF2ExportUserExtension:
         Blender 3.4 has no hook for the light itself; the node hook sees it as the node's
         ``KHR_lights_punctual`` extension, whose ``light`` member wraps the light dict until the
         exporter moves it into the root ``lights`` list (deduplicated by value)."""
-        if not self.enabled or blender_object is None or getattr(blender_object, "type", None) != 'LIGHT':
+        if not self.enabled or blender_object is None:
+            return
+        _export_probe_mode(gltf2_node, blender_object, export_settings)
+        if getattr(blender_object, "type", None) != 'LIGHT':
             return
         khr = (gltf2_node.extensions or {}).get("KHR_lights_punctual")
         ref = getattr(khr, "extension", None)
@@ -651,6 +657,26 @@ class glTF2ExportUserExtension:
         if gltf2_material.extensions is None:
             gltf2_material.extensions = {}
         gltf2_material.extensions[EXT_MATERIALS] = _make_extension(EXT_MATERIALS, settings)
+
+
+def _export_probe_mode(gltf2_node, blender_object, export_settings):
+    """The object's own probe mode on its mesh node: ``VULKAN_SCHNEE_node`` (docs/export.md "Node"),
+    absent for "As Its Materials Say". Replacing (or removing) the member keeps a repeated call
+    harmless."""
+    if getattr(gltf2_node, "mesh", None) is None:
+        return  # no mesh on this node: nothing to light
+    try:
+        fields = probe_modes.node_fields(blender_object)
+    except probe_modes.ProbeModeError as exc:  # a choice this add-on does not know (a later version's)
+        _warn(export_settings, f"object '{blender_object.name}': {exc}; exported as its materials say")
+        fields = None
+    if fields is None:
+        if gltf2_node.extensions:
+            gltf2_node.extensions.pop(EXT_NODE, None)
+        return
+    if gltf2_node.extensions is None:
+        gltf2_node.extensions = {}
+    gltf2_node.extensions[EXT_NODE] = _make_extension(EXT_NODE, fields)
 
 
 def _export_base_color(gltf2_material, node, blender_material, export_settings):

@@ -1,11 +1,12 @@
-"""3D Viewport > Sidebar (N) > Schnee Engine: the bake buttons, the settings, the last result and
-the active lamp's light mode (baked into the probes, mixed or realtime in the engine, light_modes.py),
-which Properties > Light also shows (DATA_PT_schnee_light)."""
+"""3D Viewport > Sidebar (N) > Schnee Engine: the bake buttons, the settings, the last result, the
+active lamp's light mode (baked into the probes, mixed or realtime in the engine, light_modes.py),
+which Properties > Light also shows (DATA_PT_schnee_light), and the active object's probe mode
+(probe_modes.py), which Properties > Object also shows (OBJECT_PT_schnee_probes)."""
 import os
 
 import bpy
 
-from . import bake_core, compat, journal, light_modes, render_settings
+from . import bake_core, compat, journal, light_modes, probe_modes, render_settings
 from .properties import LIGHT_MODE_ITEMS, draw_estimate, draw_settings
 
 
@@ -195,7 +196,71 @@ class DATA_PT_schnee_light(bpy.types.Panel):
         draw_light_mode(self.layout, context.object, context)
 
 
+# Object types the glTF exporter turns into meshes: the ones a probe mode can apply to.
+MESH_OBJECT_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
+_MATERIAL_MODE_TEXT = {"off": "Off", "object": "Per Object", "pixel": "Per Pixel"}
+
+
+def draw_object_probe_mode(layout, ob):
+    """The probe mode of object ``ob`` (Object.schnee_probe.mode, with its tooltips) and what it
+    means here: with "As Its Materials Say" each material's own mode (its custom property
+    schnee_probe_mode), else that the choice replaces them. Shared by Properties > Object and the
+    sidebar."""
+    col = layout.column(align=True)
+    col.prop(ob.schnee_probe, "mode", text="")
+    if probe_modes.chosen(ob) != probe_modes.AS_MATERIALS:
+        col.label(text="Replaces its materials' modes for this object", icon='INFO')
+        return
+    mats = probe_modes.material_modes(ob)
+    if not mats:
+        col.label(text="No material: per object (the engine's default)", icon='INFO')
+    for name, value in mats:
+        if value is None:
+            text = f"{name}: Per Object (default)"
+        elif isinstance(value, str) and value in _MATERIAL_MODE_TEXT:
+            text = f"{name}: {_MATERIAL_MODE_TEXT[value]}"
+        else:  # the export warns and leaves it out (docs/export.md)
+            text = f"{name}: bad schnee_probe_mode {value!r}, ignored"
+        col.label(text=text, icon='MATERIAL')
+
+
+class OBJECT_PT_schnee_probes(bpy.types.Panel):
+    """Properties > Object: the Schnee probe mode of a mesh-like object."""
+    bl_label = "Schnee Probes"
+    bl_idname = "OBJECT_PT_schnee_probes"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "object"
+
+    @classmethod
+    def poll(cls, context):
+        ob = getattr(context, "object", None)
+        return ob is not None and ob.type in MESH_OBJECT_TYPES
+
+    def draw(self, context):
+        draw_object_probe_mode(self.layout, context.object)
+
+
+class VIEW3D_PT_schnee_object(bpy.types.Panel):
+    bl_label = "Object Probe Mode"
+    bl_idname = "VIEW3D_PT_schnee_object"
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "Schnee Engine"
+    bl_parent_id = "VIEW3D_PT_schnee_probes"
+
+    @classmethod
+    def poll(cls, context):
+        ob = context.active_object
+        return ob is not None and ob.type in MESH_OBJECT_TYPES
+
+    def draw(self, context):
+        ob = context.active_object
+        self.layout.label(text=ob.name, icon='OBJECT_DATA')
+        draw_object_probe_mode(self.layout, ob)
+
+
 classes = (VIEW3D_PT_schnee_probes, VIEW3D_PT_schnee_probes_last, SCHNEE_OT_set_light_mode,
-           VIEW3D_PT_schnee_light, DATA_PT_schnee_light)
+           VIEW3D_PT_schnee_light, DATA_PT_schnee_light, OBJECT_PT_schnee_probes, VIEW3D_PT_schnee_object)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

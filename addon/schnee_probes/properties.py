@@ -9,7 +9,7 @@ declaration; figures measured with bench/sweep/run.py, report bench/results/swee
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from . import light_modes
+from . import light_modes, probe_modes
 from .settings import SETTINGS, BakeSettings
 
 
@@ -129,7 +129,22 @@ class SchneeLightSettings(bpy.types.PropertyGroup):
         options=set())  # not animatable: one mode per bake
 
 
-classes = (SchneeProbeSettings, SchneeLightSettings)
+PROBE_MODE_ITEMS = tuple((ident, text, tip) for ident, text, _fields, tip in probe_modes.CHOICES)
+
+
+class SchneeObjectProbeSettings(bpy.types.PropertyGroup):
+    """How the engine lights an object from the probes (probe_modes.py): Object.schnee_probe. Its
+    choice replaces its materials' schnee_probe_mode for this object only; exported on the object's
+    glTF node (VULKAN_SCHNEE_node, docs/export.md)."""
+    mode: EnumProperty(
+        name="Probe Mode",
+        description="How the engine lights this object from the baked probes; anything but the default "
+                    "replaces its materials' own mode for this object",
+        items=PROBE_MODE_ITEMS, default=probe_modes.AS_MATERIALS,
+        options=set())  # not animatable: one mode per export
+
+
+classes = (SchneeProbeSettings, SchneeLightSettings, SchneeObjectProbeSettings)
 
 
 def register():
@@ -138,9 +153,13 @@ def register():
     bpy.types.Scene.schnee_probes = PointerProperty(type=SchneeProbeSettings)
     bpy.types.Object.schnee_light = PointerProperty(type=SchneeLightSettings, name="Schnee Light",
                                                     description="Light mode of a lamp (Schnee probes)")
+    bpy.types.Object.schnee_probe = PointerProperty(type=SchneeObjectProbeSettings, name="Schnee Probes",
+                                                    description="How the engine lights the object from "
+                                                                "the probes (Schnee probes)")
 
 
 def unregister():
+    del bpy.types.Object.schnee_probe
     del bpy.types.Object.schnee_light
     del bpy.types.Scene.schnee_probes
     for cls in reversed(classes):
