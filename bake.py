@@ -259,7 +259,7 @@ def _submit(args, bake_core, bake_settings):
         _fail(EXIT_BAKE, f"farm submission failed: {exc}")
     print(f"bake.py: submitted {stages} shard array(s) {', '.join(ids[:-1])} ({args.shards} tasks each, one per "
           f"placement stage, each after the previous succeeded) and merge job {ids[-1]}; scripts and logs in "
-          f"{output}.farm")
+          f"{farm.farm_folder(output)}")
 
 
 def _report(result):

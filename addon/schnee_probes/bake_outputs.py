@@ -20,6 +20,7 @@ import bpy
 import numpy as np
 
 from . import journal, native, scene_export
+from .file_names import temporary
 from .safe_open import file_kind
 from .settings import BakeError
 
@@ -67,7 +68,8 @@ def write_all(outputs: List[Output], stale: Optional[str] = None, log=print) -> 
     no sun off), checked like the outputs and removed after them.
 
     The temporary names are unique per bake (``<name>.<pid>-<random>.partial`` beside the final
-    file), so two bakes writing to the same folder at once never share one. A failure while
+    file, shortened to 255 bytes by file_names.temporary), so two bakes writing to the same folder
+    at once never share one. A failure while
     writing removes every temporary file and leaves all final files unchanged. The renames are
     not one atomic step: should a later rename fail (a full disk does not, a permission change
     between two renames could), the files already renamed are new and the rest keep their old
@@ -77,7 +79,7 @@ def write_all(outputs: List[Output], stale: Optional[str] = None, log=print) -> 
     pending = []  # (tmp, final)
 
     def tmp_name(final):
-        return f"{final}.{tag}.partial"
+        return temporary(final, tag)
 
     # Checked before the bake started; again now, as the folder may have changed meanwhile.
     for out in outputs:

@@ -23,19 +23,26 @@ from typing import Optional, Tuple
 
 from . import journal, scene_export
 from .bake_outputs import abspath, check_replaceable
+from .file_names import sibling
 from .settings import BakeError
 
-# The journal beside the output (docs/farm.md): <output>.journal, a shard's <output>.shard-K-of-N.journal.
+# The journal beside the output (docs/farm.md): <output>.journal, a shard's <output>.shard-K-of-N.journal
+# (names over 255 bytes shortened by file_names.sibling, the same in every run).
 JOURNAL_SUFFIX = ".journal"
+
+
+def local_journal_path(output: str) -> str:
+    """The local journal of a bake writing ``output`` (an absolute path)."""
+    return sibling(output, JOURNAL_SUFFIX)
 
 
 def journal_path_for(output_path: str) -> str:
     """The local journal of a bake writing ``output_path`` (may start with ``//``)."""
-    return abspath(output_path) + JOURNAL_SUFFIX
+    return local_journal_path(abspath(output_path))
 
 
 def shard_journal_path(output: str, k: int, n: int) -> str:
-    return f"{output}.shard-{k}-of-{n}{JOURNAL_SUFFIX}"
+    return sibling(output, f".shard-{k}-of-{n}{JOURNAL_SUFFIX}")
 
 
 def check_shards(shard, merge_shards) -> Optional[Tuple[int, int]]:
@@ -60,7 +67,7 @@ class PointStore:
         self.restart = restart
         self.log = log
         self.messages = messages if messages is not None else []
-        self.path = (output + JOURNAL_SUFFIX if self.shard is None
+        self.path = (local_journal_path(output) if self.shard is None
                      else shard_journal_path(output, *self.shard))
         self._writer = None
         self._known = {}                    # journal key -> coefficients, from journals at open
@@ -95,7 +102,7 @@ class PointStore:
             try:
                 journal.read(self.path, expect_manifest=manifest)
             except journal.JournalError as exc:
-                previous = self.path + ".previous"
+                previous = sibling(self.path, ".previous")
                 try:
                     os.replace(self.path, previous)
                 except OSError as exc2:

@@ -15,6 +15,8 @@ import shutil
 import subprocess
 from typing import List, Optional, Sequence
 
+from .file_names import sibling
+
 
 class FarmError(RuntimeError):
     """Submission failed; the message says what to do."""
@@ -93,6 +95,11 @@ def find_sbatch(sbatch: str = "sbatch") -> str:
     raise FarmError(f"'{sbatch}' not found on PATH ({os.environ.get('PATH', '')}): {_SBATCH_HINT}")
 
 
+def farm_folder(output: str) -> str:
+    """Where the batch scripts and job logs of a farm bake of ``output`` go: ``<output>.farm``."""
+    return sibling(output, ".farm")
+
+
 def submit_slurm(blender: str, blend: str, bake_py: str, bake_args: Sequence[str], shards: int, output: str,
                  sbatch_options: Sequence[str] = (), sbatch: str = "sbatch", stages: int = 1) -> List[str]:
     """Write the batch scripts into ``<output>.farm/`` and submit: one shard array per stage of the
@@ -105,7 +112,7 @@ def submit_slurm(blender: str, blend: str, bake_py: str, bake_args: Sequence[str
     if not os.path.isabs(blend):
         raise FarmError(f"the .blend path must be absolute for farm nodes: {blend}")
     sbatch = find_sbatch(sbatch)
-    folder = output + ".farm"
+    folder = farm_folder(output)
     os.makedirs(folder, exist_ok=True)
     paths = {}
     for name, text in slurm_scripts(blender, blend, bake_py, bake_args, shards, folder, sbatch_options).items():

@@ -23,6 +23,7 @@ from typing import Dict, Iterable, List, Optional, Tuple
 
 import numpy as np
 
+from .file_names import temporary
 from .safe_open import RefusedFile, open_regular
 
 MAGIC = b"SCHNJRNL"
@@ -220,7 +221,8 @@ def _create(path: str, manifest: dict, coeff_count: int, shard) -> None:
     head = HEADER.pack(MAGIC, VERSION, coeff_count, CHANNELS, k, n, len(raw), bytes.fromhex(manifest["fingerprint"]))
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
-    tmp = os.path.join(folder, f".{os.path.basename(path)}.{os.getpid()}-{os.urandom(4).hex()}.partial")
+    # Hidden, beside the journal, at most 255 bytes even for the longest legal output name.
+    tmp = temporary(os.path.join(folder, "." + os.path.basename(path)))
     fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644)
     try:
         os.write(fd, head + raw)

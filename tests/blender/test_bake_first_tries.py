@@ -14,15 +14,17 @@ traceback, and nothing lost or half written.
 Scenes: test_bake_hazards.py's generated sky.blend (one 4 x 4 x 2 m volume under the courtyard
 sky). Runtime: about a minute on 2 cores.
 """
-import os
 import re
 import shutil
+import signal
+import time
 
 import pytest
 
 from conftest import requires_native, run_blender
+from schnee_probes import journal as journal_mod
 from schnee_probes import native
-from test_bake_hazards import BAKE_PY, CELLS_2M, SCRIPTS, TINY, copy_blend, last_error
+from test_bake_hazards import BAKE_PY, CELLS_2M, SCRIPTS, TINY, Running, copy_blend, digest, last_error
 
 pytestmark = requires_native
 
@@ -132,3 +134,58 @@ def test_cells_of_20_to_40_m_bake_without_a_bound_never_given(scenes, tmp_path):
     assert last_error(proc) == ("bake.py: error: Probe placement failed: no probe could be placed: no "
                                 "occupancy-grid cell centre (spacing 20 m) lies inside the probe volumes; are "
                                 "the volumes thinner than Min Cell Size?"), last_error(proc)
+
+
+# ------------------------------------------------------------------ 4. a 240-character output name
+LONG_NAME = "probes_" + "x" * (240 - len("probes_.shprobe")) + ".shprobe"  # 240 characters, legal
+
+
+def _resumable_bake(blend, args, at):
+    """bake.py with each render slowed (0.2 s), sent SIGINT once ``blend``'s long-named journal
+    holds ``at`` records; (returncode, stdout, stderr)."""
+    journal_path = str(blend.parent / "sh_coeffs" / (LONG_NAME + ".journal"))
+    run = Running(blend, args, {}, pre=SCRIPTS / "slow_render.py")
+    end = time.monotonic() + 240
+    while time.monotonic() < end and run.proc.poll() is None:
+        info = journal_mod.summary(journal_path)
+        if info and info["records"] >= at:
+            break
+        time.sleep(0.01)
+    run.proc.send_signal(signal.SIGINT)
+    return run.finish()
+
+
+def test_a_240_character_output_name_bakes_and_resumes(scenes, tmp_path):
+    # Before: "Cannot write the bake journal …: [Errno 36] File name too long: '….journal.<pid>-<random>
+    # .partial'" after the first render (exit 3): the journal's temporary name was 240 + 33 bytes.
+    assert len(LONG_NAME) == 240
+    ref = copy_blend(scenes, "sky.blend", tmp_path / "reference")
+    assert bake_py(ref, "--placement", "OCTREE", *CELLS_2M, *TINY).returncode == 0
+    expected = digest(tmp_path / "reference" / "sh_coeffs" / "probes.shprobe")
+
+    blend = copy_blend(scenes, "sky.blend", tmp_path / "long")
+    args = [*CELLS_2M, *TINY, "--output", "//sh_coeffs/" + LONG_NAME]
+    rc, out, err = _resumable_bake(blend, args, at=2)
+    assert rc == 130, out[-2000:] + err[-2000:]
+    kept = re.search(r"; (\d+) of 4 probes kept in (\S+); the same bake run again", err)
+    assert kept and 2 <= int(kept.group(1)) < 4, err[-2000:]
+    assert kept.group(2) == str(blend.parent / "sh_coeffs" / (LONG_NAME + ".journal"))
+    proc = bake_py(blend, "--placement", "OCTREE", *args)  # run again: resumes from the journal
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert f"{kept.group(1)} of 4 probes already baked" in proc.stdout
+    assert "Traceback" not in err + proc.stderr
+    folder = blend.parent / "sh_coeffs"
+    assert digest(folder / LONG_NAME) == expected  # the bytes of an uninterrupted bake
+    assert files_under(folder) == sorted([LONG_NAME, "sky.exr"])  # journal spent, no temporary left
+
+    # Farm bakes of that output: the shard journals' names (240 + 21 bytes) are shortened the same
+    # way by every job, so the merge finds them; the merged file has the same bytes.
+    blend = copy_blend(scenes, "sky.blend", tmp_path / "farm")
+    args = ["--placement", "OCTREE", *CELLS_2M, *TINY, "--output", "//sh_coeffs/" + LONG_NAME]
+    for job in (["--shard", "0/2"], ["--shard", "1/2"], ["--merge-shards", "2"]):
+        proc = bake_py(blend, *args, *job)
+        assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    folder = blend.parent / "sh_coeffs"
+    assert digest(folder / LONG_NAME) == expected
+    shards = [n for n in files_under(folder) if n.endswith(".journal")]
+    assert len(shards) == 2 and all(len(n.encode()) <= 255 and ".shard-" in n for n in shards), shards
