@@ -338,6 +338,45 @@ def test_gltf_export_hook_checkbox_validator_engine(session, tmp_path):
     assert bg[2] > bg[1] > bg[0] > 0.0, bg
 
 
+def test_object_probe_mode_property_panel_export(session):
+    """Object.schnee_probe.mode in this Blender (scripts/version_checks.py, issue 31 item 2): four
+    planes sharing one mesh and one material (schnee_probe_mode "object"), three with a mode of
+    their own; the Object panel's drawing; each node's VULKAN_SCHNEE_node in the export, the Khronos
+    validator clean, and schnee-view naming each object's own mode (--print-assignments)."""
+    r = session["result"]
+    assert "error" not in r, r.get("error")
+    assert r["probe_mode_items"] == ["MATERIALS", "OFF", "OBJECT", "PIXEL", "AMBIENT_CUBE"]
+    fields = {"OffPlane": {"probeMode": "off", "probeRepresentation": "sh"},
+              "PixelPlane": {"probeMode": "pixel", "probeRepresentation": "sh"},
+              "MaterialPlane": None,
+              "CubePlane": {"probeMode": "object", "probeRepresentation": "ambientCube"}}
+    assert r["probe_mode_fields"] == fields
+    assert r["object_panel"] == [["prop", "mode", "MATERIALS"], ["label", "SharedMode: Per Object"],
+                                 ["prop", "mode", "PIXEL"],
+                                 ["label", "Replaces its materials' modes for this object"]]
+    assert r["export_modes"] == ["FINISHED"]
+    gltf = session["host"] / "export_modes" / "scene.gltf"
+    doc = json.loads(gltf.read_text())
+    nodes = {n["name"]: n for n in doc["nodes"]}
+    assert {k: nodes[k].get("extensions", {}).get("VULKAN_SCHNEE_node") for k in fields} == fields
+    assert len({nodes[k]["mesh"] for k in fields}) == 1
+    assert "VULKAN_SCHNEE_node" in doc["extensionsUsed"]
+    assert "VULKAN_SCHNEE_node" not in doc.get("extensionsRequired", [])
+    mat = doc["materials"][doc["meshes"][nodes["MaterialPlane"]["mesh"]]["primitives"][0]["material"]]
+    assert mat["extensions"]["VULKAN_SCHNEE_materials"]["probeMode"] == "object"
+    proc = subprocess.run(["node", str(VALIDATOR), str(gltf)], capture_output=True, text=True, timeout=120)
+    report = json.loads(proc.stdout)
+    assert report["issues"]["numErrors"] == 0, report["issues"]["messages"]
+    import viewer
+    out = viewer.check(viewer.run(gltf, "--headless", "--print-assignments")).stdout
+    lines = out.splitlines()
+    own = {lines[i - 1].split("'")[1]: lines[i].strip() for i in range(1, len(lines))
+           if lines[i].startswith("  own probe mode")}
+    assert own == {"OffPlane": "own probe mode off representation sh (VULKAN_SCHNEE_node)",
+                   "PixelPlane": "own probe mode pixel representation sh (VULKAN_SCHNEE_node)",
+                   "CubePlane": "own probe mode object representation ambientCube (VULKAN_SCHNEE_node)"}, out
+
+
 # ---------------------------------------------------------------------- the sky's sun (issue 27 item 2)
 SKY_SUN_FILES = ["probes.shprobe", "sky.exr", "sun.json"]
 

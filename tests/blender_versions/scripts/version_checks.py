@@ -186,6 +186,53 @@ def main():
         data = ob.data
         bpy.data.objects.remove(ob)
         bpy.data.lights.remove(data)
+
+    # --- per-object probe modes (probe_modes.py, issue 31 item 2): four planes sharing one mesh and
+    # one material (custom property schnee_probe_mode "object"), Object.schnee_probe.mode set on three;
+    # exported in a fourth file, then removed again before the save (the later bakes use the file).
+    modes = importlib.import_module(name + ".probe_modes")
+    panel = importlib.import_module(name + ".panel")
+    mat = bpy.data.materials.new("SharedMode")
+    mat["schnee_probe_mode"] = "object"
+    mesh = bpy.data.meshes.new("ModePlane")
+    mesh.from_pydata([(-0.4, -0.4, 0), (0.4, -0.4, 0), (0.4, 0.4, 0), (-0.4, 0.4, 0)], [], [(0, 1, 2, 3)])
+    mesh.materials.append(mat)
+    planes = []
+    for i, (plane_name, mode) in enumerate((("OffPlane", 'OFF'), ("PixelPlane", 'PIXEL'),
+                                            ("MaterialPlane", None), ("CubePlane", 'AMBIENT_CUBE'))):
+        ob = bpy.data.objects.new(plane_name, mesh)
+        ob.location = (-1.5 + i, 0.0, 0.1)
+        if mode is not None:
+            ob.schnee_probe.mode = mode
+        scene.collection.objects.link(ob)
+        planes.append(ob)
+    out["probe_mode_items"] = [i.identifier for i in bpy.types.Object.bl_rna.properties["schnee_probe"]
+                               .fixed_type.properties["mode"].enum_items]
+    out["probe_mode_fields"] = {ob.name: modes.node_fields(ob) for ob in planes}
+    # Properties > Object's panel drawn into a recording layout (no window in background mode).
+    log = []
+
+    class Layout:
+        def column(self, **_):
+            return self
+
+        def label(self, text="", **_):
+            log.append(["label", text])
+
+        def prop(self, data, prop, **_):
+            assert hasattr(data, prop), prop
+            log.append(["prop", prop, getattr(data, prop)])
+
+    for ob in (planes[2], planes[1]):
+        panel.OBJECT_PT_schnee_probes.draw(type("P", (), {"layout": Layout()})(), type("C", (), {"object": ob})())
+    out["object_panel"] = log
+    modes_path = os.path.join(work, "export_modes", "scene.gltf")
+    os.makedirs(os.path.dirname(modes_path), exist_ok=True)
+    out["export_modes"] = sorted(bpy.ops.export_scene.gltf(filepath=modes_path, export_format='GLTF_SEPARATE'))
+    for ob in planes:
+        bpy.data.objects.remove(ob)
+    bpy.data.meshes.remove(mesh)
+    bpy.data.materials.remove(mat)
     bpy.ops.wm.save_mainfile()
 
 
