@@ -40,6 +40,9 @@ layout(set = SV_SET_SCENE, binding = SV_BINDING_SHADOW) uniform sampler2DArraySh
 // stand-ins when the bricks are off.
 layout(set = SV_SET_SCENE, binding = SV_BINDING_BRICK_POOL) uniform sampler3D brick_pool;
 layout(set = SV_SET_SCENE, binding = SV_BINDING_BRICK_INDEX) uniform usampler3D brick_index;
+// Step 5 (engine/src/sv_bricks_vis.h): 4 uint per brick (x = uint offset of its first visibility record
+// here, y / z = blocked-cell bits; row = the indirection entry's w), then 16 uint per 64-B record.
+layout(std430, set = SV_SET_SCENE, binding = SV_BINDING_BRICK_VIS) readonly buffer BrickVisBlock { uint brick_vis[]; };
 // Set 1: the draw's material textures (a 1x1 white texel when the material has none).
 layout(set = SV_SET_MATERIAL, binding = SV_BINDING_BASE_COLOR_TEX) uniform sampler2D base_color_tex;
 layout(set = SV_SET_MATERIAL, binding = SV_BINDING_EMISSIVE_TEX) uniform sampler2D emissive_tex;

@@ -3,6 +3,7 @@
 #define SV_SHADING_GLSL
 #include "ambient_cube.glsl"
 #include "bricks.glsl"
+#include "bricks_surface.glsl"
 #include "sh.glsl"
 
 // Probe buffer access for either storage (SV_HALF_PROBES, a specialization constant).
@@ -267,9 +268,10 @@ bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, bool movable, out 
         bool cube = cube_asked || (gr.base.z & SV_GRID_CUBE_ONLY) != 0u;
         if ((gr.base.z & SV_GRID_TETRA) != 0u) continue; // tetrahedra: per object only
         if ((gr.base.z & SV_GRID_OCTREE) != 0u) {
-            // --probe-path bricks (SH only): the bricks' field for every object (the movable rule).
+            // --probe-path bricks (SH only): the bricks' field with step 5 (back faces on static surfaces,
+            // the visibility records of blocked brick cells), bricks_surface.glsl.
             if (!cube && (frame.flags & SV_FRAME_BRICKS) != 0u && (gr.base.z & SV_GRID_BRICKS) != 0u) {
-                if (brick_irradiance(gr, p_surface, n, e_out)) return true;
+                if (brick_surface_irradiance(gr, p_surface, n, movable, e_out)) return true;
                 continue;
             }
             if (octree_irradiance(gr, p_surface, n, cube, movable, e_out)) return true;

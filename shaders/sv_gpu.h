@@ -70,7 +70,8 @@
 #define SV_BINDING_SHADOW      12 /* sampler2DArrayShadow: shadow maps, one layer per sun/spot, six per point */
 #define SV_BINDING_BRICK_POOL  13 /* sampler3D: probe-brick pool, RGBA16F/32F, linear (--probe-path bricks) */
 #define SV_BINDING_BRICK_INDEX 14 /* usampler3D: probe-brick indirection, RGBA32UI, nearest (texelFetch) */
-#define SV_SCENE_BINDING_COUNT 15 /* bindings in set 0 */
+#define SV_BINDING_BRICK_VIS   15 /* SSBO uint[]: brick tables, then visibility records (sv_bricks_vis.h) */
+#define SV_SCENE_BINDING_COUNT 16 /* bindings in set 0 */
 /* Set 1 (per material). */
 #define SV_SET_MATERIAL           1
 #define SV_BINDING_BASE_COLOR_TEX 0

@@ -7,6 +7,7 @@
 
 #include "schnee/pb_bricks.h"
 #include "schnee/pb_sh.h"
+#include "sv_bricks_vis.h"
 #include "sv_upload.h"
 
 /* Every grid's bricks (NULL where not bricked) and the combined textures' sizes. */
@@ -26,8 +27,9 @@ static bool brickable(const sv_probe_grid *gr)
     return gr->tree && gr->file->representation != PB_SHPROBE_AMBIENT_CUBE;
 }
 
-/* pb_bricks_build on the file's coefficients (float64 copies), validity and scale. */
-static bool build_grid(const sv_probe_grid *gr, uint32_t g, pb_bricks **out)
+/* pb_bricks_build on the file's coefficients (float64 copies), validity and scale, with the static
+ * scene's tracer when there is one (step 5: leaf tables, visibility texels, brick table and records). */
+static bool build_grid(const sv_probe_grid *gr, uint32_t g, sv_bricks_vis *vis, pb_bricks **out)
 {
     const pb_shprobe *f = gr->file;
     uint32_t nc = pb_sh_count(f->max_band);
@@ -40,6 +42,7 @@ static bool build_grid(const sv_probe_grid *gr, uint32_t g, pb_bricks **out)
     for (size_t i = 0; i < n; ++i) c[i] = f->coeffs[i];
     pb_bricks_desc d = {
         .tree = gr->tree, .coeff_count = nc, .coeffs = c, .validity = f->validity, .scale = f->probe_scale};
+    sv_bricks_vis_desc(vis, &d);
     pb_error err = {0};
     pb_result rc = pb_bricks_build(&d, out, &err);
     free(c);
@@ -231,12 +234,12 @@ static void report(const sv_renderer *r, const sv_probes *probes, const brick_se
 }
 
 /* Builds every bricked grid's bricks, plans, checks and uploads the pool and the indirection. */
-static bool upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s, sv_gpu_grid *grids)
+static bool upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s, sv_gpu_grid *grids, sv_bricks_vis *vis)
 {
     bool any = false;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         if (!brickable(&probes->grids[g])) continue;
-        if (!build_grid(&probes->grids[g], g, &s->b[g])) return false;
+        if (!build_grid(&probes->grids[g], g, vis, &s->b[g])) return false;
         pb_bricks_get_info(s->b[g], &s->info[g]);
         any = true;
     }
@@ -246,7 +249,8 @@ static bool upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s,
     void *pool = fill_pool(probes, s, &pool_bytes);
     uint32_t *index = pool ? fill_index(probes, s, &index_bytes) : NULL;
     VkFormat pf = s->f32 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R16G16B16A16_SFLOAT;
-    bool ok = pool && index && fits_device(r, s, pf);
+    bool ok = pool && index && fits_device(r, s, pf) &&
+              sv_bricks_vis_upload(r, vis, s->b, probes->grid_count, index, s->index);
     if (!pool || !index) fprintf(stderr, "schnee-view: error: --probe-path bricks: out of memory for the pool\n");
     if (ok) {
         sv_image_destroy(r->ctx, &r->brick_pool);
@@ -261,7 +265,7 @@ static bool upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s,
     return ok;
 }
 
-bool sv_bricks_upload(sv_renderer *r, const sv_probes *probes, sv_gpu_grid *grids, bool enabled)
+bool sv_bricks_upload(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, sv_gpu_grid *grids, bool enabled)
 {
     VkSamplerCreateInfo si = sv_sampler_info(VK_FILTER_LINEAR, VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE);
     VK_CHECK(vkCreateSampler(r->ctx->device, &si, NULL, &r->brick_sampler));
@@ -271,13 +275,17 @@ bool sv_bricks_upload(sv_renderer *r, const sv_probes *probes, sv_gpu_grid *grid
     static const uint32_t no_brick[4] = {PB_BRICKS_NONE, 0, 0, 0};
     const uint32_t one[3] = {1, 1, 1};
     if (!upload_3d(r, one, VK_FORMAT_R16G16B16A16_SFLOAT, zero_half, sizeof zero_half, &r->brick_pool) ||
-        !upload_3d(r, one, VK_FORMAT_R32G32B32A32_UINT, no_brick, sizeof no_brick, &r->brick_index))
+        !upload_3d(r, one, VK_FORMAT_R32G32B32A32_UINT, no_brick, sizeof no_brick, &r->brick_index) ||
+        !sv_bricks_vis_standin(r))
         return false;
     if (!enabled || !probes->grid_count) return true;
     brick_set s = {0};
     s.b = calloc(probes->grid_count, sizeof *s.b);
     s.info = calloc(probes->grid_count, sizeof *s.info);
-    bool ok = s.b && s.info && upload_bricks(r, probes, &s, grids);
+    sv_bricks_vis vis;
+    sv_bricks_vis_begin(&vis, scene);
+    bool ok = s.b && s.info && upload_bricks(r, probes, &s, grids, &vis);
+    sv_bricks_vis_end(&vis);
     for (uint32_t g = 0; s.b && g < probes->grid_count; ++g) pb_bricks_destroy(s.b[g]);
     free(s.b);
     free(s.info);
@@ -290,6 +298,7 @@ void sv_bricks_destroy(sv_renderer *r)
 {
     sv_image_destroy(r->ctx, &r->brick_pool);
     sv_image_destroy(r->ctx, &r->brick_index);
+    sv_buffer_destroy(r->ctx, &r->brick_vis);
     if (r->brick_sampler) vkDestroySampler(r->ctx->device, r->brick_sampler, NULL);
     if (r->brick_index_sampler) vkDestroySampler(r->ctx->device, r->brick_index_sampler, NULL);
     r->brick_sampler = r->brick_index_sampler = VK_NULL_HANDLE;

@@ -6,6 +6,8 @@
  *                one slab of z per channel group (group g of every grid at z + g * slab), the grids'
  *                pools side by side along z within a slab;
  *   indirection  RGBA32UI, nearest (read with texelFetch): the grids' indirection grids along z.
+ * With a static scene (scene's objects never moved) the bricks are built with its tracer and their
+ * brick tables and visibility records go into a storage buffer (sv_bricks_vis.h, step 5).
  * Each bricked grid's record gets SV_GRID_BRICKS and its offsets (sv_gpu_grid.bricks). Grids of other
  * structures (dense, tetrahedra) or holding ambient cubes keep the storage-buffer path. */
 #ifndef SV_BRICKS_H
@@ -18,7 +20,7 @@
  * way. False with a clear message when a grid cannot be bricked (the core's refusal, e.g. its memory
  * cap), when the pool or the indirection exceeds the device's maxImageDimension3D, or when the device
  * cannot filter the pool's format linearly. Prints the bricks' GPU memory per probe when enabled. */
-bool sv_bricks_upload(sv_renderer *r, const sv_probes *probes, sv_gpu_grid *grids, bool enabled);
+bool sv_bricks_upload(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, sv_gpu_grid *grids, bool enabled);
 void sv_bricks_destroy(sv_renderer *r);
 
 #endif

@@ -44,8 +44,8 @@ static const uint32_t shadow_vert_spv[] =
 
 /* ---- samplers and descriptors --------------------------------------------------------------- */
 
-/* Set 0: the first 10 are buffers (in the order of scene_buffers() below), the last 5 images. */
-enum { SCENE_BUFFERS = 10 };
+/* Set 0: the first 11 are buffers (in the order of scene_buffers() below), the last 5 images. */
+enum { SCENE_BUFFERS = 11 };
 #define SV_VF (VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT)
 static const VkDescriptorSetLayoutBinding scene_bindings[SV_SCENE_BINDING_COUNT] = {
     {SV_BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, SV_VF, NULL},
@@ -58,6 +58,7 @@ static const VkDescriptorSetLayoutBinding scene_bindings[SV_SCENE_BINDING_COUNT]
     {SV_BINDING_PROBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     {SV_BINDING_CUBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     {SV_BINDING_CUBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+    {SV_BINDING_BRICK_VIS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     {SV_BINDING_SKY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     {SV_BINDING_BRDF_LUT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     {SV_BINDING_SHADOW, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
@@ -111,7 +112,7 @@ static bool create_sets(sv_renderer *r)
     VK_CHECK(vkCreateDescriptorSetLayout(dev, &li, NULL, &r->tonemap_set_layout));
     VkDescriptorPoolSize sizes[] = {
         {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 9},
+        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 10},
         {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 2 * r->material_count + 6},
     };
     VkDescriptorPoolCreateInfo pi = {
@@ -178,6 +179,7 @@ static void write_scene_set(sv_renderer *r)
         {r->cells.buffer, 0, VK_WHOLE_SIZE},      {r->grids.buffer, 0, VK_WHOLE_SIZE},
         {r->cell_index.buffer, 0, VK_WHOLE_SIZE}, {r->probes_half.buffer, 0, VK_WHOLE_SIZE},
         {r->cubes.buffer, 0, VK_WHOLE_SIZE},      {r->cubes_half.buffer, 0, VK_WHOLE_SIZE},
+        {r->brick_vis.buffer, 0, VK_WHOLE_SIZE},
     };
     VkDescriptorImageInfo imgs[SV_SCENE_BINDING_COUNT - SCENE_BUFFERS] = {
         {r->sky_sampler, r->sky.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},

@@ -145,7 +145,7 @@ static bool segment_blocked(const pb_occluder *occ, const float a[3], const floa
 /* pb_segment_fn over the static scene: the first surface on a -> b as a fraction of its length (both
  * sides of every triangle), 1 when clear. The ends are left out by 1e-4 of the length, as in
  * segment_blocked: a probe on a floor modelled exactly on the lattice still sees along that floor. */
-static double segment_first_hit(void *user, const double a[3], const double b[3])
+double sv_segment_first_hit(void *user, const double a[3], const double b[3])
 {
     pb_occluder_ray ray = {{(float)a[0], (float)a[1], (float)a[2]},
                            {(float)(b[0] - a[0]), (float)(b[1] - a[1]), (float)(b[2] - a[2])},
@@ -153,6 +153,17 @@ static double segment_first_hit(void *user, const double a[3], const double b[3]
                            1.0f - 1e-4f};
     float t = 1.0f;
     return pb_occluder_first_hit((const pb_occluder *)user, &ray, NULL, NULL, &t, NULL) ? (double)t : 1.0;
+}
+
+pb_occluder *sv_static_occluder(const sv_scene *scene)
+{
+    if (!scene || !scene->object_count) return NULL;
+    pb_occluder *occ = build_occluder(scene, true, 0, NULL, NULL);
+    if (occ && !pb_occluder_triangle_count(occ)) {
+        pb_occluder_destroy(occ);
+        return NULL;
+    }
+    return occ;
 }
 
 /* The tree's leaves are the file's, in its order: min corners equal (a kd tree's 4th word packs the
@@ -188,7 +199,7 @@ uint32_t *sv_probe_visibility_masks(const sv_probes *probes, const sv_scene *sce
             const pb_cotree *tree = probes->grids[g].tree;
             /* The tree was built from the file's leaves, which are in the same (Morton) order. */
             if (pb_cotree_leaf_count(tree) == f->element_count && same_leaves(pb_cotree_leaves(tree), f)) {
-                (void)pb_cotree_pair_visibility(tree, segment_first_hit, occ, leaf_vis + 64u * loff, NULL);
+                (void)pb_cotree_pair_visibility(tree, sv_segment_first_hit, occ, leaf_vis + 64u * loff, NULL);
                 rays += 56u * (size_t)f->element_count;
             } else {
                 fprintf(stderr,

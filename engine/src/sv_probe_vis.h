@@ -15,6 +15,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "schnee/pb_occluder.h"
 #include "sv_probes.h"
 
 /* Every object's triangles at their current transforms; NULL (with a warning) on failure, then
@@ -44,5 +45,14 @@ bool sv_probe_visible(void *user, uint32_t probe, const double point[3]);
  * Returns the masks (caller frees), NULL when out of memory. */
 uint32_t *sv_probe_visibility_masks(const sv_probes *probes, const sv_scene *scene, size_t n, uint8_t *leaf_vis,
                                     size_t leaf_count);
+
+/* The static scene's occluder as sv_probe_visibility_masks traces it (the objects never moved, both
+ * sides of every triangle), for other tracers such as the probe bricks' build (sv_bricks_vis.c); NULL
+ * when the scene has no object or no triangle (no message) or the occluder fails (a warning). Free with
+ * pb_occluder_destroy. */
+pb_occluder *sv_static_occluder(const sv_scene *scene);
+/* pb_segment_fn over such an occluder (user): the first surface on a -> b as a fraction of its length,
+ * 1 when clear; the leaf tables' segment function. */
+double sv_segment_first_hit(void *user, const double a[3], const double b[3]);
 
 #endif

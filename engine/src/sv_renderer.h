@@ -103,6 +103,7 @@ typedef struct sv_renderer {
     /* Probe bricks (sv_bricks.h, --probe-path bricks): the pool (one slab of z per channel group) and the
      * indirection; 1x1x1 stand-ins when off. */
     sv_image brick_pool, brick_index;
+    sv_buffer brick_vis; /* brick tables and visibility records (sv_bricks_vis.h); one zero row when off */
     VkSampler brick_sampler, brick_index_sampler; /* linear / nearest, clamp to edge */
     bool bricks;                                  /* the bricks are uploaded: SV_FRAME_BRICKS */
 

@@ -469,7 +469,8 @@ def test_octree_per_pixel_on_a_movable_sphere_is_the_cpu_model(tmp_path):
     assert np.abs(backface - want).max() > 0.05  # measured 0.25
 
 
-def test_octree_floor_next_to_a_wall_does_not_leak(tmp_path):
+@pytest.mark.parametrize("probe_path", ["buffers", "bricks"])
+def test_octree_floor_next_to_a_wall_does_not_leak(tmp_path, probe_path):
     # Three 1 m leaves along x: probes at x = 0, 1 see radiance 0.05, at x = 2, 3 radiance 5. A static
     # two-sided wall at x = 1.7 and a floor at y = 0.1 for x in [0, 1.68]. The bright corners of the
     # leaf [1, 2] are above the floor (the back-face weight keeps them), but every segment from them
@@ -492,10 +493,14 @@ def test_octree_floor_next_to_a_wall_does_not_leak(tmp_path):
     scene = b.write(tmp_path / "wall.gltf")
     p = pixel_points(0.84, 0.5, 0.84, 0.1)
     on_floor = (p[..., 2] > 0.02) & (p[..., 2] < 0.98)
-    img, proc = render(scene, tmp_path / "w.exr")
+    path = ("--probe-path", probe_path)
+    img, proc = render(scene, tmp_path / "w.exr", *path)
+    if probe_path == "bricks":  # built with the static scene's tracer: records for the blocked brick cells
+        assert re.search(r"probe brick visibility: [1-9][0-9]* record", proc.stderr), proc.stderr
     assert "probe visibility masks: 168 segment(s)" in proc.stderr  # 3 leaves x 56 corner pairs
     assert np.allclose(img[on_floor], 0.05, rtol=1e-5), img[on_floor].max()
-    img, _ = render(scene, tmp_path / "m.exr", "--move", "WallA", 1.71, 0.5, 0.5, "--move", "WallB", 1.71, 0.5, 0.5)
+    img, _ = render(scene, tmp_path / "m.exr", "--move", "WallA", 1.71, 0.5, 0.5, "--move", "WallB", 1.71, 0.5, 0.5,
+                    *path)
     # No occluder: the plain rule, t = x - 1 of the bright corners' weight near x = 1.68.
     assert img[on_floor].max() > 0.05 + 0.6 * 4.95
 

@@ -8,6 +8,7 @@ forced splits) through the writer, which picks version 4 for it. Expected values
 (CornerOctree.query, tested against closed forms in tests/python/test_native_boxes.py), the closed form
 of a field linear in position, and a numpy transcription of the documented per-pixel rule from the
 file's own arrays."""
+import re
 import struct
 
 import numpy as np
@@ -292,7 +293,8 @@ def test_corrupt_split_tree_ends_the_run_naming_the_node(tmp_path):
     assert not (tmp_path / "x.png").exists()
 
 
-def test_kd_tree_floor_next_to_a_wall_does_not_leak(tmp_path):
+@pytest.mark.parametrize("probe_path", ["buffers", "bricks"])
+def test_kd_tree_floor_next_to_a_wall_does_not_leak(tmp_path, probe_path):
     # test_engine_v3's leak case on slabs: three 1 m roots along x, each halved along y (1 x 0.5 x 1 m
     # boxes); probes at x = 0, 1 see radiance 0.05, at x = 2, 3 radiance 5. A static two-sided wall at
     # x = 1.7 and a floor at y = 0.1 for x in [0, 1.68]: the back-face weights (per axis: the corners
@@ -315,9 +317,13 @@ def test_kd_tree_floor_next_to_a_wall_does_not_leak(tmp_path):
     scene = b.write(tmp_path / "wall.gltf")
     p = pixel_points(0.84, 0.5, 0.84, 0.1)
     on_floor = (p[..., 2] > 0.02) & (p[..., 2] < 0.98)
-    img, proc = render(scene, tmp_path / "w.exr")
+    path = ("--probe-path", probe_path)
+    img, proc = render(scene, tmp_path / "w.exr", *path)
+    if probe_path == "bricks":  # built with the static scene's tracer: records for the blocked brick cells
+        assert re.search(r"probe brick visibility: [1-9][0-9]* record", proc.stderr), proc.stderr
     assert "probe visibility masks: 336 segment(s)" in proc.stderr  # 6 boxes x 56 corner pairs
     assert np.allclose(img[on_floor], 0.05, rtol=1e-5), img[on_floor].max()
-    img, _ = render(scene, tmp_path / "m.exr", "--move", "WallA", 1.71, 0.5, 0.5, "--move", "WallB", 1.71, 0.5, 0.5)
+    img, _ = render(scene, tmp_path / "m.exr", "--move", "WallA", 1.71, 0.5, 0.5, "--move", "WallB", 1.71, 0.5, 0.5,
+                    *path)
     # No occluder: near x = 1.68 the upper corners' t_x = 0.68 of the bright ones.
     assert img[on_floor].max() > 0.05 + 0.6 * 4.95
