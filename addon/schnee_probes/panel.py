@@ -7,7 +7,7 @@ import os
 import bpy
 
 from . import bake_core, compat, journal, light_modes, probe_modes, render_settings
-from .properties import LIGHT_MODE_ITEMS, draw_estimate, draw_settings
+from .properties import LIGHT_MODE_ITEMS, PROBE_MODE_ITEMS, draw_estimate, draw_settings
 
 
 class VIEW3D_PT_schnee_probes(bpy.types.Panel):
@@ -201,13 +201,43 @@ MESH_OBJECT_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
 _MATERIAL_MODE_TEXT = {"off": "Off", "object": "Per Object", "pixel": "Per Pixel"}
 
 
-def draw_object_probe_mode(layout, ob):
+class SCHNEE_OT_set_probe_mode(bpy.types.Operator):
+    """Set the probe mode of the active and every selected mesh-like object (Object.schnee_probe.mode)"""
+    bl_idname = "schnee.set_probe_mode"
+    bl_label = "Set Probe Mode"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    # The identifiers and tooltips of the registered property (properties.PROBE_MODE_ITEMS).
+    mode: bpy.props.EnumProperty(name="Probe Mode", items=PROBE_MODE_ITEMS)
+
+    @classmethod
+    def poll(cls, context):
+        return bool(_target_objects(context))
+
+    def execute(self, context):
+        for ob in _target_objects(context):
+            ob.schnee_probe.mode = self.mode
+        return {'FINISHED'}
+
+
+def _target_objects(context):
+    """The active object and every selected one that the glTF exporter turns into a mesh."""
+    obs = list(getattr(context, "selected_objects", None) or [])
+    active = getattr(context, "active_object", None)
+    if active is not None and active not in obs:
+        obs.append(active)
+    return [ob for ob in obs if ob.type in MESH_OBJECT_TYPES]
+
+
+def draw_object_probe_mode(layout, ob, context=None):
     """The probe mode of object ``ob`` (Object.schnee_probe.mode, with its tooltips) and what it
     means here: with "As Its Materials Say" each material's own mode (its custom property
-    schnee_probe_mode), else that the choice replaces them. Shared by Properties > Object and the
-    sidebar."""
+    schnee_probe_mode), else that the choice replaces them; with several objects selected, a menu
+    that sets them all. Shared by Properties > Object and the sidebar."""
     col = layout.column(align=True)
     col.prop(ob.schnee_probe, "mode", text="")
+    if context is not None and len(_target_objects(context)) > 1:
+        col.operator_menu_enum(SCHNEE_OT_set_probe_mode.bl_idname, "mode", text="Set All Selected Objects")
     if probe_modes.chosen(ob) != probe_modes.AS_MATERIALS:
         col.label(text="Replaces its materials' modes for this object", icon='INFO')
         return
@@ -238,7 +268,7 @@ class OBJECT_PT_schnee_probes(bpy.types.Panel):
         return ob is not None and ob.type in MESH_OBJECT_TYPES
 
     def draw(self, context):
-        draw_object_probe_mode(self.layout, context.object)
+        draw_object_probe_mode(self.layout, context.object, context)
 
 
 class VIEW3D_PT_schnee_object(bpy.types.Panel):
@@ -257,10 +287,11 @@ class VIEW3D_PT_schnee_object(bpy.types.Panel):
     def draw(self, context):
         ob = context.active_object
         self.layout.label(text=ob.name, icon='OBJECT_DATA')
-        draw_object_probe_mode(self.layout, ob)
+        draw_object_probe_mode(self.layout, ob, context)
 
 
 classes = (VIEW3D_PT_schnee_probes, VIEW3D_PT_schnee_probes_last, SCHNEE_OT_set_light_mode,
-           VIEW3D_PT_schnee_light, DATA_PT_schnee_light, OBJECT_PT_schnee_probes, VIEW3D_PT_schnee_object)
+           VIEW3D_PT_schnee_light, DATA_PT_schnee_light, SCHNEE_OT_set_probe_mode, OBJECT_PT_schnee_probes,
+           VIEW3D_PT_schnee_object)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

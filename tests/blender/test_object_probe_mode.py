@@ -61,13 +61,16 @@ def exported(tmp_path_factory):
 
 def test_property_registered_and_kept(exported):
     r = exported["r"]
-    everything = {"object_property": True, "object_panel": True, "sidebar_panel": True}
+    everything = {"object_property": True, "object_panel": True, "sidebar_panel": True, "operator": True}
     assert r["enabled"] == r["enabled_again"] == everything
     assert r["disabled"] == {k: False for k in everything}
     chosen = {"OffPlane": "OFF", "PixelPlane": "PIXEL", "MaterialPlane": "MATERIALS", "CubePlane": "AMBIENT_CUBE"}
     assert r["default"] == "MATERIALS"
     assert r["set"] == r["enabled_again_choices"] == r["reopened_choices"] == chosen
     assert r["enum_items"] == ["MATERIALS", "OFF", "OBJECT", "PIXEL", "AMBIENT_CUBE"]
+    # Set All Selected Objects: the active and the selected planes, not the lamp (no mesh).
+    assert r["set_selected"] == ["FINISHED"]
+    assert r["after_set_selected"] == dict(chosen, OffPlane="OBJECT", MaterialPlane="OBJECT", Lamp="PIXEL")
     # Every choice writes values the engine and the material extension know (gltf_export's tables).
     for fields in filter(None, r["choice_fields"].values()):
         assert fields["probeMode"] in r["exporter_modes"]

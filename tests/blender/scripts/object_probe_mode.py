@@ -7,8 +7,8 @@ side along X at z = 0.1 (OffPlane Off, PixelPlane Per Pixel, MaterialPlane as it
 CubePlane Ambient Cube, through Object.schnee_probe.mode), a lamp chosen Per Pixel too (no mesh: no
 field) and a look-down orthographic camera; saves WORK_DIR/scene/scene.blend, exports
 WORK_DIR/on/scene.gltf and WORK_DIR/off/scene.gltf (checkbox off), draws the Object panel into a
-recording layout, and checks the property across disable / enable and a reopen of the saved file.
-Emits one RESULT line.
+recording layout, checks the property across disable / enable and a reopen of the saved file, and
+sets two selected planes at once (schnee.set_probe_mode). Emits one RESULT line.
 """
 import os
 import sys
@@ -26,7 +26,8 @@ PLANES = {"OffPlane": (-4.5, 'OFF'), "PixelPlane": (-1.5, 'PIXEL'), "MaterialPla
 def registered():
     return {"object_property": hasattr(bpy.types.Object, "schnee_probe"),
             "object_panel": hasattr(bpy.types, "OBJECT_PT_schnee_probes"),
-            "sidebar_panel": hasattr(bpy.types, "VIEW3D_PT_schnee_object")}
+            "sidebar_panel": hasattr(bpy.types, "VIEW3D_PT_schnee_object"),
+            "operator": "set_probe_mode" in dir(bpy.ops.schnee)}
 
 
 def choices():
@@ -127,6 +128,13 @@ def main():
     out["enabled_again_choices"] = choices()
     bpy.ops.wm.open_mainfile(filepath=path)
     out["reopened_choices"] = choices()
+    # Set All Selected Objects: OffPlane active, MaterialPlane and the lamp selected.
+    layer = bpy.context.view_layer
+    for ob in layer.objects:
+        ob.select_set(ob.name in ("OffPlane", "MaterialPlane", "Lamp"))
+    layer.objects.active = bpy.data.objects["OffPlane"]
+    out["set_selected"] = sorted(bpy.ops.schnee.set_probe_mode(mode='OBJECT'))
+    out["after_set_selected"] = dict(choices(), Lamp=bpy.data.objects["Lamp"].schnee_probe.mode)
     common.emit(**out)
 
 
