@@ -24,4 +24,117 @@ bool brick_occupied(uvec4 e, uvec3 q) {
 // E(n) of a grid's bricks at a surface point: brick_surface_irradiance() in bricks_surface.glsl (steps 1-6
 // with the anti-leak rules of step 5, mirroring pb_bricks_sample_surface()).
 
+// ---- dense grids (docs/grid-field.md, --probe-path bricks): a line-by-line mirror of pb_grid_field_query()
+// of native/src/pb_grid_field.c (steps 1-5a; the caller, grid_irradiance, does 5b, the home-cell fallback,
+// as before). The grid's cell-centred texture (pb_grid_field_texture_f16: N = v s c, D = v per cell) lies in
+// the brick pool at (0, 0, gr.bricks.z) of each channel group's slab (gr.bricks.w = C | slab << 8).
+// When every corner keeps its home-cell mask bit and its back-face weight is 1 (always for a movable
+// object with a full mask), the rule's weights are trilinear x validity: one filtered fetch per channel
+// group at t = clamp(u - 1/2, 0, dims - 1) (pb_grid_field_sample_texture). Otherwise 8 texelFetch taps
+// per group with the rule's weights exactly (trilinear x back face x mask; validity is in N and D).
+
+// Channel group g of cell ci of grid gr (texelFetch: exact, no filter).
+vec4 grid_tex_fetch(sv_gpu_grid gr, ivec3 ci, uint g) {
+    return texelFetch(brick_pool, ci + ivec3(0, 0, int(gr.bricks.z + g * (gr.bricks.w >> 8u))), 0);
+}
+
+// E(n) = sum_i A_l(i) Y_i(n) N_i / D over the channel groups, N_0 and D from t0 (group 0); groups 1.. from
+// `fetch_group` below (one of the two paths). Split in two to keep one loop for both paths.
+float[25] grid_tex_basis(uint C, vec3 n) {
+    uint band = C >= 25u ? 4u : C >= 16u ? 3u : C >= 9u ? 2u : C >= 4u ? 1u : 0u;
+    float AY[25];
+    sh_lambert_basis(band, n, AY);
+    return AY;
+}
+
+// false: no weight left (sum w v <= 1e-6, PB_GRID_FIELD_MIN_WEIGHT): the caller's fallback.
+bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, out vec3 e_out) {
+    e_out = vec3(0.0);
+    // 1. (pb_grid_field_query step 1) biased point, grid coordinates u = R (p - origin) / h.
+    float h = gr.origin_spacing.w;
+    vec3 p = p_surface + n * (frame.normal_bias * h);
+    vec3 rel = p - gr.origin_spacing.xyz;
+    vec3 u = vec3(dot(rel, gr.axes[0].xyz), dot(rel, gr.axes[1].xyz), dot(rel, gr.axes[2].xyz)) / h;
+    ivec3 dims = ivec3(gr.dims.xyz);
+    if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, vec3(dims) + 0.01))) return false;
+    // 2. (c, i0, f)
+    vec3 c = u - 0.5;
+    ivec3 i0 = ivec3(floor(c));
+    vec3 f = c - vec3(i0);
+    // 3. (home, vis) the home cell 0.01 cells along n, its 27-bit neighbour mask from the cell buffer.
+    vec3 rel_h = rel + n * (0.01 * h);
+    ivec3 home = clamp(ivec3(floor(vec3(dot(rel_h, gr.axes[0].xyz), dot(rel_h, gr.axes[1].xyz),
+                                          dot(rel_h, gr.axes[2].xyz)) / h)), ivec3(0), dims - 1);
+    uint vis = uint(cell_probe[gr.base.y + uint(home.x + home.y * dims.x + home.z * dims.x * dims.y)]);
+    // 4. (the loop over k) each corner's factor besides trilinear and validity: 0 when the mask drops it,
+    //    else its back-face weight (1 for a movable object). Empty cells have N = D = 0 in the texture.
+    float keep[8];
+    bool plain = true;
+    for (int k = 0; k < 8; ++k) {
+        ivec3 o = ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+        ivec3 ci = clamp(i0 + o, ivec3(0), dims - 1);
+        ivec3 d = ci - home;
+        bool masked = all(lessThanEqual(abs(d), ivec3(1))) &&
+                      (vis & (1u << uint(d.x + 1 + 3 * (d.y + 1) + 9 * (d.z + 1)))) == 0u;
+        float b = movable ? 1.0 : smoothstep(-0.1, 0.1, dot(cell_centre(gr, ci) - p_surface, n) / h);
+        keep[k] = masked ? 0.0 : b;
+        if (keep[k] < 1.0) plain = false;
+    }
+    uint C = gr.bricks.w & 255u;
+    uint groups = (3u * C + 4u) / 4u; // ceil((3C + 1) / 4)
+    float AY[25] = grid_tex_basis(C, n);
+    vec3 s;
+    float D;
+    // The filtered fetch also needs D >= 1/64 (PB_GRID_FIELD_FILTER_MIN_D): where the only valid corners
+    // have tiny trilinear weights, lavapipe's filtered N and D lose the ratio N_k / D_k (measured 0.3 % at
+    // D = 8.7e-5, 2e-4 at 1.3e-3; test_engine_grid_field.py), which the exact taps keep.
+    vec3 size = vec3(textureSize(brick_pool, 0));
+    vec3 tc = (clamp(u - 0.5, vec3(0.0), vec3(dims - 1)) + 0.5 + vec3(0.0, 0.0, float(gr.bricks.z))) / size;
+    vec4 t0 = plain ? textureLod(brick_pool, tc, 0.0) : vec4(0.0); // N_0 (RGB), D
+    if (plain && t0.w < 1.0 / 64.0) plain = false;
+    if (plain) {
+        // pb_grid_field_sample_texture: texel coordinate t = clamp(u - 1/2, 0, dims - 1), texel centres
+        // (t + 1/2 + (0, 0, z offset)) / pool size (tc above); the hardware's trilinear filter (its
+        // sub-texel weights).
+        float slab = float(gr.bricks.w >> 8u) / size.z;
+        D = t0.w;
+        s = AY[0] * t0.rgb;
+        for (uint g = 1u; g < groups; ++g) {
+            vec4 tg = textureLod(brick_pool, tc + vec3(0.0, 0.0, float(g) * slab), 0.0);
+            for (uint j = 0u; j < 4u; ++j) { // channel 4g + j = N_i colour k, i = 1 + (4g + j - 4) / 3
+                uint ch = 4u * g + j - 4u, i = 1u + ch / 3u;
+                if (i < C) s[ch % 3u] += AY[i] * tg[j];
+            }
+        }
+    } else {
+        // The rule's weights exactly: w_k = trilinear x keep_k; sum_k w_k (N, D)_k = (sum w v s c, sum w v).
+        float w[8];
+        for (int k = 0; k < 8; ++k) {
+            vec3 w3 = mix(1.0 - f, f, vec3(ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1)));
+            w[k] = w3.x * w3.y * w3.z * keep[k];
+        }
+        vec4 a0 = vec4(0.0);
+        for (int k = 0; k < 8; ++k) {
+            if (w[k] <= 0.0) continue;
+            a0 += w[k] * grid_tex_fetch(gr, clamp(i0 + ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1), ivec3(0), dims - 1), 0u);
+        }
+        D = a0.w;
+        if (!(D > 1e-6)) return false; // 5. sum w <= 1e-6: the caller's home-cell fallback
+        s = AY[0] * a0.rgb;
+        for (uint g = 1u; g < groups; ++g) {
+            vec4 tg = vec4(0.0);
+            for (int k = 0; k < 8; ++k) {
+                if (w[k] <= 0.0) continue;
+                tg += w[k] * grid_tex_fetch(gr, clamp(i0 + ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1), ivec3(0), dims - 1), g);
+            }
+            for (uint j = 0u; j < 4u; ++j) {
+                uint ch = 4u * g + j - 4u, i = 1u + ch / 3u;
+                if (i < C) s[ch % 3u] += AY[i] * tg[j];
+            }
+        }
+    }
+    e_out = s / D; // 5. renormalised: sum w v s E / sum w v
+    return true;
+}
+
 #endif

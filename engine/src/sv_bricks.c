@@ -1,11 +1,14 @@
 /* Probe bricks in the engine (see sv_bricks.h): build each tree grid's bricks with the core's pb_bricks,
- * lay the grids' pools and indirection grids side by side along z, upload both as 3D textures. */
+ * lay the grids' pools and indirection grids side by side along z, upload both as 3D textures. Dense SH
+ * grids (v1/v2, v3 structure grid) join the same pool as one cell-centred texture each (the core's
+ * pb_grid_field, docs/grid-field.md), Z + 1 texels deep in each slab (one zero layer between grids). */
 #include "sv_bricks.h"
 
 #include <stdlib.h>
 #include <string.h>
 
 #include "schnee/pb_bricks.h"
+#include "schnee/pb_grid_field.h"
 #include "schnee/pb_sh.h"
 #include "sv_bricks_vis.h"
 #include "sv_upload.h"
@@ -14,17 +17,58 @@
 typedef struct brick_set {
     pb_bricks **b;
     pb_bricks_info *info;
-    uint32_t pool[3];  /* pool texels: x, y, groups * slab */
-    uint32_t slab;     /* z texels of one channel group (every grid's pool depth, summed) */
-    uint32_t groups;   /* channel groups of the grid with the most coefficients */
-    uint32_t index[3]; /* indirection texels */
-    uint64_t probes;   /* file probes of the bricked grids */
-    bool f32;          /* the pool in RGBA32F (a texel beyond the half range) */
+    pb_grid_field **dense; /* dense SH grids' fields (NULL elsewhere): one texture of the grid each */
+    uint32_t pool[3];      /* pool texels: x, y, groups * slab */
+    uint32_t slab;         /* z texels of one channel group (every grid's pool depth, summed) */
+    uint32_t groups;       /* channel groups of the grid with the most coefficients */
+    uint32_t index[3];     /* indirection texels */
+    uint64_t probes;       /* file probes of the bricked grids */
+    bool f32;              /* the pool in RGBA32F (a texel beyond the half range) */
 } brick_set;
 
 static bool brickable(const sv_probe_grid *gr)
 {
     return gr->tree && gr->file->representation != PB_SHPROBE_AMBIENT_CUBE;
+}
+
+/* A dense grid of SH probes: its field goes into the pool as a texture (SV_GRID_BRICKS without
+ * SV_GRID_OCTREE); ambient-cube grids keep the buffers. */
+static bool dense_texturable(const sv_probe_grid *gr)
+{
+    return !gr->tree && !gr->tetra && gr->file->grid && gr->file->representation != PB_SHPROBE_AMBIENT_CUBE;
+}
+
+/* pb_grid_field_build on the file's grid, coefficients (float64 copies), validity, scale and axes. The
+ * neighbour masks stay in the cell buffer (the shader reads the home cell's). */
+static bool build_dense(const sv_probe_grid *gr, uint32_t g, pb_grid_field **out)
+{
+    const pb_shprobe *f = gr->file;
+    uint32_t nc = pb_sh_count(f->max_band);
+    size_t n = (size_t)f->probe_count * nc * 3u;
+    double *c = malloc((n ? n : 1) * sizeof(double)), axes[9];
+    if (!c) {
+        fprintf(stderr, "schnee-view: error: --probe-path bricks: out of memory for shProbeGrids[%u]\n", g);
+        return false;
+    }
+    for (size_t i = 0; i < n; ++i) c[i] = f->coeffs[i];
+    for (int i = 0; i < 9; ++i) axes[i] = f->grid_axes[i];
+    pb_grid_field_desc d = {.dims = {f->grid_dims[0], f->grid_dims[1], f->grid_dims[2]},
+                            .origin = {f->grid_origin[0], f->grid_origin[1], f->grid_origin[2]},
+                            .spacing = f->grid_spacing,
+                            .axes = axes,
+                            .cells = f->grid,
+                            .probe_count = f->probe_count,
+                            .coeff_count = nc,
+                            .coeffs = c,
+                            .validity = f->validity,
+                            .scale = f->probe_scale};
+    pb_error err = {0};
+    pb_result rc = pb_grid_field_build(&d, out, &err);
+    free(c);
+    if (rc == PB_SUCCESS) return true;
+    fprintf(stderr, "schnee-view: error: --probe-path bricks: shProbeGrids[%u] '%s': %s\n", g, gr->name,
+            err.message[0] ? err.message : pb_result_string(rc));
+    return false;
 }
 
 /* pb_bricks_build on the file's coefficients (float64 copies), validity and scale, with the static
@@ -58,6 +102,21 @@ static uint32_t max_u32(uint32_t a, uint32_t b) { return a > b ? a : b; }
 static void plan(const sv_probes *probes, brick_set *s, sv_gpu_grid *grids)
 {
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        if (s->dense[g]) { /* the grid's texture at z = slab offset, x = y = 0 (bricks.glsl grid_tex_irradiance) */
+            pb_grid_field_info fi;
+            pb_grid_field_get_info(s->dense[g], &fi);
+            sv_gpu_grid *d = &grids[g];
+            d->base[2] |= SV_GRID_BRICKS;
+            d->bricks[0] = d->bricks[1] = 0;
+            d->bricks[2] = s->slab;
+            d->bricks[3] = fi.coeff_count;
+            s->pool[0] = max_u32(s->pool[0], fi.dims[0]);
+            s->pool[1] = max_u32(s->pool[1], fi.dims[1]);
+            s->slab += fi.dims[2] + 1u;
+            s->groups = max_u32(s->groups, fi.groups);
+            s->probes += probes->grids[g].file->probe_count;
+            continue;
+        }
         if (!s->b[g]) continue;
         const pb_bricks_info *in = &s->info[g];
         sv_gpu_grid *d = &grids[g];
@@ -77,7 +136,7 @@ static void plan(const sv_probes *probes, brick_set *s, sv_gpu_grid *grids)
     }
     s->pool[2] = s->groups * s->slab;
     for (uint32_t g = 0; g < probes->grid_count; ++g)
-        if (s->b[g]) grids[g].bricks[3] |= s->slab << 8;
+        if (s->b[g] || s->dense[g]) grids[g].bricks[3] |= s->slab << 8;
 }
 
 /* The device takes 3D images of these sizes in these formats, sampled (the pool: with linear filtering). */
@@ -137,6 +196,30 @@ static bool copy_pool(const brick_set *s, uint32_t g, uint32_t zoff, uint8_t *ou
     return rc == PB_SUCCESS;
 }
 
+/* Grid g's dense texture (pb_grid_field_texture_f16/_f32: groups, z, y, x, RGBA) at (0, 0, zoff) of each slab. */
+static bool copy_dense(const brick_set *s, uint32_t g, uint32_t zoff, uint8_t *out, bool *overflow)
+{
+    pb_grid_field_info fi;
+    pb_grid_field_get_info(s->dense[g], &fi);
+    size_t elem = s->f32 ? 4 : 2, px = fi.dims[0], py = fi.dims[1], pz = fi.dims[2];
+    uint64_t cap = (uint64_t)fi.groups * px * py * pz * 4u;
+    uint8_t *tmp = malloc((size_t)cap * elem);
+    if (!tmp) return false;
+    pb_error err = {0};
+    pb_result rc = s->f32 ? pb_grid_field_texture_f32(s->dense[g], (float *)tmp, cap, &err)
+                          : pb_grid_field_texture_f16(s->dense[g], (uint16_t *)tmp, cap, &err);
+    *overflow = rc == PB_ERROR_TOO_LARGE;
+    for (size_t grp = 0; rc == PB_SUCCESS && grp < fi.groups; ++grp)
+        for (size_t z = 0; z < pz; ++z)
+            for (size_t y = 0; y < py; ++y) {
+                size_t src = ((grp * pz + z) * py + y) * px * 4u;
+                size_t dz = grp * s->slab + zoff + z, dst = ((dz * s->pool[1] + y) * s->pool[0]) * 4u;
+                memcpy(out + dst * elem, tmp + src * elem, px * 4u * elem);
+            }
+    free(tmp);
+    return rc == PB_SUCCESS;
+}
+
 /* The combined pool in RGBA16F, or RGBA32F (s->f32 set) when some texel exceeds the half range. */
 static void *fill_pool(const sv_probes *probes, brick_set *s, size_t *bytes)
 {
@@ -148,6 +231,13 @@ static void *fill_pool(const sv_probes *probes, brick_set *s, size_t *bytes)
         bool ok = true, overflow = false;
         uint32_t zoff = 0;
         for (uint32_t g = 0; ok && g < probes->grid_count; ++g) {
+            if (s->dense[g]) {
+                pb_grid_field_info fi;
+                pb_grid_field_get_info(s->dense[g], &fi);
+                ok = copy_dense(s, g, zoff, out, &overflow);
+                zoff += fi.dims[2] + 1u;
+                continue;
+            }
             if (!s->b[g]) continue;
             ok = copy_pool(s, g, zoff, out, &overflow);
             zoff += s->info[g].pool_texels[2];
@@ -219,9 +309,14 @@ static uint64_t buffer_bytes(const sv_renderer *r, const sv_probes *probes, cons
 static void report(const sv_renderer *r, const sv_probes *probes, const brick_set *s, size_t pool_bytes,
                    size_t index_bytes)
 {
-    uint64_t bricks = 0, texels = 0;
+    uint64_t bricks = 0, texels = 0, dense = 0;
     for (uint32_t g = 0; g < probes->grid_count; ++g)
         if (s->b[g]) bricks += s->info[g].brick_count, texels += s->info[g].texel_count;
+    for (uint32_t g = 0; g < probes->grid_count; ++g)
+        if (s->dense[g]) ++dense;
+    if (dense)
+        fprintf(stderr, "schnee-view: probe bricks: %llu dense grid(s) as cell-centred textures\n",
+                (unsigned long long)dense);
     double per = s->probes ? 1.0 / (double)s->probes : 0.0, buf = (double)buffer_bytes(r, probes, s);
     fprintf(stderr,
             "schnee-view: probe bricks: %llu bricks (%llu texels) of %llu probes; pool %u x %u x %u %s (%u groups), "
@@ -238,12 +333,17 @@ static bool upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s,
 {
     bool any = false;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        if (dense_texturable(&probes->grids[g])) {
+            if (!build_dense(&probes->grids[g], g, &s->dense[g])) return false;
+            any = true;
+            continue;
+        }
         if (!brickable(&probes->grids[g])) continue;
         if (!build_grid(&probes->grids[g], g, vis, &s->b[g])) return false;
         pb_bricks_get_info(s->b[g], &s->info[g]);
         any = true;
     }
-    if (!any) return true; /* no tree grid: the stand-ins stay bound, every grid takes the buffers */
+    if (!any) return true; /* no tree or dense SH grid: the stand-ins stay bound, every grid takes the buffers */
     plan(probes, s, grids);
     size_t pool_bytes = 0, index_bytes = 0;
     void *pool = fill_pool(probes, s, &pool_bytes);
@@ -254,9 +354,10 @@ static bool upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s,
     if (!pool || !index) fprintf(stderr, "schnee-view: error: --probe-path bricks: out of memory for the pool\n");
     if (ok) {
         sv_image_destroy(r->ctx, &r->brick_pool);
-        sv_image_destroy(r->ctx, &r->brick_index);
+        if (s->index[2]) sv_image_destroy(r->ctx, &r->brick_index);
+        /* Dense grids alone: no indirection (the 1x1x1 stand-in stays bound). */
         ok = upload_3d(r, s->pool, pf, pool, pool_bytes, &r->brick_pool) &&
-             upload_3d(r, s->index, VK_FORMAT_R32G32B32A32_UINT, index, index_bytes, &r->brick_index);
+             (!s->index[2] || upload_3d(r, s->index, VK_FORMAT_R32G32B32A32_UINT, index, index_bytes, &r->brick_index));
     }
     if (ok) report(r, probes, s, pool_bytes, index_bytes);
     r->bricks = ok;
@@ -282,11 +383,14 @@ bool sv_bricks_upload(sv_renderer *r, const sv_scene *scene, const sv_probes *pr
     brick_set s = {0};
     s.b = calloc(probes->grid_count, sizeof *s.b);
     s.info = calloc(probes->grid_count, sizeof *s.info);
+    s.dense = calloc(probes->grid_count, sizeof *s.dense);
     sv_bricks_vis vis;
     sv_bricks_vis_begin(&vis, scene);
-    bool ok = s.b && s.info && upload_bricks(r, probes, &s, grids, &vis);
+    bool ok = s.b && s.info && s.dense && upload_bricks(r, probes, &s, grids, &vis);
     sv_bricks_vis_end(&vis);
     for (uint32_t g = 0; s.b && g < probes->grid_count; ++g) pb_bricks_destroy(s.b[g]);
+    for (uint32_t g = 0; s.dense && g < probes->grid_count; ++g) pb_grid_field_destroy(s.dense[g]);
+    free(s.dense);
     free(s.b);
     free(s.info);
     return ok;

@@ -33,7 +33,9 @@
  * channels at the colour count C: 0–2 = N_0 RGB, 3 = D, then N_1 … N_{C−1} RGB consecutively, RGBA groups of
  * 4 (ceil((3C + 1) / 4)); N_i = v·s·c_i and D = v with v = max(validity, 0) of the cell's probe, 0 for an
  * empty cell. Sampled at t = clamp(u − ½, 0, dims − 1) (clamp to edge), trilinear, N / D: equal to the rule
- * when every corner kept its mask bit and (movable, or) every back-face weight is 1, and W > 1e-6.
+ * when every corner kept its mask bit and (movable, or) every back-face weight is 1, and W > 1e-6. The
+ * engine filters in hardware only there and where D >= PB_GRID_FIELD_FILTER_MIN_D; elsewhere it takes 8
+ * texel fetches with the rule's exact weights.
  * Coordinates: engine space, metres, double.
  */
 #ifndef SCHNEE_PB_GRID_FIELD_H
@@ -45,12 +47,13 @@
 extern "C" {
 #endif
 
-#define PB_GRID_FIELD_MARGIN      0.01 /* cells: the box's margin, and the home cell's offset along n */
-#define PB_GRID_FIELD_MIN_WEIGHT  1e-6 /* Σ w at or below this: the home-cell fallback */
-#define PB_GRID_FIELD_BACK_RAMP   0.1  /* back-face weight smoothstep(−0.1, 0.1, dot(c − p, n) / h) */
-#define PB_GRID_FIELD_ALL_VISIBLE UINT32_C(0x7FFFFFF) /* a mask with all 27 neighbour bits set */
-#define PB_GRID_FIELD_MAX_COLOURS 25u                 /* L4 SH; an ambient cube has 6 */
-#define PB_GRID_FIELD_MAX_CELLS   (UINT64_C(1) << 31) /* cells one grid may have */
+#define PB_GRID_FIELD_MARGIN       0.01         /* cells: the box's margin, and the home cell's offset along n */
+#define PB_GRID_FIELD_FILTER_MIN_D (1.0 / 64.0) /* the engine filters only where D >= this (else exact taps) */
+#define PB_GRID_FIELD_MIN_WEIGHT   1e-6         /* Σ w at or below this: the home-cell fallback */
+#define PB_GRID_FIELD_BACK_RAMP    0.1          /* back-face weight smoothstep(−0.1, 0.1, dot(c − p, n) / h) */
+#define PB_GRID_FIELD_ALL_VISIBLE  UINT32_C(0x7FFFFFF) /* a mask with all 27 neighbour bits set */
+#define PB_GRID_FIELD_MAX_COLOURS  25u                 /* L4 SH; an ambient cube has 6 */
+#define PB_GRID_FIELD_MAX_CELLS    (UINT64_C(1) << 31) /* cells one grid may have */
 
 typedef struct pb_grid_field pb_grid_field;
 
