@@ -18,6 +18,13 @@ void main() {
     // one spacing; an octree or kd tree leaf's box, sv_probe_pack.c leaf_outlines).
     uvec3 lv = uvec3(c.probe.z & 255u, (c.probe.z >> 8u) & 255u, (c.probe.z >> 16u) & 255u);
     vec3 s = (vec3(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1) - 0.5) * vec3(uvec3(1u) << lv);
+    // The brick view (draw.flags 1) draws the bricks' boxes instead of a bricked tree grid's leaves: the
+    // line is put outside the clip volume.
+    uint bricked = SV_GRID_OCTREE | SV_GRID_BRICKS;
+    if (draw.flags == 1u && (g.base.z & bricked) == bricked) {
+        gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+        return;
+    }
     float h = g.origin_spacing.w;
     vec3 p = c.center_radius.xyz + h * (s.x * g.axes[0].xyz + s.y * g.axes[1].xyz + s.z * g.axes[2].xyz);
     gl_Position = frame.view_proj * vec4(p, 1.0);

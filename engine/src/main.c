@@ -11,6 +11,7 @@
 #include "schnee/pb_image.h"
 #include "sv_app.h"
 #include "sv_clock.h"
+#include "sv_gpu_brick_view.h"
 
 static void usage(FILE *f)
 {
@@ -32,6 +33,11 @@ static void usage(FILE *f)
         "                           lights)\n"
         "  --probe-view             probe view: a small sphere per probe shaded with its SH + grid cell outlines\n"
         "                           (--probe-cells is the same)\n"
+        "  --brick-view cells|texels|validity  with --probe-path bricks, the probe view shows the probe bricks\n"
+        "                           (implies --probe-view): cells = one box per brick (colour by level: cyan 0,\n"
+        "                           green 1, orange 2, pink 3, violet 4, white 5+) + the probe spheres (default);\n"
+        "                           texels = the boxes + every brick texel as a sphere shaded with its N/D (magenta:\n"
+        "                           D = 0, no probe; red tint: 0 < D < 1); validity = the texels coloured by D\n"
         "  --probe-mode %s  probe lighting for every material (default material =\n"
         "                           each material's VULKAN_SCHNEE_materials.probeMode, itself default object)\n"
         "  --probe-representation sh|ambientCube|material  how every material evaluates its probe (default\n"
@@ -104,6 +110,7 @@ static const struct {
     {"--write-sky-mips", 1}, {"--fallback-radiance", 1},
     {"--move", 4},           {"--frames", 1},
     {"--screenshot", 1},     {"--probe-path", 1},
+    {"--brick-view", 1},
 };
 
 /* The values option `a` takes, 0 when it takes none or is not an option. */
@@ -174,6 +181,12 @@ static int parse_choice(const char *a, const char *v, sv_options *o)
     } else if (strcmp(a, "--probe-storage") == 0) {
         if (strcmp(v, "float") != 0 && strcmp(v, "half") != 0) return bad_value(a, v);
         o->half_probes = strcmp(v, "half") == 0;
+    } else if (strcmp(a, "--brick-view") == 0) {
+        static const char *const names[SV_BRICK_VIEW_COUNT] = {"cells", "texels", "validity"};
+        for (k = 0; k < (int)SV_BRICK_VIEW_COUNT && strcmp(v, names[k]) != 0; ++k) continue;
+        if (k == (int)SV_BRICK_VIEW_COUNT) return bad_value(a, v);
+        o->brick_view = (uint32_t)k;
+        o->show_cells = o->brick_view_given = true;
     } else if (strcmp(a, "--probe-path") == 0) {
         if (strcmp(v, "buffers") != 0 && strcmp(v, "bricks") != 0) return bad_value(a, v);
         o->bricks = strcmp(v, "bricks") == 0;
@@ -298,6 +311,9 @@ static int parse_args(int argc, char **argv, sv_options *o, const char **write_s
         fprintf(stderr, "schnee-view: error: --write-sky-mips needs a scene with a sky (and no --no-sky)\n");
         return 2;
     }
+    if (o->brick_view_given && !o->bricks)
+        fprintf(stderr, "schnee-view: warning: --brick-view needs --probe-path bricks; the probe view shows the "
+                        "probes and cells\n");
     if (o->headless && !o->output && !o->print_assignments) {
         fprintf(stderr, "schnee-view: error: --headless needs --output PATH\n");
         return 2;

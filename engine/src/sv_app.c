@@ -19,6 +19,7 @@ bool sv_app_initial_view(const sv_options *opt, const sv_scene *scene, sv_view *
     v->debug_mode = opt->debug_mode;
     v->flags = opt->no_direct ? SV_FRAME_NO_DIRECT : 0;
     v->show_cells = opt->show_cells;
+    v->brick_view = opt->brick_view;
     v->probe_mode = opt->probe_mode;
     v->probe_representation = opt->probe_representation;
     v->normal_bias = opt->normal_bias;

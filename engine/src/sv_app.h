@@ -30,6 +30,8 @@ typedef struct sv_options {
     bool allow_outside_paths; /* --allow-outside-paths: glTF URIs may leave the glTF's folder */
     bool print_assignments;
     bool show_cells;
+    uint32_t brick_view;   /* --brick-view: SV_BRICK_VIEW_* (default cells), with --probe-path bricks */
+    bool brick_view_given; /* --brick-view was given */
     sv_move moves[SV_MAX_MOVES];
     uint32_t move_count;
     uint32_t frames;        /* window: quit after this many frames (0 = run until closed);

@@ -10,6 +10,7 @@
 #include "schnee/pb_bricks.h"
 #include "schnee/pb_grid_field.h"
 #include "schnee/pb_sh.h"
+#include "sv_brick_view.h"
 #include "sv_bricks_vis.h"
 #include "sv_upload.h"
 
@@ -387,6 +388,7 @@ bool sv_bricks_upload(sv_renderer *r, const sv_scene *scene, const sv_probes *pr
     sv_bricks_vis vis;
     sv_bricks_vis_begin(&vis, scene);
     bool ok = s.b && s.info && s.dense && upload_bricks(r, probes, &s, grids, &vis);
+    if (ok && r->bricks) ok = sv_brick_view_capture(r, s.b, probes->grid_count); /* the brick view's regions */
     sv_bricks_vis_end(&vis);
     for (uint32_t g = 0; s.b && g < probes->grid_count; ++g) pb_bricks_destroy(s.b[g]);
     for (uint32_t g = 0; s.dense && g < probes->grid_count; ++g) pb_grid_field_destroy(s.dense[g]);

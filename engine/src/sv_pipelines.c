@@ -26,6 +26,18 @@ static const uint32_t probe_outline_vert_spv[] =
 static const uint32_t probe_outline_frag_spv[] =
 #include "probe_outline.frag.inc"
     ;
+static const uint32_t probe_bricks_outline_vert_spv[] =
+#include "probe_bricks_outline.vert.inc"
+    ;
+static const uint32_t probe_bricks_outline_frag_spv[] =
+#include "probe_bricks_outline.frag.inc"
+    ;
+static const uint32_t probe_bricks_texels_vert_spv[] =
+#include "probe_bricks_texels.vert.inc"
+    ;
+static const uint32_t probe_bricks_texels_frag_spv[] =
+#include "probe_bricks_texels.frag.inc"
+    ;
 static const uint32_t sky_vert_spv[] =
 #include "sky.vert.inc"
     ;
@@ -245,6 +257,12 @@ static const pipeline_desc pipeline_table[SV_PIPELINE_COUNT] = {
                            true, false, VK_CULL_MODE_NONE, 2, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST, true},
     [SV_PIPELINE_OUTLINE] = {SV_SPV(probe_outline_vert), SV_SPV(probe_outline_frag), LAYOUT_SCENE, TARGET_HDR,
                              DEPTH_SCENE, true, false, VK_CULL_MODE_NONE, 0, VK_PRIMITIVE_TOPOLOGY_LINE_LIST, true},
+    [SV_PIPELINE_BRICK_OUTLINE] = {SV_SPV(probe_bricks_outline_vert), SV_SPV(probe_bricks_outline_frag), LAYOUT_SCENE,
+                                   TARGET_HDR, DEPTH_SCENE, true, false, VK_CULL_MODE_NONE, 0,
+                                   VK_PRIMITIVE_TOPOLOGY_LINE_LIST, false},
+    [SV_PIPELINE_BRICK_TEXELS] = {SV_SPV(probe_bricks_texels_vert), SV_SPV(probe_bricks_texels_frag), LAYOUT_SCENE,
+                                  TARGET_HDR, DEPTH_SCENE, true, false, VK_CULL_MODE_NONE, 1,
+                                  VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST, false},
     [SV_PIPELINE_SKY] = {SV_SPV(sky_vert), SV_SPV(sky_frag), LAYOUT_SCENE, TARGET_HDR, DEPTH_SCENE, false, false,
                          VK_CULL_MODE_NONE, 0, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST, true},
     [SV_PIPELINE_TONEMAP] = {SV_SPV(fullscreen_vert), SV_SPV(tonemap_frag), LAYOUT_TONEMAP, TARGET_OUTPUT, DEPTH_NONE,

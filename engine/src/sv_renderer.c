@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sv_brick_view.h"
 #include "sv_bricks.h"
 #include "sv_math.h"
 #include "sv_pipelines.h"
@@ -267,17 +268,25 @@ static void draw_objects(const sv_renderer *r, VkCommandBuffer cmd, const sv_sce
 }
 
 /* The probe view: a sphere per probe, then the grid cells' outlines (they follow the spheres in the
- * instance buffer). */
-static void draw_probe_view(const sv_renderer *r, VkCommandBuffer cmd)
+ * instance buffer). With probe bricks, the brick view (sv_brick_view.h): the spheres only in its cells
+ * mode, the bricks' boxes (and texels) instead of the bricked grids' leaf outlines (draw.flags 1). */
+static void draw_probe_view(const sv_renderer *r, VkCommandBuffer cmd, const sv_view *view)
 {
+    bool bricks = sv_brick_view_count(r) > 0;
     sv_gpu_draw draw = {0};
     sv_mat4_identity(draw.model);
+    draw.flags = bricks ? 1u : 0u;
     vkCmdPushConstants(cmd, r->scene_layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof(draw),
                        &draw);
-    if (r->sphere_count) {
+    if (r->sphere_count && (!bricks || view->brick_view == SV_BRICK_VIEW_CELLS)) {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->pipelines[SV_PIPELINE_CELLS]);
         vkCmdDrawIndexed(cmd, r->sphere_index_count, r->sphere_count, r->sphere_first_index, r->sphere_vertex_offset,
                          0);
+    }
+    if (bricks) {
+        sv_brick_view_draw(r, cmd, view->brick_view);
+        vkCmdPushConstants(cmd, r->scene_layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
+                           sizeof(draw), &draw);
     }
     if (r->outline_count) {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->pipelines[SV_PIPELINE_OUTLINE]);
@@ -303,7 +312,7 @@ static void record_scene_pass(const sv_renderer *r, VkCommandBuffer cmd, const s
         vkCmdDraw(cmd, 3, 1, 0, 0);
     }
     draw_objects(r, cmd, scene, r->material_count - 1);
-    if (view->show_cells && r->sphere_count + r->outline_count) draw_probe_view(r, cmd);
+    if (view->show_cells && r->sphere_count + r->outline_count + sv_brick_view_count(r)) draw_probe_view(r, cmd, view);
     vkCmdEndRendering(cmd);
     if (r->timestamps) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, r->timestamps, 2);
     sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
@@ -381,6 +390,7 @@ void sv_renderer_destroy(sv_renderer *r)
     sv_pipelines_destroy(r);
     sv_shadows_destroy(r);
     sv_bricks_destroy(r);
+    sv_brick_view_destroy(r);
     sv_image_destroy(ctx, &r->sky);
     sv_image_destroy(ctx, &r->brdf_lut);
     for (uint32_t i = 0; i < r->texture_count; ++i) sv_image_destroy(ctx, &r->textures[i]);

@@ -33,6 +33,7 @@ typedef struct sv_view {
     float exposure;
     uint32_t tonemap;              /* SV_TONEMAP_* */
     bool show_cells;               /* probe view: a sphere per probe + the grid cell outlines */
+    uint32_t brick_view;           /* SV_BRICK_VIEW_*: the probe view with bricks (sv_brick_view.h) */
     uint32_t probe_mode;           /* SV_PROBE_MODE_*, _MATERIAL = each material's own */
     uint32_t probe_representation; /* SV_PROBE_REP_*, _MATERIAL = each material's own (a zeroed view: SH) */
     float normal_bias;             /* per-pixel sample offset along n, in grid spacings (default 0) */
@@ -66,12 +67,14 @@ typedef struct sv_renderer_desc {
 
 /* The graphics pipelines, one per row of the table in sv_pipelines.c. */
 typedef enum sv_pipeline_id {
-    SV_PIPELINE_MESH,    /* the scene's objects into the HDR target */
-    SV_PIPELINE_CELLS,   /* probe view: a sphere per probe */
-    SV_PIPELINE_OUTLINE, /* probe view: grid cell outlines */
-    SV_PIPELINE_SKY,     /* the background, behind everything */
-    SV_PIPELINE_TONEMAP, /* HDR target -> output image */
-    SV_PIPELINE_SHADOW,  /* depth only, into a shadow map layer (only with shadowed lights) */
+    SV_PIPELINE_MESH,          /* the scene's objects into the HDR target */
+    SV_PIPELINE_CELLS,         /* probe view: a sphere per probe */
+    SV_PIPELINE_OUTLINE,       /* probe view: grid cell outlines */
+    SV_PIPELINE_BRICK_OUTLINE, /* brick view: a brick's region outline (sv_brick_view.h) */
+    SV_PIPELINE_BRICK_TEXELS,  /* brick view: a brick's texels as spheres */
+    SV_PIPELINE_SKY,           /* the background, behind everything */
+    SV_PIPELINE_TONEMAP,       /* HDR target -> output image */
+    SV_PIPELINE_SHADOW,        /* depth only, into a shadow map layer (only with shadowed lights) */
     SV_PIPELINE_COUNT
 } sv_pipeline_id;
 
@@ -106,6 +109,7 @@ typedef struct sv_renderer {
     sv_buffer brick_vis; /* brick tables and visibility records (sv_bricks_vis.h); one zero row when off */
     VkSampler brick_sampler, brick_index_sampler; /* linear / nearest, clamp to edge */
     bool bricks;                                  /* the bricks are uploaded: SV_FRAME_BRICKS */
+    struct sv_brick_view *brick_view;             /* the bricks' regions for the brick view; NULL without */
 
     sv_image *textures; /* per glTF texture (image NULL when it could not be read) */
     uint32_t texture_count;

@@ -8,6 +8,7 @@ set(SV_VIEW_SOURCES
   src/sv_upload.c
   src/sv_bricks.c
   src/sv_bricks_vis.c
+  src/sv_brick_view.c
   src/sv_shadows.c
   src/sv_shadow_math.c
   src/sv_pipelines.c
