@@ -68,6 +68,7 @@ static void usage(FILE *f)
         "  --frames N               headless: frames to render and time; window: quit after N frames\n"
         "  --screenshot PATH        window: write the last frame presented to PATH\n"
         "window keys: WASD/QE move, right mouse drag looks, Shift faster, P probe colours, C probe view,\n"
+        "             B brick view (cycles cells, texels, validity; --probe-path bricks),\n"
         "             M probe mode (cycles material, object, pixel, off),\n"
         "             N next object, J/L/I/K/U/O move it (its probe is re-queried), Esc quits\n",
         modes, SV_SHADOW_DEFAULT_RES, SV_SHADOW_MAX_RES, SV_MAX_SHADOW_CASCADES, SV_SHADOW_DEFAULT_CASCADES,

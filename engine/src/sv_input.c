@@ -8,6 +8,7 @@
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
 
+#include "sv_gpu_brick_view.h"
 #include "sv_math.h"
 
 static void fly_forward(const sv_fly_camera *c, float f[3])
@@ -59,6 +60,13 @@ static void update_toggles(sv_input *in, sv_view *view, const sv_scene *scene)
     if (p && !in->prev_p)
         view->debug_mode = view->debug_mode == SV_DEBUG_PROBE_COLOR ? SV_DEBUG_NONE : SV_DEBUG_PROBE_COLOR;
     if (c && !in->prev_c) view->show_cells = !view->show_cells;
+    /* B: the brick view's next mode (sv_brick_view.h; shown with --probe-path bricks), the probe view on. */
+    bool b = glfwGetKey(win, GLFW_KEY_B) == GLFW_PRESS;
+    if (b && !in->prev_b) {
+        view->brick_view = view->show_cells ? (view->brick_view + 1u) % SV_BRICK_VIEW_COUNT : view->brick_view;
+        view->show_cells = true;
+    }
+    in->prev_b = b;
     if (n && !in->prev_n && scene->object_count) in->selected = (in->selected + 1) % scene->object_count;
     in->prev_p = p;
     in->prev_c = c;

@@ -1,6 +1,6 @@
 /* The window's input (keyboard and mouse through GLFW), out of the frame loop of sv_window.c:
- *   Esc closes; P toggles probe colours, C the probe view, N selects the next object, M cycles the
- *   probe mode (on key press edges); right mouse drag looks, W/A/S/D moves, Q/E down/up (Shift x4);
+ *   Esc closes; P toggles probe colours, C the probe view, B cycles the brick view (cells, texels,
+ *   validity), N selects the next object, M cycles the probe mode (on key press edges); right mouse drag looks, W/A/S/D moves, Q/E down/up (Shift x4);
  *   J/L, I/K, U/O move the selected object along x, z, y (its probe is re-queried).
  * sv_input_init once from the start view, then sv_input_update once per frame, which edits the view
  * and the scene. No Vulkan. */
@@ -25,8 +25,8 @@ typedef struct sv_input {
     float speed;       /* metres per second: a quarter of the scene's larger horizontal side, at least 0.5 */
     uint32_t selected; /* the object N selected and J..O move */
     double mouse_x, mouse_y;
-    bool dragging;                       /* the right button was down last frame */
-    bool prev_p, prev_c, prev_n, prev_m; /* key states last frame (toggles act on press edges) */
+    bool dragging;                               /* the right button was down last frame */
+    bool prev_p, prev_c, prev_n, prev_m, prev_b; /* key states last frame (toggles act on press edges) */
 } sv_input;
 
 /* The camera from `view` (its position and forward direction), the speed from the scene's bounds. */

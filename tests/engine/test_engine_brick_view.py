@@ -345,3 +345,19 @@ def test_texel_spheres_show_the_c_texels(case, mode):
     kinds = [D <= 0, (D > 0) & (D < 1), D >= 1]
     assert all(len(np.unique(sph[k])) >= 10 for k in kinds), [len(np.unique(sph[k])) for k in kinds]
     assert is_colour(got[D <= 0], NO_PROBE).all()
+
+
+@pytest.mark.skipif(__import__("shutil").which("xvfb-run") is None, reason="xvfb-run not installed (apt: xvfb)")
+def test_window_brick_view_matches_headless(case):
+    # The window's swapchain frame of --brick-view texels (the push constants carry the swapchain's size for
+    # the texels' pixel rays) equals the headless PNG within the window path's 2 / 255 (UNORM + shader sRGB).
+    W, Hh = 160, 120
+    shot, png = case["d"] / "window.png", case["d"] / "headless.png"
+    args = ("--look", *TEXEL_LOOK, "--width", W, "--height", Hh, *BRICKS, "--brick-view", "texels")
+    proc = viewer.check(viewer.run(case["scene"], "--frames", 2, "--screenshot", shot, *args, xvfb=True, timeout=180))
+    assert "2 frame(s) presented" in proc.stderr
+    viewer.check(viewer.run(case["scene"], "--headless", "--output", png, *args))
+    a, b = viewer.read_image(shot), viewer.read_image(png)
+    assert a.shape == b.shape == (Hh, W, 3)
+    assert (a.max(axis=-1) > 0.1).mean() > 0.05  # spheres and boxes drawn
+    assert np.abs(a - b).max() <= 2.0 / 255
