@@ -7,7 +7,8 @@ line, exits 0 on success and non-zero with a one-line reason on failure:
     1   unexpected error (a traceback follows)
     2   bad command line
     3   the bake refused its input or failed (missing collection, open volume, unsaved .blend,
-        an output that is not a .shprobe, more probes than --probe-limit without --allow-large, ...)
+        an output that is not a .shprobe, another bake writing the same output, more probes than
+        --probe-limit without --allow-large, ...)
     4   the add-on or its native module could not be loaded
     130 cancelled by SIGINT (Ctrl+C)
     143 cancelled by SIGTERM

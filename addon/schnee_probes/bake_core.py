@@ -191,6 +191,13 @@ class ProbeBake:
             raise BakeError(f"Panorama Resolution {s.panorama_resolution} is too small for Max SH Band "
                             f"{s.max_band}: at least {min_w}x{min_h} is needed")
 
+        if self.plan.volumes:
+            # Before placement: a second bake of the same output refuses here (BakeError naming
+            # the first one's process), having read or changed nothing (output_lock.py).
+            self.store = PointStore(abspath(s.output_path), self.shard, self.merge_shards, self.restart,
+                                    self.log, self.messages)
+            self.store.lock()
+
         def progress(fraction, stage):
             if placement_progress is not None and placement_progress(fraction, stage) is False:
                 return False
@@ -217,8 +224,6 @@ class ProbeBake:
         self.plan.attach(self.session, self.direct)
 
     def _open_store(self):
-        self.store = PointStore(abspath(self.settings.output_path), self.shard, self.merge_shards, self.restart,
-                                self.log, self.messages)
         manifest = journal.make_manifest(fingerprint.parts(self.scene, self.view_layer, self.settings),
                                          scene=self.scene.name, blend=bpy.data.filepath)
         self.store.open(manifest, native.sh_count(self.settings.max_band))
@@ -368,9 +373,13 @@ class ProbeBake:
         if self._closed:
             return
         self._closed = True
-        if self.store is not None:
-            self.store.close()
-        self.session.close()
+        try:
+            if self.store is not None:
+                self.store.close()
+            self.session.close()
+        finally:
+            if self.store is not None:
+                self.store.unlock()  # last: the journal and the output are as this bake leaves them
 
     def run(self, progress=None) -> BakeResult:
         """prepare + every step + finish, synchronously; ``progress(bake)`` after each probe may

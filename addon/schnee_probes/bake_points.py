@@ -5,11 +5,13 @@ Part of the bake (bake_core.ProbeBake drives it, for volume bakes)::
 
     store = PointStore(output_path, shard=(k, n) or None, merge_shards=n or None, restart=False,
                        log=print, messages=[])
+    store.lock()                          # before anything else: one bake per journal (output_lock.py)
     store.open(manifest, coeff_count)     # the points this bake and the shards already hold
     hit = store.lookup(key)               # (coeffs, noise) of a point baked before, or None
     store.others(j)                       # point j of a stage is another shard's
     store.append(key, coeffs, noise)      # durably, after each render
     store.close()
+    store.unlock()                        # once the files are written or the bake gave up
 
 A bake that finds a matching journal takes its points from it instead of rendering them again.
 shard = (k, n): render only the k-th of every n points of each stage (the rest come from the
@@ -24,6 +26,7 @@ from typing import Optional, Tuple
 from . import journal, scene_export
 from .bake_outputs import abspath, check_replaceable
 from .file_names import sibling
+from .output_lock import OutputBusy, OutputLock
 from .settings import BakeError
 
 # The journal beside the output (docs/farm.md): <output>.journal, a shard's <output>.shard-K-of-N.journal
@@ -70,6 +73,7 @@ class PointStore:
         self.path = (local_journal_path(output) if self.shard is None
                      else shard_journal_path(output, *self.shard))
         self._writer = None
+        self._lock = OutputLock(self.path)
         self._known = {}                    # journal key -> coefficients, from journals at open
         self._known_noise = {}
         self._kept = 0                      # points in the journal when it was closed
@@ -87,6 +91,23 @@ class PointStore:
     def kept(self) -> int:
         """Points this bake's journal holds (also after :meth:`close`)."""
         return self._kept if self._writer is None else len(self._writer.values)
+
+    def lock(self):
+        """Take this journal's lock (output_lock.py): :class:`BakeError` naming the other bake's
+        process when one holds it. Nothing is read or changed before."""
+        try:
+            self._lock.acquire()
+        except OutputBusy as busy:
+            what = self.output if self.shard is None else f"shard {self.shard[0]}/{self.shard[1]} of {self.output}"
+            raise BakeError(f"Another bake is writing {what} ({busy.holder_text()}); wait for it to finish or "
+                            "choose another output") from None
+        except OSError as exc:
+            raise BakeError(f"Cannot lock the output for this bake ({self._lock.path}): "
+                            f"{exc.strerror or exc}") from exc
+
+    def unlock(self):
+        """Free the lock (idempotent); after :meth:`close` and the journal's removal."""
+        self._lock.release()
 
     def open(self, manifest: dict, coeff_count: int):
         """Open (or create at the first point) this bake's journal and load the points it and, for

@@ -36,12 +36,47 @@ def scenes(tmp_path_factory):
     return out
 
 
+@pytest.fixture(scope="module")
+def lone_bake(scenes, tmp_path_factory):
+    """sha256 of probes.shprobe from sky.blend baked alone (geometry octree, 2 m cells: 4 probes, 16 px
+    panoramas, 1 sample): Cycles renders the same bits for the same seed, so any bake of these
+    settings that ran undisturbed writes these bytes."""
+    blend = copy_blend(scenes, "sky.blend", tmp_path_factory.mktemp("lone_bake"))
+    proc = bake_py(blend, "--placement", "OCTREE", *CELLS_2M, *TINY)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    return digest(blend.parent / "sh_coeffs" / "probes.shprobe")
+
+
 def bake_py(blend, *args, env=None, timeout=300):
     return run_blender(BAKE_PY, *args, blend=blend, check=False, timeout=timeout, env=env)
 
 
 def files_under(folder):
     return sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
+
+
+# ------------------------------------------------------------------ 1. two bakes of one output
+def test_two_bakes_of_one_output_started_together(scenes, tmp_path, lone_bake):
+    # Before: both rendered; at the first probe the second died with a JournalError traceback
+    # ("created by another process at the same time", exit 1). Now the one that takes the output's
+    # lock first bakes (each render slowed to 1 s: 4 s or more), the other refuses before placement.
+    blend = copy_blend(scenes, "sky.blend", tmp_path)
+    runs = [Running(blend, [*CELLS_2M, *TINY], {"SCHNEE_TEST_RENDER_DELAY": "1"}, pre=SCRIPTS / "slow_render.py")
+            for _ in range(2)]  # started a few milliseconds apart
+    results = [run.finish() for run in runs]
+    assert sorted(rc for rc, _, _ in results) == [0, 3], [r[1][-1500:] + r[2][-1500:] for r in results]
+    first, second = (0, 1) if results[0][0] == 0 else (1, 0)
+    out = blend.parent / "sh_coeffs" / "probes.shprobe"
+    _, stdout, stderr = results[second]
+    assert stderr.strip().splitlines()[-1] == (
+        f"bake.py: error: Another bake is writing {out} (pid {runs[first].proc.pid}); wait for it to finish "
+        "or choose another output")
+    assert "Traceback" not in stderr and "placing probes" not in stdout  # refused before placement
+    assert "Traceback" not in results[first][2]
+    # The first bake was not disturbed: the bytes of a lone bake, and nothing else left behind
+    # (no journal, lock, .previous or temporary file).
+    assert digest(out) == lone_bake
+    assert files_under(out.parent) == ["probes.shprobe", "sky.exr"]
 
 
 # ------------------------------------------------------------------ 2. --shard with --merge-shards
@@ -155,13 +190,11 @@ def _resumable_bake(blend, args, at):
     return run.finish()
 
 
-def test_a_240_character_output_name_bakes_and_resumes(scenes, tmp_path):
+def test_a_240_character_output_name_bakes_and_resumes(scenes, tmp_path, lone_bake):
     # Before: "Cannot write the bake journal …: [Errno 36] File name too long: '….journal.<pid>-<random>
     # .partial'" after the first render (exit 3): the journal's temporary name was 240 + 33 bytes.
     assert len(LONG_NAME) == 240
-    ref = copy_blend(scenes, "sky.blend", tmp_path / "reference")
-    assert bake_py(ref, "--placement", "OCTREE", *CELLS_2M, *TINY).returncode == 0
-    expected = digest(tmp_path / "reference" / "sh_coeffs" / "probes.shprobe")
+    expected = lone_bake
 
     blend = copy_blend(scenes, "sky.blend", tmp_path / "long")
     args = [*CELLS_2M, *TINY, "--output", "//sh_coeffs/" + LONG_NAME]
