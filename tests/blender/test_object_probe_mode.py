@@ -2,7 +2,8 @@
 exported as nodes[i].extensions.VULKAN_SCHNEE_node (docs/export.md "Node"), validated by the Khronos
 validator and rendered by schnee-view per object (docs/user-guide.md "Per-object probe mode").
 
-One Blender launch (tests/blender/scripts/object_probe_mode.py, about 3 s): four planes sharing one
+One headless Blender launch (tests/blender/scripts/object_probe_mode.py, about 3 s) and one under
+Xvfb (object_probe_mode_ui.py: the panels drawn by Blender itself): four planes sharing one
 mesh and one material (custom property schnee_probe_mode "object") with the modes Off, Per Pixel,
 as its materials say and Ambient Cube, over a version 1 grid of random probes written here with the
 tests' independent numpy writer. The engine's pixels (--no-direct: the lamp, which is there to show
@@ -11,13 +12,15 @@ material (shScale 1, ambientTerm 0.1), E from tests/engine/scripts/probe_ref.py 
 documents).
 """
 import json
+import os
+import shutil
 import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-from conftest import REPO, run_blender
+from conftest import ADDON_DIR, REPO, run_blender
 
 SCRIPTS = REPO / "tests" / "blender" / "scripts"
 sys.path.insert(0, str(REPO / "tests" / "engine" / "scripts"))
@@ -177,3 +180,22 @@ def test_engine_renders_each_object_in_its_mode(exported, tmp_path):
     assert own == ["own probe mode off representation sh (VULKAN_SCHNEE_node)",
                    "own probe mode pixel representation sh (VULKAN_SCHNEE_node)",
                    "own probe mode object representation ambientCube (VULKAN_SCHNEE_node)"], proc.stdout
+
+
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run not installed")
+def test_panels_drawn_by_blender_in_a_real_ui(tmp_path):
+    """scripts/object_probe_mode_ui.py under Xvfb: Blender itself draws Properties > Object's Schnee
+    Probes panel and the sidebar's Object Probe Mode panel for the startup cube, before and after a
+    choice, without an exception (each draw recorded; Blender would only print a panel's exception)."""
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", "blender", "--factory-startup",
+           "--python-exit-code", "1", "-P", str(SCRIPTS / "object_probe_mode_ui.py"), "--", str(tmp_path)]
+    env = {**os.environ, "PYTHONPATH": str(ADDON_DIR), "SCHNEE_REPO": str(REPO)}
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    results = _results(proc.stdout)
+    assert results, proc.stdout[-3000:] + proc.stderr[-3000:]
+    calls = results[0]["calls"]
+    assert [c for c in calls if c[2] != "ok"] == []
+    for area in ("PROPERTIES", "VIEW_3D"):
+        seen = [c[3] for c in calls if c[0] == area]
+        assert "MATERIALS" in seen and "PIXEL" in seen, calls
+    assert "Traceback" not in proc.stderr, proc.stderr[-3000:]
