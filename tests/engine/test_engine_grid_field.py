@@ -295,6 +295,20 @@ def test_bricks_floor_equals_the_definition(tmp_path):
           f"|bricks - buffers| {np.abs(img - buf).max():.3g}")
 
 
+def test_bricks_centre_agrees_with_per_object(tmp_path):
+    # test_centre_agrees_with_per_object under --probe-path bricks: the centre pixel sits on the centre of
+    # cell (1, 0, 1) (trilinear weight 1: the filtered fetch returns that texel), so it equals the per-object
+    # probe within binary16 (N and D rounded: 2 x 2^-11 relative).
+    scene = pp.floor_scene(tmp_path, 0.5, (1.5, 1.5), 3.0)
+    obj = pp.render(scene, tmp_path / "o.exr", "--probe-mode", "object")
+    pix = bricks_render(scene, tmp_path / "p.exr", "--probe-mode", "pixel")
+    c = pp.N // 2
+    want = np.maximum(ref.irradiance(pp.COEFFS[pp.GRID[1, 0, 1]], [0, 1, 0]), 0) / np.pi
+    assert np.allclose(obj[c, c], want, rtol=1e-5)
+    assert np.allclose(pix[c, c], want, rtol=2 * HALF_EPS, atol=1e-6), (pix[c, c], want)
+    assert np.abs(pix[0, 0] - obj[0, 0]).max() > 0.05
+
+
 def test_bricks_wall_does_not_leak(tmp_path):
     # test_wall_does_not_leak under --probe-path bricks: the bright probe behind the wall's dark face has
     # back-face weight 0, so the 8 exact taps keep the dark value (binary16 of it: <= 2^-11 relative).
