@@ -12,9 +12,7 @@
 void sv_bricks_vis_begin(sv_bricks_vis *v, const sv_scene *scene)
 {
     memset(v, 0, sizeof *v);
-    v->t0 = sv_now_ms();
-    v->occ = sv_static_occluder(scene);
-    v->triangles = v->occ ? (size_t)pb_occluder_triangle_count(v->occ) : 0u;
+    v->scene = scene;
 }
 
 /* pb_segment_fn: sv_segment_first_hit on the static scene, counted. The core calls it from one thread. */
@@ -27,7 +25,14 @@ static double counted_segment(void *user, const double a[3], const double b[3])
 
 void sv_bricks_vis_desc(sv_bricks_vis *v, pb_bricks_desc *d)
 {
-    if (!v || !v->occ) return;
+    if (!v) return;
+    if (!v->tried) { /* the static scene's BVH, built once for every tree grid */
+        v->tried = true;
+        v->t0 = sv_now_ms();
+        v->occ = sv_static_occluder(v->scene);
+        v->triangles = v->occ ? (size_t)pb_occluder_triangle_count(v->occ) : 0u;
+    }
+    if (!v->occ) return;
     d->segment = counted_segment;
     d->segment_user = v;
 }
@@ -92,7 +97,7 @@ bool sv_bricks_vis_upload(sv_renderer *r, sv_bricks_vis *v, pb_bricks *const *b,
     bool ok = sv_buffer_create_with_data(r->ctx, buf, (words ? words : 4u) * sizeof(uint32_t),
                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, &r->brick_vis);
     free(buf);
-    if (ok)
+    if (ok && rows)
         fprintf(stderr,
                 "schnee-view: probe brick visibility: %llu record(s) (%.1f KiB) for %llu traced brick cell(s) in "
                 "%llu blocked leaf/leaves, %llu B of brick tables; %llu segment(s) against %zu triangle(s), "

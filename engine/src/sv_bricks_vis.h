@@ -18,19 +18,22 @@
 #include "sv_renderer.h"
 
 typedef struct sv_bricks_vis {
+    const sv_scene *scene;
+    bool tried;        /* the tracer was asked for (the first tree grid's build) */
     pb_occluder *occ;  /* the static scene (NULL: no object, no triangle: plain bricks) */
     uint64_t segments; /* calls of the segment function so far (all grids) */
     double t0;         /* sv_now_ms() when the tracer was made */
     size_t triangles;
 } sv_bricks_vis;
 
-/* Makes the static scene's tracer (none without a scene or triangles). */
+/* Remembers the scene; its tracer is made at the first sv_bricks_vis_desc (none without triangles). */
 void sv_bricks_vis_begin(sv_bricks_vis *v, const sv_scene *scene);
-/* Sets d->segment / segment_user to the tracer (left NULL without one). */
+/* Sets d->segment / segment_user to the tracer (left NULL without one), making it the first time. */
 void sv_bricks_vis_desc(sv_bricks_vis *v, pb_bricks_desc *d);
 /* Sets w of each entry of the combined indirection (index, dims: the grids' indirection grids along z,
  * bricked grids in order) to its brick's row, uploads the rows and records into r->brick_vis and prints
- * the record count and the build time. b: grid_count entries, NULL where the grid is not bricked. */
+ * the record count and the build time (nothing printed without a bricked grid). b: grid_count entries,
+ * NULL where the grid is not bricked. */
 bool sv_bricks_vis_upload(sv_renderer *r, sv_bricks_vis *v, pb_bricks *const *b, uint32_t grid_count, uint32_t *index,
                           const uint32_t dims[3]);
 /* A one-row stand-in (the binding must hold a buffer when the bricks are off). */
