@@ -5,6 +5,7 @@
 #define SV_SCENE_BINDINGS
 #include "gpu_types.glsl"
 #include "shading.glsl"
+#include "brick_debug.glsl"
 
 layout(location = 0) in vec3 v_world;
 layout(location = 1) in vec3 v_normal;
@@ -24,6 +25,10 @@ void main() {
     }
     if (frame.debug_mode == SV_DEBUG_PROBE_COLOR) {
         out_color = vec4(probe_color(draw.probe_index) * (0.6 + 0.4 * abs(n.y)), 1.0);
+        return;
+    }
+    if (frame.debug_mode == SV_DEBUG_BRICK_LEVEL || frame.debug_mode == SV_DEBUG_BRICK_VALIDITY) {
+        out_color = vec4(brick_debug_colour(v_world, n, frame.debug_mode), 1.0);
         return;
     }
     if (frame.debug_mode == SV_DEBUG_NORMALS) {

@@ -3,20 +3,15 @@
 // binary16 or float32 values) and shown as
 //   SV_BRICK_VIEW_TEXELS    E(n) / pi = max(sum_i A_l(i) Y_i(n) N_i / D, 0) / pi, n the exact sphere normal
 //                           where the pixel's ray meets the sphere (not the tessellation's), times
-//                           mix(PARTIAL_TINT, 1, D) where 0 < D < 1 (some probe with weight invalid);
-//   SV_BRICK_VIEW_VALIDITY  flat mix(INVALID, VALID, D);
-// and NO_PROBE in both where D <= 0 (no valid probe, or the texel outside every leaf). Linear colours
-// before tone mapping; tests/engine/test_engine_brick_view.py reads these values.
+//                           mix(BRICK_PARTIAL_TINT, 1, D) where 0 < D < 1 (some probe with weight invalid);
+//   SV_BRICK_VIEW_VALIDITY  flat brick_validity_colour(D);
+// and BRICK_NO_PROBE in both where D <= 0 (no valid probe, or the texel outside every leaf); the colours
+// in brick_view_colours.glsl.
 #extension GL_GOOGLE_include_directive : require
 #define SV_SCENE_BINDINGS
 #include "gpu_types.glsl"
 #include "sh.glsl"
-#include "sv_gpu_brick_view.h"
-
-const vec3 NO_PROBE = vec3(1.0, 0.0, 1.0);
-const vec3 PARTIAL_TINT = vec3(1.0, 0.3, 0.3);
-const vec3 INVALID = vec3(1.0, 0.1, 0.0);
-const vec3 VALID = vec3(0.1, 1.0, 0.1);
+#include "brick_view_colours.glsl"
 
 layout(location = 1) flat in vec4 v_sphere;
 layout(location = 2) flat in ivec3 v_texel;
@@ -49,11 +44,11 @@ void main() {
     vec4 t0 = texelFetch(brick_pool, v_texel, 0); // N_0 (RGB), D
     float D = t0.w;
     if (!(D > 0.0)) {
-        out_color = vec4(NO_PROBE, 1.0);
+        out_color = vec4(BRICK_NO_PROBE, 1.0);
         return;
     }
     if (draw.object_index == SV_BRICK_VIEW_VALIDITY) {
-        out_color = vec4(mix(INVALID, VALID, clamp(D, 0.0, 1.0)), 1.0);
+        out_color = vec4(brick_validity_colour(D), 1.0);
         return;
     }
     vec3 n = sphere_normal(v_sphere.xyz, v_sphere.w);
@@ -71,5 +66,5 @@ void main() {
         }
     }
     vec3 e = max(s / D, vec3(0.0)) / SH_PI;
-    out_color = vec4(e * mix(PARTIAL_TINT, vec3(1.0), clamp(D, 0.0, 1.0)), 1.0);
+    out_color = vec4(e * mix(BRICK_PARTIAL_TINT, vec3(1.0), clamp(D, 0.0, 1.0)), 1.0);
 }

@@ -87,10 +87,12 @@
 
 /* ---------------------------------------------------------------- enums */
 /* Debug views (sv_gpu_frame.debug_mode). */
-#define SV_DEBUG_NONE        0u /* shaded */
-#define SV_DEBUG_PROBE_COLOR 1u /* each object in a colour hashed from its probe index */
-#define SV_DEBUG_PROBE_INDEX 2u /* R = probe index as a float (exact in EXR output), G = B = 0 */
-#define SV_DEBUG_NORMALS     3u /* world normal * 0.5 + 0.5 */
+#define SV_DEBUG_NONE           0u /* shaded */
+#define SV_DEBUG_PROBE_COLOR    1u /* each object in a colour hashed from its probe index */
+#define SV_DEBUG_PROBE_INDEX    2u /* R = probe index as a float (exact in EXR output), G = B = 0 */
+#define SV_DEBUG_NORMALS        3u /* world normal * 0.5 + 0.5 */
+#define SV_DEBUG_BRICK_LEVEL    4u /* --probe-path bricks: the level of the brick the pixel samples (brick_debug.glsl) */
+#define SV_DEBUG_BRICK_VALIDITY 5u /* --probe-path bricks: the D (valid share) of the pixel's brick sample */
 
 /* Probe lighting mode of a material (VULKAN_SCHNEE_materials.probeMode) or of the whole frame
  * (--probe-mode, sv_gpu_frame.probe_mode). Names: sv_probe_mode_name(). */

@@ -27,7 +27,9 @@ static void usage(FILE *f)
         "  --camera NAME            camera node or camera name (default: first camera, else frame the scene)\n"
         "  --exposure E             linear exposure multiplier before tone mapping (default 1)\n"
         "  --tonemap neutral|aces|none  operator (default neutral = Khronos PBR Neutral); --no-tonemap = none\n"
-        "  --debug none|probe-color|probe-index|normals  debug view (probe-index writes the index in R)\n"
+        "  --debug none|probe-color|probe-index|normals|brick-level|brick-validity  debug view (probe-index writes\n"
+        "                           the index in R; brick-level / brick-validity, with --probe-path bricks: the\n"
+        "                           level of the brick each pixel samples / the D of its sample, as --brick-view)\n"
         "  --no-direct              skip KHR_lights_punctual direct light, baked, mixed or realtime (probe +\n"
         "                           ambient + emission only; a baked light adds direct light only where no probe\n"
         "                           lights)\n"
@@ -168,10 +170,12 @@ static int parse_choice(const char *a, const char *v, sv_options *o)
         if (k == 3) return bad_value(a, v);
         o->tonemap = ops[k];
     } else if (strcmp(a, "--debug") == 0) {
-        static const uint32_t modes[] = {SV_DEBUG_NONE, SV_DEBUG_PROBE_COLOR, SV_DEBUG_PROBE_INDEX, SV_DEBUG_NORMALS};
-        static const char *const names[] = {"none", "probe-color", "probe-index", "normals"};
-        for (k = 0; k < 4 && strcmp(v, names[k]) != 0; ++k) continue;
-        if (k == 4) return bad_value(a, v);
+        static const uint32_t modes[] = {SV_DEBUG_NONE,    SV_DEBUG_PROBE_COLOR, SV_DEBUG_PROBE_INDEX,
+                                         SV_DEBUG_NORMALS, SV_DEBUG_BRICK_LEVEL, SV_DEBUG_BRICK_VALIDITY};
+        static const char *const names[] = {"none",    "probe-color", "probe-index",
+                                            "normals", "brick-level", "brick-validity"};
+        for (k = 0; k < 6 && strcmp(v, names[k]) != 0; ++k) continue;
+        if (k == 6) return bad_value(a, v);
         o->debug_mode = modes[k];
     } else if (strcmp(a, "--probe-mode") == 0) {
         if ((k = sv_probe_mode_from_name(v, 1)) < 0) return bad_value(a, v);

@@ -25,11 +25,12 @@ from schnee_probes import native  # noqa: E402
 
 BRICKS = ("--probe-path", "bricks")
 YFOV = 0.8  # --look's vertical field of view (engine/src/sv_app.c)
-# shaders/probe_bricks_outline.frag: the outline colour of levels 0..5 (5 and up share the last).
+# shaders/brick_view_colours.glsl: the colour of levels 0..5 (5 and up share the last).
 LEVEL_COLOURS = np.array([[0.1, 0.8, 1.0], [0.3, 1.0, 0.2], [1.0, 0.55, 0.1], [1.0, 0.15, 0.5], [0.6, 0.35, 1.0],
                           [1.0, 1.0, 1.0]])
 LEAF_OUTLINE = np.array([0.9, 0.75, 0.2])  # shaders/probe_outline.frag (the probe view's cell outlines)
-# shaders/probe_bricks_texels.frag
+# shaders/brick_view_colours.glsl
+NONE = np.array([0.2, 0.2, 0.2])
 NO_PROBE = np.array([1.0, 0.0, 1.0])
 PARTIAL_TINT = np.array([1.0, 0.3, 0.3])
 INVALID = np.array([1.0, 0.1, 0.0])
@@ -82,7 +83,7 @@ def case(tmp_path_factory):
     bricks = native.Bricks.build(tree, f32(coeffs), validity=validity, scale=f32(scale))
     info = bricks.info()
     assert info["level_counts"] == {0: 8, 1: 3, 2: 3}, info["level_counts"]
-    return dict(d=d, scene=scene, tree=tree, info=info)
+    return dict(d=d, scene=scene, tree=tree, info=info, entry=entry, bricks=bricks)
 
 
 def render(case, name, w, h, look, *args):
@@ -361,3 +362,56 @@ def test_window_brick_view_matches_headless(case):
     assert a.shape == b.shape == (Hh, W, 3)
     assert (a.max(axis=-1) > 0.1).mean() > 0.05  # spheres and boxes drawn
     assert np.abs(a - b).max() <= 2.0 / 255
+
+
+@pytest.mark.parametrize("y", [0.3, 1.45])
+def test_debug_views_show_the_brick_each_pixel_samples(case, y):
+    # --debug brick-level / brick-validity on a movable 8 x 8 m quad at height y over the whole lattice, seen
+    # from above (orthographic, pixel centres at known points): each pixel is the level colour of the brick
+    # the C's pb_bricks_locate gives for its point, and the validity colour of D from the C's binary16
+    # texels filtered at the C's brick-local x with exact weights (lavapipe filters with fp32 weights).
+    size, mag, cx, cz = 129, 4.2, 4.0, 4.0
+    b = sg.GltfBuilder()
+    m = b.material("White", sh_scale=1.0, ambient_term=0.0, probe_mode="pixel")
+    b.node("Quad", mesh=b.mesh("quad", sg.quad(2 * mag, 2 * mag, 1), m), translation=(20.0, 20.0, 20.0))
+    b.node("Camera", camera=b.ortho_camera("top", mag), translation=(cx, 5.0, cz), rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids([case["entry"]])
+    scene = b.write(case["d"] / "quad.gltf")
+    t = (2 * (np.arange(size) + 0.5) / size - 1) * mag
+    X, Z = np.meshgrid(cx + t, cz + t)  # column -> +x, row -> +z
+    p = np.stack([X, np.full_like(X, y), Z], axis=-1).reshape(-1, 3)
+    info, bricks = case["info"], case["bricks"]
+    _, _, found, brick, x = bricks.sample_raw(p)
+    # Pixels whose point lies within 1e-4 min cells of a lattice plane may fall either side in fp32.
+    u = (p - np.asarray(info["origin"])) / H
+    clear = (np.abs(u - np.round(u)) > 1e-4).all(axis=1)
+    imgs = {}
+    for mode in ("brick-level", "brick-validity"):
+        out = case["d"] / f"debug_{mode}_{y}.exr"
+        viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", size, "--height", size, "--move",
+                                "Quad", cx, y, cz, *BRICKS, "--debug", mode))
+        imgs[mode] = viewer.read_image(out)[..., :3].reshape(-1, 3)
+    levels = info["regions"][np.maximum(brick, 0), 3]
+    want = np.where(found[:, None], LEVEL_COLOURS[np.minimum(levels, 5)], NONE)
+    got = imgs["brick-level"]
+    assert found.mean() > 0.5 and (~found).sum() > 100  # the quad reaches past the lattice
+    assert (np.abs(got - want).max(axis=1)[clear] < 1e-6).all()
+    # D of the plain filtered sample: the C's binary16 texels, trilinear at the C's brick and x.
+    tex = info["texels"].astype(np.float16).astype(np.float64)[..., 3]
+    bb = np.maximum(brick, 0)
+    k0 = np.minimum(np.floor(x), 3).astype(int)
+    f = x - k0
+    D = np.zeros(len(p))
+    for c in range(8):
+        o = [(c >> a) & 1 for a in range(3)]
+        w = np.prod([f[:, a] if o[a] else 1 - f[:, a] for a in range(3)], axis=0)
+        D += w * tex[bb, k0[:, 2] + o[2], k0[:, 1] + o[1], k0[:, 0] + o[0]]
+    want = np.where((D > 0)[:, None], INVALID + (VALID - INVALID) * np.clip(D, 0, 1)[:, None], NO_PROBE)
+    want = np.where(found[:, None], want, NONE)
+    err = np.abs(imgs["brick-validity"] - want).max(axis=1)[clear]
+    lv = {int(L): int((levels[found & clear] == L).sum()) for L in np.unique(levels[found & clear])}
+    print(f"debug y={y}: {clear.sum()} pixels, levels {lv}, D in [{D[found].min():.3g}, {D[found].max():.3g}], "
+          f"no probe {int((found & (D <= 0)).sum())}, validity max error {err.max():.3g}")
+    assert len(lv) >= 2
+    # fp32 filter weights (lavapipe) against exact ones: 1e-5 of D's range, times |VALID - INVALID| < 1.
+    assert err.max() < 2e-5
