@@ -106,7 +106,8 @@ OUT_DIR/spheres.png (per sphere: Cycles | per object | per pixel | converged flo
 The report is bench/results/spheres.md (numbers copied from the JSON with the command).
 A rerun with the same OUT_DIR resumes an unfinished bake from its journal; --reuse keeps the probe
 file, the Cycles renders and the floor probes already there (same options assumed) and redoes the
-engine renders and the comparison.
+engine renders and the comparison. --probe-path buffers|bricks is passed to schnee-view's renders
+(issue 30: per pixel from the storage buffers or the probe bricks; default: the viewer's default).
 """
 import argparse
 import importlib.util
@@ -236,6 +237,8 @@ def main():
     ap.add_argument("--reuse", action="store_true",
                     help="keep the probe file, Cycles renders and floor probes already in OUT")
     ap.add_argument("--viewer", default=None, help="schnee-view (default: ROOT/build/schnee-view)")
+    ap.add_argument("--probe-path", default=None, choices=("buffers", "bricks"),
+                    help="schnee-view --probe-path for the engine renders (default: the viewer's own default)")
     a = ap.parse_args(argv)
     a.root = os.path.abspath(a.root)
     if a.root != ROOT:
@@ -495,7 +498,8 @@ def main():
         for mode, extra in (("normals", ["--debug", "normals"]), ("object", ["--probe-mode", "object"]),
                             ("pixel", ["--probe-mode", "pixel"])):
             p = f"{base}_engine_{mode}.exr"
-            run_engine(a.viewer, gltf, p, "Cam_" + name, a.size, extra + move)
+            path_opt = ["--probe-path", a.probe_path] if a.probe_path else []
+            run_engine(a.viewer, gltf, p, "Cam_" + name, a.size, extra + path_opt + move)
             eng[mode] = native.read_image(p)[..., :3].astype(np.float64)
         timings["engine"] += time.perf_counter() - t
 
