@@ -20,7 +20,7 @@ import importlib
 import os
 
 # Order matters: properties before the operators and panels that use them.
-_MODULE_NAMES = ("properties", "nodes", "operators", "panel", "gltf_export")
+_MODULE_NAMES = ("properties", "nodes", "operators", "panel", "overlay", "gltf_export")
 
 
 def _modules():

@@ -184,3 +184,43 @@ def set_existing(struct, **values):
         else:
             skipped.append(name)
     return skipped
+
+
+# ---- gpu module (the viewport overlay, overlay_gpu.py) --------------------------------------------
+# What differs among 3.4, 4.3 and 5.2 where the overlay draws: GPUShader(vertexcode, fragcode) is
+# deprecated in 4.x and gone in 5.x, while gpu.shader.create_from_info (GPUShaderCreateInfo) exists in
+# all three, so shaders are made from a create-info only; the built-in shader names changed in 4.0
+# ('3D_UNIFORM_COLOR' -> 'UNIFORM_COLOR'), so the overlay brings its own line shader;
+# GPUBatch.draw_instanced is 4.x+ only (overlay_gpu draws a batch of spheres several times instead);
+# the 3D viewport's overlay framebuffer encodes sRGB on write in all three, an RGBA8 GPUOffScreen not.
+
+def gpu_shader(name, vertex, fragment, *, attrs, varyings, constants, samplers, defines):
+    """A GPUShader from a GPUShaderCreateInfo: ``attrs`` ((type, name), ...) vertex inputs in order,
+    ``varyings`` ((kind 'smooth'|'flat', type, name), ...), ``constants`` push constants,
+    ``samplers`` ((type, name), ...) bound at slots 0.., ``defines`` name -> value."""
+    import gpu
+    iface = gpu.types.GPUStageInterfaceInfo(name + "_iface")
+    for kind, typ, var in varyings:
+        getattr(iface, kind)(typ, var)
+    info = gpu.types.GPUShaderCreateInfo()
+    for key, value in defines.items():
+        info.define(key, str(value))
+    for slot, (typ, attr) in enumerate(attrs):
+        info.vertex_in(slot, typ, attr)
+    info.vertex_out(iface)
+    for typ, const in constants:
+        info.push_constant(typ, const)
+    for slot, (typ, sampler) in enumerate(samplers):
+        info.sampler(slot, typ, sampler)
+    info.fragment_out(0, 'VEC4', "fragColor")
+    info.vertex_source(vertex)
+    info.fragment_source(fragment)
+    return gpu.shader.create_from_info(info)
+
+
+def gpu_read_framebuffer(fb, width, height):
+    """(height, width, 4) uint8 of the bound framebuffer ``fb`` (row 0 at the bottom). Through
+    ``to_list``: a 'UBYTE' Buffer's memoryview reads the bytes as wider integers in 3.4."""
+    import numpy as np
+    buf = fb.read_color(0, 0, width, height, 4, 0, 'UBYTE')
+    return np.array(buf.to_list(), dtype=np.uint8).reshape(height, width, 4)

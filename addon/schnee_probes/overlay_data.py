@@ -1,0 +1,222 @@
+"""What the viewport overlay draws, read from the scene's baked ``.shprobe`` files (docs/overlay.md).
+
+No ``gpu`` here: numpy and the add-on's native reader only, so the numbers the overlay draws can be
+checked without a GPU. :func:`scene_files` says which files a scene's bakes wrote; :func:`load` reads
+one through :func:`native.read_shprobe` into a :class:`ProbeSet` (Blender-space positions, the
+L0-L2 coefficients premultiplied for shading, validity, the cells as line segments), cached per path
+and re-read when the file's mtime or size changes (a new bake, a reload). A missing or malformed
+file is a :class:`ProbeSet` with ``error`` set, never an exception: the panel shows the message.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Tuple
+
+import numpy as np
+
+from . import native, scene_export
+
+# DESIGN.md §3: Lambert's A_l for bands 0..2, and the real SH basis constants (no Condon-Shortley).
+A_L = (math.pi, 2.0 * math.pi / 3.0, math.pi / 4.0)
+BAND_OF = (0, 1, 1, 1, 2, 2, 2, 2, 2)
+# Cells drawn at most (12 edges each for a box, 6 for a tetrahedron); past this the panel says so.
+MAX_CELLS = 300_000
+
+
+@dataclass
+class ProbeSet:
+    """One ``.shprobe`` as the overlay draws it. ``shading`` (P, 9, 3) float32: engine-space radiance
+    SH (L0-L2) times A_l / π times the probe's scale, so ``Σ_i shading_i · Y_i(n_engine)`` is the
+    radiance a white Lambertian surface with normal n reflects (the engine's
+    ``shScale · max(E(n), 0) / π``, DESIGN.md §3, with the ambient term left out)."""
+    path: str
+    error: Optional[str] = None
+    version: int = 0
+    structure: str = ""
+    representation: str = "sh"
+    max_band: int = 0
+    positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))  # Blender space
+    shading: np.ndarray = field(default_factory=lambda: np.zeros((0, 9, 3), np.float32))
+    validity: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
+    has_validity: bool = False
+    spacing: float = 0.0
+    cell_lines: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))  # 2 rows/segment
+    cell_levels: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))      # per vertex
+    cell_count: int = 0
+    cells_left_out: int = 0
+    stamp: Tuple[int, int] = (0, 0)
+
+    @property
+    def probe_count(self) -> int:
+        return int(self.positions.shape[0])
+
+    def holds(self) -> str:
+        """One line for the panel: what the file holds that the colour modes can show."""
+        if self.error:
+            return self.error
+        parts = [f"v{self.version} {self.structure}", f"{self.probe_count} probes"]
+        parts.append("validity" if self.has_validity else "no validity (all 1)")
+        parts.append("no noise or refinement error (not stored in .shprobe)")
+        return ", ".join(parts)
+
+
+def scene_files(props) -> List[str]:
+    """The ``.shprobe`` files the scene's bakes wrote: those the last bake recorded (``last_files``,
+    saved with the .blend, so a reload finds them), then the Output path, each once, existing or not
+    (a missing one is reported). Paths are absolute; ``//`` in an unsaved file is skipped."""
+    import bpy
+    out = []
+    names = [p for p in (props.last_files or "").split(";") if p.endswith(".shprobe")]
+    names.append(props.output_path)
+    for p in names:
+        if p.startswith("//") and not bpy.data.filepath:
+            continue
+        full = os.path.abspath(bpy.path.abspath(p))
+        if full not in out:
+            out.append(full)
+    return out
+
+
+def lattice_to_blender(u: np.ndarray, origin, spacing: float, axes) -> np.ndarray:
+    """Lattice coordinates (N, 3) -> Blender-space points: engine p = origin + spacing · axesᵀ u
+    (docs/shprobe-format.md), then engine (x, y, z) -> Blender (x, −z, y)."""
+    eng = np.asarray(origin, np.float64) + spacing * (np.asarray(u, np.float64) @ np.asarray(axes, np.float64))
+    return scene_export.engine_to_blender(eng)
+
+
+def shading_coefficients(coeffs: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """(P, ≥9, 3) radiance SH -> (P, 9, 3) float32 L0-L2 times A_l / π times each probe's scale; a
+    file with L < 2 is padded with zeros. Bands above 2 are left out: A3 = 0 and A4 = −π/24 is the
+    engine's too, but the overlay's spheres use L0-L2 as a v1 file holds (docs/overlay.md)."""
+    c = np.zeros((coeffs.shape[0], 9, 3), np.float64)
+    k = min(9, coeffs.shape[1])
+    c[:, :k] = coeffs[:, :k]
+    w = np.array([A_L[BAND_OF[i]] / math.pi for i in range(9)])
+    return (c * w[None, :, None] * np.asarray(scale, np.float64)[:, None, None]).astype(np.float32)
+
+
+_BOX_EDGES = np.array([(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7),
+                       (0, 4), (1, 5), (2, 6), (3, 7)])
+_TET_EDGES = np.array([(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)])
+_CORNERS = np.array([(c & 1, c >> 1 & 1, c >> 2 & 1) for c in range(8)], np.float64)
+
+
+def _box_lines(lo: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Boxes (N, 3) min corner and (N, 3) size in lattice units -> (N·24, 3) segment end points."""
+    corners = lo[:, None, :] + _CORNERS[None] * size[:, None, :]      # (N, 8, 3)
+    return corners[:, _BOX_EDGES.reshape(-1)].reshape(-1, 3)
+
+
+def _cells(f, ps: ProbeSet) -> None:
+    """The file's interpolation cells as line segments (Blender space) and a level per vertex."""
+    axes, origin, spacing = f.grid_axes, f.grid_origin, f.grid_spacing
+    if f.structure == "grid":
+        dims = f.grid_dims
+        flat = np.nonzero(np.asarray(f.grid) >= 0)[0]
+        ps.cell_count = len(flat)
+        flat = flat[:MAX_CELLS]
+        X, Y = dims[0], dims[1]
+        lo = np.stack([flat % X, (flat // X) % Y, flat // (X * Y)], axis=1).astype(np.float64)
+        lines = _box_lines(lo, np.ones_like(lo))
+        levels = np.zeros(len(lines))
+    elif f.structure in ("octree", "kdtree"):
+        leaves = np.asarray(f.leaves)
+        ps.cell_count = len(leaves)
+        leaves = leaves[:MAX_CELLS]
+        lo = leaves[:, :3].astype(np.float64)
+        word = leaves[:, 3].astype(np.int64)
+        if f.structure == "octree":
+            lv = np.repeat(word[:, None], 3, axis=1)
+        else:
+            lv = np.stack([word & 0xFF, word >> 8 & 0xFF, word >> 16 & 0xFF], axis=1)
+        lines = _box_lines(lo, np.exp2(lv.astype(np.float64)))
+        levels = np.repeat(lv.max(axis=1).astype(np.float64), 24)
+    elif f.structure == "tetrahedra":
+        tets = np.asarray(f.tets)
+        ps.cell_count = len(tets)
+        tets = tets[:MAX_CELLS]
+        pos_b = ps.positions.astype(np.float64)
+        ps.cells_left_out = ps.cell_count - len(tets)
+        ps.cell_lines = pos_b[tets[:, _TET_EDGES.reshape(-1)].reshape(-1)].astype(np.float32)
+        ps.cell_levels = np.zeros(len(ps.cell_lines), np.float32)
+        return
+    else:
+        return
+    ps.cells_left_out = ps.cell_count - min(ps.cell_count, MAX_CELLS)
+    ps.cell_lines = lattice_to_blender(lines, origin, spacing, axes).astype(np.float32)
+    ps.cell_levels = levels.astype(np.float32)
+
+
+def _grid_positions(f) -> np.ndarray:
+    """Version 1 holds no positions: each probe at the centre of the first grid cell that names it
+    (docs/shprobe-format.md), in Blender space."""
+    grid = np.asarray(f.grid)
+    X, Y, _ = f.grid_dims
+    cells = np.nonzero(grid >= 0)[0]
+    probe = grid[cells]
+    first = np.full(f.probe_count, -1, np.int64)
+    # The first cell per probe: walk backwards so the smallest flat index is written last.
+    first[probe[::-1]] = cells[::-1]
+    if (first < 0).any():
+        raise native.SchneeError("some probes are in no grid cell, so they have no position")
+    u = np.stack([first % X, (first // X) % Y, first // (X * Y)], axis=1) + 0.5
+    return lattice_to_blender(u, f.grid_origin, f.grid_spacing, f.grid_axes)
+
+
+def read(path: str) -> ProbeSet:
+    """Read ``path`` into a :class:`ProbeSet`; a missing or malformed file gives one with ``error``."""
+    ps = ProbeSet(path=path)
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        ps.error = f"{os.path.basename(path)}: not found ({exc.strerror})"
+        return ps
+    ps.stamp = (st.st_mtime_ns, st.st_size)
+    problem = native.native_problem()
+    if problem:
+        ps.error = problem
+        return ps
+    try:
+        f = native.read_shprobe(path)
+        ps.version, ps.structure, ps.representation = f.version, f.structure, f.representation
+        ps.max_band, ps.spacing = f.max_band, float(f.grid_spacing)
+        if f.representation != "sh":
+            ps.error = (f"{os.path.basename(path)}: an ambient-cube file; the overlay draws SH files "
+                        "(bake with Probe Representation SH to see it)")
+            return ps
+        if f.positions is not None:
+            ps.positions = scene_export.engine_to_blender(f.positions).astype(np.float32)
+        else:
+            ps.positions = _grid_positions(f).astype(np.float32)
+        ps.shading = shading_coefficients(f.coeffs, f.probe_scale)
+        ps.has_validity = f.version >= 2 and f.validity is not None and len(f.validity) == f.probe_count
+        ps.validity = (np.asarray(f.validity, np.float32) if ps.has_validity
+                       else np.ones(f.probe_count, np.float32))
+        _cells(f, ps)
+    except (native.SchneeError, OSError, ValueError) as exc:
+        ps = ProbeSet(path=path, stamp=ps.stamp, error=f"{os.path.basename(path)}: {exc}")
+    return ps
+
+
+_cache: Dict[str, ProbeSet] = {}
+
+
+def load(path: str) -> ProbeSet:
+    """:func:`read` through a cache keyed by path, re-read when the file's (mtime, size) changed."""
+    try:
+        st = os.stat(path)
+        stamp = (st.st_mtime_ns, st.st_size)
+    except OSError:
+        stamp = None
+    hit = _cache.get(path)
+    if hit is not None and stamp is not None and hit.stamp == stamp:
+        return hit
+    ps = read(path)
+    _cache[path] = ps
+    return ps
+
+
+def clear_cache() -> None:
+    _cache.clear()

@@ -1,0 +1,201 @@
+"""The probe overlay drawn offscreen by Blender's gpu module (issue 31 item 1; docs/overlay.md).
+
+Run in a Blender with a GPU context: not ``-b`` (3.4 and 4.3 have no GPU in background mode), under
+Xvfb; the script works from a timer and quits Blender itself. Self-contained (only ``schnee_probes``
+on PYTHONPATH), so the same file runs in the 4.3 / 5.2 chroots. ``-- OUT_DIR [--bench N]``.
+
+Writes two files with known SH into OUT_DIR: ``grid.shprobe`` (version 1, a 3 x 1 x 1 grid, positions
+from the grid) and ``points.shprobe`` (version 2: positions and validity 0, 0.5, 1). Per probe and per
+view direction, an orthographic 65 x 65 picture centred on the probe: the centre pixel's normal is
+the direction back to the camera, exactly (the shader's normal is the fragment's direction from the
+sphere centre, on the view axis there). Emits RESULT with each drawn centre pixel (8-bit sRGB codes)
+beside the CPU model's value: native.irradiance of the coefficients read back from the file, at that
+normal in engine space, / π times the probe scale times 2^exposure. ``--bench N``: a dense v1 grid
+of N^3 probes, first draw (read + upload) and redraws timed on a 512 x 512 offscreen.
+"""
+import json
+import math
+import os
+import sys
+import time
+import traceback
+
+import bpy
+import numpy as np
+from mathutils import Matrix, Vector
+
+import schnee_probes
+from schnee_probes import native, overlay_data, scene_export
+
+ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+OUT = ARGS[0]
+BENCH = int(ARGS[ARGS.index("--bench") + 1]) if "--bench" in ARGS else 0
+SIZE = 65
+RADIUS = 0.3
+EXPOSURE = -1.0
+VIEWS = [(0, -1, 0), (0, 1, 0), (0, 0, 1), (0, 0, -1), (1, 1, 1), (-1, 0.5, -0.3), (0.2, -1, 0.7)]
+
+
+def coefficients():
+    """Three probes' radiance SH (3, 9, 3), engine space: constant, linear in n, with band 2."""
+    c = np.zeros((3, 9, 3), np.float32)
+    c[:, 0] = (1.2, 0.9, 0.6)                          # L00 (E = π·L00·Y0: constant part)
+    c[1, 1:4] = [(0.3, 0.0, -0.2), (0.1, 0.35, 0.0), (-0.25, 0.1, 0.3)]   # linear in n
+    c[2, 1:4] = [(0.2, 0.1, 0.0), (0.0, -0.2, 0.1), (0.1, 0.0, 0.2)]
+    c[2, 4:9] = [(0.15, 0.0, 0.05), (-0.1, 0.1, 0.0), (0.2, 0.1, -0.1), (0.0, -0.15, 0.1), (0.1, 0.05, 0.0)]
+    return c
+
+
+def write_files():
+    c = coefficients()
+    grid_path = os.path.join(OUT, "grid.shprobe")
+    # Engine space: three cells along x, spacing 2 m, origin (−3, −1, −1): probe centres x = −2, 0, 2.
+    native.write_shprobe(grid_path, c, np.arange(3, dtype=np.int32), (3, 1, 1), (-3.0, -1.0, -1.0), 2.0,
+                         probe_scale=np.array([1.0, 0.8, 1.0], np.float32), version=1)
+    points_path = os.path.join(OUT, "points.shprobe")
+    pos = np.array([(-2.0, 4.0, 0.0), (0.0, 4.0, 0.5), (2.0, 4.0, -0.5)], np.float32)  # engine space
+    native.write_shprobe(points_path, c[::-1].copy(), np.arange(3, dtype=np.int32), (3, 1, 1),
+                         (-3.0, 3.0, -1.0), 2.0, positions=pos,
+                         validity=np.array([0.0, 0.5, 1.0], np.float32), version=2)
+    return [grid_path, points_path]
+
+
+def ortho_view(centre, direction, half=0.5, distance=5.0):
+    """(view, projection) matrices of an orthographic camera ``distance`` from ``centre`` looking
+    along −``direction`` (the camera sits on the +direction side), half-width ``half`` m."""
+    d = Vector(direction).normalized()
+    eye = Vector(centre) + d * distance
+    rot = (-d).to_track_quat('-Z', 'Y').to_matrix().to_4x4()
+    view = (Matrix.Translation(eye) @ rot).inverted()
+    near, far = 0.1, 20.0
+    proj = Matrix(((1 / half, 0, 0, 0), (0, 1 / half, 0, 0),
+                   (0, 0, -2 / (far - near), -(far + near) / (far - near)), (0, 0, 0, 1)))
+    return view, proj
+
+
+def run_checks():
+    from schnee_probes import overlay_gpu
+    paths = write_files()
+    sets = [overlay_data.load(p) for p in paths]
+    out = {"version": list(bpy.app.version), "renderer": _renderer(), "files": [], "pixels": []}
+    for ps in sets:
+        out["files"].append({"path": ps.path, "error": ps.error, "probes": ps.probe_count,
+                             "cells": ps.cell_count, "version": ps.version, "holds": ps.holds()})
+    for fi, ps in enumerate(sets):
+        back = native.read_shprobe(ps.path)   # the CPU model's input: the file itself
+        for p in range(ps.probe_count):
+            for mode in ("IRRADIANCE", "VALIDITY"):
+                for d in (VIEWS if mode == "IRRADIANCE" else VIEWS[:1]):
+                    view, proj = ortho_view(ps.positions[p], d)
+                    px = overlay_gpu.draw_offscreen([ps], view, proj, SIZE, SIZE, radius=RADIUS,
+                                                    exposure=EXPOSURE, mode=mode, show_cells=False)
+                    code = px[SIZE // 2, SIZE // 2, :3].tolist()
+                    n_b = np.array(d, np.float64) / np.linalg.norm(d)
+                    n_e = scene_export.blender_to_engine(n_b[None])[0]
+                    if mode == "IRRADIANCE":
+                        e = native.irradiance(back.coeffs[p].astype(np.float64), n_e)
+                        want = (np.maximum(e, 0) / math.pi * back.probe_scale[p] * 2.0 ** EXPOSURE).tolist()
+                    else:
+                        want = overlay_gpu.validity_colours(ps.validity[p:p + 1])[0].tolist()
+                    out["pixels"].append({"file": fi, "probe": p, "mode": mode, "view": list(d),
+                                          "normal_engine": n_e.tolist(), "code": code, "want": want})
+    # Cells drawn: a picture of the grid file from above with the cells, for the record.
+    view, proj = ortho_view((0, 0, 0), (0.3, -1, 0.6), half=4.0)
+    px = overlay_gpu.draw_offscreen(sets, view, proj, 256, 256, radius=RADIUS, exposure=EXPOSURE)
+    out["cells_picture_nonblack"] = int((px[..., :3].max(axis=2) > 40).sum())
+    np.save(os.path.join(OUT, "cells.npy"), px)
+    out["errors"] = error_checks()
+    out["reload"] = reload_check(paths[0])
+    out["scene_files"] = scene_files_check(paths)
+    if BENCH:
+        out["bench"] = bench(BENCH)
+    return out
+
+
+def error_checks():
+    """A missing and a malformed file: a ProbeSet with a message, no exception; drawing it is a no-op."""
+    from schnee_probes import overlay_gpu
+    bad = os.path.join(OUT, "bad.shprobe")
+    with open(bad, "wb") as fh:
+        fh.write(b"SPHR" + b"\x01\x00\x00\x00" + b"\x00" * 20)    # right magic, truncated
+    res = {}
+    for name, path in (("missing", os.path.join(OUT, "missing.shprobe")), ("malformed", bad)):
+        ps = overlay_data.load(path)
+        view, proj = ortho_view((0, 0, 0), (0, -1, 0))
+        overlay_gpu.draw_offscreen([ps], view, proj, 8, 8)
+        res[name] = {"error": ps.error, "probes": ps.probe_count}
+    return res
+
+
+def reload_check(path):
+    """The cache gives the same object while the file is unchanged and re-reads it after a new bake
+    (here: the file rewritten with L00 doubled)."""
+    first = overlay_data.load(path)
+    same = overlay_data.load(path) is first
+    back = native.read_shprobe(path)
+    c = back.coeffs.copy()
+    c[:, 0] *= 2.0
+    time.sleep(0.01)
+    native.write_shprobe(path, c, back.grid, back.grid_dims, back.grid_origin, back.grid_spacing,
+                         probe_scale=back.probe_scale, version=1)
+    second = overlay_data.load(path)
+    return {"cached": same, "reread": second is not first,
+            "l00_ratio": float(second.shading[0, 0, 0] / first.shading[0, 0, 0])}
+
+
+def scene_files_check(paths):
+    props = bpy.context.scene.schnee_probes
+    props.last_files = ";".join([paths[0], os.path.join(OUT, "sky.exr")])
+    props.output_path = paths[1]
+    return overlay_data.scene_files(props)
+
+
+def bench(n):
+    from schnee_probes import overlay_gpu
+    path = os.path.join(OUT, f"bench{n}.shprobe")
+    count = n ** 3
+    rng = np.random.default_rng(1)
+    c = rng.normal(0.0, 0.1, (count, 9, 3)).astype(np.float32)
+    c[:, 0] += 1.0
+    native.write_shprobe(path, c, np.arange(count, dtype=np.int32), (n, n, n), (0.0, 0.0, 0.0), 0.25, version=1)
+    overlay_data.clear_cache()
+    overlay_gpu.free_resources()
+    t0 = time.perf_counter()
+    ps = overlay_data.load(path)
+    t_read = time.perf_counter() - t0
+    centre = ps.positions.mean(axis=0)
+    view, proj = ortho_view(centre, (1, -1, 0.8), half=n * 0.25)
+    times = []
+    for _ in range(4):
+        t0 = time.perf_counter()
+        overlay_gpu.draw_offscreen([ps], view, proj, 512, 512, radius=0.05, show_cells=False)
+        times.append(time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    overlay_gpu.draw_offscreen([ps], view, proj, 512, 512, radius=0.05, show_cells=True)
+    t_cells = time.perf_counter() - t0
+    return {"probes": count, "read_s": t_read, "first_draw_s": times[0], "redraw_s": sorted(times[1:])[1],
+            "redraw_with_cells_s": t_cells, "cells": ps.cell_count}
+
+
+def _renderer():
+    import gpu
+    try:
+        return gpu.platform.renderer_get()
+    except Exception:
+        return "?"
+
+
+def tick():
+    try:
+        schnee_probes.register()
+        result = run_checks()
+    except Exception:
+        result = {"error": traceback.format_exc()}
+    with open(os.path.join(OUT, "result.json"), "w") as fh:
+        json.dump(result, fh)
+    print("RESULT " + json.dumps(result), flush=True)
+    bpy.ops.wm.quit_blender()
+    return None
+
+
+bpy.app.timers.register(tick, first_interval=0.5)
