@@ -1,5 +1,6 @@
-/* Per-object probe queries (see sv_probe_query.h): the probe of a dense grid's cell, or the
- * interpolated and visibility-judged blend of a version 3 grid's probes in the object's slot. */
+/* Per-object probe queries (see sv_probe_query.h): the interpolated and visibility-judged blend of a
+ * grid's probes at the object's centre in the object's slot: a dense grid's field (pb_grid_field), a
+ * version 3 tree's or tetrahedra's weights (pb_interp), the same segment test through the static scene. */
 #include "sv_probe_query.h"
 
 #include <float.h>
@@ -121,12 +122,103 @@ static void blend_slot(const sv_probes *P, uint32_t g, const pb_interp_weights *
         for (int c = 0; c < 3; ++c) cube->faces[j][c] = (float)fit[3 * j + c];
 }
 
+/* Grid g's field for per object (pb_grid_field over the file's colours, validity, scale and axes; no
+ * masks: per object judges each probe by its segment instead), built at its first query; NULL (with a
+ * warning, once) when it cannot be built. */
+static const pb_grid_field *dense_field(sv_probes *P, uint32_t g)
+{
+    if (!P->fields) P->fields = calloc(P->grid_count, sizeof *P->fields);
+    if (!P->fields) return NULL;
+    if (P->fields[g]) return P->fields[g];
+    const sv_probe_grid *gr = &P->grids[g];
+    const pb_shprobe *f = gr->file;
+    uint32_t nc = pb_shprobe_colour_count(f);
+    size_t n = (size_t)f->probe_count * nc * 3u;
+    double *c = malloc((n ? n : 1) * sizeof(double)), axes[9];
+    if (!c) return NULL;
+    for (size_t i = 0; i < n; ++i) c[i] = f->coeffs[i];
+    for (int i = 0; i < 9; ++i) axes[i] = f->grid_axes[i];
+    pb_grid_field_desc d = {.dims = {f->grid_dims[0], f->grid_dims[1], f->grid_dims[2]},
+                            .origin = {f->grid_origin[0], f->grid_origin[1], f->grid_origin[2]},
+                            .spacing = f->grid_spacing,
+                            .axes = axes,
+                            .cells = f->grid,
+                            .probe_count = f->probe_count,
+                            .coeff_count = nc,
+                            .coeffs = c,
+                            .validity = f->validity,
+                            .scale = f->probe_scale};
+    pb_error err = {0};
+    pb_result rc = pb_grid_field_build(&d, &P->fields[g], &err);
+    free(c);
+    if (rc != PB_SUCCESS) {
+        P->fields[g] = NULL;
+        fprintf(stderr,
+                "schnee-view: warning: shProbeGrids[%u] '%s': %s; per object takes the cell holding the centre\n", g,
+                gr->name, err.message[0] ? err.message : pb_result_string(rc));
+    }
+    return P->fields[g];
+}
+
+/* Per object on dense grid g (docs/grid-field.md "Per object"): pb_grid_field_query at the centre c with
+ * the movable rule (no normal: no back faces, home = the cell of c) and no masks; each weighted corner's
+ * probe is judged by the segment from its cell's centre to c through the static scene (sv_probe_visible,
+ * the trees' per-object test), hidden ones dropped, the rest renormalised (corners clamped onto one cell
+ * merged); when the kept raw weight is <= 1e-6, the field's step 5: the cell holding c alone. False when
+ * the grid gives no value (outside, or no weight and an empty cell: the next grid). Without a field (build
+ * failure): the cell holding c, as before. */
+static bool dense_weights(sv_probes *P, uint32_t g, const sv_scene *scene, uint32_t self, const double c[3],
+                          pb_interp_weights *out)
+{
+    const pb_shprobe *f = P->grids[g].file;
+    out->count = 0;
+    const pb_grid_field *fld = dense_field(P, g);
+    if (!fld) {
+        float cf[3] = {(float)c[0], (float)c[1], (float)c[2]};
+        int32_t idx = pb_shprobe_lookup(f, cf);
+        if (idx < 0 || (uint32_t)idx >= f->probe_count) return false;
+        out->count = 1, out->probe[0] = (uint32_t)idx, out->weight[0] = 1.0;
+        return true;
+    }
+    pb_grid_field_weights w;
+    pb_grid_field_status st = pb_grid_field_query(fld, c, NULL, NULL, &w);
+    if (st == PB_GRID_FIELD_OUTSIDE || st == PB_GRID_FIELD_NONE) return false;
+    if (st == PB_GRID_FIELD_WEIGHTS) {
+        float centres[8 * 3];
+        sv_vis_query q = {P->vis, scene, self, centres};
+        double sum = 0.0;
+        for (int k = 0; k < 8; ++k) {
+            if (!(w.raw[k] > 0.0) || w.probe[k] < 0) continue;
+            sv_cell_centre(f, (int)w.cell[k][0], (int)w.cell[k][1], (int)w.cell[k][2], centres + 3 * k);
+            if (!sv_probe_visible(&q, (uint32_t)k, c)) continue;
+            uint32_t j = 0;
+            while (j < out->count && out->probe[j] != (uint32_t)w.probe[k]) ++j;
+            if (j == out->count) out->probe[out->count++] = (uint32_t)w.probe[k], out->weight[j] = 0.0;
+            out->weight[j] += w.raw[k];
+            sum += w.raw[k];
+        }
+        if (sum > PB_GRID_FIELD_MIN_WEIGHT) {
+            for (uint32_t j = 0; j < out->count; ++j) out->weight[j] /= sum;
+            return true;
+        }
+    }
+    /* Step 5 (also when the segment test hid every weighted corner): the home cell alone, whatever its
+     * validity. */
+    out->count = 0;
+    size_t cell = w.home[0] + (size_t)f->grid_dims[0] * (w.home[1] + (size_t)f->grid_dims[1] * w.home[2]);
+    int32_t idx = f->grid[cell];
+    if (idx < 0 || (uint32_t)idx >= f->probe_count) return false;
+    out->count = 1, out->probe[0] = (uint32_t)idx, out->weight[0] = 1.0;
+    return true;
+}
+
 uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
 {
     uint32_t n = 0;
-    bool any_v3 = false;
-    for (uint32_t g = 0; g < P->grid_count; ++g) any_v3 = any_v3 || P->grids[g].tree || P->grids[g].tetra;
-    if (any_v3 && P->slot_count != scene->object_count) {
+    /* Every grid blends probes per object (dense grids too, since issue 30 item 3): slots and the static
+     * scene's occluder whenever the scene has a grid. */
+    bool any_grid = P->grid_count > 0;
+    if (any_grid && P->slot_count != scene->object_count) {
         free(P->slot_sh);
         free(P->slot_cube);
         free(P->slot_weights);
@@ -138,12 +230,12 @@ uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
         if (!P->slot_count) fprintf(stderr, "schnee-view: warning: out of memory for per-object probes\n");
     }
     double t0 = sv_now_ms();
-    bool first = any_v3 && !P->vis && scene->object_count;
+    bool first = any_grid && !P->vis && scene->object_count;
     if (first) P->vis = sv_static_vis_create(scene);
     /* An object that left the static scene no longer blocks anyone's probes: re-query the others. */
     uint32_t movable = 0;
     for (uint32_t i = 0; i < scene->object_count; ++i) movable += scene->objects[i].movable;
-    if (any_v3 && movable != P->movable_seen)
+    if (any_grid && movable != P->movable_seen)
         for (uint32_t i = 0; i < scene->object_count; ++i) scene->objects[i].needs_probe = true;
     P->movable_seen = movable;
     for (uint32_t i = 0; i < scene->object_count; ++i) {
@@ -161,23 +253,27 @@ uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
         for (uint32_t g = 0; g < P->grid_count && from == UINT32_MAX; ++g) {
             const sv_probe_grid *gr = &P->grids[g];
             const pb_shprobe *f = gr->file;
-            if (!gr->tree && !gr->tetra) { /* dense grid: the cell holding the centre (DESIGN.md §7) */
-                int32_t idx = pb_shprobe_lookup(f, c);
-                if (idx < 0 || (uint32_t)idx >= f->probe_count) continue;
-                o->probe = gr->base + (uint32_t)idx;
-                from = g;
-                continue;
-            }
-            if (i >= P->slot_count) continue;
-            sv_vis_query q = {P->vis, scene, i, f->positions};
-            pb_interp_options opt = {.visible = sv_probe_visible, .visible_user = &q, .validity = f->validity};
             double pd[3] = {c[0], c[1], c[2]};
             pb_interp_weights w;
-            if (gr->tree)
-                pb_interp_query_cotree(gr->tree, pd, &opt, &w);
-            else
-                pb_interp_query_tetra(gr->tetra, pd, &opt, &w);
-            if (w.count == 0) continue; /* outside, or no probe sees the centre: the next grid */
+            if (!gr->tree && !gr->tetra) { /* dense grid: its field at the centre (docs/grid-field.md) */
+                if (!dense_weights(P, g, scene, i, pd, &w)) continue;
+                if (w.count == 1 || i >= P->slot_count) { /* one probe (or no slot): its own entry */
+                    uint32_t best = 0;
+                    for (uint32_t k = 1; k < w.count; ++k) best = w.weight[k] > w.weight[best] ? k : best;
+                    o->probe = gr->base + w.probe[best];
+                    from = g;
+                    continue;
+                }
+            } else {
+                if (i >= P->slot_count) continue;
+                sv_vis_query q = {P->vis, scene, i, f->positions};
+                pb_interp_options opt = {.visible = sv_probe_visible, .visible_user = &q, .validity = f->validity};
+                if (gr->tree)
+                    pb_interp_query_cotree(gr->tree, pd, &opt, &w);
+                else
+                    pb_interp_query_tetra(gr->tetra, pd, &opt, &w);
+                if (w.count == 0) continue; /* outside, or no probe sees the centre: the next grid */
+            }
             blend_slot(P, g, &w, &P->slot_sh[i], &P->slot_cube[i], &P->slot_weights[i]);
             P->slots_version++;
             o->probe = P->total + i;
@@ -190,7 +286,7 @@ uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
     }
     if (first)
         fprintf(stderr,
-                "schnee-view: per-object probes from version 3 grids: %u object(s) queried in %.1f ms "
+                "schnee-view: per-object probes: %u object(s) queried in %.1f ms "
                 "(static-scene Embree build included)\n",
                 n, sv_now_ms() - t0);
     return n;

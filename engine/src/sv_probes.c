@@ -210,7 +210,9 @@ void sv_probes_destroy(sv_probes *probes)
         pb_shprobe_destroy(probes->grids[i].file);
         pb_cotree_destroy(probes->grids[i].tree);
         pb_tetra_destroy(probes->grids[i].tetra);
+        if (probes->fields) pb_grid_field_destroy(probes->fields[i]);
     }
+    free(probes->fields);
     free(probes->grids);
     free(probes->slot_sh);
     free(probes->slot_cube);

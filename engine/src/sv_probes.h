@@ -12,6 +12,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "schnee/pb_grid_field.h"
 #include "schnee/pb_interp.h"
 #include "schnee/pb_shprobe.h"
 #include "sv_gpu.h"
@@ -53,7 +54,7 @@ typedef struct sv_probes {
     sv_probe_grid *grids;
     uint32_t grid_count;
     uint32_t total; /* fallback + every grid's entries (>= 1); the per-object slots follow */
-    /* Per-object probes interpolated on the CPU from v3 grids (docs/engine.md "Version 3 grids"):
+    /* Per-object probes interpolated on the CPU from any grid (docs/engine.md "Version 3 grids"):
      * object o's slot is buffer entry total + o; allocated by the first sv_probes_assign. */
     uint32_t slot_count;
     sv_gpu_probe *slot_sh;  /* interpolated SH (scale folded in: params.y = 1, validity 1) */
@@ -63,10 +64,12 @@ typedef struct sv_probes {
     /* For the §5 mismatch warning (docs/ambient-cube.md): the frame's overrides (SV_PROBE_MODE_MATERIAL
      * / SV_PROBE_REP_MATERIAL = each material's own) and which (material, grid) pairs were named. */
     uint32_t probe_mode_override, probe_rep_override;
-    uint8_t *warned;       /* (material_count + 1) x grid_count */
-    sv_static_vis *vis;    /* occluder of every object (sv_probe_vis.h), built at the first v3 query;
-                              hits on moved objects are ignored (docs/engine.md "Static scene") */
-    uint32_t movable_seen; /* movable objects at the last assignment (a change re-queries every object) */
+    uint8_t *warned;        /* (material_count + 1) x grid_count */
+    sv_static_vis *vis;     /* occluder of every object (sv_probe_vis.h), built at the first query;
+                               hits on moved objects are ignored (docs/engine.md "Static scene") */
+    uint32_t movable_seen;  /* movable objects at the last assignment (a change re-queries every object) */
+    pb_grid_field **fields; /* per grid: a dense grid's field for per object (pb_grid_field, movable
+                               rule, no masks), built at its first query; NULL elsewhere */
 } sv_probes;
 
 /* Reads every grid of the scene. A file that cannot be read or is malformed is an error (message

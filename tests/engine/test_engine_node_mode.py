@@ -6,8 +6,9 @@ Four floor quads, one mesh and one material (white, shScale 1, ambientTerm 0, pr
 side by side over the 4 x 2 x 4 grid of test_engine_perpixel.py and seen by a look-down orthographic
 camera, so every pixel centre's world point is known: the EXR pixel is max(E, 0) / π. Expected E
 from tests/engine/scripts/probe_ref.py (numpy, written from the documents): per pixel the trilinear
-model, per object the probe of the cell holding the quad's centre (DESIGN.md §7, a version 1 grid),
-off the fallback probe 0 (E = π·0.2), the ambient cube the least-squares cube of that probe.
+model, per object the grid's field at the quad's centre (docs/grid-field.md "Per object": the movable
+rule, no probe hidden), off the fallback probe 0 (E = π·0.2), the ambient cube the least-squares cube of
+that blend (the fit is linear: the blend of the probes' cubes).
 """
 import copy
 import json
@@ -62,8 +63,22 @@ def masks():
 
 
 def cell_probe(x, z):
-    """The probe of the cell holding (x, Y, z): the per-object rule for a version 1 grid."""
+    """The probe of the cell holding (x, Y, z): the per-object rule before issue 30 item 3."""
     return GRID[int(np.floor(z)), int(np.floor(Y)), int(np.floor(x))]
+
+
+def cube_of_sh(c, n):
+    return ref.cube_irradiance(ref.cube_from_sh(c), n)
+
+
+def object_e(x, z, cube=False):
+    """Per object: E(UP) of the field at the floor's centre (x, Y, z), movable rule (the floors sit 0.4
+    spacings below the probes' layer and block none of the segments probe -> centre). Each floor's
+    centre is a cell corner in x and z: four cells blended, with the grid's holes renormalised."""
+    e, held = ref.grid_irradiance([[x, Y, z]], [UP], GRID, (0, 0, 0), 1.0, COEFFS, backface=False,
+                                  evaluate=cube_of_sh if cube else ref.irradiance)
+    assert held[0]
+    return e[0]
 
 
 def expected_image():
@@ -73,7 +88,6 @@ def expected_image():
     for floor, ((x, z), ext) in FLOORS.items():
         mode = (ext or {}).get("probeMode", "object")
         rep = (ext or {}).get("probeRepresentation", "sh")
-        k = cell_probe(x, z)
         if mode == "pixel":
             pts = p[ms[floor]]
             e, held = ref.grid_irradiance(pts, np.tile(UP, (len(pts), 1)), GRID, (0, 0, 0), 1.0, COEFFS)
@@ -81,9 +95,9 @@ def expected_image():
         elif mode == "off":
             e = np.full(3, np.pi * FALLBACK)
         elif rep == "ambientCube":
-            e = ref.cube_irradiance(ref.cube_from_sh(COEFFS[k]), UP)
+            e = object_e(x, z, cube=True)
         else:
-            e = ref.irradiance(COEFFS[k], UP)
+            e = object_e(x, z)
         out[ms[floor]] = np.maximum(e, 0.0) / np.pi
     return out
 
@@ -124,19 +138,21 @@ def test_each_object_follows_its_own_mode(renders):
     for floor in ("OffFloor", "MaterialFloor", "CubeFloor"):
         assert np.ptp(img[ms[floor]], axis=0).max() < 1e-5, floor
     # The cube differs measurably from the SH of the same probe (a silent SH path would fail).
-    k = cell_probe(3.0, 3.0)
-    sh = ref.irradiance(COEFFS[k], UP) / np.pi
+    sh = object_e(3.0, 3.0) / np.pi
     assert np.abs(img[ms["CubeFloor"]][0] - sh).max() > 20 * (1e-4 + 1e-4 * np.abs(sh).max())
 
 
 def test_material_only_scene_and_absent_fields(renders):
-    """No node extension: every floor per object, its quadrant's cell probe (the material says
-    "object"), as before; a node with the material's own mode renders the same pixels."""
+    """No node extension: every floor per object, the field at its centre (the material says
+    "object"); a node with the material's own mode renders the same pixels."""
     img, _ = renders("materials")
     _, ms = masks()
     for floor, ((x, z), _) in FLOORS.items():
-        e = np.maximum(ref.irradiance(COEFFS[cell_probe(x, z)], UP), 0.0) / np.pi
+        e = np.maximum(object_e(x, z), 0.0) / np.pi
         err = np.abs(img[ms[floor]] - e)
+        # the old rule (the cell holding the centre) is far from it: the case tells the rules apart
+        old = np.maximum(ref.irradiance(COEFFS[cell_probe(x, z)], UP), 0.0) / np.pi
+        assert np.abs(old - e).max() > 0.02, (floor, old, e)
         assert err.max() < 1e-4 + 1e-4 * np.abs(e).max(), (floor, err.max())
     same = scene(renders.dir, "same", {f: {"probeMode": "object"} for f in FLOORS})
     img2, _ = renders(same)
@@ -171,7 +187,7 @@ def test_unknown_values_warn_and_follow_the_materials(renders):
     _, ms = masks()
     for floor in ("PixelFloor", "OffFloor", "MaterialFloor"):
         assert np.array_equal(img[ms[floor]], ref_img[ms[floor]]), floor
-    cube = np.maximum(ref.cube_irradiance(ref.cube_from_sh(COEFFS[cell_probe(3.0, 3.0)]), UP), 0) / np.pi
+    cube = np.maximum(object_e(3.0, 3.0, cube=True), 0) / np.pi
     assert np.abs(img[ms["CubeFloor"]] - cube).max() < 1e-4 + 1e-4 * np.abs(cube).max()
     # Not an object: a warning too, and the node follows its materials.
     doc2 = copy.deepcopy(doc)

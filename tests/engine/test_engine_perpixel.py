@@ -106,8 +106,17 @@ def test_material_mode_cli_override_and_off(pixel_floor):
     forced = pixel_floor("--probe-mode", "pixel")
     assert np.array_equal(by_material, forced)
     obj = pixel_floor("--probe-mode", "object")
-    # Per object: one probe for the whole floor (its centre (2, 0.1, 2) is in cell (2, 0, 2)).
+    # Per object: one value for the whole floor, the grid's field at its centre (2, 0.1, 2) (movable
+    # rule, no back faces; the floor is the only object, so the segment test drops no probe): the numpy
+    # rule gives E/pi = (0.756, 0.672, 0.563), where the old rule's cell (2, 0, 2) gave (1.017, 0.592,
+    # 0.927), 36 % off in the largest channel.
     assert np.ptp(obj[..., 0]) < 1e-5
+    e, held = ref.grid_irradiance([[2.0, 0.1, 2.0]], [[0.0, 1.0, 0.0]], GRID, (0, 0, 0), 1.0, COEFFS,
+                                  backface=False)
+    want = np.maximum(e[0], 0) / np.pi
+    assert held[0] and np.allclose(obj[N // 2, N // 2], want, rtol=1e-5), (obj[N // 2, N // 2], want)
+    cell = np.maximum(ref.irradiance(COEFFS[GRID[2, 0, 2]], [0, 1, 0]), 0) / np.pi
+    assert np.abs(cell - want).max() > 0.3 * want.max()  # the case tells the two rules apart
     off = pixel_floor("--probe-mode", "off")
     assert np.allclose(off, FALLBACK, atol=1e-6)  # fallback probe: E/π = 0.2 everywhere
 
@@ -159,12 +168,18 @@ def test_wall_does_not_leak(tmp_path):
     # Two rooms (two_rooms) separated by a wall at x = 2. The quad is the wall's dark face at
     # x = 1.99, facing -x, seen from the dark side. Plain trilinear at x = 1.99 would give the bright
     # probe weight 0.49 (pixel ~2.5); the bright centre (x = 2.5) lies 0.51 spacings behind the
-    # face, so its back-face weight is 0 and the face stays exactly as dark as per object.
+    # face, so its back-face weight is 0 and per pixel the face stays exactly as dark as the dark room.
     scene, grid, coeffs = wall_quad_scene(tmp_path, (1.99, 0.5, 0.5))
     obj = render(scene, tmp_path / "o.exr", "--probe-mode", "object")
     pix = render(scene, tmp_path / "p.exr", "--probe-mode", "pixel")
-    assert np.allclose(obj, 0.05, rtol=1e-5)  # per object: the dark cell (1, 0, 0)
-    assert pix.max() <= obj.max() * (1 + 1e-5), f"per pixel leaks: max {pix.max():.4g} vs {obj.max():.4g}"
+    assert np.allclose(pix, 0.05, rtol=1e-5), f"per pixel leaks: max {pix.max():.4g}"
+    # Per object reads the field at the quad's centre (docs/grid-field.md "Per object"): no back faces,
+    # and the quad never blocks its own probes (it is the only geometry), so it gets the interpolation
+    # (1 - 0.49)·0.05 + 0.49·5 = 2.4755 (the old rule gave the dark cell's 0.05): one value per object
+    # cannot be right on both faces of a wall straddling two rooms.
+    e, _ = ref.grid_irradiance([[1.99, 0.5, 0.5]], [[-1.0, 0, 0]], grid, (0, 0, 0), 1.0, coeffs, backface=False)
+    assert np.allclose(e[0] / np.pi, 0.51 * 0.05 + 0.49 * 5.0, rtol=1e-9)
+    assert np.allclose(obj, e[0] / np.pi, rtol=1e-5), (obj.min(), obj.max(), e[0] / np.pi)
     # The case matters: without the back-face weight the numpy formula gives ~2.5 at the centre.
     p = np.array([[1.99, 0.5, 0.5]])
     f = 1.99 - 0.5 - 1  # fractional position between the centres x = 1.5 and 2.5
@@ -223,6 +238,55 @@ def test_floor_next_to_wall_does_not_leak(tmp_path):
     proc = viewer.run(scene, "--headless", "--output", tmp_path / "x.exr", "--width", 8, "--height", 8)
     # 3 clear-or-blocked pairs (cells 0-1, 1-2, 2-3) against 3 quads x 2 triangles.
     assert "probe visibility masks: 3 segment(s) against 6 triangle(s)" in proc.stderr, proc.stderr
+
+
+def segment_blocked_by_wall(a, b, x=2.0, lo=0.0, hi=1.0):
+    """True when segment a -> b (ends left out by 1e-4 of its length, as sv_probe_visible) crosses the
+    two-sided 1 m wall in the plane x = ``x`` spanning y, z in [lo, hi]."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if a[0] == b[0]:
+        return False
+    t = (x - a[0]) / (b[0] - a[0])
+    q = a + t * (b - a)
+    return bool(1e-4 < t < 1 - 1e-4 and lo <= q[1] <= hi and lo <= q[2] <= hi)
+
+
+def test_per_object_drops_probes_behind_a_static_wall(tmp_path):
+    # Per object on a dense grid (docs/grid-field.md "Per object"): the field's weights at the object's
+    # centre (movable rule), each probe judged by the segment from its cell's centre to the centre
+    # through the static scene, as the trees' per-object query. A 10 cm box at (1.9, 0.5, 0.5) next to
+    # the two-sided wall at x = 2 of floor_by_wall_scene's rooms: trilinear gives cell 1 (dark) 0.6 and
+    # cell 2 (bright, x = 2.5) 0.4; the segment from (2.5, 0.5, 0.5) crosses the wall, so the box keeps
+    # the dark 0.05 (the old rule's cell 1 too). The walls moved by 1 cm (movable objects no longer block):
+    # the interpolation 2.03.
+    grid, coeffs, entry = two_rooms(tmp_path)
+    b = sg.GltfBuilder()
+    m = b.material("white", sh_scale=1.0, ambient_term=0.0)
+    b.node("Box", mesh=b.mesh("box", sg.cube(0.05), m), translation=(1.9, 0.5, 0.5))
+    b.node("WallA", mesh=b.mesh("wall_a", sg.quad(1.0, 1.0, 0, -1.0), m), translation=(2.0, 0.5, 0.5))
+    b.node("WallB", mesh=b.mesh("wall_b", sg.quad(1.0, 1.0, 0, 1.0), m), translation=(2.0, 0.5, 0.5))
+    b.node("Camera", camera=b.ortho_camera("side", 0.45), translation=(0.5, 0.5, 0.5), rotation=sg.ROT_LOOK_POS_X)
+    b.probe_grids([entry])
+    scene = b.write(tmp_path / "box_wall.gltf")
+    c, n = np.array([1.9, 0.5, 0.5]), np.array([[-1.0, 0, 0]])
+    # numpy: the segment test for every probe (cell centres), then the field with the hidden ones at
+    # validity 0 (renormalised over the rest), the movable rule.
+    Z, Y, X = grid.shape
+    hidden = np.zeros(len(coeffs), bool)
+    for x in range(X):
+        hidden[grid[0, 0, x]] = segment_blocked_by_wall((x + 0.5, 0.5, 0.5), c)
+    assert hidden.tolist() == [False, False, True, True]
+    blocked, _ = ref.grid_irradiance([c], n, grid, (0, 0, 0), 1.0, coeffs, validity=(~hidden).astype(float),
+                                     backface=False)
+    free, _ = ref.grid_irradiance([c], n, grid, (0, 0, 0), 1.0, coeffs, backface=False)
+    assert np.allclose(blocked[0] / np.pi, 0.05, rtol=1e-9) and np.allclose(free[0] / np.pi, 2.03, rtol=1e-9)
+    k = N // 2
+    obj = render(scene, tmp_path / "o.exr", "--probe-mode", "object")
+    assert np.allclose(obj[k, k], blocked[0] / np.pi, rtol=1e-5), obj[k, k]
+    # Moved by 1 cm, still between the box and the bright probes: movable objects never block.
+    moved = render(scene, tmp_path / "m.exr", "--probe-mode", "object", "--move", "WallA", 2.01, 0.5, 0.5,
+                   "--move", "WallB", 2.01, 0.5, 0.5)
+    assert np.allclose(moved[k, k], free[0] / np.pi, rtol=1e-5), moved[k, k]
 
 
 def test_floor_without_wall_keeps_its_gradient(tmp_path):
