@@ -2,7 +2,8 @@
 // faces and visibility"; --probe-path bricks): a line-by-line mirror of pb_bricks_locate() and
 // pb_bricks_sample_surface() of native/src/pb_bricks.c (the one C definition of the field; its header lists
 // steps a-f in this order), in its one-tap form: the hardware's trilinear filter does cell_filtered() at
-// the weighted fraction f' (its sub-texel weights are pb_bricks_sample_surface(..., subtexel_bits = 8)).
+// the weighted fraction f' (its sub-texel weights are pb_bricks_sample_surface(..., subtexel_bits = 8)),
+// except in a blocked brick cell, which takes the 8 taps with exact weights (brick_tap8 = cell_weighted).
 // Static surfaces (not SV_DRAW_MOVABLE): back-face weights on the brick cell's 8 texels; every object: the
 // visibility ramp of the brick cell's record when the cell is blocked (brick_vis, sv_bricks_vis.h). An
 // unblocked cell of a movable object is the plain sample (step 4), as pb_bricks_sample_bits.
@@ -16,7 +17,8 @@
 // occupied cell q - m whose lower faces u lies within 0.01 above, u clamped into it). Out: the entry e
 // (x = brick | level << 27, w = the brick's row in brick_vis), the region's min corner r0 and the
 // brick-local texel coordinate x in [0, 4]^3. False: no brick here.
-bool brick_locate(sv_gpu_grid gr, vec3 p, out uvec4 e, out uvec3 r0, out vec3 x) {
+bool brick_locate(sv_gpu_grid gr, vec3 p, out uvec4 e, out uvec3 r0, out vec3 x)
+{
     r0 = uvec3(0u);
     x = vec3(0.0);
     float h = gr.origin_spacing.w;
@@ -54,7 +56,8 @@ bool brick_locate(sv_gpu_grid gr, vec3 p, out uvec4 e, out uvec3 r0, out vec3 x)
 // One filtered tap of brick b at brick-local texel coordinate xt (cell_filtered / pb_bricks_filter: texel
 // centres (origin_b + 0.5 + xt) / pool size, one LINEAR fetch per channel group, group g in its slab at
 // z + g * slab), then E(n) = sum_i A_l(i) Y_i(n) N_i / D with AY = sh_lambert_basis. False when D <= 0.
-bool brick_tap(sv_gpu_grid gr, uint b, vec3 xt, uint C, float AY[25], out vec3 e_out) {
+bool brick_tap(sv_gpu_grid gr, uint b, vec3 xt, uint C, float AY[25], out vec3 e_out)
+{
     e_out = vec3(0.0);
     uint px = gr.bricks.y & 0xffffu, py = gr.bricks.y >> 16u;
     uvec3 ob = 5u * uvec3(b % px, (b / px) % py, b / (px * py)) + uvec3(0u, 0u, gr.bricks.z);
@@ -76,8 +79,40 @@ bool brick_tap(sv_gpu_grid gr, uint b, vec3 xt, uint C, float AY[25], out vec3 e
     return true;
 }
 
+// The 8-tap form of brick b's cell k0 (cell_weighted: sum_k w[k] T_k over its 8 texels, exact weights; one
+// texelFetch per corner with w[k] > 0 and group), then E(n) = sum_i A_l(i) Y_i(n) N_i / D. False when
+// D <= 0.
+bool brick_tap8(sv_gpu_grid gr, uint b, vec3 k0, float w[8], uint C, float AY[25], out vec3 e_out)
+{
+    e_out = vec3(0.0);
+    uint px = gr.bricks.y & 0xffffu, py = gr.bricks.y >> 16u;
+    ivec3 ob = ivec3(5u * uvec3(b % px, (b / px) % py, b / (px * py)) + uvec3(0u, 0u, gr.bricks.z)) + ivec3(k0);
+    int slab = int(gr.bricks.w >> 8u);
+    uint groups = (3u * C + 4u) / 4u; // ceil((3C + 1) / 4)
+    vec3 s = vec3(0.0);
+    float d = 0.0;
+    for (uint k = 0u; k < 8u; ++k) {
+        if (w[k] == 0.0) continue;
+        ivec3 tk = ob + ivec3(int(k & 1u), int((k >> 1u) & 1u), int((k >> 2u) & 1u));
+        vec4 t0 = texelFetch(brick_pool, tk, 0); // N_0 (RGB), D
+        d += w[k] * t0.w;
+        s += w[k] * AY[0] * t0.rgb;
+        for (uint g = 1u; g < groups; ++g) {
+            vec4 t = texelFetch(brick_pool, tk + ivec3(0, 0, int(g) * slab), 0);
+            for (uint j = 0u; j < 4u; ++j) { // channel 4g + j = N_i colour k, i = 1 + (4g + j - 4) / 3
+                uint c = 4u * g + j - 4u, i = 1u + c / 3u;
+                if (i < C) s[c % 3u] += w[k] * AY[i] * t[j];
+            }
+        }
+    }
+    if (!(d > 0.0)) return false;
+    e_out = s / d;
+    return true;
+}
+
 // V(k, c) of a visibility record at uint offset rec of brick_vis: pb_vis_pair_value() (as pair_vis()).
-float brick_pair_vis(uint rec, uint k, uint c) {
+float brick_pair_vis(uint rec, uint k, uint c)
+{
     uint byte_index = 8u * k + c;
     uint q = (brick_vis[rec + byte_index / 4u] >> (8u * (byte_index & 3u))) & 255u;
     return q >= 255u ? 1.0 : 1.0 - 127.5 / float(max(q, 1u));
@@ -86,7 +121,8 @@ float brick_pair_vis(uint rec, uint k, uint c) {
 // E(n) of grid gr's bricks at the surface point p_surface with normal n (pb_bricks_sample_surface with
 // PB_BRICKS_STATIC unless movable, one tap), not clamped; false where the bricks give no value (outside,
 // no leaf, or D <= 0 in the last sample: the caller tries the next grid, then probe 0).
-bool brick_surface_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, out vec3 e_out) {
+bool brick_surface_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, out vec3 e_out)
+{
     e_out = vec3(0.0);
     // 1-3. Locate p_lookup (the point moved by the normal bias): brick, L, region min r, x.
     float h = gr.origin_spacing.w;
@@ -142,8 +178,14 @@ bool brick_surface_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movab
             wv = wb;
         }
         for (uint k = 0u; k < 8u; ++k) sw += wv[k];
-        // e. One tap at the weights' per-axis mean f'_a = sum_k w'_k bit_a(k) / sw (sw = 0: f' = f),
-        //    filtered at k0 + f'; D > 0: N / D.
+        // e. A blocked cell: the 8 taps with the exact weights w' (one tap's separable weights would give
+        //    back corners the ramp dropped); sw > 0 and D' > 0: N' / D'.
+        if (blocked) {
+            if (sw > 0.0 && brick_tap8(gr, b, k0, wv, C, AY, e_out)) return true;
+            return brick_tap(gr, b, x, C, AY, e_out); // f. the plain sample at x
+        }
+        //    Else (back faces only) one tap at the weights' per-axis mean f'_a = sum_k w'_k bit_a(k) / sw
+        //    (sw = 0: f' = f), filtered at k0 + f'; D > 0: N / D.
         vec3 f1;
         for (int a = 0; a < 3; ++a) {
             float m = 0.0;

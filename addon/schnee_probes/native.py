@@ -940,6 +940,15 @@ def sky_sun_split(world: np.ndarray, peak_fraction: float = 0.0, max_radius: flo
 #     coeffs, has_value = bricks.sample(points)              # the field the engine is to shade with
 
 
+def _triangles(triangles):
+    if triangles is None:
+        return None
+    t = np.ascontiguousarray(triangles, dtype=np.float64)
+    if t.size % 9 or t.ndim < 2 or not np.isfinite(t).all():
+        raise ValueError(f"triangles must be finite (T, 3, 3), got shape {t.shape}")
+    return t.reshape(-1)
+
+
 class Bricks:
     """A corner octree's / kd corner tree's field resampled into bricks of 5^3 texels with an
     indirection grid (native/include/schnee/pb_bricks.h): texels N = sum W m s c and D = sum W m from
@@ -956,13 +965,15 @@ class Bricks:
     @classmethod
     def build(cls, tree: CornerOctree, coeffs: np.ndarray, validity: Optional[np.ndarray] = None,
               scale: Optional[np.ndarray] = None, max_bytes: int = 0,
-              planes: Optional[np.ndarray] = None) -> "Bricks":
+              planes: Optional[np.ndarray] = None, triangles: Optional[np.ndarray] = None) -> "Bricks":
         """``coeffs`` (P, sh_count, 3) radiance SH per probe of the finalized ``tree`` (float64 in the
         C), ``validity`` (P,) (<= 0: the probe is dropped, as the file's rule), ``scale`` (P,) (the
         file's probe_scale, inside N). ``max_bytes``: the build's memory cap, 0 = 1 GiB (SchneeError
         past it). ``planes`` (K, 4) (nx, ny, nz, d: the plane n.p = d, engine space): the static scene
         as infinite planes, for the build with visibility (leaf tables, visibility texels, brick table
-        and records, docs/probe-bricks.md "Back faces and visibility"); None = without."""
+        and records, docs/probe-bricks.md "Back faces and visibility"); None = without. ``triangles``
+        (T, 3, 3) (engine space, both sides, hits within [1e-4, 1 - 1e-4] of a segment as the engine's
+        tracer): the static scene as triangles, alone or with ``planes``."""
         if not isinstance(tree, CornerOctree):
             raise TypeError(f"tree must be a CornerOctree, got {type(tree).__name__}")
         P = tree.probe_count
@@ -977,7 +988,19 @@ class Bricks:
                 raise ValueError(f"planes must be finite (K, 4) (nx, ny, nz, d), got shape {pl.shape}")
             pl = pl.reshape(-1)
         return cls(_lib().bricks_build(tree._handle, c.reshape(-1), c.shape[1], _per_probe(validity, "validity", P),
-                                       _per_probe(scale, "scale", P), int(max_bytes), pl))
+                                       _per_probe(scale, "scale", P), int(max_bytes), pl, _triangles(triangles)))
+
+    @staticmethod
+    def leaf_tables(tree: CornerOctree, planes: Optional[np.ndarray] = None,
+                    triangles: Optional[np.ndarray] = None) -> np.ndarray:
+        """The leaves' pair-visibility tables (pb_cotree_pair_visibility) through the test scene of
+        ``build`` (planes and / or triangles): (leaf_count, 8, 8) uint8, for ``tree.query``'s
+        ``pair_visibility`` (today's rule of the storage-buffer path)."""
+        if not isinstance(tree, CornerOctree):
+            raise TypeError(f"tree must be a CornerOctree, got {type(tree).__name__}")
+        pl = None if planes is None else np.ascontiguousarray(planes, dtype=np.float64).reshape(-1)
+        out = _lib().bricks_leaf_tables(tree._handle, pl, _triangles(triangles))
+        return np.frombuffer(out, dtype=np.uint8).reshape(-1, 8, 8)
 
     def info(self) -> dict:
         """Sizes (pb_bricks_info): dims, root_level, coeff_count, channels (3C + 1), groups (RGBA

@@ -21,12 +21,39 @@ static pb_bricks *get_bricks(PyObject *o)
     return PyCapsule_GetPointer(o, PB_PY_CAP_BRICKS);
 }
 
-/* The static scene of a test as infinite planes n·p = d (4 doubles each): the first crossing of a -> b as a
- * fraction of its length (pb_segment_fn); a segment that only touches a plane is clear. */
+/* The static scene of a test: infinite planes n·p = d (4 doubles each) and triangles (9 doubles each,
+ * both sides): the first crossing of a -> b as a fraction of its length (pb_segment_fn). A segment that
+ * only touches a plane is clear; a triangle counts for fractions in [1e-4, 1 − 1e-4] (the engine's
+ * sv_segment_first_hit's tnear / tfar), Möller–Trumbore in double. */
 typedef struct planes {
     const double *p;
     Py_ssize_t count;
+    const double *tri;
+    Py_ssize_t tri_count;
 } planes;
+
+static double tri_hit(const double *v, const double a[3], const double d[3])
+{
+    double e1[3], e2[3], pv[3], tv[3], qv[3];
+    for (int k = 0; k < 3; k++) {
+        e1[k] = v[3 + k] - v[k];
+        e2[k] = v[6 + k] - v[k];
+        tv[k] = a[k] - v[k];
+    }
+    pv[0] = d[1] * e2[2] - d[2] * e2[1];
+    pv[1] = d[2] * e2[0] - d[0] * e2[2];
+    pv[2] = d[0] * e2[1] - d[1] * e2[0];
+    double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+    if (det == 0.0) return 2.0;
+    double su = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) / det;
+    if (su < 0.0 || su > 1.0) return 2.0;
+    qv[0] = tv[1] * e1[2] - tv[2] * e1[1];
+    qv[1] = tv[2] * e1[0] - tv[0] * e1[2];
+    qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
+    double sv = (d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]) / det;
+    if (sv < 0.0 || su + sv > 1.0) return 2.0;
+    return (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
+}
 
 static double planes_segment(void *user, const double a[3], const double b[3])
 {
@@ -37,7 +64,56 @@ static double planes_segment(void *user, const double a[3], const double b[3])
         double sa = q[0] * a[0] + q[1] * a[1] + q[2] * a[2] - q[3], sb = q[0] * b[0] + q[1] * b[1] + q[2] * b[2] - q[3];
         if (sa * sb < 0.0 && sa / (sa - sb) < t) t = sa / (sa - sb);
     }
+    const double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    for (Py_ssize_t i = 0; i < pl->tri_count; i++) {
+        double h = tri_hit(pl->tri + 9 * i, a, d);
+        if (h >= 1e-4 && h <= 1.0 - 1e-4 && h < t) t = h;
+    }
     return t;
+}
+
+/* The static scene argument pair (planes float64[K*4] | None, triangles float64[T*9] | None). */
+static int get_scene(PyObject *p_obj, PyObject *t_obj, pb_py_buffer *pl, pb_py_buffer *tr, planes *scene)
+{
+    if (p_obj != Py_None && _pb_py_get_buffer(p_obj, "planes", 'd', 4, -1, pl) < 0) return -1;
+    if (t_obj != Py_None && _pb_py_get_buffer(t_obj, "triangles", 'd', 9, -1, tr) < 0) {
+        _pb_py_release(pl);
+        return -1;
+    }
+    scene->p = pl->view.obj ? pl->view.buf : NULL;
+    scene->count = pl->view.obj ? pl->count / 4 : 0;
+    scene->tri = tr->view.obj ? tr->view.buf : NULL;
+    scene->tri_count = tr->view.obj ? tr->count / 9 : 0;
+    return (pl->view.obj || tr->view.obj) ? 1 : 0;
+}
+
+/* bricks_leaf_tables(tree, planes=None, triangles=None) -> bytearray leaf_count × 64: the leaves' pair
+ * tables (pb_cotree_pair_visibility) through the test scene, for the query's pair_visibility. */
+static PyObject *py_bricks_leaf_tables(PyObject *module, PyObject *args)
+{
+    PyObject *t_obj, *p_obj = Py_None, *tr_obj = Py_None;
+    if (!PyArg_ParseTuple(args, "O|OO:bricks_leaf_tables", &t_obj, &p_obj, &tr_obj)) return NULL;
+    pb_cotree *t = _pb_py_get_cotree(t_obj);
+    if (!t) return NULL;
+    pb_py_buffer pl = {0}, tr = {0};
+    planes scene = {0};
+    if (get_scene(p_obj, tr_obj, &pl, &tr, &scene) < 0) return NULL;
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)pb_cotree_leaf_count(t) * 64);
+    pb_result r = PB_SUCCESS;
+    pb_error err = {0};
+    if (out) {
+        Py_BEGIN_ALLOW_THREADS r =
+            pb_cotree_pair_visibility(t, planes_segment, &scene, (uint8_t *)PyByteArray_AsString(out), &err);
+        Py_END_ALLOW_THREADS
+    }
+    _pb_py_release(&pl);
+    _pb_py_release(&tr);
+    if (!out) return NULL;
+    if (r != PB_SUCCESS) {
+        Py_DECREF(out);
+        return _pb_py_raise_core(module, r, &err);
+    }
+    return out;
 }
 
 /* bricks_build(tree, coeffs float64[P*C*3], coeff_count, validity float32[P] | None, scale float32[P] | None,
@@ -45,9 +121,10 @@ static double planes_segment(void *user, const double a[3], const double b[3])
  * the static scene). */
 static PyObject *py_bricks_build(PyObject *module, PyObject *args)
 {
-    PyObject *t_obj, *c_obj, *v_obj = Py_None, *s_obj = Py_None, *p_obj = Py_None;
+    PyObject *t_obj, *c_obj, *v_obj = Py_None, *s_obj = Py_None, *p_obj = Py_None, *tr_obj = Py_None;
     Py_ssize_t count_in, max_in = 0;
-    if (!PyArg_ParseTuple(args, "OOn|OOnO:bricks_build", &t_obj, &c_obj, &count_in, &v_obj, &s_obj, &max_in, &p_obj))
+    if (!PyArg_ParseTuple(args, "OOn|OOnOO:bricks_build", &t_obj, &c_obj, &count_in, &v_obj, &s_obj, &max_in, &p_obj,
+                          &tr_obj))
         return NULL;
     pb_cotree *t = _pb_py_get_cotree(t_obj);
     if (!t) return NULL;
@@ -60,24 +137,25 @@ static PyObject *py_bricks_build(PyObject *module, PyObject *args)
     if (max_in < 0) return PyErr_Format(PyExc_ValueError, "max_bytes %zd is negative", max_in);
     Py_ssize_t P = (Py_ssize_t)pb_cotree_probe_count(t), want = _pb_py_product3(P, (Py_ssize_t)C, 3, "coeffs");
     if (want < 0) return NULL;
-    pb_py_buffer co = {0}, val = {0}, sc = {0}, pl = {0};
+    pb_py_buffer co = {0}, val = {0}, sc = {0}, pl = {0}, tr = {0};
+    planes scene = {0};
+    int has_scene = 0;
     if (_pb_py_get_buffer(c_obj, "coeffs", 'd', 0, want, &co) < 0 ||
         (v_obj != Py_None && _pb_py_get_buffer(v_obj, "validity", 'f', 0, P, &val) < 0) ||
         (s_obj != Py_None && _pb_py_get_buffer(s_obj, "scale", 'f', 0, P, &sc) < 0) ||
-        (p_obj != Py_None && _pb_py_get_buffer(p_obj, "planes", 'd', 4, -1, &pl) < 0)) {
+        (has_scene = get_scene(p_obj, tr_obj, &pl, &tr, &scene)) < 0) {
         _pb_py_release(&co);
         _pb_py_release(&val);
         _pb_py_release(&sc);
         return NULL;
     }
-    planes scene = {.p = pl.view.obj ? pl.view.buf : NULL, .count = pl.view.obj ? pl.count / 4 : 0};
     pb_bricks_desc d = {.tree = t,
                         .coeff_count = C,
                         .coeffs = co.view.buf,
                         .validity = val.view.obj ? val.view.buf : NULL,
                         .scale = sc.view.obj ? sc.view.buf : NULL,
                         .max_bytes = (uint64_t)max_in,
-                        .segment = pl.view.obj ? planes_segment : NULL,
+                        .segment = has_scene ? planes_segment : NULL,
                         .segment_user = &scene};
     pb_bricks *b = NULL;
     pb_error err = {0};
@@ -87,6 +165,7 @@ static PyObject *py_bricks_build(PyObject *module, PyObject *args)
     _pb_py_release(&val);
     _pb_py_release(&sc);
     _pb_py_release(&pl);
+    _pb_py_release(&tr);
     if (r != PB_SUCCESS) return _pb_py_raise_core(module, r, &err);
     PyObject *cap = PyCapsule_New(b, PB_PY_CAP_BRICKS, bricks_capsule_free);
     if (!cap) pb_bricks_destroy(b);
@@ -271,8 +350,10 @@ static PyObject *py_bricks_pool(PyObject *module, PyObject *args)
 
 PyMethodDef _pb_py_bricks_methods[] = {
     {"bricks_build", py_bricks_build, METH_VARARGS,
-     "bricks_build(tree, coeffs: float64[P*C*3], coeff_count, validity=None, scale=None, max_bytes=0, planes=None) "
-     "-> handle"},
+     "bricks_build(tree, coeffs: float64[P*C*3], coeff_count, validity=None, scale=None, max_bytes=0, planes=None, "
+     "triangles=None) -> handle"},
+    {"bricks_leaf_tables", py_bricks_leaf_tables, METH_VARARGS,
+     "bricks_leaf_tables(tree, planes=None, triangles=None) -> bytearray leaf_count * 64 (pair tables)"},
     {"bricks_info", py_bricks_info, METH_O, "bricks_info(handle) -> dict (sizes, regions, indirection, texels)"},
     {"bricks_sample", py_bricks_sample, METH_VARARGS,
      "bricks_sample(handle, points: float64[N*3], subtexel_bits=0) -> (coeffs, d, has_value, brick, x) bytearrays"},

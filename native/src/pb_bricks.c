@@ -674,8 +674,9 @@ pb_result pb_bricks_sample_surface(const pb_bricks *b, const double p_lookup[3],
             memcpy(wv, wb, sizeof wv);
         }
         for (uint32_t k = 0; k < 8; k++) sw += wv[k];
-        /* e. The weighted sample: 8 taps, or one tap at the weights' per-axis mean. */
-        if (taps8) {
+        /* e. The weighted sample: 8 taps (8TAP, or a blocked cell: the ramp drops corners, which the
+         *    separable weights of one tap at f' would bring back), or one tap at the weights' per-axis mean. */
+        if (taps8 || blocked) {
             if (sw > 0.0) {
                 cell_weighted(b, brick, k0, wv, nd);
                 done = nd[3] > 0.0;

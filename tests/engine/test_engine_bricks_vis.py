@@ -55,7 +55,8 @@ def taps(tex, b, k0, f, bits):
 def surface_model(bricks, p, n, static, bits=0, f16=True):
     """pb_bricks_sample_surface (one tap) step by step over the C's texels (binary16-rounded when f16, as
     the engine's pool): a. cell, blocked bit; b. trilinear; c. back faces (static); d. visibility ramp of
-    the blocked cell's record; e. one tap at f'; f. else the plain sample at x. p = p_surface = p_lookup
+    the blocked cell's record; e. in a blocked cell the 8 taps with the exact weights, else one tap at f';
+    f. else the plain sample at x. p = p_surface = p_lookup
     (normal bias 0). Returns (coeffs (M, C, 3), has_value (M,), D (M,): the divisor of N / D, blocked (M,):
     the point's brick cell has a record)."""
     info = bricks.info()
@@ -89,11 +90,15 @@ def surface_model(bricks, p, n, static, bits=0, f16=True):
     v = np.where(wbsum[:, None] > 0, v / np.where(wbsum > 0, wbsum, 1.0)[:, None], 0.0)
     wv = np.where(blocked[:, None], wb * smoothstep(0.5, 0.75, v), wb)
     sw = wv.sum(axis=1)
-    # e.
+    # e. A blocked cell: the 8 taps with the exact weights w'; else (static) one tap at f'.
+    eight = np.zeros((len(p), tex.shape[-1]))
+    for c in range(8):
+        o = CORNERS[c].astype(int)
+        eight += wv[:, c, None] * tex[b, k0[:, 2] + o[2], k0[:, 1] + o[1], k0[:, 0] + o[0]]
     f1 = np.where(sw[:, None] > 0, (wv @ CORNERS) / np.where(sw > 0, sw, 1.0)[:, None], f)
-    one = taps(tex, b, k0, f1, bits)
+    one = np.where(blocked[:, None], eight, taps(tex, b, k0, f1, bits))
     plain = taps(tex, b, k0, f, bits)
-    use = (static | blocked) & (one[:, 3] > 0)
+    use = (static | blocked) & (one[:, 3] > 0) & (~blocked | (sw > 0))
     nd = np.where(use[:, None], one, plain)
     d = nd[:, 3]
     has = found & (d > 0)

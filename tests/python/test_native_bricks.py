@@ -205,11 +205,23 @@ def _wall(tmp_path, refine):
     return tree, field, plane, pv, proto, bricks, u
 
 
+def _blocked_cells(bricks, points):
+    """Whether each engine-space point's brick cell is blocked (has a record): the brick table's bit of
+    the cell k0 = min(floor(x), 3) of pb_bricks_locate's brick and x (False where no brick)."""
+    info = bricks.info()
+    _, _, _, brick, x = bricks.sample_raw(points)
+    k0 = np.minimum(np.floor(x), 3).astype(np.int64)
+    cell = k0[:, 0] + 4 * k0[:, 1] + 16 * k0[:, 2]
+    row = info["table"][np.maximum(brick, 0)].astype(np.uint64)
+    bits = row[:, 1] | row[:, 2] << np.uint64(32)
+    return (brick >= 0) & ((bits >> cell.astype(np.uint64)) & np.uint64(1)).astype(bool)
+
+
 @pytest.mark.parametrize("refine", [False, True])
 def test_wall_as_the_prototype(tmp_path, refine):
     """The plane wall of docs/probe-bricks.md's table against the numpy prototype on the same tree and
-    points: visibility texels to 1e-12, the 8-tap and the 1-tap (8-bit fractions) surface samples to
-    1e-12 of the largest coefficient, and the light on the dark side (relative to the dark value) as the
+    points: visibility texels to 1e-12, the 8-tap and the 1-tap (8-bit fractions; the 8 taps in blocked
+    brick cells) surface samples to 1e-12 of the largest coefficient, and the light on the dark side (relative to the dark value) as the
     doc's figures (rounded to 0.01 there): in min-cell leaves no leak (1.00 to 1e-7) for today's rule and
     the bricks; through leaves of levels 1-3 the dark face 3.24x (today 3.29x), the floor 5.65x (today
     5.92x). Records: one per brick cell the wall crosses (512 for the 16 x 32 min-cell wall; 128 through
@@ -233,7 +245,10 @@ def test_wall_as_the_prototype(tmp_path, refine):
     for name, nv in (("face", [1.0, 0.0, 0.0]), ("floor", [0.0, 1.0, 0.0])):
         nn = np.repeat(np.array([nv]), len(u), axis=0)
         p8 = bb.brick_rule(proto, u, nn, plane)
-        p1 = bb.brick_rule(proto, u, nn, plane, taps="1")
+        # One tap (8-bit fractions), except in a blocked brick cell: the 8 exact taps there (step 5e).
+        blk = _blocked_cells(bricks, field.world(u))
+        assert blk.sum() > 100 and (~blk).sum() > 100
+        p1 = np.where(blk[:, None, None], p8, bb.brick_rule(proto, u, nn, plane, taps="1"))
         g8, _, h8 = bricks.sample_surface(field.world(u), nn, static=True, eight_tap=True)
         g1, _, h1 = bricks.sample_surface(field.world(u), nn, static=True, subtexel_bits=8)
         assert h8.all() and h1.all()
@@ -337,3 +352,48 @@ def test_surface_sample_refused_and_capped(tmp_path):
     with pytest.raises(native.SchneeError, match="visibility records"):
         native.Bricks.build(tree, field.values, max_bytes=hi + tables + recs // 2, planes=planes)
     native.Bricks.build(tree, field.values, max_bytes=hi + tables + recs, planes=planes)
+
+
+def test_thin_panel_next_to_a_movable_object():
+    """Issue 30's panel_edge leak (bench/results/spheres.md, "The lamp-lit room with probe bricks") in
+    closed form: min-cell leaves (h = 0.5 m), a thin panel (one quad at y = 3.8 cells, x <= 4 cells)
+    under a row of bright probes (100, on and above the panel's top at y >= 4, x <= 4), every other
+    probe 1. In the cell [4, 5] x [3, 4] beside the panel's edge the leaf tables drop the two bright
+    corners (the panel cuts their edge to the corner below); wherever their ramps are 0, today's rule
+    (the query with pair visibility, the storage-buffer path of a movable object) is exactly 1, and the
+    bricks' movable sample must be too. One filtered tap at the weights' per-axis mean (the rule before
+    the fix) gave the dropped corners back (separable weights): up to 19.98 here (20x the dark value). With the 8 exact taps
+    in blocked cells the bricks equal today's rule to 1e-12 in every blocked cell (brick cell = leaf)."""
+    h = 0.5
+    tree = native.CornerOctree.uniform((0.0, 0.0, 0.0), h, 0, (8, 8, 8))
+    tree.finalize()
+    pos = tree.positions() / h
+    bright = (pos[:, 1] >= 4) & (pos[:, 0] <= 4)
+    c = np.zeros((tree.probe_count, 9, 3))
+    c[:, 0, :] = np.where(bright, 100.0, 1.0)[:, None]
+    q = np.array([[-1.0, 3.8, -1.0], [4.0, 3.8, -1.0], [4.0, 3.8, 9.0], [-1.0, 3.8, 9.0]]) * h
+    tris = np.stack([q[[0, 1, 2]], q[[0, 2, 3]]])
+    bricks = native.Bricks.build(tree, c, triangles=tris)
+    info = bricks.info()
+    assert info["vis_record_count"] > 0
+    pv = native.Bricks.leaf_tables(tree, triangles=tris)
+    rng = np.random.default_rng(30)
+    u = np.column_stack([4 + rng.random(20000), 3 + rng.random(20000), 0.5 + 7 * rng.random(20000)])
+    pts = u * h
+    blk = _blocked_cells(bricks, pts)
+    assert blk.all()  # the cells beside the panel's edge are blocked (records)
+    probes, w = tree.query(pts, pair_visibility=pv)
+    today = (w * c[np.maximum(probes, 0), 0, 0]).sum(axis=1)
+    dropped = ((w > 0) & bright[np.maximum(probes, 0)] & (probes >= 0)).sum(axis=1) == 0
+    assert dropped.sum() > 5000
+    np.testing.assert_allclose(today[dropped], 1.0, rtol=0, atol=1e-12)  # the closed form
+    for bits in (0, 8):
+        got, _, has = bricks.sample_surface(pts, subtexel_bits=bits)
+        assert has.all()
+        assert np.abs(got[dropped, 0, 0] - 1.0).max() < 1e-12, np.abs(got[dropped, 0, 0] - 1.0).max()
+        assert np.abs(got[:, 0, 0] - today).max() < 1e-12 * 100
+    # Static surfaces (back faces, normals up) in the same cells: also the 8 taps, equal to the 8-tap form.
+    nn = np.repeat([[0.0, 1.0, 0.0]], len(pts), axis=0)
+    g1, _, _ = bricks.sample_surface(pts, nn, static=True, subtexel_bits=8)
+    g8, _, _ = bricks.sample_surface(pts, nn, static=True, eight_tap=True)
+    assert np.abs(g1 - g8).max() < 1e-12

@@ -158,9 +158,10 @@ bool pb_bricks_sample_bits(const pb_bricks *bricks, const double p[3], uint32_t 
  *   d. visibility (blocked): v_c = Σ_k wb_k V(k, c) / wbsum (V = pb_vis_pair_value of the cell's record;
  *      v_c = 0 when wbsum = 0), w'_c = wb_c · smoothstep(½, ½ + PB_VIS_RAMP, v_c); else w' = wb.
  *      sw = Σ w'_c.
- *   e. 8TAP: N' = Σ w'_k T_k, D' = Σ w'_k D_k over the cell's 8 texels; sw > 0 and D' > 0: N' / D'.
- *      1 tap: f'_a = Σ_k w'_k bit_a(k) / sw (sw = 0: f' = f), one filtered sample at k0 + f' (fractions
- *      rounded to subtexel_bits); D > 0: N / D.
+ *   e. 8TAP or blocked: N' = Σ w'_k T_k, D' = Σ w'_k D_k over the cell's 8 texels (exact weights, also
+ *      in the 1-tap form: one tap's separable weights would give back corners the ramp dropped);
+ *      sw > 0 and D' > 0: N' / D'. Else (1 tap, unblocked: back faces only): f'_a = Σ_k w'_k bit_a(k) /
+ *      sw (sw = 0: f' = f), one filtered sample at k0 + f' (fractions rounded to subtexel_bits); D > 0: N / D.
  *   f. Else the plain sample at x (the shader's second pass); D ≤ 0: false (no value).
  * The plain sample: 8TAP exact weights (= pb_bricks_sample), else pb_bricks_filter with subtexel_bits
  * (= pb_bricks_sample_bits). subtexel_bits applies to filtered fetches only (8TAP is exact).
