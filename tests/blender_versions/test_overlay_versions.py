@@ -2,8 +2,8 @@
 unstable) in their chroots: tests/blender/scripts/overlay_draw.py, the same checks as the host's
 tests/blender/test_overlay.py (3.4), same tolerance (1 code of the 8-bit offscreen).
 
-Neither release has a GPU context in ``-b`` (4.3: "not available in background mode"; 5.2 opens a
-headless EGL context, but the chroot has no libEGL), so Blender runs with a window on an Xvfb server
+Neither release has a GPU context in ``-b`` (4.3: "not available in background mode"; 5.2 asks for a
+headless EGL context, but its chroot has no libEGL), so Blender runs with a window on an Xvfb server
 that this test starts on the host, listening on TCP (the chroot shares the network, not /tmp): Mesa's
 llvmpipe inside the chroot draws. The add-on is the extension package's native module and bundled
 libraries (dist/*-extension.zip) with this tree's Python files over it (no reinstall per edit), on
@@ -68,11 +68,12 @@ def drawn(request, xserver):
     zips = sorted((REPO / "dist").glob("schnee_probes-*-extension.zip"))
     if not zips:
         pytest.skip("no extension package: cmake --build build --target schnee_extension")
-    if SUITES[suite] >= (5, 0) and not any((root / d / "libEGL.so.1").exists()
-                                          for d in ("usr/lib/x86_64-linux-gnu", "usr/lib")):
-        # Blender 5.x opens its GPU context through EGL also under X11.
-        pytest.xfail(f"the {suite} chroot has no libEGL.so.1 (scripts/blender-chroot.sh installs blender and "
-                     "python3-numpy only; Blender 5.x needs libegl1 + libegl-mesa0 to draw)")
+    if not any((root / d / "libGL.so.1").exists() for d in ("usr/lib/x86_64-linux-gnu", "usr/lib")):
+        # Blender opens its window's GPU context through libGL (GLX) under X11, through libEGL in -b.
+        pytest.xfail(f"the {suite} chroot has no libGL.so.1 and no libEGL.so.1 (scripts/blender-chroot.sh "
+                     "installs blender and python3-numpy only, and Debian's Blender 5.x no longer pulls "
+                     "Mesa in): Blender aborts at start with a window ('Couldn't open libGL.so.1') and "
+                     "in -b ('Couldn't open libEGL.so.1'); libgl1 libegl1 libgl1-mesa-dri would let it draw")
     inner = Path("/tmp") / f"schnee-overlay-{os.getpid()}-{suite}"
     outer = root / inner.relative_to("/")
     shutil.rmtree(outer, ignore_errors=True)
