@@ -99,3 +99,9 @@ def test_cache_rereads_a_new_bake(drawn):
 def test_scene_files_are_the_bakes_outputs(drawn):
     files = drawn["scene_files"]
     assert [os.path.basename(f) for f in files] == ["grid.shprobe", "points.shprobe"]
+
+
+def test_viewport_handler_draws_the_scene_files(drawn):
+    """Blender's own 3D Viewport redraw (wm.redraw_timer) runs the POST_VIEW handler: both files of
+    the scene get their probe texture, no error is kept for the panel."""
+    assert drawn["viewport"] == {"drawn": ["grid.shprobe", "points.shprobe"], "error": None}

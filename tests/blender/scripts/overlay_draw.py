@@ -107,6 +107,7 @@ def run_checks():
     out["errors"] = error_checks()
     out["reload"] = reload_check(paths[0])
     out["scene_files"] = scene_files_check(paths)
+    out["viewport"] = viewport_check()
     if BENCH:
         out["bench"] = bench(BENCH)
     return out
@@ -148,6 +149,24 @@ def scene_files_check(paths):
     props.last_files = ";".join([paths[0], os.path.join(OUT, "sky.exr")])
     props.output_path = paths[1]
     return overlay_data.scene_files(props)
+
+
+def viewport_check():
+    """The POST_VIEW handler in Blender's own 3D Viewport redraw: with the overlay on, the scene's
+    files (scene_files_check's) get their GPU resources and no drawing error is kept."""
+    from schnee_probes import overlay, overlay_gpu
+    overlay_gpu.free_resources()
+    bpy.context.scene.schnee_overlay.show = True
+    win = bpy.context.window_manager.windows[0]
+    override = getattr(bpy.context, "temp_override", None)
+    if override is not None:
+        with override(window=win):
+            bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
+    else:
+        bpy.ops.wm.redraw_timer({"window": win}, type='DRAW_WIN_SWAP', iterations=1)
+    drawn = sorted(os.path.basename(p) for p in overlay_gpu._resources)
+    bpy.context.scene.schnee_overlay.show = False
+    return {"drawn": drawn, "error": overlay._state["error"]}
 
 
 def bench(n):
