@@ -103,5 +103,7 @@ def test_scene_files_are_the_bakes_outputs(drawn):
 
 def test_viewport_handler_draws_the_scene_files(drawn):
     """Blender's own 3D Viewport redraw (wm.redraw_timer) runs the POST_VIEW handler: both files of
-    the scene get their probe texture, no error is kept for the panel."""
-    assert drawn["viewport"] == {"drawn": ["grid.shprobe", "points.shprobe"], "error": None}
+    the scene get their probe texture, no error is kept for the panel; the panel itself is drawn
+    (its files listed) without an exception."""
+    assert drawn["viewport"] == {"drawn": ["grid.shprobe", "points.shprobe"], "error": None, "panel_drawn": True}
+    assert "Traceback" not in drawn["stderr"]

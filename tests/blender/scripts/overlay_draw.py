@@ -158,6 +158,23 @@ def viewport_check():
     overlay_gpu.free_resources()
     bpy.context.scene.schnee_overlay.show = True
     win = bpy.context.window_manager.windows[0]
+    # The panel too: the sidebar shows its first tab (Item), so a copy of the panel is put there
+    # (as object_probe_mode_ui.py does); its draw is recorded, an exception would reach stderr.
+    panel_calls = []
+
+    class ItemCopy(overlay.VIEW3D_PT_schnee_overlay):
+        bl_idname = "VIEW3D_PT_schnee_overlay_item_test"
+        bl_category = "Item"
+        bl_parent_id = ""
+
+        def draw(self, context):
+            overlay.draw_overlay_panel(self.layout, context.scene)
+            panel_calls.append("ok")
+    bpy.utils.register_class(ItemCopy)
+    for area in win.screen.areas:
+        if area.type == 'VIEW_3D':
+            area.spaces.active.show_region_ui = True
+            area.tag_redraw()
     override = getattr(bpy.context, "temp_override", None)
     if override is not None:
         with override(window=win):
@@ -166,7 +183,7 @@ def viewport_check():
         bpy.ops.wm.redraw_timer({"window": win}, type='DRAW_WIN_SWAP', iterations=1)
     drawn = sorted(os.path.basename(p) for p in overlay_gpu._resources)
     bpy.context.scene.schnee_overlay.show = False
-    return {"drawn": drawn, "error": overlay._state["error"]}
+    return {"drawn": drawn, "error": overlay._state["error"], "panel_drawn": bool(panel_calls)}
 
 
 def bench(n):
