@@ -3,10 +3,14 @@ its panel under Sidebar > Schnee Engine > SH Probes, and the draw handler.
 
 The handler is registered with the add-on and returns at once while the overlay is off. When on, it
 draws every ``.shprobe`` the scene's bakes wrote (overlay_data.scene_files), each read once and again
-only after its mtime or size changes; a file that cannot be drawn is listed in the panel with the
-reason, and a drawing error is kept for the panel instead of raising in Blender's draw loop.
+only after its mtime or size changes. Reading runs in a worker thread (:func:`probe_set`; the native
+reader and numpy touch no ``bpy``), so a large file never stalls the UI: the viewport draws the other
+files meanwhile and a timer redraws it when the read is done. A file that cannot be drawn is listed
+in the panel with the reason, and a drawing error is kept for the panel instead of raising in
+Blender's draw loop.
 """
 import os
+import threading
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, PointerProperty
@@ -22,6 +26,39 @@ COLOUR_MODES = (
 )
 
 _state = {"handler": None, "error": None}
+_loading = {}   # path -> the worker thread reading it
+
+
+def probe_set(path):
+    """The file's :class:`overlay_data.ProbeSet` when it is read and current; else None, with a read
+    started in a worker thread (once per path) and a timer that redraws the viewports when it ends."""
+    ps = overlay_data.cached(path)
+    if ps is not None:
+        return ps
+    if path not in _loading:
+        worker = threading.Thread(target=overlay_data.load, args=(path,), daemon=True,
+                                  name="schnee-overlay-read")
+        _loading[path] = worker
+        worker.start()
+        if not bpy.app.timers.is_registered(_poll_reads):
+            bpy.app.timers.register(_poll_reads, first_interval=0.1)
+    return None
+
+
+def wait_for_reads(timeout=60.0):
+    """Block until the reads started by :func:`probe_set` end (tests, scripts)."""
+    for worker in list(_loading.values()):
+        worker.join(timeout)
+    _poll_reads()
+
+
+def _poll_reads():
+    done = [p for p, w in _loading.items() if not w.is_alive()]
+    for p in done:
+        del _loading[p]
+    if done:
+        _redraw()
+    return 0.1 if _loading else None
 
 
 def _redraw(_self=None, context=None):
@@ -71,7 +108,9 @@ def draw_viewport():
         from . import overlay_gpu
         vp = region_data.perspective_matrix
         for path in overlay_data.scene_files(scene.schnee_probes):
-            ps = overlay_data.load(path)
+            ps = probe_set(path)
+            if ps is None:   # being read
+                continue
             overlay_gpu.draw(ps, vp, radius=ov.sphere_size, exposure=ov.exposure, mode=ov.colour_mode,
                              show_probes=ov.show_probes, show_cells=ov.show_cells, cell_alpha=ov.cell_alpha)
         _state["error"] = None
@@ -126,10 +165,12 @@ def draw_overlay_panel(layout, scene):
     if not files:
         col.label(text="No baked files (save the .blend or bake first)", icon='INFO')
     for path in files:
-        ps = overlay_data.load(path) if ov.show else None
+        ps = probe_set(path) if ov.show else None
         box = col.box()
         box.label(text=os.path.basename(path), icon='FILE')
         if ps is None:
+            if path in _loading:
+                box.label(text="Reading…", icon='SORTTIME')
             continue
         if ps.error:
             box.label(text=ps.error, icon='ERROR')

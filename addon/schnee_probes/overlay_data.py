@@ -203,8 +203,8 @@ def read(path: str) -> ProbeSet:
 _cache: Dict[str, ProbeSet] = {}
 
 
-def load(path: str) -> ProbeSet:
-    """:func:`read` through a cache keyed by path, re-read when the file's (mtime, size) changed."""
+def cached(path: str) -> Optional[ProbeSet]:
+    """The cached :class:`ProbeSet` of ``path`` while the file's (mtime, size) is unchanged, else None."""
     try:
         st = os.stat(path)
         stamp = (st.st_mtime_ns, st.st_size)
@@ -212,6 +212,15 @@ def load(path: str) -> ProbeSet:
         stamp = None
     hit = _cache.get(path)
     if hit is not None and stamp is not None and hit.stamp == stamp:
+        return hit
+    return None
+
+
+def load(path: str) -> ProbeSet:
+    """:func:`read` through a cache keyed by path, re-read when the file's (mtime, size) changed.
+    Touches no ``bpy``: the overlay calls it from a worker thread (overlay.probe_set)."""
+    hit = cached(path)
+    if hit is not None:
         return hit
     ps = read(path)
     _cache[path] = ps

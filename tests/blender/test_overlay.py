@@ -105,5 +105,6 @@ def test_viewport_handler_draws_the_scene_files(drawn):
     """Blender's own 3D Viewport redraw (wm.redraw_timer) runs the POST_VIEW handler: both files of
     the scene get their probe texture, no error is kept for the panel; the panel itself is drawn
     (its files listed) without an exception."""
-    assert drawn["viewport"] == {"drawn": ["grid.shprobe", "points.shprobe"], "error": None, "panel_drawn": True}
+    assert drawn["viewport"] == {"drawn": ["grid.shprobe", "points.shprobe"], "error": None, "panel_drawn": True,
+                                 "pending_after_first_redraw": ["grid.shprobe", "points.shprobe"]}
     assert "Traceback" not in drawn["stderr"]

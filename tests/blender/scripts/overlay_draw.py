@@ -153,9 +153,11 @@ def scene_files_check(paths):
 
 def viewport_check():
     """The POST_VIEW handler in Blender's own 3D Viewport redraw: with the overlay on, the scene's
-    files (scene_files_check's) get their GPU resources and no drawing error is kept."""
+    files (scene_files_check's) are read in worker threads, then get their GPU resources; no
+    drawing error is kept."""
     from schnee_probes import overlay, overlay_gpu
     overlay_gpu.free_resources()
+    overlay_data.clear_cache()
     bpy.context.scene.schnee_overlay.show = True
     win = bpy.context.window_manager.windows[0]
     # The panel too: the sidebar shows its first tab (Item), so a copy of the panel is put there
@@ -181,9 +183,18 @@ def viewport_check():
             bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
     else:
         bpy.ops.wm.redraw_timer({"window": win}, type='DRAW_WIN_SWAP', iterations=1)
+    # The first redraw starts the reads in worker threads and draws nothing of them yet.
+    pending = sorted(os.path.basename(p) for p in overlay._loading)
+    overlay.wait_for_reads()
+    if override is not None:
+        with override(window=win):
+            bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
+    else:
+        bpy.ops.wm.redraw_timer({"window": win}, type='DRAW_WIN_SWAP', iterations=1)
     drawn = sorted(os.path.basename(p) for p in overlay_gpu._resources)
     bpy.context.scene.schnee_overlay.show = False
-    return {"drawn": drawn, "error": overlay._state["error"], "panel_drawn": bool(panel_calls)}
+    return {"drawn": drawn, "error": overlay._state["error"], "panel_drawn": bool(panel_calls),
+            "pending_after_first_redraw": pending}
 
 
 def bench(n):
