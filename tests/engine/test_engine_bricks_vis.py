@@ -18,6 +18,7 @@ from test_engine_v3 import octree, random_sh, sg
 
 from schnee_probes import native
 
+HALF = 2.0 ** -11  # binary16 relative rounding
 CORNERS = np.array([[k & 1, (k >> 1) & 1, (k >> 2) & 1] for k in range(8)], float)  # corner k = bits x, y, z
 
 
@@ -306,3 +307,61 @@ def test_per_object_keeps_todays_query_and_the_bricks_at_the_centre_would_differ
           f"the centre vs today's rule: relative mean {rel.mean():.3g}, max {rel.max():.3g}, "
           f"{(rel > 0.01).sum()} of 16 beyond 1 %")
     assert rel.max() > 0.01  # the two rules differ measurably here (the choice is a real one)
+
+
+def test_thin_panel_next_to_a_movable_quad_does_not_leak(tmp_path):
+    """Issue 30's panel_edge leak in closed form on the engine (as tests/python/test_native_bricks.py
+    ::test_thin_panel_next_to_a_movable_object): min-cell leaves (h = 0.5 m, 8^3), a static thin panel
+    (one quad at y = 1.9 m, x <= 2 m) under a row of bright probes (radiance 100 at y >= 2 m, x <= 2 m),
+    every other probe 1; a movable horizontal quad at y = 1.75 m seen from above beside the panel's edge
+    (x in [2.05, 2.45] m: the brick cells [4, 5] x [3, 4] x z, blocked). Where the leaf tables drop both
+    bright corners, today's rule (the query with pair visibility) is exactly the dark value; the pixels
+    must be too (one filtered tap at the weights' mean gave the dropped corners back: up to 20x), and
+    every pixel equals today's rule within binary16 rounding."""
+    h = 0.5
+    tree = native.CornerOctree.uniform((0.0, 0.0, 0.0), h, 0, (8, 8, 8))
+    tree.finalize()
+    pos = tree.positions() / h
+    bright = (pos[:, 1] >= 4) & (pos[:, 0] <= 4)
+    coeffs = np.zeros((tree.probe_count, 9, 3), np.float32)
+    coeffs[:, 0, :] = np.where(bright, 100.0, 1.0)[:, None]
+    (tmp_path / "sh_coeffs").mkdir(exist_ok=True)
+    path = tmp_path / "sh_coeffs" / "p.shprobe"
+    count = native.write_shprobe_v3(str(path), tree, coeffs)
+    f = native.read_shprobe(str(path))
+    entry = sg.grid_entry("p", "sh_coeffs/p.shprobe", count, f.grid_origin, f.grid_dims, f.grid_spacing)
+    entry.update(representation=f.representation, storage=f.storage, structure=f.structure)
+    b = sg.GltfBuilder()
+    m = b.material("White", sh_scale=1.0, ambient_term=0.0, probe_mode="pixel")
+    b.node("Panel", mesh=b.mesh("panel", sg.quad(5.0, 2.5, 1), m), translation=(0.75, 1.9, 2.0))  # z 5 m, x 2.5 m
+    b.node("Quad", mesh=b.mesh("quad", sg.quad(4.0, 4.0, 1), m), translation=(20.0, 20.0, 20.0))
+    b.node("Camera", camera=b.ortho_camera("top", 0.2), translation=(2.25, 3.0, 2.25), rotation=sg.ROT_LOOK_DOWN)
+    b.probe_grids([entry])
+    scene = b.write(tmp_path / "panel.gltf")
+    size = 64
+    img, proc = render(scene, tmp_path / "p.exr", size, "--move", "Quad", 2.25, 1.75, 2.25, *BRICKS)
+    assert "probe brick visibility: " in proc.stderr, proc.stderr
+    p = pixel_points(2.25, 2.25, 0.2, 1.75, size).reshape(-1, 3)
+    n = np.repeat([[0.0, 1.0, 0.0]], len(p), axis=0)
+    # Today's rule (the storage-buffer path of a movable object) through the same panel.
+    q = np.array([[-0.5, 1.9, -0.5], [2.0, 1.9, -0.5], [2.0, 1.9, 4.5], [-0.5, 1.9, 4.5]])
+    tris = np.stack([q[[0, 1, 2]], q[[0, 2, 3]]])
+    pv = native.Bricks.leaf_tables(tree, triangles=tris)
+    probes, w = tree.query(p, pair_visibility=pv)
+    vals = f.coeffs.astype(np.float64)
+    today = e_of(np.einsum("mk,mkic->mic", w, vals[np.maximum(probes, 0)]), n)
+    dark = e_of(vals[~bright][:1], n[:1])[0]
+    dropped = ((w > 0) & bright[np.maximum(probes, 0)] & (probes >= 0)).sum(axis=1) == 0
+    assert dropped.sum() > 0.3 * len(p), dropped.sum()
+    np.testing.assert_allclose(today[dropped], np.broadcast_to(dark, today[dropped].shape), rtol=1e-12)
+    bricks = native.Bricks.build(tree, vals, triangles=tris)
+    got, _, has = bricks.sample_surface(p, subtexel_bits=8)
+    assert has.all() and np.abs(e_of(got, n) - today).max() < 1e-9 * today.max()
+    pix = img.reshape(-1, 3)
+    err_dark = np.abs(pix[dropped] - dark).max()
+    err = (np.abs(pix - today) / today).max()
+    print(f"panel: {dropped.sum()} of {len(p)} pixels with both bright corners dropped: max |pixel - dark| "
+          f"{err_dark:.3g} (dark {dark[0]:.4g}); max relative |pixel - today's rule| {err:.3g} "
+          f"(today's max {today.max():.4g}); {bricks.info()['vis_record_count']} records")
+    assert err_dark < 2 * HALF * dark.max() + 1e-6
+    assert err < 4 * HALF + 1e-5
