@@ -19,8 +19,10 @@ set -euo pipefail
 ROOT="${SCHNEE_CHROOT_DIR:-/var/cache/schnee-chroots}"
 MIRROR="${SCHNEE_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
 # Blender, and numpy: every blender.org build bundles numpy, Debian packages it separately (and its
-# blender package does not depend on it). Nothing else: no Embree, OpenImageIO or dev packages.
-PACKAGES=(blender python3-numpy)
+# blender package does not depend on it). Mesa's GL/EGL (libgl1, libegl1, libgl1-mesa-dri: llvmpipe):
+# Blender's gpu module needs a GL context for the viewport overlay's tests (docs/overlay.md), and sid's
+# blender package does not pull them in. Nothing else: no Embree, OpenImageIO or dev packages.
+PACKAGES=(blender python3-numpy libgl1 libegl1 libgl1-mesa-dri)
 # The dev flavour: exactly the build dependencies of the C core, the engine and the Python module,
 # patchelf for the add-on zip that the default build also writes (cmake/addon_zip.cmake), and
 # blender-data (data only, no Blender) for the studio HDRIs the native test test_sh_hdri reads.

@@ -69,11 +69,9 @@ def drawn(request, xserver):
     if not zips:
         pytest.skip("no extension package: cmake --build build --target schnee_extension")
     if not any((root / d / "libGL.so.1").exists() for d in ("usr/lib/x86_64-linux-gnu", "usr/lib")):
-        # Blender opens its window's GPU context through libGL (GLX) under X11, through libEGL in -b.
-        pytest.xfail(f"the {suite} chroot has no libGL.so.1 and no libEGL.so.1 (scripts/blender-chroot.sh "
-                     "installs blender and python3-numpy only, and Debian's Blender 5.x no longer pulls "
-                     "Mesa in): Blender aborts at start with a window ('Couldn't open libGL.so.1') and "
-                     "in -b ('Couldn't open libEGL.so.1'); libgl1 libegl1 libgl1-mesa-dri would let it draw")
+        # Blender opens its window's GPU context through libGL (GLX) under X11, through libEGL in -b:
+        # scripts/blender-chroot.sh installs Mesa (libgl1 libegl1 libgl1-mesa-dri) into every chroot.
+        pytest.fail(f"the {suite} chroot has no libGL.so.1: rerun scripts/blender-chroot.sh ensure {suite}")
     inner = Path("/tmp") / f"schnee-overlay-{os.getpid()}-{suite}"
     outer = root / inner.relative_to("/")
     shutil.rmtree(outer, ignore_errors=True)
