@@ -46,9 +46,11 @@ static void usage(FILE *f)
         "                           material = each material's VULKAN_SCHNEE_materials.probeRepresentation,\n"
         "                           itself default sh); ambientCube = the cube fitted to each probe's SH\n"
         "  --probe-storage float|half  GPU storage of the SH coefficients and ambient cubes (default float)\n"
-        "  --probe-path buffers|bricks  per-pixel probe lighting from the storage buffers (default; the leaf search,\n"
-        "                           back faces, visibility) or from probe bricks in 3D textures, hardware-filtered\n"
-        "                           (octree and kd-tree grids; no back-face weight, no visibility yet: docs/engine.md)\n"
+        "  --probe-path buffers|bricks  per-pixel probe lighting from probe bricks in 3D textures, hardware-filtered\n"
+        "                           (default; octree, kd-tree and dense SH grids, back faces and visibility as the\n"
+        "                           buffers; ambient cubes and tetrahedra keep the buffers; a device that cannot\n"
+        "                           hold or filter them: a warning and the buffers) or from the storage buffers (the\n"
+        "                           reference: the leaf search; docs/engine.md \"Probe bricks\")\n"
         "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
         "  --shadow-res N           texels per side of each shadow map layer of a mixed/realtime light (a sun:\n"
         "                           one per cascade, a spot: one, a point light: six; default %u; at most %u;\n"
@@ -195,6 +197,7 @@ static int parse_choice(const char *a, const char *v, sv_options *o)
     } else if (strcmp(a, "--probe-path") == 0) {
         if (strcmp(v, "buffers") != 0 && strcmp(v, "bricks") != 0) return bad_value(a, v);
         o->bricks = strcmp(v, "bricks") == 0;
+        o->bricks_given = true;
     } else {
         return -1;
     }
@@ -273,6 +276,7 @@ static void default_options(sv_options *o)
     o->fallback_radiance = SV_FALLBACK_RADIANCE;
     o->probe_mode = SV_PROBE_MODE_MATERIAL;
     o->probe_representation = SV_PROBE_REP_MATERIAL;
+    o->bricks = true; /* --probe-path bricks (issue 30 item 4) */
     o->shadow_res = SV_SHADOW_DEFAULT_RES;
     o->shadow_cascades = SV_SHADOW_DEFAULT_CASCADES;
 }

@@ -41,7 +41,8 @@ typedef struct sv_options {
     uint32_t probe_mode;           /* SV_PROBE_MODE_*, default _MATERIAL (each material's probeMode) */
     uint32_t probe_representation; /* SV_PROBE_REP_*, default _MATERIAL (each material's probeRepresentation) */
     bool half_probes;              /* --probe-storage half */
-    bool bricks;                   /* --probe-path bricks: per-pixel probes from the probe bricks */
+    bool bricks;                   /* --probe-path bricks (default): per-pixel probes from the probe bricks */
+    bool bricks_given;             /* --probe-path given (bricks then required: no fallback to buffers) */
     float normal_bias;             /* --normal-bias, grid spacings (default 0) */
     uint32_t shadow_res;           /* --shadow-res, texels per shadow map side (default 2048, 0 = off) */
     uint32_t shadow_cascades;      /* --shadow-cascades, layers per shadowed sun (1..4, default 4) */

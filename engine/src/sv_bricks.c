@@ -27,6 +27,10 @@ typedef struct brick_set {
     bool f32;              /* the pool in RGBA32F (a texel beyond the half range) */
 } brick_set;
 
+/* "error" when the bricks were asked for (--probe-path bricks), else "warning": the default falls back to the
+ * storage buffers where the device cannot hold or filter the bricks (sv_bricks_upload). */
+static const char *s_level = "error";
+
 static bool brickable(const sv_probe_grid *gr)
 {
     return gr->tree && gr->file->representation != PB_SHPROBE_AMBIENT_CUBE;
@@ -48,7 +52,7 @@ static bool build_dense(const sv_probe_grid *gr, uint32_t g, pb_grid_field **out
     size_t n = (size_t)f->probe_count * nc * 3u;
     double *c = malloc((n ? n : 1) * sizeof(double)), axes[9];
     if (!c) {
-        fprintf(stderr, "schnee-view: error: --probe-path bricks: out of memory for shProbeGrids[%u]\n", g);
+        fprintf(stderr, "schnee-view: %s: --probe-path bricks: out of memory for shProbeGrids[%u]\n", s_level, g);
         return false;
     }
     for (size_t i = 0; i < n; ++i) c[i] = f->coeffs[i];
@@ -67,7 +71,7 @@ static bool build_dense(const sv_probe_grid *gr, uint32_t g, pb_grid_field **out
     pb_result rc = pb_grid_field_build(&d, out, &err);
     free(c);
     if (rc == PB_SUCCESS) return true;
-    fprintf(stderr, "schnee-view: error: --probe-path bricks: shProbeGrids[%u] '%s': %s\n", g, gr->name,
+    fprintf(stderr, "schnee-view: %s: --probe-path bricks: shProbeGrids[%u] '%s': %s\n", s_level, g, gr->name,
             err.message[0] ? err.message : pb_result_string(rc));
     return false;
 }
@@ -81,7 +85,7 @@ static bool build_grid(const sv_probe_grid *gr, uint32_t g, sv_bricks_vis *vis, 
     size_t n = (size_t)f->probe_count * nc * 3u;
     double *c = malloc((n ? n : 1) * sizeof(double));
     if (!c) {
-        fprintf(stderr, "schnee-view: error: --probe-path bricks: out of memory for shProbeGrids[%u]\n", g);
+        fprintf(stderr, "schnee-view: %s: --probe-path bricks: out of memory for shProbeGrids[%u]\n", s_level, g);
         return false;
     }
     for (size_t i = 0; i < n; ++i) c[i] = f->coeffs[i];
@@ -92,7 +96,7 @@ static bool build_grid(const sv_probe_grid *gr, uint32_t g, sv_bricks_vis *vis, 
     pb_result rc = pb_bricks_build(&d, out, &err);
     free(c);
     if (rc == PB_SUCCESS) return true;
-    fprintf(stderr, "schnee-view: error: --probe-path bricks: shProbeGrids[%u] '%s': %s\n", g, gr->name,
+    fprintf(stderr, "schnee-view: %s: --probe-path bricks: shProbeGrids[%u] '%s': %s\n", s_level, g, gr->name,
             err.message[0] ? err.message : pb_result_string(rc));
     return false;
 }
@@ -156,9 +160,9 @@ static bool fits_device(sv_renderer *r, const brick_set *s, VkFormat pool_format
         if (dims[k][0] > lim || dims[k][1] > lim || dims[k][2] > lim || res != VK_SUCCESS ||
             dims[k][0] > ip.maxExtent.width || dims[k][1] > ip.maxExtent.height || dims[k][2] > ip.maxExtent.depth) {
             fprintf(stderr,
-                    "schnee-view: error: --probe-path bricks: the %s needs a %u x %u x %u 3D texture, beyond the "
+                    "schnee-view: %s: --probe-path bricks: the %s needs a %u x %u x %u 3D texture, beyond the "
                     "device's limit (maxImageDimension3D %u, format extent %u); use --probe-path buffers\n",
-                    what[k], dims[k][0], dims[k][1], dims[k][2], lim, mx);
+                    s_level, what[k], dims[k][0], dims[k][1], dims[k][2], lim, mx);
             return false;
         }
     }
@@ -166,9 +170,9 @@ static bool fits_device(sv_renderer *r, const brick_set *s, VkFormat pool_format
     vkGetPhysicalDeviceFormatProperties(r->ctx->physical, pool_format, &fp);
     if (!(fp.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT)) {
         fprintf(stderr,
-                "schnee-view: error: --probe-path bricks: the device cannot filter %s 3D textures linearly; "
+                "schnee-view: %s: --probe-path bricks: the device cannot filter %s 3D textures linearly; "
                 "use --probe-path buffers\n",
-                pool_format == VK_FORMAT_R32G32B32A32_SFLOAT ? "RGBA32F" : "RGBA16F");
+                s_level, pool_format == VK_FORMAT_R32G32B32A32_SFLOAT ? "RGBA32F" : "RGBA16F");
         return false;
     }
     return true;
@@ -329,30 +333,36 @@ static void report(const sv_renderer *r, const sv_probes *probes, const brick_se
             buf * per);
 }
 
-/* Builds every bricked grid's bricks, plans, checks and uploads the pool and the indirection. */
-static bool upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s, sv_gpu_grid *grids, sv_bricks_vis *vis)
+/* Builds every bricked grid's bricks, plans, checks and uploads the pool and the indirection. Returns 1 on
+ * success, 0 on a failure after the GPU objects were touched, -1 on one before (the core's refusal, memory,
+ * the device's limits or filtering: the stand-ins are still bound, so the buffers can take over). */
+static int upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s, sv_gpu_grid *grids, sv_bricks_vis *vis)
 {
     bool any = false;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         if (dense_texturable(&probes->grids[g])) {
-            if (!build_dense(&probes->grids[g], g, &s->dense[g])) return false;
+            if (!build_dense(&probes->grids[g], g, &s->dense[g])) return -1;
             any = true;
             continue;
         }
         if (!brickable(&probes->grids[g])) continue;
-        if (!build_grid(&probes->grids[g], g, vis, &s->b[g])) return false;
+        if (!build_grid(&probes->grids[g], g, vis, &s->b[g])) return -1;
         pb_bricks_get_info(s->b[g], &s->info[g]);
         any = true;
     }
-    if (!any) return true; /* no tree or dense SH grid: the stand-ins stay bound, every grid takes the buffers */
+    if (!any) return 1; /* no tree or dense SH grid: the stand-ins stay bound, every grid takes the buffers */
     plan(probes, s, grids);
     size_t pool_bytes = 0, index_bytes = 0;
     void *pool = fill_pool(probes, s, &pool_bytes);
     uint32_t *index = pool ? fill_index(probes, s, &index_bytes) : NULL;
     VkFormat pf = s->f32 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R16G16B16A16_SFLOAT;
-    bool ok = pool && index && fits_device(r, s, pf) &&
-              sv_bricks_vis_upload(r, vis, s->b, probes->grid_count, index, s->index);
-    if (!pool || !index) fprintf(stderr, "schnee-view: error: --probe-path bricks: out of memory for the pool\n");
+    if (!pool || !index) fprintf(stderr, "schnee-view: %s: --probe-path bricks: out of memory for the pool\n", s_level);
+    if (!pool || !index || !fits_device(r, s, pf)) {
+        free(pool);
+        free(index);
+        return -1;
+    }
+    bool ok = sv_bricks_vis_upload(r, vis, s->b, probes->grid_count, index, s->index);
     if (ok) {
         sv_image_destroy(r->ctx, &r->brick_pool);
         if (s->index[2]) sv_image_destroy(r->ctx, &r->brick_index);
@@ -364,11 +374,13 @@ static bool upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s,
     r->bricks = ok;
     free(pool);
     free(index);
-    return ok;
+    return ok ? 1 : 0;
 }
 
-bool sv_bricks_upload(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, sv_gpu_grid *grids, bool enabled)
+bool sv_bricks_upload(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, sv_gpu_grid *grids, bool enabled,
+                      bool required)
 {
+    s_level = required ? "error" : "warning";
     VkSamplerCreateInfo si = sv_sampler_info(VK_FILTER_LINEAR, VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE);
     VK_CHECK(vkCreateSampler(r->ctx->device, &si, NULL, &r->brick_sampler));
     si = sv_sampler_info(VK_FILTER_NEAREST, VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE);
@@ -387,7 +399,19 @@ bool sv_bricks_upload(sv_renderer *r, const sv_scene *scene, const sv_probes *pr
     s.dense = calloc(probes->grid_count, sizeof *s.dense);
     sv_bricks_vis vis;
     sv_bricks_vis_begin(&vis, scene);
-    bool ok = s.b && s.info && s.dense && upload_bricks(r, probes, &s, grids, &vis);
+    int up = s.b && s.info && s.dense ? upload_bricks(r, probes, &s, grids, &vis) : -1;
+    if (!s.b || !s.info || !s.dense) fprintf(stderr, "schnee-view: %s: --probe-path bricks: out of memory\n", s_level);
+    if (up < 0 && !required) { /* the default path: the storage buffers take every grid */
+        for (uint32_t g = 0; g < probes->grid_count; ++g) {
+            grids[g].base[2] &= ~(uint32_t)SV_GRID_BRICKS;
+            memset(grids[g].bricks, 0, sizeof grids[g].bricks);
+        }
+        r->bricks = false;
+        fprintf(stderr, "schnee-view: warning: probe bricks unavailable (above); per-pixel probes from the storage "
+                        "buffers (--probe-path buffers)\n");
+        up = 1;
+    }
+    bool ok = up > 0;
     if (ok && r->bricks) ok = sv_brick_view_capture(r, s.b, probes->grid_count); /* the brick view's regions */
     sv_bricks_vis_end(&vis);
     for (uint32_t g = 0; s.b && g < probes->grid_count; ++g) pb_bricks_destroy(s.b[g]);

@@ -17,10 +17,13 @@
 
 /* With `enabled`, builds and uploads the bricks of `probes` and fills `grids` (one per probe grid);
  * otherwise uploads 1x1x1 stand-ins (the bindings must hold images). Creates the two samplers either
- * way. False with a clear message when a grid cannot be bricked (the core's refusal, e.g. its memory
- * cap), when the pool or the indirection exceeds the device's maxImageDimension3D, or when the device
- * cannot filter the pool's format linearly. Prints the bricks' GPU memory per probe when enabled. */
-bool sv_bricks_upload(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, sv_gpu_grid *grids, bool enabled);
+ * way. When a grid cannot be bricked (the core's refusal, e.g. its memory cap), the pool or the
+ * indirection exceeds the device's maxImageDimension3D, or the device cannot filter the pool's format
+ * linearly: with `required` (--probe-path bricks given) false with a clear error; else (the default) the
+ * same message as a warning, the stand-ins stay bound, r->bricks false and every grid takes the storage
+ * buffers. Prints the bricks' GPU memory per probe when uploaded. */
+bool sv_bricks_upload(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, sv_gpu_grid *grids, bool enabled,
+                      bool required);
 void sv_bricks_destroy(sv_renderer *r);
 
 #endif

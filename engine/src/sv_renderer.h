@@ -54,15 +54,19 @@ typedef struct sv_renderer_desc {
     uint32_t shadow_cascades; /* layers (cascades) per shadowed directional light, 1..SV_MAX_SHADOW_CASCADES
                                  (--shadow-cascades, default SV_SHADOW_DEFAULT_CASCADES; 0 selects it); 1 = one
                                  map over the whole scene bounds */
-    bool bricks;              /* --probe-path bricks: corner/kd tree grids also resampled into probe bricks
-                                 (3D textures, sv_bricks.h) that per-pixel shading samples */
+    bool bricks;              /* --probe-path bricks (the default): corner/kd tree and dense SH grids also
+                                 resampled into probe bricks (3D textures, sv_bricks.h) that per-pixel shading
+                                 samples; false = the storage buffers only (--probe-path buffers) */
+    bool bricks_required;     /* asked for explicitly: a brick set the device cannot hold is an error (exit 1);
+                                 else a warning and the storage buffers */
 } sv_renderer_desc;
 #define SV_SHADOW_DEFAULT_RES 2048u
 #define SV_SHADOW_MAX_RES     8192u
 #define SV_RENDERER_DESC_DEFAULT                                                                                       \
     {                                                                                                                  \
         .fallback_radiance = SV_FALLBACK_RADIANCE, .half_probes = false, .sky = NULL, .cube_probes = false,            \
-        .shadow_res = SV_SHADOW_DEFAULT_RES, .shadow_cascades = SV_SHADOW_DEFAULT_CASCADES                             \
+        .shadow_res = SV_SHADOW_DEFAULT_RES, .shadow_cascades = SV_SHADOW_DEFAULT_CASCADES, .bricks = true,            \
+        .bricks_required = false                                                                                       \
     }
 
 /* The graphics pipelines, one per row of the table in sv_pipelines.c. */

@@ -398,7 +398,8 @@ bool sv_upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes *pr
     bool ok = pack_probes(scene, probes, desc, &k);
     r->half_probes = k.half;
     /* The bricks (--probe-path bricks) mark their grids' records before the grid buffer is made. */
-    ok = ok && sv_bricks_upload(r, scene, probes, k.grids, desc->bricks) && create_probe_buffers(r, probes, &k);
+    ok = ok && sv_bricks_upload(r, scene, probes, k.grids, desc->bricks, desc->bricks_required) &&
+         create_probe_buffers(r, probes, &k);
     r->probe_count = k.count;
     r->grid_count = probes->grid_count;
     r->probes_src = probes;

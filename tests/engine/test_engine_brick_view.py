@@ -211,8 +211,9 @@ def test_probe_view_without_bricks_is_unchanged(case):
     # The storage-buffer path: the probe view's leaf outlines, none of the brick colours; --brick-view
     # there warns and changes nothing. With bricks, --probe-view alone is the cells brick view.
     W, Hh = 160, 120
-    plain, _ = render(case, "plain", W, Hh, OUTLINE_LOOK, "--probe-view")
-    warned, proc = render(case, "warned", W, Hh, OUTLINE_LOOK, "--brick-view", "texels")
+    buffers = ("--probe-path", "buffers")  # the bricks are the default (issue 30 item 4)
+    plain, _ = render(case, "plain", W, Hh, OUTLINE_LOOK, "--probe-view", *buffers)
+    warned, proc = render(case, "warned", W, Hh, OUTLINE_LOOK, "--brick-view", "texels", *buffers)
     assert "--brick-view needs --probe-path bricks" in proc.stderr
     assert np.array_equal(plain, warned)
     assert is_colour(plain, LEAF_OUTLINE).sum() > 100

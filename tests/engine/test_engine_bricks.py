@@ -287,7 +287,13 @@ def test_oversized_and_bad_options_are_clear_errors(tmp_path):
     assert "GiB" in proc.stderr or "bytes" in proc.stderr or "large" in proc.stderr, proc.stderr
     assert "Segmentation" not in proc.stderr
     viewer.check(viewer.run(scene, "--headless", "--output", tmp_path / "b.exr", "--width", 16, "--height", 16,
-                            "--move", "Quad0", 2.0, 1.0, 2.0))
+                            "--move", "Quad0", 2.0, 1.0, 2.0, "--probe-path", "buffers"))
+    # The default path (no --probe-path): the same message as a warning, then the buffers' frame.
+    d = viewer.check(viewer.run(scene, "--headless", "--output", tmp_path / "d.exr", "--width", 16, "--height", 16,
+                                "--move", "Quad0", 2.0, 1.0, 2.0))
+    assert "warning: --probe-path bricks: shProbeGrids[0]" in d.stderr, d.stderr
+    assert "probe bricks unavailable (above); per-pixel probes from the storage buffers" in d.stderr
+    assert np.array_equal(viewer.read_image(tmp_path / "d.exr"), viewer.read_image(tmp_path / "b.exr"))
     bad = viewer.run(scene, "--headless", "--output", tmp_path / "x.exr", "--probe-path", "textures")
     assert bad.returncode == 2 and "bad value 'textures' for --probe-path" in bad.stderr
     usage = viewer.run("--help", validation=False)
@@ -323,4 +329,9 @@ def test_pool_beyond_the_device_3d_limit_is_a_clear_error(tmp_path):
     assert proc.returncode == 1, (proc.returncode, proc.stderr)
     assert "the brick pool needs a 5 x 5 x 4180 3D texture, beyond the device's limit" in proc.stderr, proc.stderr
     assert "use --probe-path buffers" in proc.stderr
-    viewer.check(viewer.run(scene, *args))
+    viewer.check(viewer.run(scene, *args[:2], tmp_path / "b.exr", *args[3:], "--probe-path", "buffers"))
+    # The default path: a warning, the storage buffers, the same frame as --probe-path buffers.
+    d = viewer.check(viewer.run(scene, *args[:2], tmp_path / "d.exr", *args[3:]))
+    assert "warning: --probe-path bricks: the brick pool needs a 5 x 5 x 4180 3D texture" in d.stderr, d.stderr
+    assert "probe bricks unavailable (above); per-pixel probes from the storage buffers" in d.stderr
+    assert np.array_equal(viewer.read_image(tmp_path / "d.exr"), viewer.read_image(tmp_path / "b.exr"))

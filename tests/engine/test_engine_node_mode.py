@@ -128,10 +128,14 @@ def test_each_object_follows_its_own_mode(renders):
     img, _ = renders("nodes")
     expected = expected_image()
     _, ms = masks()
+    # The per-pixel floor on the default path (the probe bricks, binary16 texels N and D): the bound of
+    # test_engine_grid_field.py's floor over this grid, 4 x 2^-11 x the largest |E_k| / pi of any probe.
+    emax = max(np.abs(ref.irradiance(c, UP)).max() for c in COEFFS) / np.pi
     for floor in FLOORS:
         err = np.abs(img[ms[floor]] - expected[ms[floor]])
         # float32 on the GPU vs float64 here (test_engine_perpixel: 1.7e-6 measured)
-        assert err.max() < 1e-4 + 1e-4 * np.abs(expected[ms[floor]]).max(), (floor, err.max())
+        bound = 1e-4 + 1e-4 * np.abs(expected[ms[floor]]).max()
+        assert err.max() < (4 * 2.0 ** -11 * emax + 1e-4 if floor == "PixelFloor" else bound), (floor, err.max())
         print(f"{floor}: {ms[floor].sum()} pixels, max abs error {err.max():.2e}")
     # The modes really differ: the per-pixel floor varies, the others are one colour each.
     assert np.ptp(img[ms["PixelFloor"]][:, 0]) > 0.1

@@ -1,4 +1,5 @@
-"""Per-pixel probe lighting (DESIGN.md §7 second mode, docs/engine.md "Per-pixel probes").
+"""Per-pixel probe lighting (DESIGN.md §7 second mode, docs/engine.md "Per-pixel probes") on the storage-
+buffer path (`--probe-path buffers`, the reference; the default bricks: test_engine_grid_field.py).
 
 Large quads seen by orthographic cameras, so every pixel centre's world point is known exactly.
 Materials are white with shScale 1 and ambientTerm 0, so the EXR pixel is max(E, 0) / π; the
@@ -63,7 +64,11 @@ def floor_scene(d, plane_y, centre, size, mode=None, extra=()):
 
 
 def render(scene, out, *args):
-    viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", N, "--height", N, *args))
+    """This module tests the storage-buffer path (`--probe-path buffers`, the reference) against the float64
+    rule; the default path (the bricks) takes the same scenes in test_engine_grid_field.py with binary16
+    bounds. A --probe-path in args wins (the last one given)."""
+    path = () if "--probe-path" in args else ("--probe-path", "buffers")
+    viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", N, "--height", N, *path, *args))
     return viewer.read_image(out)
 
 

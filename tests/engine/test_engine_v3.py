@@ -86,7 +86,11 @@ def pixel_of(x, z, cx, cz, mag):
 
 
 def render(scene, out, *args):
-    proc = viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", N, "--height", N, *args))
+    """These tests check the storage-buffer path (`octree_irradiance`, `--probe-path buffers`, the reference)
+    against the CPU model; the default path (the probe bricks) has its own tests with binary16 bounds
+    (test_engine_bricks.py, test_engine_bricks_vis.py). A --probe-path in args wins."""
+    path = () if "--probe-path" in args else ("--probe-path", "buffers")
+    proc = viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", N, "--height", N, *path, *args))
     return viewer.read_image(out)[..., :3], proc
 
 

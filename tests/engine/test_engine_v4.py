@@ -199,7 +199,9 @@ def test_probe_view_outlines_each_box(tmp_path):
     scene = b.write(tmp_path / "view.gltf")
     n = 253
     out = tmp_path / "v.exr"
-    viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", n, "--height", n, "--probe-view"))
+    # the storage-buffer path's probe view (the leaves' outlines; the default bricks draw the brick view)
+    viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", n, "--height", n, "--probe-view",
+                            "--probe-path", "buffers"))
     is_line = np.all(np.abs(viewer.read_image(out) - OUTLINE) < 1e-6, axis=-1)
     t = 2.0 + (2 * (np.arange(n) + 0.5) / n - 1) * 2.1  # pixel centres: column -> x, row -> z
     f = native.read_shprobe(str(tmp_path / "sh_coeffs" / "p.shprobe"))
