@@ -16,6 +16,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, PointerProperty
 
 from . import overlay_data
+from .panel import SidebarSubpanel
 
 COLOUR_MODES = (
     ("IRRADIANCE", "Irradiance", "Each sphere shaded per pixel with its probe's SH irradiance E(n)/π times "
@@ -134,13 +135,9 @@ class SCHNEE_OT_overlay_reload(bpy.types.Operator):
         return {'FINISHED'}
 
 
-class VIEW3D_PT_schnee_overlay(bpy.types.Panel):
+class VIEW3D_PT_schnee_overlay(SidebarSubpanel, bpy.types.Panel):
     bl_label = "Probe Overlay"
     bl_idname = "VIEW3D_PT_schnee_overlay"
-    bl_space_type = 'VIEW_3D'
-    bl_region_type = 'UI'
-    bl_category = "Schnee Engine"
-    bl_parent_id = "VIEW3D_PT_schnee_probes"
 
     def draw_header(self, context):
         self.layout.prop(context.scene.schnee_overlay, "show", text="")

@@ -10,12 +10,50 @@ from . import bake_core, compat, journal, light_modes, probe_modes, render_setti
 from .properties import LIGHT_MODE_ITEMS, PROBE_MODE_ITEMS, draw_estimate, draw_settings
 
 
-class VIEW3D_PT_schnee_probes(bpy.types.Panel):
-    bl_label = "SH Probes"
-    bl_idname = "VIEW3D_PT_schnee_probes"
+class SidebarPanel:
+    """Mixin of the panels on 3D Viewport > Sidebar > Schnee Engine (here and in overlay.py)."""
     bl_space_type = 'VIEW_3D'
     bl_region_type = 'UI'
     bl_category = "Schnee Engine"
+
+
+class SidebarSubpanel(SidebarPanel):
+    """Mixin of the panels under SH Probes (VIEW3D_PT_schnee_probes)."""
+    bl_parent_id = "VIEW3D_PT_schnee_probes"
+
+
+class PropertiesPanel:
+    """Mixin of the panels in the Properties editor."""
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+
+
+class ObjectPanel:
+    """Mixin of the panels of one object (panel_object: the context's, as Properties has one), shown
+    when its type is in ``object_types``."""
+    object_types = frozenset()
+
+    @staticmethod
+    def panel_object(context):
+        return getattr(context, "object", None)
+
+    @classmethod
+    def poll(cls, context):
+        ob = cls.panel_object(context)
+        return ob is not None and ob.type in cls.object_types
+
+
+class SidebarObjectPanel(ObjectPanel, SidebarSubpanel):
+    """Mixin of the sidebar's panels of the active object."""
+
+    @staticmethod
+    def panel_object(context):
+        return context.active_object
+
+
+class VIEW3D_PT_schnee_probes(SidebarPanel, bpy.types.Panel):
+    bl_label = "SH Probes"
+    bl_idname = "VIEW3D_PT_schnee_probes"
 
     def draw(self, context):
         layout = self.layout
@@ -64,13 +102,9 @@ def _draw_journal(layout, props):
     box.label(text=os.path.basename(path))
 
 
-class VIEW3D_PT_schnee_probes_last(bpy.types.Panel):
+class VIEW3D_PT_schnee_probes_last(SidebarSubpanel, bpy.types.Panel):
     bl_label = "Last Bake"
     bl_idname = "VIEW3D_PT_schnee_probes_last"
-    bl_space_type = 'VIEW_3D'
-    bl_region_type = 'UI'
-    bl_category = "Schnee Engine"
-    bl_parent_id = "VIEW3D_PT_schnee_probes"
 
     def draw(self, context):
         props = context.scene.schnee_probes
@@ -85,34 +119,45 @@ class VIEW3D_PT_schnee_probes_last(bpy.types.Panel):
         col.label(text=props.last_message)
 
 
-class SCHNEE_OT_set_light_mode(bpy.types.Operator):
-    """Set the light mode of the active and every selected lamp (Object.schnee_light.mode; removes a
-    legacy schnee_light_mode custom property, as choosing in the panel does)"""
-    bl_idname = "schnee.set_light_mode"
-    bl_label = "Set Light Mode"
-    bl_options = {'REGISTER', 'UNDO'}
-
-    # The identifiers and tooltips of the registered property (properties.LIGHT_MODE_ITEMS).
-    mode: bpy.props.EnumProperty(name="Mode", items=LIGHT_MODE_ITEMS)
-
-    @classmethod
-    def poll(cls, context):
-        return any(ob.type == 'LIGHT' for ob in _target_lights(context))
-
-    def execute(self, context):
-        for ob in _target_lights(context):
-            # The property's update callback removes the legacy custom property (properties.py).
-            ob.schnee_light.mode = self.mode
-        return {'FINISHED'}
-
-
-def _target_lights(context):
-    """The active lamp and every selected lamp: one click sets several lamps."""
+def _targets(context, types):
+    """The active object and every selected one whose type is in ``types``: one click sets several."""
     obs = list(getattr(context, "selected_objects", None) or [])
     active = getattr(context, "active_object", None)
     if active is not None and active not in obs:
         obs.append(active)
-    return [ob for ob in obs if ob.type == 'LIGHT']
+    return [ob for ob in obs if ob.type in types]
+
+
+class SetModeOperator:
+    """Mixin of the Set ... Mode operators: ``mode`` on the ``settings_group`` of the active and every
+    selected object whose type is in ``target_types``; needs one."""
+    bl_options = {'REGISTER', 'UNDO'}
+    target_types = frozenset()
+    settings_group = ""
+
+    @classmethod
+    def poll(cls, context):
+        return bool(_targets(context, cls.target_types))
+
+    def execute(self, context):
+        for ob in _targets(context, self.target_types):
+            getattr(ob, self.settings_group).mode = self.mode
+        return {'FINISHED'}
+
+
+LIGHT_OBJECT_TYPES = {'LIGHT'}
+
+
+class SCHNEE_OT_set_light_mode(SetModeOperator, bpy.types.Operator):
+    """Set the light mode of the active and every selected lamp (Object.schnee_light.mode; removes a
+    legacy schnee_light_mode custom property, as choosing in the panel does)"""
+    bl_idname = "schnee.set_light_mode"
+    bl_label = "Set Light Mode"
+    target_types = LIGHT_OBJECT_TYPES
+    settings_group = "schnee_light"  # its update callback removes the legacy custom property (properties.py)
+
+    # The identifiers and tooltips of the registered property (properties.LIGHT_MODE_ITEMS).
+    mode: bpy.props.EnumProperty(name="Mode", items=LIGHT_MODE_ITEMS)
 
 
 _MODE_TEXT = {
@@ -156,22 +201,14 @@ def draw_light_mode(layout, ob, context=None):
             col.label(text=f"Mixed/realtime lamps need {need} of the engine's "
                            f"{light_modes.ENGINE_SHADOW_LAYERS} shadow layers", icon='ERROR')
             col.label(text="Some will be unshadowed (light through walls): bake some")
-    if context is not None and len(_target_lights(context)) > 1:
+    if context is not None and len(_targets(context, LIGHT_OBJECT_TYPES)) > 1:
         col.operator_menu_enum(SCHNEE_OT_set_light_mode.bl_idname, "mode", text="Set All Selected Lamps")
 
 
-class VIEW3D_PT_schnee_light(bpy.types.Panel):
+class VIEW3D_PT_schnee_light(SidebarObjectPanel, bpy.types.Panel):
     bl_label = "Light Mode"
     bl_idname = "VIEW3D_PT_schnee_light"
-    bl_space_type = 'VIEW_3D'
-    bl_region_type = 'UI'
-    bl_category = "Schnee Engine"
-    bl_parent_id = "VIEW3D_PT_schnee_probes"
-
-    @classmethod
-    def poll(cls, context):
-        ob = context.active_object
-        return ob is not None and ob.type == 'LIGHT'
+    object_types = LIGHT_OBJECT_TYPES
 
     def draw(self, context):
         ob = context.active_object
@@ -179,18 +216,12 @@ class VIEW3D_PT_schnee_light(bpy.types.Panel):
         draw_light_mode(self.layout, ob, context)
 
 
-class DATA_PT_schnee_light(bpy.types.Panel):
+class DATA_PT_schnee_light(ObjectPanel, PropertiesPanel, bpy.types.Panel):
     """Properties > Light (Object Data of a lamp): the Schnee light mode."""
     bl_label = "Schnee Light Mode"
     bl_idname = "DATA_PT_schnee_light"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
     bl_context = "data"
-
-    @classmethod
-    def poll(cls, context):
-        ob = getattr(context, "object", None)
-        return ob is not None and ob.type == 'LIGHT'
+    object_types = LIGHT_OBJECT_TYPES
 
     def draw(self, context):
         draw_light_mode(self.layout, context.object, context)
@@ -201,32 +232,15 @@ MESH_OBJECT_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
 _MATERIAL_MODE_TEXT = {"off": "Off", "object": "Per Object", "pixel": "Per Pixel"}
 
 
-class SCHNEE_OT_set_probe_mode(bpy.types.Operator):
+class SCHNEE_OT_set_probe_mode(SetModeOperator, bpy.types.Operator):
     """Set the probe mode of the active and every selected mesh-like object (Object.schnee_probe.mode)"""
     bl_idname = "schnee.set_probe_mode"
     bl_label = "Set Probe Mode"
-    bl_options = {'REGISTER', 'UNDO'}
+    target_types = MESH_OBJECT_TYPES
+    settings_group = "schnee_probe"
 
     # The identifiers and tooltips of the registered property (properties.PROBE_MODE_ITEMS).
     mode: bpy.props.EnumProperty(name="Probe Mode", items=PROBE_MODE_ITEMS)
-
-    @classmethod
-    def poll(cls, context):
-        return bool(_target_objects(context))
-
-    def execute(self, context):
-        for ob in _target_objects(context):
-            ob.schnee_probe.mode = self.mode
-        return {'FINISHED'}
-
-
-def _target_objects(context):
-    """The active object and every selected one that the glTF exporter turns into a mesh."""
-    obs = list(getattr(context, "selected_objects", None) or [])
-    active = getattr(context, "active_object", None)
-    if active is not None and active not in obs:
-        obs.append(active)
-    return [ob for ob in obs if ob.type in MESH_OBJECT_TYPES]
 
 
 def draw_object_probe_mode(layout, ob, context=None):
@@ -236,7 +250,7 @@ def draw_object_probe_mode(layout, ob, context=None):
     that sets them all. Shared by Properties > Object and the sidebar."""
     col = layout.column(align=True)
     col.prop(ob.schnee_probe, "mode", text="")
-    if context is not None and len(_target_objects(context)) > 1:
+    if context is not None and len(_targets(context, MESH_OBJECT_TYPES)) > 1:
         col.operator_menu_enum(SCHNEE_OT_set_probe_mode.bl_idname, "mode", text="Set All Selected Objects")
     if probe_modes.chosen(ob) != probe_modes.AS_MATERIALS:
         col.label(text="Replaces its materials' modes for this object", icon='INFO')
@@ -254,35 +268,21 @@ def draw_object_probe_mode(layout, ob, context=None):
         col.label(text=text, icon='MATERIAL')
 
 
-class OBJECT_PT_schnee_probes(bpy.types.Panel):
+class OBJECT_PT_schnee_probes(ObjectPanel, PropertiesPanel, bpy.types.Panel):
     """Properties > Object: the Schnee probe mode of a mesh-like object."""
     bl_label = "Schnee Probes"
     bl_idname = "OBJECT_PT_schnee_probes"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
     bl_context = "object"
-
-    @classmethod
-    def poll(cls, context):
-        ob = getattr(context, "object", None)
-        return ob is not None and ob.type in MESH_OBJECT_TYPES
+    object_types = MESH_OBJECT_TYPES
 
     def draw(self, context):
         draw_object_probe_mode(self.layout, context.object, context)
 
 
-class VIEW3D_PT_schnee_object(bpy.types.Panel):
+class VIEW3D_PT_schnee_object(SidebarObjectPanel, bpy.types.Panel):
     bl_label = "Object Probe Mode"
     bl_idname = "VIEW3D_PT_schnee_object"
-    bl_space_type = 'VIEW_3D'
-    bl_region_type = 'UI'
-    bl_category = "Schnee Engine"
-    bl_parent_id = "VIEW3D_PT_schnee_probes"
-
-    @classmethod
-    def poll(cls, context):
-        ob = context.active_object
-        return ob is not None and ob.type in MESH_OBJECT_TYPES
+    object_types = MESH_OBJECT_TYPES
 
     def draw(self, context):
         ob = context.active_object
