@@ -161,7 +161,7 @@ def viewport_check():
     bpy.context.scene.schnee_overlay.show = True
     win = bpy.context.window_manager.windows[0]
     # The panel too: the sidebar shows its first tab (Item), so a copy of the panel is put there
-    # (as object_probe_mode_ui.py does); its draw is recorded, an exception would reach stderr.
+    # (as ui_harness.py does); its draw is recorded, an exception would reach stderr.
     panel_calls = []
 
     class ItemCopy(overlay.VIEW3D_PT_schnee_overlay):
