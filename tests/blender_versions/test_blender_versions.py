@@ -109,6 +109,7 @@ def _run_session(suite, ext, host):
     (outer / "work").mkdir(parents=True)
     shutil.copy(ext, outer / ext.name)
     shutil.copy(HERE / "scripts" / "version_checks.py", outer / "version_checks.py")
+    shutil.copy(REPO / "tests" / "blender" / "scripts" / "recording_layout.py", outer / "recording_layout.py")
     env = {"BLENDER_USER_RESOURCES": inner / "profile"}
     s = {"suite": suite, "inner": inner, "outer": outer, "env": env}
     try:

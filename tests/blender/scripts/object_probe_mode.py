@@ -18,6 +18,7 @@ import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import addon_common as common  # noqa: E402
+from recording_layout import RecordingLayout  # noqa: E402
 
 PLANES = {"OffPlane": (-4.5, 'OFF'), "PixelPlane": (-1.5, 'PIXEL'), "MaterialPlane": (1.5, None),
           "CubePlane": (4.5, 'AMBIENT_CUBE')}
@@ -76,21 +77,9 @@ def draw_panel(ob):
     """Properties > Object's panel drawn into a recording layout that checks each property exists."""
     from schnee_probes import panel
     log = []
-
-    class Layout:
-        def column(self, **_):
-            return self
-
-        def label(self, text="", **_):
-            log.append(["label", text])
-
-        def prop(self, data, prop, **_):
-            assert hasattr(data, prop), prop
-            log.append(["prop", prop, getattr(data, prop)])
-
     ctx = type("C", (), {"object": ob})()
     assert panel.OBJECT_PT_schnee_probes.poll(ctx)
-    panel.OBJECT_PT_schnee_probes.draw(type("P", (), {"layout": Layout()})(), ctx)
+    panel.OBJECT_PT_schnee_probes.draw(type("P", (), {"layout": RecordingLayout(log)})(), ctx)
     return log
 
 

@@ -15,6 +15,9 @@ import traceback
 import addon_utils
 import bpy
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from recording_layout import RecordingLayout  # noqa: E402  (tests/blender/scripts, copied beside this file)
+
 work = sys.argv[sys.argv.index("--") + 1]
 COLOR = (0.25, 0.5, 1.0)
 out = {"blender": list(bpy.app.version), "python": sys.version.split()[0]}
@@ -211,20 +214,9 @@ def main():
     out["probe_mode_fields"] = {ob.name: modes.node_fields(ob) for ob in planes}
     # Properties > Object's panel drawn into a recording layout (no window in background mode).
     log = []
-
-    class Layout:
-        def column(self, **_):
-            return self
-
-        def label(self, text="", **_):
-            log.append(["label", text])
-
-        def prop(self, data, prop, **_):
-            assert hasattr(data, prop), prop
-            log.append(["prop", prop, getattr(data, prop)])
-
     for ob in (planes[2], planes[1]):
-        panel.OBJECT_PT_schnee_probes.draw(type("P", (), {"layout": Layout()})(), type("C", (), {"object": ob})())
+        panel.OBJECT_PT_schnee_probes.draw(type("P", (), {"layout": RecordingLayout(log)})(),
+                                           type("C", (), {"object": ob})())
     out["object_panel"] = log
     modes_path = os.path.join(work, "export_modes", "scene.gltf")
     os.makedirs(os.path.dirname(modes_path), exist_ok=True)
