@@ -24,16 +24,11 @@ import pytest
 from conftest import requires_native, run_blender
 from schnee_probes import journal as journal_mod
 from schnee_probes import native
-from test_bake_hazards import BAKE_PY, CELLS_2M, SCRIPTS, TINY, Running, copy_blend, digest, last_error
+from test_bake_hazards import BAKE_PY, CELLS_2M, SCRIPTS, TINY, Running, copy_blend, digest, last_error, scenes_made_by
 
 pytestmark = requires_native
 
-
-@pytest.fixture(scope="module")
-def scenes(tmp_path_factory):
-    out = tmp_path_factory.mktemp("first_tries_scenes")
-    run_blender(SCRIPTS / "hazard_scenes.py", out, timeout=120)
-    return out
+scenes = scenes_made_by("hazard_scenes.py")
 
 
 @pytest.fixture(scope="module")

@@ -38,11 +38,18 @@ CELLS_2M = ["--min-cell-size", "2", "--max-cell-size", "2"]  # sky volume: 4 pro
 pytestmark = requires_native
 
 
-@pytest.fixture(scope="module")
-def scenes(tmp_path_factory):
-    out = tmp_path_factory.mktemp("hazard_scenes")
-    run_blender(SCRIPTS / "hazard_scenes.py", out, timeout=120)
-    return out
+def scenes_made_by(script):
+    """A module-scoped fixture: a temporary folder holding the .blend files that SCRIPTS/``script``
+    writes into the folder it is given."""
+    @pytest.fixture(scope="module")
+    def scenes(tmp_path_factory):
+        out = tmp_path_factory.mktemp(Path(script).stem)
+        run_blender(SCRIPTS / script, out, timeout=120)
+        return out
+    return scenes
+
+
+scenes = scenes_made_by("hazard_scenes.py")
 
 
 def copy_blend(scenes, name, dest):

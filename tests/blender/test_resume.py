@@ -18,7 +18,7 @@ import pytest
 
 from conftest import requires_native
 from schnee_probes import adaptive, journal, native
-from test_bake_hazards import SCRIPTS, TINY, Running, bake, copy_blend, last_error, run_blender  # noqa: F401
+from test_bake_hazards import SCRIPTS, TINY, Running, bake, copy_blend, last_error, run_blender, scenes_made_by
 
 pytestmark = requires_native
 
@@ -65,11 +65,7 @@ def _adaptive_reference(scenes, local):
                                  first_layer=first_layer, renders=renders)
 
 
-@pytest.fixture(scope="module")
-def scenes(tmp_path_factory):
-    out = tmp_path_factory.mktemp("resume_scenes")
-    run_blender(SCRIPTS / "resume_scene.py", out, timeout=120)
-    return out
+scenes = scenes_made_by("resume_scene.py")
 
 
 @pytest.fixture(scope="module")
