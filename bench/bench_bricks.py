@@ -665,12 +665,35 @@ def today_rule(field: Field, u, n, plane=None, movable=False):
     return out
 
 
-def brick_rule(bricks: Bricks, u, n, plane=None, movable=False, taps: str = "8", dtype=np.float64):
+SEPARABLE_EPS = 1e-5  # PB_BRICKS_SEPARABLE_EPS (pb_bricks.h)
+
+
+def separable(w):
+    """pb_bricks_separable over rows of 8 nonnegative corner weights: (mask (n,): sum > 0 and w_k (sum w)^2
+    = prod_a M_a(bit_a(k)) within SEPARABLE_EPS relative for every k, M_a(b) the weight on bit_a = b;
+    f' (n, 3): M_a(1) / sum w)."""
+    sw = w.sum(axis=1)
+    M1 = w @ CORNER_BITS
+    M0 = w @ (1 - CORNER_BITS)
+    pos = sw > 0
+    f = M1 / np.where(pos, sw, 1)[:, None]
+    lhs = w * (sw * sw)[:, None]
+    rhs = np.ones_like(w)
+    for a in range(3):
+        rhs *= np.where(CORNER_BITS[None, :, a] == 1, M1[:, None, a], M0[:, None, a])
+    ok = np.abs(lhs - rhs) <= SEPARABLE_EPS * np.maximum(lhs, rhs)
+    return pos & ok.all(axis=1), f
+
+
+def brick_rule(bricks: Bricks, u, n, plane=None, movable=False, taps: str = "8", dtype=np.float64,
+               return_separable=False):
     """The proposal's rule: the same weights on the brick cell holding u (its 8 texels, cell size 2^L),
     N / D; taps "8" = 8 weighted fetches (exact), "1" = one filtered fetch at the fraction that carries
-    the weights' per-axis means (APV's offset), 8-bit quantised."""
+    the weights' per-axis means (APV's offset), 8-bit quantised; "sep" = step 5e of pb_bricks_sample_surface:
+    "1" where the weights are separable (or all zero), else "8". return_separable: also the mask (n,)."""
     b, u = bricks.lookup(u)
     out = np.full((len(u), bricks.field.C, 3), np.nan)
+    sep_out = np.zeros(len(u), bool)
     ok = b >= 0
     u, n, b = u[ok], n[ok], b[ok]
     x = bricks.local(u, b)
@@ -681,7 +704,9 @@ def brick_rule(bricks: Bricks, u, n, plane=None, movable=False, taps: str = "8",
     vb = None if plane is None else plane_pair_bytes(cpos, plane)
     w, w8 = weighted_rule(w8, cpos, u, n, s, vb, movable)
     N, D = bricks.fetch(b, idx, dtype)
-    if taps == "1":
+    sep = separable(w)[0]
+    sep_out[ok] = sep
+    if taps in ("1", "sep"):
         # Fold the weights into one fraction per axis; where they vanish, the plain fraction.
         sw = w.sum(axis=1)
         fw = np.where(sw[:, None] > 0, (w @ CORNER_BITS) / np.where(sw > 0, sw, 1)[:, None],
@@ -697,10 +722,13 @@ def brick_rule(bricks: Bricks, u, n, plane=None, movable=False, taps: str = "8",
         bad = ~(d > 0)
         if bad.any():
             r[bad] = finish(w8[bad], w8[bad], N[bad], D[bad])
+        if taps == "sep":
+            eight = ~sep & (sw > 0)
+            r[eight] = finish(w[eight], w8[eight], N[eight], D[eight])
         out[ok] = r
     else:
         out[ok] = finish(w, w8, N, D)
-    return out
+    return (out, sep_out) if return_separable else out
 
 
 def wall_experiment(seed: int, n: int, B: int, refine_wall: bool = False) -> dict:

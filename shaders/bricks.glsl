@@ -10,37 +10,66 @@
 #include "sh.glsl"
 
 // The indirection entry of the level-0 region holding min cell q of grid gr (grids along z).
-uvec4 brick_entry(sv_gpu_grid gr, uvec3 q) {
+uvec4 brick_entry(sv_gpu_grid gr, uvec3 q)
+{
     return texelFetch(brick_index, ivec3(q >> 2u) + ivec3(0, 0, int(gr.bricks.x)), 0);
 }
 
 // Whether a leaf holds min cell q: its occupancy bit i + 4j + 16k in the entry's y (bits 0-31) and z.
-bool brick_occupied(uvec4 e, uvec3 q) {
+bool brick_occupied(uvec4 e, uvec3 q)
+{
     uvec3 l = q & 3u;
     uint bit = l.x + 4u * l.y + 16u * l.z;
     return ((bit < 32u ? e.y >> bit : e.z >> (bit - 32u)) & 1u) != 0u;
 }
 
+// pb_bricks_separable(): whether 8 nonnegative corner weights w are trilinear ones up to scale: with
+// M_a(b) = sum of w_k over bit_a(k) = b, w_k (sum w)^2 = prod_a M_a(bit_a(k)) within PB_BRICKS_SEPARABLE_EPS
+// = 1e-5 relative for every k (float32 rounds both sides to a few 2^-24 relative, also near f' = 0 or 1;
+// a dropped corner must stay dropped); f1 = M(1) / sum w, the one tap's fraction.
+bool brick_separable(float w[8], out vec3 f1)
+{
+    float sw = 0.0;
+    vec3 m0 = vec3(0.0), m1 = vec3(0.0);
+    for (uint k = 0u; k < 8u; ++k) {
+        vec3 o = vec3(float(k & 1u), float((k >> 1u) & 1u), float((k >> 2u) & 1u));
+        sw += w[k];
+        m1 += w[k] * o;
+        m0 += w[k] * (1.0 - o);
+    }
+    f1 = sw > 0.0 ? m1 / sw : vec3(0.0);
+    if (!(sw > 0.0)) return false;
+    for (uint k = 0u; k < 8u; ++k) {
+        vec3 m = mix(m0, m1, vec3(float(k & 1u), float((k >> 1u) & 1u), float((k >> 2u) & 1u)));
+        float lhs = w[k] * sw * sw, rhs = m.x * m.y * m.z;
+        if (!(abs(lhs - rhs) <= 1e-5 * max(lhs, rhs))) return false;
+    }
+    return true;
+}
+
 // E(n) of a grid's bricks at a surface point: brick_surface_irradiance() in bricks_surface.glsl (steps 1-6
 // with the anti-leak rules of step 5, mirroring pb_bricks_sample_surface()).
 
-// ---- dense grids (docs/grid-field.md, --probe-path bricks): a line-by-line mirror of pb_grid_field_query()
-// of native/src/pb_grid_field.c (steps 1-5a; the caller, grid_irradiance, does 5b, the home-cell fallback,
+// ---- dense grids (docs/grid-field.md, --probe-path bricks): a line-by-line mirror of
+// pb_grid_field_sample_surface_texture() of native/src/pb_grid_field.c (pb_grid_field_query's steps 1-5a; the caller, grid_irradiance, does 5b, the home-cell fallback,
 // as before). The grid's cell-centred texture (pb_grid_field_texture_f16: N = v s c, D = v per cell) lies in
 // the brick pool at (0, 0, gr.bricks.z) of each channel group's slab (gr.bricks.w = C | slab << 8).
-// When every corner keeps its home-cell mask bit and its back-face weight is 1 (always for a movable
-// object with a full mask), the rule's weights are trilinear x validity: one filtered fetch per channel
-// group at t = clamp(u - 1/2, 0, dims - 1) (pb_grid_field_sample_texture). Otherwise 8 texelFetch taps
-// per group with the rule's weights exactly (trilinear x back face x mask; validity is in N and D).
+// Corner k's weight is trilinear x keep_k (keep: 0 where the mask drops it, else its back-face weight, 1 for
+// a movable object; validity is in N and D). Where these weights are separable (brick_separable, e.g. an
+// axis-aligned floor or wall, or every keep_k = 1) one filtered fetch per channel group at t = clamp(i0 +
+// f', 0, dims - 1) (pb_grid_field_sample_surface_texture) gives them exactly. Otherwise 8 texelFetch taps
+// per group with the rule's weights exactly.
 
 // Channel group g of cell ci of grid gr (texelFetch: exact, no filter).
-vec4 grid_tex_fetch(sv_gpu_grid gr, ivec3 ci, uint g) {
+vec4 grid_tex_fetch(sv_gpu_grid gr, ivec3 ci, uint g)
+{
     return texelFetch(brick_pool, ci + ivec3(0, 0, int(gr.bricks.z + g * (gr.bricks.w >> 8u))), 0);
 }
 
 // E(n) = sum_i A_l(i) Y_i(n) N_i / D over the channel groups, N_0 and D from t0 (group 0); groups 1.. from
 // `fetch_group` below (one of the two paths). Split in two to keep one loop for both paths.
-float[25] grid_tex_basis(uint C, vec3 n) {
+float[25] grid_tex_basis(uint C, vec3 n)
+{
     uint band = C >= 25u ? 4u : C >= 16u ? 3u : C >= 9u ? 2u : C >= 4u ? 1u : 0u;
     float AY[25];
     sh_lambert_basis(band, n, AY);
@@ -48,7 +77,8 @@ float[25] grid_tex_basis(uint C, vec3 n) {
 }
 
 // false: no weight left (sum w v <= 1e-6, PB_GRID_FIELD_MIN_WEIGHT): the caller's fallback.
-bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, out vec3 e_out) {
+bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, out vec3 e_out)
+{
     e_out = vec3(0.0);
     // 1. (pb_grid_field_query step 1) biased point, grid coordinates u = R (p - origin) / h.
     float h = gr.origin_spacing.w;
@@ -63,41 +93,46 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
     vec3 f = c - vec3(i0);
     // 3. (home, vis) the home cell 0.01 cells along n, its 27-bit neighbour mask from the cell buffer.
     vec3 rel_h = rel + n * (0.01 * h);
-    ivec3 home = clamp(ivec3(floor(vec3(dot(rel_h, gr.axes[0].xyz), dot(rel_h, gr.axes[1].xyz),
-                                          dot(rel_h, gr.axes[2].xyz)) / h)), ivec3(0), dims - 1);
+    ivec3 home = clamp(
+        ivec3(floor(vec3(dot(rel_h, gr.axes[0].xyz), dot(rel_h, gr.axes[1].xyz), dot(rel_h, gr.axes[2].xyz)) / h)),
+        ivec3(0), dims - 1);
     uint vis = uint(cell_probe[gr.base.y + uint(home.x + home.y * dims.x + home.z * dims.x * dims.y)]);
-    // 4. (the loop over k) each corner's factor besides trilinear and validity: 0 when the mask drops it,
-    //    else its back-face weight (1 for a movable object). Empty cells have N = D = 0 in the texture.
-    float keep[8];
-    bool plain = true;
+    // 4. (the loop over k) each corner's weight besides validity: trilinear x keep_k, keep_k = 0 when the
+    //    mask drops it, else its back-face weight (1 for a movable object). Empty cells have N = D = 0.
+    float w[8];
     for (int k = 0; k < 8; ++k) {
         ivec3 o = ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1);
         ivec3 ci = clamp(i0 + o, ivec3(0), dims - 1);
         ivec3 d = ci - home;
-        bool masked = all(lessThanEqual(abs(d), ivec3(1))) &&
-                      (vis & (1u << uint(d.x + 1 + 3 * (d.y + 1) + 9 * (d.z + 1)))) == 0u;
+        bool masked =
+            all(lessThanEqual(abs(d), ivec3(1))) && (vis & (1u << uint(d.x + 1 + 3 * (d.y + 1) + 9 * (d.z + 1)))) == 0u;
         float b = movable ? 1.0 : smoothstep(-0.1, 0.1, dot(cell_centre(gr, ci) - p_surface, n) / h);
-        keep[k] = masked ? 0.0 : b;
-        if (keep[k] < 1.0) plain = false;
+        vec3 w3 = mix(1.0 - f, f, vec3(o));
+        w[k] = w3.x * w3.y * w3.z * (masked ? 0.0 : b);
     }
     uint C = gr.bricks.w & 255u;
     uint groups = (3u * C + 4u) / 4u; // ceil((3C + 1) / 4)
     float AY[25] = grid_tex_basis(C, n);
     vec3 s;
     float D;
-    // The filtered fetch also needs D >= 1/64 (PB_GRID_FIELD_FILTER_MIN_D): where the only valid corners
-    // have tiny trilinear weights, lavapipe's filtered N and D lose the ratio N_k / D_k (measured 0.3 % at
-    // D = 8.7e-5, 2e-4 at 1.3e-3; test_engine_grid_field.py), which the exact taps keep.
+    // 5. Separable weights: one filtered tap at f' (scaled by sw, the weights' sum), kept where its D >= 1/64
+    //    (PB_GRID_FIELD_FILTER_MIN_D), else the 8 taps: where the only valid corners have tiny trilinear weights, lavapipe's
+    //    filtered N and D lose the ratio N_k / D_k (measured 0.3 % at D = 8.7e-5, 2e-4 at 1.3e-3;
+    //    test_engine_grid_field.py), which the exact taps keep.
+    vec3 f1;
+    float sw = 0.0;
+    for (int k = 0; k < 8; ++k) sw += w[k];
+    bool one = brick_separable(w, f1);
     vec3 size = vec3(textureSize(brick_pool, 0));
-    vec3 tc = (clamp(u - 0.5, vec3(0.0), vec3(dims - 1)) + 0.5 + vec3(0.0, 0.0, float(gr.bricks.z))) / size;
-    vec4 t0 = plain ? textureLod(brick_pool, tc, 0.0) : vec4(0.0); // N_0 (RGB), D
-    if (plain && t0.w < 1.0 / 64.0) plain = false;
-    if (plain) {
-        // pb_grid_field_sample_texture: texel coordinate t = clamp(u - 1/2, 0, dims - 1), texel centres
-        // (t + 1/2 + (0, 0, z offset)) / pool size (tc above); the hardware's trilinear filter (its
-        // sub-texel weights).
+    vec3 tc = (clamp(vec3(i0) + f1, vec3(0.0), vec3(dims - 1)) + 0.5 + vec3(0.0, 0.0, float(gr.bricks.z))) / size;
+    vec4 t0 = one ? textureLod(brick_pool, tc, 0.0) : vec4(0.0); // N_0 (RGB), D
+    if (one && t0.w < 1.0 / 64.0) one = false;
+    if (one) {
+        // pb_grid_field_sample_surface_texture's texture_tap: texel centres (t + 1/2 + (0, 0, z offset)) /
+        // pool size (tc above); the hardware's trilinear filter (its sub-texel weights).
         float slab = float(gr.bricks.w >> 8u) / size.z;
-        D = t0.w;
+        D = t0.w;                           // N / D of the tap = sum w (N, D) / sum w (N, D): sw cancels
+        if (!(sw * D > 1e-6)) return false; // 5. sum w <= 1e-6: the caller's home-cell fallback
         s = AY[0] * t0.rgb;
         for (uint g = 1u; g < groups; ++g) {
             vec4 tg = textureLod(brick_pool, tc + vec3(0.0, 0.0, float(g) * slab), 0.0);
@@ -107,16 +142,12 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
             }
         }
     } else {
-        // The rule's weights exactly: w_k = trilinear x keep_k; sum_k w_k (N, D)_k = (sum w v s c, sum w v).
-        float w[8];
-        for (int k = 0; k < 8; ++k) {
-            vec3 w3 = mix(1.0 - f, f, vec3(ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1)));
-            w[k] = w3.x * w3.y * w3.z * keep[k];
-        }
+        // The rule's weights exactly: sum_k w_k (N, D)_k = (sum w v s c, sum w v).
         vec4 a0 = vec4(0.0);
         for (int k = 0; k < 8; ++k) {
             if (w[k] <= 0.0) continue;
-            a0 += w[k] * grid_tex_fetch(gr, clamp(i0 + ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1), ivec3(0), dims - 1), 0u);
+            a0 +=
+                w[k] * grid_tex_fetch(gr, clamp(i0 + ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1), ivec3(0), dims - 1), 0u);
         }
         D = a0.w;
         if (!(D > 1e-6)) return false; // 5. sum w <= 1e-6: the caller's home-cell fallback
@@ -125,7 +156,8 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
             vec4 tg = vec4(0.0);
             for (int k = 0; k < 8; ++k) {
                 if (w[k] <= 0.0) continue;
-                tg += w[k] * grid_tex_fetch(gr, clamp(i0 + ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1), ivec3(0), dims - 1), g);
+                tg += w[k] *
+                      grid_tex_fetch(gr, clamp(i0 + ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1), ivec3(0), dims - 1), g);
             }
             for (uint j = 0u; j < 4u; ++j) {
                 uint ch = 4u * g + j - 4u, i = 1u + ch / 3u;

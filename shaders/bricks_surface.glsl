@@ -1,9 +1,9 @@
 // Probe bricks per pixel with the anti-leak rules (docs/probe-bricks.md "Sampling rule" steps 1-6, "Back
 // faces and visibility"; --probe-path bricks): a line-by-line mirror of pb_bricks_locate() and
 // pb_bricks_sample_surface() of native/src/pb_bricks.c (the one C definition of the field; its header lists
-// steps a-f in this order), in its one-tap form: the hardware's trilinear filter does cell_filtered() at
-// the weighted fraction f' (its sub-texel weights are pb_bricks_sample_surface(..., subtexel_bits = 8)),
-// except in a blocked brick cell, which takes the 8 taps with exact weights (brick_tap8 = cell_weighted).
+// steps a-f in this order): where the cell's kept weights w' are separable the hardware's trilinear filter
+// does cell_filtered() at their per-axis mean f' (its sub-texel weights are pb_bricks_sample_surface(...,
+// subtexel_bits = 8)), elsewhere the 8 taps with the exact weights (brick_tap8 = cell_weighted).
 // Static surfaces (not SV_DRAW_MOVABLE): back-face weights on the brick cell's 8 texels; every object: the
 // visibility ramp of the brick cell's record when the cell is blocked (brick_vis, sv_bricks_vis.h). An
 // unblocked cell of a movable object is the plain sample (step 4), as pb_bricks_sample_bits.
@@ -119,7 +119,7 @@ float brick_pair_vis(uint rec, uint k, uint c)
 }
 
 // E(n) of grid gr's bricks at the surface point p_surface with normal n (pb_bricks_sample_surface with
-// PB_BRICKS_STATIC unless movable, one tap), not clamped; false where the bricks give no value (outside,
+// PB_BRICKS_STATIC unless movable), not clamped; false where the bricks give no value (outside,
 // no leaf, or D <= 0 in the last sample: the caller tries the next grid, then probe 0).
 bool brick_surface_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, out vec3 e_out)
 {
@@ -178,21 +178,18 @@ bool brick_surface_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movab
             wv = wb;
         }
         for (uint k = 0u; k < 8u; ++k) sw += wv[k];
-        // e. A blocked cell: the 8 taps with the exact weights w' (one tap's separable weights would give
-        //    back corners the ramp dropped); sw > 0 and D' > 0: N' / D'.
-        if (blocked) {
-            if (sw > 0.0 && brick_tap8(gr, b, k0, wv, C, AY, e_out)) return true;
-            return brick_tap(gr, b, x, C, AY, e_out); // f. the plain sample at x
+        // e. sw > 0: f'_a = sum_k w'_k bit_a(k) / sw; separable w' (brick_separable = pb_bricks_separable:
+        //    w'_k / sw = prod_a (bit_a(k) ? f'_a : 1 - f'_a) within 1e-5 relative for all k, e.g. an axis-aligned
+        //    surface, or no corner dropped): one filtered tap at k0 + f', exactly the weights w' / sw on N
+        //    and D alike; else the 8 taps with w' (brick_tap8 = cell_weighted). D > 0: N / D.
+        if (sw > 0.0) {
+            vec3 f1;
+            if (brick_separable(wv, f1)) {
+                if (brick_tap(gr, b, k0 + f1, C, AY, e_out)) return true;
+            } else if (brick_tap8(gr, b, k0, wv, C, AY, e_out)) {
+                return true;
+            }
         }
-        //    Else (back faces only) one tap at the weights' per-axis mean f'_a = sum_k w'_k bit_a(k) / sw
-        //    (sw = 0: f' = f), filtered at k0 + f'; D > 0: N / D.
-        vec3 f1;
-        for (int a = 0; a < 3; ++a) {
-            float m = 0.0;
-            for (uint k = 0u; k < 8u; ++k) m += ((k >> uint(a)) & 1u) != 0u ? wv[k] : 0.0;
-            f1[a] = sw > 0.0 ? m / sw : f[a];
-        }
-        if (brick_tap(gr, b, k0 + f1, C, AY, e_out)) return true;
     }
     // f. Else the plain sample at x (the shader's second pass); D <= 0: no value.
     return brick_tap(gr, b, x, C, AY, e_out);

@@ -1162,6 +1162,22 @@ class GridField:
         return (np.frombuffer(co, dtype=np.float64).reshape(-1, C, 3), np.frombuffer(d, dtype=np.float64),
                 np.frombuffer(has, dtype=np.uint8).astype(bool), np.frombuffer(t, dtype=np.float64).reshape(-1, 3))
 
+    def sample_surface_texture(self, points: np.ndarray, normals: Optional[np.ndarray] = None,
+                               static_surface: bool = False, normal_bias: float = 0.0, subtexel_bits: int = 0):
+        """The rule in the texture form as the engine samples it (pb_grid_field_sample_surface_texture) at
+        surface points (N, 3) with unit normals (N, 3) (None: no normal): (coeffs (N, C, 3) = N / D (0
+        without a value), D (N,) = sum w D, has_value (N,) bool (D > 1e-6; else the rule's fallback), taps
+        (N,) uint8: 1 where the kept weights are separable (one filtered tap), 8 elsewhere, 0 outside)."""
+        p, _ = _vectors(points, "points")
+        n = None if normals is None else _vectors(normals, "normals")[0]
+        if n is not None and n.shape != p.shape:
+            raise _shape_error("normals", str(p.shape), n)
+        co, d, has, tp = _lib().grid_field_sample_surface_texture(self._handle, p, n, bool(static_surface),
+                                                                  float(normal_bias), int(subtexel_bits))
+        C = self._raw["coeff_count"]
+        return (np.frombuffer(co, dtype=np.float64).reshape(-1, C, 3), np.frombuffer(d, dtype=np.float64),
+                np.frombuffer(has, dtype=np.uint8).astype(bool), np.frombuffer(tp, dtype=np.uint8))
+
     def texture(self, half: bool = True) -> np.ndarray:
         """The channel textures (groups, Z, Y, X, 4): float16 (SchneeError past 65504) or float32."""
         d = self._raw

@@ -199,6 +199,54 @@ static PyObject *py_grid_field_sample_texture(PyObject *module, PyObject *args)
     return Py_BuildValue("(NNNN)", co, dd, has, to);
 }
 
+/* grid_field_sample_surface_texture(handle, points float64[N*3], normals float64[N*3] | None, static_surface,
+ * normal_bias, subtexel_bits) -> (coeffs float64[N*C*3], d float64[N], has uint8[N], taps uint8[N] (1, 8; 0
+ * outside)): pb_grid_field_sample_surface_texture per point. */
+static PyObject *py_grid_field_sample_surface_texture(PyObject *module, PyObject *args)
+{
+    (void)module;
+    PyObject *hdl, *p_obj, *n_obj;
+    int stat = 0;
+    double bias = 0.0;
+    unsigned int bits = 0;
+    if (!PyArg_ParseTuple(args, "OOOpd|I:grid_field_sample_surface_texture", &hdl, &p_obj, &n_obj, &stat, &bias, &bits))
+        return NULL;
+    pb_grid_field *f = get_field(hdl);
+    if (!f) return NULL;
+    pb_grid_field_info in;
+    pb_grid_field_get_info(f, &in);
+    pb_py_buffer pts, nrm = {0};
+    if (_pb_py_get_buffer(p_obj, "points", 'd', 3, -1, &pts) < 0) return NULL;
+    if (n_obj != Py_None && _pb_py_get_buffer(n_obj, "normals", 'd', 0, pts.count, &nrm) < 0) {
+        _pb_py_release(&pts);
+        return NULL;
+    }
+    Py_ssize_t N = pts.count / 3, C3 = 3 * (Py_ssize_t)in.coeff_count;
+    PyObject *co = PyByteArray_FromStringAndSize(NULL, N * C3 * 8), *dd = PyByteArray_FromStringAndSize(NULL, N * 8),
+             *has = PyByteArray_FromStringAndSize(NULL, N), *tp = PyByteArray_FromStringAndSize(NULL, N);
+    if (co && dd && has && tp) {
+        double *c = (double *)(void *)PyByteArray_AsString(co), *d = (double *)(void *)PyByteArray_AsString(dd);
+        uint8_t *hv = (uint8_t *)PyByteArray_AsString(has), *tv = (uint8_t *)PyByteArray_AsString(tp);
+        const double *pp = pts.view.buf, *nn = n_obj != Py_None ? nrm.view.buf : NULL;
+        pb_grid_field_opts o = {.static_surface = stat != 0, .normal_bias = bias};
+        Py_BEGIN_ALLOW_THREADS for (Py_ssize_t i = 0; i < N; i++)
+        {
+            uint32_t taps = 0;
+            hv[i] = pb_grid_field_sample_surface_texture(f, pp + 3 * i, nn ? nn + 3 * i : NULL, &o, bits, c + C3 * i,
+                                                         d + i, &taps);
+            tv[i] = (uint8_t)taps;
+        }
+        Py_END_ALLOW_THREADS
+    }
+    _pb_py_release(&pts);
+    if (n_obj != Py_None) _pb_py_release(&nrm);
+    if (!co || !dd || !has || !tp) {
+        Py_XDECREF(co), Py_XDECREF(dd), Py_XDECREF(has), Py_XDECREF(tp);
+        return NULL;
+    }
+    return Py_BuildValue("(NNNN)", co, dd, has, tp);
+}
+
 /* grid_field_texture(handle, half) -> bytearray (pb_grid_field_texture_f16 / _f32). */
 static PyObject *py_grid_field_texture(PyObject *module, PyObject *args)
 {
@@ -232,6 +280,9 @@ PyMethodDef _pb_py_grid_field_methods[] = {
      "grid_field_query(handle, points, normals, static_surface, normal_bias) -> (status, probe, weight, coeffs, home)"},
     {"grid_field_sample_texture", py_grid_field_sample_texture, METH_VARARGS,
      "grid_field_sample_texture(handle, points, subtexel_bits=0) -> (coeffs, d, has_value, t)"},
+    {"grid_field_sample_surface_texture", py_grid_field_sample_surface_texture, METH_VARARGS,
+     "grid_field_sample_surface_texture(handle, points, normals, static_surface, normal_bias, subtexel_bits=0) -> "
+     "(coeffs, d, has_value, taps)"},
     {"grid_field_texture", py_grid_field_texture, METH_VARARGS,
      "grid_field_texture(handle, half: bool) -> bytearray (RGBA16F / RGBA32F groups)"},
     {NULL, NULL, 0, NULL},

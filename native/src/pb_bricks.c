@@ -607,6 +607,25 @@ static uint32_t popcount32(uint32_t v)
 
 static bool finite3(const double v[3]) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
 
+bool pb_bricks_separable(const double w[8], double f_out[3])
+{
+    /* M[a][b]: the weight on the corners with bit a = b. Separable w_k = c Π_a g_a(bit_a(k)) exactly when
+     * w_k (Σ w)² = Π_a M[a][bit_a(k)] for every k; compared relatively (sums of nonnegative terms round
+     * to a few ulps relative, also near f' = 0 or 1), so a dropped corner (w_k = 0) must stay dropped. */
+    double sw = 0.0, M[3][2] = {{0.0}};
+    for (uint32_t k = 0; k < 8; k++) {
+        sw += w[k];
+        for (int a = 0; a < 3; a++) M[a][k >> a & 1u] += w[k];
+    }
+    if (!(sw > 0.0)) return false;
+    for (int a = 0; a < 3; a++) f_out[a] = M[a][1] / sw;
+    for (uint32_t k = 0; k < 8; k++) {
+        double lhs = w[k] * sw * sw, rhs = M[0][k & 1u] * M[1][k >> 1 & 1u] * M[2][k >> 2 & 1u];
+        if (!(fabs(lhs - rhs) <= PB_BRICKS_SEPARABLE_EPS * fmax(lhs, rhs))) return false;
+    }
+    return true;
+}
+
 pb_result pb_bricks_sample_surface(const pb_bricks *b, const double p_lookup[3], const double p_surface[3],
                                    const double n[3], uint32_t flags, uint32_t bits, double *coeffs_out, double *d_out,
                                    bool *has_value, pb_error *err)
@@ -674,21 +693,14 @@ pb_result pb_bricks_sample_surface(const pb_bricks *b, const double p_lookup[3],
             memcpy(wv, wb, sizeof wv);
         }
         for (uint32_t k = 0; k < 8; k++) sw += wv[k];
-        /* e. The weighted sample: 8 taps (8TAP, or a blocked cell: the ramp drops corners, which the
-         *    separable weights of one tap at f' would bring back), or one tap at the weights' per-axis mean. */
-        if (taps8 || blocked) {
-            if (sw > 0.0) {
-                cell_weighted(b, brick, k0, wv, nd);
-                done = nd[3] > 0.0;
-            }
-        } else {
+        /* e. The weighted sample: one tap at the weights' per-axis mean f' where w' is separable (then it is
+         *    exactly the trilinear weights of f', up to PB_BRICKS_SEPARABLE_EPS), else (or 8TAP) 8 taps. */
+        if (sw > 0.0) {
             double f1[3];
-            for (int a = 0; a < 3; a++) {
-                double m = 0.0;
-                for (uint32_t k = 0; k < 8; k++) m += (k >> a & 1u) ? wv[k] : 0.0;
-                f1[a] = sw > 0.0 ? m / sw : f[a];
-            }
-            cell_filtered(b, brick, k0, f1, bits, nd);
+            if (!taps8 && pb_bricks_separable(wv, f1))
+                cell_filtered(b, brick, k0, f1, bits, nd);
+            else
+                cell_weighted(b, brick, k0, wv, nd);
             done = nd[3] > 0.0;
         }
     }

@@ -3,6 +3,8 @@
  * shaders/bricks.glsl grid_tex_irradiance() mirror pb_grid_field_query() line by line. */
 #include "schnee/pb_grid_field.h"
 
+#include "schnee/pb_bricks.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -294,38 +296,134 @@ bool pb_grid_field_texel_coord(const pb_grid_field *f, const double p[3], double
     return true;
 }
 
+/* acc += scale × the trilinear filter of the texels at texel coordinate t (in [0, dims − 1]), fractions
+ * rounded to 2^−bits when 0 < bits <= 24 (pb_grid_field_sample_texture). */
+static void texture_tap(const pb_grid_field *f, const double t[3], uint32_t bits, double scale, double *acc)
+{
+    const uint32_t *dims = f->info.dims;
+    uint32_t i0[3], i1[3], ch = f->info.channels;
+    double fr[3];
+    for (int a = 0; a < 3; a++) {
+        double fl = floor(t[a]);
+        i0[a] = (uint32_t)fl;
+        i1[a] = i0[a] + 1u < dims[a] ? i0[a] + 1u : i0[a];
+        fr[a] = t[a] - fl;
+        if (bits > 0 && bits <= 24) fr[a] = nearbyint(ldexp(fr[a], (int)bits)) / ldexp(1.0, (int)bits);
+    }
+    for (int k = 0; k < 8; k++) {
+        uint32_t x = k & 1 ? i1[0] : i0[0], y = k & 2 ? i1[1] : i0[1], z = k & 4 ? i1[2] : i0[2];
+        double wk = (k & 1 ? fr[0] : 1.0 - fr[0]) * (k & 2 ? fr[1] : 1.0 - fr[1]) * (k & 4 ? fr[2] : 1.0 - fr[2]);
+        const double *tx = f->texels + flat(dims, x, y, z) * ch;
+        for (uint32_t c = 0; c < ch; c++) acc[c] += scale * wk * tx[c];
+    }
+}
+
+/* coeffs_out[c] = N_c / D of the channels acc (0 without a value). */
+static void texture_ratio(const pb_grid_field *f, const double *acc, bool has, double *coeffs_out)
+{
+    for (uint32_t c = 0; coeffs_out && c < f->info.coeff_count; c++)
+        for (uint32_t k = 0; k < 3; k++) coeffs_out[3 * c + k] = has ? acc[c == 0 ? k : 3 * c + 1 + k] / acc[3] : 0.0;
+}
+
 bool pb_grid_field_sample_texture(const pb_grid_field *f, const double p[3], uint32_t bits, double *channels_out,
                                   double *coeffs_out, double *d_out)
 {
     double t[3];
-    uint32_t ch = f ? f->info.channels : 0, C = f ? f->info.coeff_count : 0;
+    uint32_t ch = f ? f->info.channels : 0;
     double acc[3u * PB_GRID_FIELD_MAX_COLOURS + 1u] = {0};
     bool inside = pb_grid_field_texel_coord(f, p, t);
-    if (inside) {
-        const uint32_t *dims = f->info.dims;
-        uint32_t i0[3], i1[3];
-        double fr[3];
-        for (int a = 0; a < 3; a++) {
-            double fl = floor(t[a]);
-            i0[a] = (uint32_t)fl;
-            i1[a] = i0[a] + 1u < dims[a] ? i0[a] + 1u : i0[a];
-            fr[a] = t[a] - fl;
-            if (bits > 0 && bits <= 24) fr[a] = nearbyint(ldexp(fr[a], (int)bits)) / ldexp(1.0, (int)bits);
-        }
-        for (int k = 0; k < 8; k++) {
-            uint32_t x = k & 1 ? i1[0] : i0[0], y = k & 2 ? i1[1] : i0[1], z = k & 4 ? i1[2] : i0[2];
-            double wk = (k & 1 ? fr[0] : 1.0 - fr[0]) * (k & 2 ? fr[1] : 1.0 - fr[1]) * (k & 4 ? fr[2] : 1.0 - fr[2]);
-            const double *tx = f->texels + flat(dims, x, y, z) * ch;
-            for (uint32_t c = 0; c < ch; c++) acc[c] += wk * tx[c];
-        }
-    }
+    if (inside) texture_tap(f, t, bits, 1.0, acc);
     bool has = inside && acc[3] > PB_GRID_FIELD_MIN_WEIGHT;
     if (channels_out) memcpy(channels_out, acc, ch * sizeof *acc);
     if (d_out) *d_out = acc[3];
-    if (coeffs_out)
-        for (uint32_t c = 0; c < C; c++)
-            for (uint32_t k = 0; k < 3; k++)
-                coeffs_out[3 * c + k] = has ? acc[c == 0 ? k : 3 * c + 1 + k] / acc[3] : 0.0;
+    if (f) texture_ratio(f, acc, has, coeffs_out);
+    return has;
+}
+
+bool pb_grid_field_sample_surface_texture(const pb_grid_field *f, const double p_surface[3], const double n_in[3],
+                                          const pb_grid_field_opts *opts, uint32_t bits, double *coeffs_out,
+                                          double *d_out, uint32_t *taps_out)
+{
+    double acc[3u * PB_GRID_FIELD_MAX_COLOURS + 1u] = {0};
+    if (taps_out) *taps_out = 0;
+    if (d_out) *d_out = 0.0;
+    if (f) texture_ratio(f, acc, false, coeffs_out);
+    if (!f || !p_surface) return false;
+    const pb_grid_field_info *in = &f->info;
+    const uint32_t *dims = in->dims;
+    static const double zero[3] = {0, 0, 0};
+    const double *n = n_in ? n_in : zero;
+    pb_grid_field_opts o = opts ? *opts : (pb_grid_field_opts){0};
+    double h = in->spacing;
+    /* 1.–3. as pb_grid_field_query: u of the biased point, the box, c, i0, f, the home cell's mask. */
+    double p[3], u[3], ph[3], uh[3], fr[3];
+    int64_t i0[3];
+    uint32_t home[3];
+    for (int a = 0; a < 3; a++) p[a] = p_surface[a] + n[a] * (o.normal_bias * h);
+    grid_coords(in, p, u);
+    if (!in_box(in, u)) return false;
+    for (int a = 0; a < 3; a++) {
+        double c = u[a] - 0.5;
+        i0[a] = (int64_t)floor(c);
+        fr[a] = c - (double)i0[a];
+    }
+    for (int a = 0; a < 3; a++) ph[a] = p[a] + n[a] * (PB_GRID_FIELD_MARGIN * h);
+    grid_coords(in, ph, uh);
+    for (int a = 0; a < 3; a++) home[a] = (uint32_t)clamp_i((int64_t)floor(uh[a]), 0, (int64_t)dims[a] - 1);
+    uint32_t vis = f->masks[flat(dims, home[0], home[1], home[2])];
+    /* 4. Each corner's weight besides validity (which is in N and D): trilinear × keep_k, keep_k = 0 where
+     *    the mask drops the corner, else its back-face weight (1 for a movable object). */
+    double w[8];
+    int64_t ci[8][3];
+    for (int k = 0; k < 8; k++) {
+        int o3[3] = {k & 1, (k >> 1) & 1, (k >> 2) & 1};
+        int64_t dd[3];
+        double centre[3], tri = 1.0;
+        for (int a = 0; a < 3; a++) {
+            ci[k][a] = clamp_i(i0[a] + o3[a], 0, (int64_t)dims[a] - 1);
+            dd[a] = ci[k][a] - (int64_t)home[a];
+            tri *= o3[a] ? fr[a] : 1.0 - fr[a];
+        }
+        bool masked = llabs(dd[0]) <= 1 && llabs(dd[1]) <= 1 && llabs(dd[2]) <= 1 &&
+                      !(vis & (UINT32_C(1) << (dd[0] + 1 + 3 * (dd[1] + 1) + 9 * (dd[2] + 1))));
+        for (int a = 0; a < 3; a++) centre[a] = in->origin[a];
+        for (int r = 0; r < 3; r++)
+            for (int a = 0; a < 3; a++) centre[a] += ((double)ci[k][r] + 0.5) * h * in->axes[3 * r + a];
+        double t = ((centre[0] - p_surface[0]) * n[0] + (centre[1] - p_surface[1]) * n[1] +
+                    (centre[2] - p_surface[2]) * n[2]) /
+                   h;
+        double b = o.static_surface ? smoothstep(-PB_GRID_FIELD_BACK_RAMP, PB_GRID_FIELD_BACK_RAMP, t) : 1.0;
+        w[k] = tri * (masked ? 0.0 : b);
+    }
+    /* 5. Separable weights (pb_bricks_separable): one filtered tap at t = clamp(i0 + f', 0, dims − 1) (a
+     *    clamped axis has both corners in one cell), exactly Σ (w_k / sw) (N, D)_k; kept where its D >=
+     *    PB_GRID_FIELD_FILTER_MIN_D. Else the 8 texels with w exactly. Σ w v <= 1e-6: no value here (the
+     *    caller's home-cell fallback). */
+    double f1[3], sw = 0.0;
+    for (int k = 0; k < 8; k++) sw += w[k];
+    uint32_t taps = 8;
+    if (pb_bricks_separable(w, f1)) {
+        double t[3];
+        for (int a = 0; a < 3; a++) {
+            double v = (double)i0[a] + f1[a], hi = (double)dims[a] - 1.0;
+            t[a] = v < 0.0 ? 0.0 : v > hi ? hi : v;
+        }
+        texture_tap(f, t, bits, sw, acc);
+        if (acc[3] >= PB_GRID_FIELD_FILTER_MIN_D * sw)
+            taps = 1;
+        else
+            memset(acc, 0, sizeof acc);
+    }
+    for (int k = 0; taps == 8 && k < 8; k++) {
+        if (!(w[k] > 0.0)) continue;
+        const double *tx =
+            f->texels + flat(dims, (uint32_t)ci[k][0], (uint32_t)ci[k][1], (uint32_t)ci[k][2]) * in->channels;
+        for (uint32_t c = 0; c < in->channels; c++) acc[c] += w[k] * tx[c];
+    }
+    bool has = acc[3] > PB_GRID_FIELD_MIN_WEIGHT;
+    if (taps_out) *taps_out = taps;
+    if (d_out) *d_out = acc[3];
+    texture_ratio(f, acc, has, coeffs_out);
     return has;
 }
 

@@ -1,8 +1,8 @@
 """Dense probe grids per pixel from their texture (--probe-path bricks; docs/grid-field.md): the engine
 builds each dense SH grid's cell-centred texture with the core (pb_grid_field: N = v s c, D = v per cell,
 RGBA16F in the brick pool), and bricks.glsl's grid_tex_irradiance samples it with one filtered fetch per
-channel group where the rule's weights are trilinear x validity (movable objects with a full mask), else
-with 8 texelFetch taps and the rule's exact weights (back faces, the home cell's neighbour mask); the
+channel group where the rule's weights besides validity are separable (movable objects with a full mask,
+axis-aligned floors and walls), else with 8 texelFetch taps and the rule's exact weights; the
 home-cell fallback stays shading.glsl's. Real lavapipe, Khronos validation layer on (viewer.run).
 
 Expected values come from the core's C through the Python module (native.GridField: the rule's status,
@@ -176,8 +176,8 @@ def static_floor_scene(d, entry, y, k):
 def test_glsl_exact_taps_equal_the_c_on_static_floors(tmp_path):
     # Static floors at 3 random heights (away from the centres' heights) through a random grid, normal bias
     # 0.2: back-face weights drop the corners below the floor and the home cell's mask those across it
-    # (the engine traces them; the C gets the same masks from the straddle rule), so most points take the
-    # 8 exact taps, the rest (all corners above, bias past the bottom layer) the filtered fetch, and points
+    # (the engine traces them; the C gets the same masks from the straddle rule): where the kept weights are
+    # separable (a whole face dropped or kept) one filtered fetch at f', else the 8 exact taps, and points
     # with every weight 0 the home cell's probe alone. Bound: binary16 texels, |N~/D~ - N/D| <= 2^-11
     # (sum w |E_k| + |E|) per channel, doubled, + 2e-5 of the peak + 1e-5 (fp32 weights and sums) + one
     # 2^-8 filter step for the filtered points.
@@ -190,7 +190,7 @@ def test_glsl_exact_taps_equal_the_c_on_static_floors(tmp_path):
         if np.abs(centres_y - y).min() > 0.03:
             heights.append(y)
     size = 80  # even: no pixel centre on the cell faces x = 2, z = 2 (a floor() tie between fp32 and float64)
-    worst, taps, counts_all = 0.0, 0, {}
+    worst, taps, eight, counts_all = 0.0, 0, 0, {}
     for k, y in enumerate(heights):
         scene = static_floor_scene(tmp_path, entry, y, k)
         img, proc = render(scene, tmp_path / f"f{k}.exr", size, "--normal-bias", 0.2, *BRICKS)
@@ -217,14 +217,20 @@ def test_glsl_exact_taps_equal_the_c_on_static_floors(tmp_path):
         bad = err > bound
         assert bad.sum() <= 2, (y, bad.sum(), err[bad][:5], bound[bad][:5], q["status"][bad][:5])
         worst = max(worst, err[~bad].max())
-        # How many points had a corner dropped (the 8-tap path): weights not all from the plain rule.
+        # How many points had a corner dropped (weights not all from the plain rule), and of those how many
+        # take the 8 taps (the kept weights not separable: a mask dropping part of a face; the floor's own
+        # back faces drop whole faces and keep the one tap): pb_grid_field_sample_surface_texture.
         plain = native.GridField.build(cells, (0, 0, 0), 0.5, coeffs, validity=validity, scale=scale)
         qp = plain.query(p, up, static_surface=False, normal_bias=0.2)
-        taps += int(((np.abs(qp["weight"] - q["weight"]).max(axis=1) > 1e-9) & (q["status"] == W)).sum())
+        dropped = (np.abs(qp["weight"] - q["weight"]).max(axis=1) > 1e-9) & (q["status"] == W)
+        taps += int(dropped.sum())
+        *_, ntaps = field.sample_surface_texture(p, up, static_surface=True, normal_bias=0.2)
+        eight += int((dropped & (ntaps == 8)).sum())
         for i, s in enumerate(native.GRID_FIELD_STATUS):
             counts_all[s] = counts_all.get(s, 0) + int((q["status"] == i).sum())
     assert taps > 1000 and counts_all["fallback"] > 0, (taps, counts_all)
-    print(f"static floors: {counts_all}, {taps} points with dropped corners (8 taps); max |GLSL - C| {worst:.3g}")
+    print(f"static floors: {counts_all}, {taps} points with dropped corners ({eight} of them on 8 taps, the rest "
+          f"one tap); max |GLSL - C| {worst:.3g}")
 
 
 def test_linear_field_closed_form(tmp_path):

@@ -249,3 +249,59 @@ def test_refusals_are_clear():
     with pytest.raises(native.SchneeError, match="upload float32"):
         big.texture(half=True)
     assert big.texture(half=False).max() == pytest.approx(1e5)
+
+
+@pytest.mark.parametrize("rotated", [False, True])
+def test_surface_texture_one_tap_where_separable(rotated):
+    # pb_grid_field_sample_surface_texture (the engine's texture path, shaders/bricks.glsl
+    # grid_tex_irradiance) against the rule itself (pb_grid_field_query's sum w s c): with exact fractions
+    # the 8 taps and the one tap on floors and walls equal it to 1e-12 wherever the rule has weights (same
+    # points with a value); a tilted plane's one tap (weights separable within 1e-5 relative) within 4e-5. Full grid,
+    # valid probes, no masks, static surfaces: floors and walls (normals along the grid's axes) take one tap
+    # at every inside point, tilted planes 8 taps at most points (their back-face weights are not a product
+    # of per-axis ones) and one tap where every corner keeps weight 1. Then 15 % empty cells, 20 % invalid
+    # probes, random masks, normal bias 0.3: still equal to the rule; which taps were taken is counted.
+    rng = np.random.default_rng(41 + rotated)
+    R = rotation((1, 2, 3), 0.7) if rotated else np.eye(3)
+    origin, h, dims = (0.3, -0.7, 1.1), 0.35, (6, 5, 4)
+    for hostile in (False, True):
+        cells, coeffs, validity, scale = random_grid(rng, dims, empty=0.15 if hostile else 0.0,
+                                                     invalid=0.2 if hostile else 0.0)
+        masks = np.full(cells.shape, 0x7FFFFFF, np.int64)
+        for b in range(27 if hostile else 0):
+            masks &= ~((rng.uniform(size=cells.shape) < 0.3).astype(np.int64) << b)
+        f = native.GridField.build(cells, origin, h, coeffs, axes=R, validity=validity, scale=scale,
+                                   masks=masks.astype(np.uint32))
+        p, tilt = random_points(rng, dims, origin, h, R, 6000, pad=0.0)
+        axis = (np.eye(3)[rng.integers(0, 3, len(p))] * rng.choice([-1.0, 1.0], (len(p), 1))) @ R
+        bias = 0.3 if hostile else 0.0
+        for name, n in (("axis-aligned", axis), ("tilted", tilt)):
+            q = f.query(p, n, static_surface=True, normal_bias=bias)
+            c, d, has, taps = f.sample_surface_texture(p, n, static_surface=True, normal_bias=bias)
+            rule = q["status"] == STATUS["weights"]
+            assert (rule == has).all()
+            e = np.abs(c - q["coeffs"]).max(axis=(1, 2)) / np.abs(q["coeffs"][has]).max()
+            err = e[has].max()
+            assert e[has & (taps == 8)].max(initial=0) < 1e-12, name
+            # One tap: exact where the weights are exactly separable (floors, walls, all kept); a tilted
+            # plane's cells separable within PB_BRICKS_SEPARABLE_EPS = 1e-5 relative per weight: each
+            # normalised weight within 2e-5 relative, so within 4e-5 of the weighted |values| (measured 1e-7).
+            assert e[has & (taps == 1)].max(initial=0) < (1e-12 if name == "axis-aligned" else 4e-5), name
+            one, eight = int((taps[has] == 1).sum()), int((taps[has] == 8).sum())
+            print(f"rotated={rotated} hostile={hostile} {name}: one tap {one}, 8 taps {eight}, max err {err:.3g}")
+            assert one + eight == has.sum()
+            if not hostile:
+                if name == "axis-aligned":
+                    assert eight == 0
+                else:
+                    assert eight > one > 0
+            else:
+                assert one > 0 and eight > 0
+            # 8-bit fractions change the one tap's value only (the 8 taps are exact); not at every one-tap
+            # point: an axis clamped at the faces, or f' 0 or 1 (measured 72-96 % moved).
+            # (The quantised tap's D may fall below 1/64 where the exact one's did not: both calls' taps.)
+            c8, _, _, taps8 = f.sample_surface_texture(p, n, static_surface=True, normal_bias=bias,
+                                                       subtexel_bits=8)
+            moved = np.abs(c8 - c).max(axis=(1, 2)) > 0
+            assert not moved[has & (taps == 8) & (taps8 == 8)].any()
+            assert moved[has & (taps == 1) & (taps8 == 1)].mean() > 0.5

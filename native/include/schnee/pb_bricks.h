@@ -71,6 +71,7 @@ extern "C" {
 #define PB_BRICKS_DEFAULT_MAX_BYTES (UINT64_C(1) << 30)  /* the build's memory cap when desc.max_bytes = 0 */
 #define PB_HALF_MAX                 65504.0              /* the largest binary16 */
 #define PB_BRICKS_RECORD_BYTES      64u                  /* one visibility record: 8 × 8 pair bytes */
+#define PB_BRICKS_SEPARABLE_EPS     1e-5                 /* pb_bricks_separable's relative tolerance */
 
 /* pb_bricks_sample_surface() flags. */
 #define PB_BRICKS_STATIC 1u /* a static surface of the bake: back-face weights (0 = movable: none) */
@@ -158,10 +159,11 @@ bool pb_bricks_sample_bits(const pb_bricks *bricks, const double p[3], uint32_t 
  *   d. visibility (blocked): v_c = Σ_k wb_k V(k, c) / wbsum (V = pb_vis_pair_value of the cell's record;
  *      v_c = 0 when wbsum = 0), w'_c = wb_c · smoothstep(½, ½ + PB_VIS_RAMP, v_c); else w' = wb.
  *      sw = Σ w'_c.
- *   e. 8TAP or blocked: N' = Σ w'_k T_k, D' = Σ w'_k D_k over the cell's 8 texels (exact weights, also
- *      in the 1-tap form: one tap's separable weights would give back corners the ramp dropped);
- *      sw > 0 and D' > 0: N' / D'. Else (1 tap, unblocked: back faces only): f'_a = Σ_k w'_k bit_a(k) /
- *      sw (sw = 0: f' = f), one filtered sample at k0 + f' (fractions rounded to subtexel_bits); D > 0: N / D.
+ *   e. sw > 0: f'_a = Σ_k w'_k bit_a(k) / sw; where w' is separable (pb_bricks_separable: w'_k / sw =
+ *      Π_a (bit_a(k) ? f'_a : 1 − f'_a) for all 8 k, within PB_BRICKS_SEPARABLE_EPS relative; e.g. an
+ *      axis-aligned surface, or no corner dropped) and not 8TAP, one filtered sample at k0 + f' (fractions rounded to
+ *      subtexel_bits): exactly the 8 weights w' / sw on N and D alike, so N / D is the 8 taps' N' / D';
+ *      else N' = Σ w'_k T_k, D' = Σ w'_k D_k over the cell's 8 texels. D > 0: N / D.
  *   f. Else the plain sample at x (the shader's second pass); D ≤ 0: false (no value).
  * The plain sample: 8TAP exact weights (= pb_bricks_sample), else pb_bricks_filter with subtexel_bits
  * (= pb_bricks_sample_bits). subtexel_bits applies to filtered fetches only (8TAP is exact).
@@ -172,6 +174,12 @@ bool pb_bricks_sample_bits(const pb_bricks *bricks, const double p[3], uint32_t 
 pb_result pb_bricks_sample_surface(const pb_bricks *bricks, const double p_lookup[3], const double p_surface[3],
                                    const double n[3], uint32_t flags, uint32_t subtexel_bits, double *coeffs_out,
                                    double *d_out, bool *has_value, pb_error *err);
+
+/* Whether 8 nonnegative corner weights w (corner k = bits x, y, z of k) are trilinear ones up to scale:
+ * with M_a(b) = Σ_{bit_a(k) = b} w_k, w_k (Σ w)² = Π_a M_a(bit_a(k)) within PB_BRICKS_SEPARABLE_EPS
+ * relative for every k (so exactly 0 where w_k = 0: a dropped corner stays dropped). f_out[a] = M_a(1) /
+ * Σ w, the fraction whose trilinear weights are then w / Σ w (step 5e's one tap). False when Σ w <= 0. */
+bool pb_bricks_separable(const double w[8], double f_out[3]);
 
 /* ---- arrays for an upload and for tests --------------------------------------------------------- */
 

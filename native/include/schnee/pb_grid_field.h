@@ -34,8 +34,9 @@
  * 4 (ceil((3C + 1) / 4)); N_i = v·s·c_i and D = v with v = max(validity, 0) of the cell's probe, 0 for an
  * empty cell. Sampled at t = clamp(u − ½, 0, dims − 1) (clamp to edge), trilinear, N / D: equal to the rule
  * when every corner kept its mask bit and (movable, or) every back-face weight is 1, and W > 1e-6. The
- * engine filters in hardware only there and where D >= PB_GRID_FIELD_FILTER_MIN_D; elsewhere it takes 8
- * texel fetches with the rule's exact weights.
+ * engine (pb_grid_field_sample_surface_texture) filters in hardware where the kept weights trilinear × mask
+ * × back face are separable (one tap at their per-axis mean f', e.g. an axis-aligned floor or wall) and
+ * D >= PB_GRID_FIELD_FILTER_MIN_D; elsewhere it takes 8 texel fetches with the rule's exact weights.
  * Coordinates: engine space, metres, double.
  */
 #ifndef SCHNEE_PB_GRID_FIELD_H
@@ -137,6 +138,18 @@ bool pb_grid_field_texel_coord(const pb_grid_field *field, const double p[3], do
  * (coeff_count × 3, 0 without a value); d_out (optional): D. True when in the box and D > 1e-6. */
 bool pb_grid_field_sample_texture(const pb_grid_field *field, const double p[3], uint32_t subtexel_bits,
                                   double *channels_out, double *coeffs_out, double *d_out);
+/* The rule in the texture form at surface point p_s with normal n (NULL = none) and opts, as the engine
+ * samples it (shaders/bricks.glsl grid_tex_irradiance): steps 1–3 of the rule; corner k's weight
+ * w_k = Π_a (bit ? f_a : 1 − f_a) × keep_k, keep_k = 0 where the mask drops it, else its back-face weight
+ * (1 without static_surface); validity and empty cells are in the texels' N and D. Where w is separable
+ * (pb_bricks_separable of pb_bricks.h, f') one trilinear sample at t = clamp(i0 + f', 0, dims − 1)
+ * (fractions rounded to subtexel_bits), kept when its D >= PB_GRID_FIELD_FILTER_MIN_D; else 8 texels with
+ * w exactly. Both give Σ w (N, D) / Σ w, so N / D is the rule's value. *taps_out (optional): 1 or 8 (0
+ * outside the box); d_out (optional): Σ w D; coeffs_out (optional): N / D (coeff_count × 3, 0 without a
+ * value). True when Σ w D > 1e-6 (else the rule's home-cell fallback, not done here). */
+bool pb_grid_field_sample_surface_texture(const pb_grid_field *field, const double p_surface[3], const double n[3],
+                                          const pb_grid_field_opts *opts, uint32_t subtexel_bits, double *coeffs_out,
+                                          double *d_out, uint32_t *taps_out);
 /* The float64 texels: X·Y·Z × channels, cell x fastest. */
 const double *pb_grid_field_texels(const pb_grid_field *field);
 /* The texture as `groups` RGBA textures, group-major, then z, y, x, then RGBA: out[((g·Z + z)·Y + y)·X + x)·4
