@@ -75,7 +75,7 @@ extern "C" {
 
 /* pb_bricks_sample_surface() flags. */
 #define PB_BRICKS_STATIC 1u /* a static surface of the bake: back-face weights (0 = movable: none) */
-#define PB_BRICKS_8TAP   2u /* 8 texel fetches with the weights applied exactly (0 = one filtered tap) */
+#define PB_BRICKS_8TAP   2u /* 8 texel fetches everywhere (0 = one filtered tap where the weights are separable) */
 
 typedef struct pb_bricks pb_bricks;
 
