@@ -13,7 +13,7 @@ from typing import Optional
 
 import bpy
 
-from . import compat, light_modes
+from . import compat, light_modes, native
 from .estimate import format_duration
 from .settings import BakeError
 
@@ -189,3 +189,11 @@ def check_shading(scene):
     missing image files (:func:`check_missing_images`)."""
     check_finite_emission(scene)
     check_missing_images(scene)
+
+
+def check_panorama_size(settings):
+    """Panorama Resolution too small for Max SH Band: :class:`BakeError` with the size needed."""
+    min_w, min_h = native.min_panorama_size(settings.max_band)
+    if settings.panorama_resolution < min_w or settings.panorama_resolution // 2 < min_h:
+        raise BakeError(f"Panorama Resolution {settings.panorama_resolution} is too small for Max SH Band "
+                        f"{settings.max_band}: at least {min_w}x{min_h} is needed")

@@ -52,8 +52,8 @@ import numpy as np
 from . import bake_sky, direct_light, fingerprint, journal, native, render_settings
 from .adaptive import DEFAULT_POLICY, Policy
 # The parts, and the names scripts import from bake_core (re-exported).
-from .bake_checks import (BakeCancelled, BakeTooLarge, check_finite_emission, check_shading,  # noqa: F401
-                          check_light_modes)
+from .bake_checks import (BakeCancelled, BakeTooLarge, check_finite_emission, check_panorama_size,  # noqa: F401
+                          check_light_modes, check_shading)
 from .bake_outputs import (DEBUG_SHPROBE_NAME, DEBUG_SUBDIR, DEBUG_TEXT_FIRST_LINE,  # noqa: F401
                            DEBUG_TEXT_NAME, EXR_MAGIC, HALF_MAX, SHPROBE_MAGIC, SKY_FILE_NAME,
                            SUN_FILE_NAME, SUN_FORMAT, SUN_MAGIC, abspath, check_half_range, check_replaceable,
@@ -186,17 +186,10 @@ class ProbeBake:
         s.validate()
         realtime, mixed = check_light_modes(self.scene, self.messages)
         check_shading(self.scene)
-        min_w, min_h = native.min_panorama_size(s.max_band)
-        if s.panorama_resolution < min_w or s.panorama_resolution // 2 < min_h:
-            raise BakeError(f"Panorama Resolution {s.panorama_resolution} is too small for Max SH Band "
-                            f"{s.max_band}: at least {min_w}x{min_h} is needed")
-
-        if self.plan.volumes:
-            # Before placement: a second bake of the same output refuses here (BakeError naming
-            # the first one's process), having read or changed nothing (output_lock.py).
-            self.store = PointStore(abspath(s.output_path), self.shard, self.merge_shards, self.restart,
-                                    self.log, self.messages)
-            self.store.lock()
+        check_panorama_size(s)
+        if self.plan.volumes:  # before placement: a second bake of this output refuses (output_lock.py)
+            self.store = PointStore.locked(abspath(s.output_path), self.shard, self.merge_shards, self.restart,
+                                           self.log, self.messages)
 
         def progress(fraction, stage):
             if placement_progress is not None and placement_progress(fraction, stage) is False:
@@ -374,12 +367,10 @@ class ProbeBake:
             return
         self._closed = True
         try:
-            if self.store is not None:
-                self.store.close()
             self.session.close()
         finally:
-            if self.store is not None:
-                self.store.unlock()  # last: the journal and the output are as this bake leaves them
+            if self.store is not None:  # unlocked last: the journal and the output as this bake leaves them
+                self.store.close(unlock=True)
 
     def run(self, progress=None) -> BakeResult:
         """prepare + every step + finish, synchronously; ``progress(bake)`` after each probe may

@@ -105,6 +105,13 @@ class PointStore:
             raise BakeError(f"Cannot lock the output for this bake ({self._lock.path}): "
                             f"{exc.strerror or exc}") from exc
 
+    @classmethod
+    def locked(cls, *args, **kwargs) -> "PointStore":
+        """A store whose lock is taken (:meth:`lock`): the first step of a volume bake."""
+        store = cls(*args, **kwargs)
+        store.lock()
+        return store
+
     def unlock(self):
         """Free the lock (idempotent); after :meth:`close` and the journal's removal."""
         self._lock.release()
@@ -192,8 +199,13 @@ class PointStore:
         except OSError as exc:
             raise BakeError(f"Cannot write the bake journal {self.path}: {exc}") from exc
 
-    def close(self):
-        if self._writer is not None:
-            self._kept = len(self._writer.values)
-            self._writer.close()
-            self._writer = None
+    def close(self, unlock: bool = False):
+        """Close the journal (idempotent); ``unlock``: then free the lock, even if closing failed."""
+        try:
+            if self._writer is not None:
+                self._kept = len(self._writer.values)
+                self._writer.close()
+                self._writer = None
+        finally:
+            if unlock:
+                self.unlock()
