@@ -47,29 +47,8 @@ static bool dense_texturable(const sv_probe_grid *gr)
  * neighbour masks stay in the cell buffer (the shader reads the home cell's). */
 static bool build_dense(const sv_probe_grid *gr, uint32_t g, pb_grid_field **out)
 {
-    const pb_shprobe *f = gr->file;
-    uint32_t nc = pb_sh_count(f->max_band);
-    size_t n = (size_t)f->probe_count * nc * 3u;
-    double *c = malloc((n ? n : 1) * sizeof(double)), axes[9];
-    if (!c) {
-        fprintf(stderr, "schnee-view: %s: --probe-path bricks: out of memory for shProbeGrids[%u]\n", s_level, g);
-        return false;
-    }
-    for (size_t i = 0; i < n; ++i) c[i] = f->coeffs[i];
-    for (int i = 0; i < 9; ++i) axes[i] = f->grid_axes[i];
-    pb_grid_field_desc d = {.dims = {f->grid_dims[0], f->grid_dims[1], f->grid_dims[2]},
-                            .origin = {f->grid_origin[0], f->grid_origin[1], f->grid_origin[2]},
-                            .spacing = f->grid_spacing,
-                            .axes = axes,
-                            .cells = f->grid,
-                            .probe_count = f->probe_count,
-                            .coeff_count = nc,
-                            .coeffs = c,
-                            .validity = f->validity,
-                            .scale = f->probe_scale};
     pb_error err = {0};
-    pb_result rc = pb_grid_field_build(&d, out, &err);
-    free(c);
+    pb_result rc = sv_grid_field_build(gr->file, out, &err);
     if (rc == PB_SUCCESS) return true;
     fprintf(stderr, "schnee-view: %s: --probe-path bricks: shProbeGrids[%u] '%s': %s\n", s_level, g, gr->name,
             err.message[0] ? err.message : pb_result_string(rc));
@@ -178,6 +157,21 @@ static bool fits_device(sv_renderer *r, const brick_set *s, VkFormat pool_format
     return true;
 }
 
+/* A grid's texture (groups, z, y, x, RGBA; px × py × pz texels per group) into the combined pool: group
+ * grp at (0, 0, grp · slab + zoff). */
+static void copy_slabs(const brick_set *s, const uint8_t *tmp, size_t groups, size_t px, size_t py, size_t pz,
+                       uint32_t zoff, uint8_t *out)
+{
+    size_t elem = s->f32 ? 4 : 2;
+    for (size_t grp = 0; grp < groups; ++grp)
+        for (size_t z = 0; z < pz; ++z)
+            for (size_t y = 0; y < py; ++y) {
+                size_t src = ((grp * pz + z) * py + y) * px * 4u;
+                size_t dz = grp * s->slab + zoff + z, dst = ((dz * s->pool[1] + y) * s->pool[0]) * 4u;
+                memcpy(out + dst * elem, tmp + src * elem, px * 4u * elem);
+            }
+}
+
 /* Grid g's pool (pb_bricks_pool_f16/_f32: groups, z, y, x, RGBA) into the combined pool at its slab offset. */
 static bool copy_pool(const brick_set *s, uint32_t g, uint32_t zoff, uint8_t *out, bool *overflow)
 {
@@ -190,13 +184,7 @@ static bool copy_pool(const brick_set *s, uint32_t g, uint32_t zoff, uint8_t *ou
     pb_result rc = s->f32 ? pb_bricks_pool_f32(s->b[g], (float *)tmp, cap, &err)
                           : pb_bricks_pool_f16(s->b[g], (uint16_t *)tmp, cap, &err);
     *overflow = rc == PB_ERROR_TOO_LARGE;
-    for (size_t grp = 0; rc == PB_SUCCESS && grp < in->groups; ++grp)
-        for (size_t z = 0; z < pz; ++z)
-            for (size_t y = 0; y < py; ++y) {
-                size_t src = ((grp * pz + z) * py + y) * px * 4u;
-                size_t dz = grp * s->slab + zoff + z, dst = ((dz * s->pool[1] + y) * s->pool[0]) * 4u;
-                memcpy(out + dst * elem, tmp + src * elem, px * 4u * elem);
-            }
+    if (rc == PB_SUCCESS) copy_slabs(s, tmp, in->groups, px, py, pz, zoff, out);
     free(tmp);
     return rc == PB_SUCCESS;
 }
@@ -214,13 +202,7 @@ static bool copy_dense(const brick_set *s, uint32_t g, uint32_t zoff, uint8_t *o
     pb_result rc = s->f32 ? pb_grid_field_texture_f32(s->dense[g], (float *)tmp, cap, &err)
                           : pb_grid_field_texture_f16(s->dense[g], (uint16_t *)tmp, cap, &err);
     *overflow = rc == PB_ERROR_TOO_LARGE;
-    for (size_t grp = 0; rc == PB_SUCCESS && grp < fi.groups; ++grp)
-        for (size_t z = 0; z < pz; ++z)
-            for (size_t y = 0; y < py; ++y) {
-                size_t src = ((grp * pz + z) * py + y) * px * 4u;
-                size_t dz = grp * s->slab + zoff + z, dst = ((dz * s->pool[1] + y) * s->pool[0]) * 4u;
-                memcpy(out + dst * elem, tmp + src * elem, px * 4u * elem);
-            }
+    if (rc == PB_SUCCESS) copy_slabs(s, tmp, fi.groups, px, py, pz, zoff, out);
     free(tmp);
     return rc == PB_SUCCESS;
 }

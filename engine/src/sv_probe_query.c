@@ -131,26 +131,8 @@ static const pb_grid_field *dense_field(sv_probes *P, uint32_t g)
     if (!P->fields) return NULL;
     if (P->fields[g]) return P->fields[g];
     const sv_probe_grid *gr = &P->grids[g];
-    const pb_shprobe *f = gr->file;
-    uint32_t nc = pb_shprobe_colour_count(f);
-    size_t n = (size_t)f->probe_count * nc * 3u;
-    double *c = malloc((n ? n : 1) * sizeof(double)), axes[9];
-    if (!c) return NULL;
-    for (size_t i = 0; i < n; ++i) c[i] = f->coeffs[i];
-    for (int i = 0; i < 9; ++i) axes[i] = f->grid_axes[i];
-    pb_grid_field_desc d = {.dims = {f->grid_dims[0], f->grid_dims[1], f->grid_dims[2]},
-                            .origin = {f->grid_origin[0], f->grid_origin[1], f->grid_origin[2]},
-                            .spacing = f->grid_spacing,
-                            .axes = axes,
-                            .cells = f->grid,
-                            .probe_count = f->probe_count,
-                            .coeff_count = nc,
-                            .coeffs = c,
-                            .validity = f->validity,
-                            .scale = f->probe_scale};
     pb_error err = {0};
-    pb_result rc = pb_grid_field_build(&d, &P->fields[g], &err);
-    free(c);
+    pb_result rc = sv_grid_field_build(gr->file, &P->fields[g], &err);
     if (rc != PB_SUCCESS) {
         P->fields[g] = NULL;
         fprintf(stderr,

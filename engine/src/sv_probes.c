@@ -239,3 +239,26 @@ void sv_cell_centre(const pb_shprobe *f, int x, int y, int z, float out[3])
     for (int k = 0; k < 3; ++k)
         out[k] = f->grid_origin[k] + l[0] * ax[0 * 3 + k] + l[1] * ax[1 * 3 + k] + l[2] * ax[2 * 3 + k];
 }
+
+pb_result sv_grid_field_build(const pb_shprobe *f, pb_grid_field **out, pb_error *err)
+{
+    uint32_t nc = pb_shprobe_colour_count(f);
+    size_t n = (size_t)f->probe_count * nc * 3u;
+    double *c = malloc((n ? n : 1) * sizeof(double)), axes[9];
+    if (!c) return PB_ERROR_OUT_OF_MEMORY;
+    for (size_t i = 0; i < n; ++i) c[i] = f->coeffs[i];
+    for (int i = 0; i < 9; ++i) axes[i] = f->grid_axes[i];
+    pb_grid_field_desc d = {.dims = {f->grid_dims[0], f->grid_dims[1], f->grid_dims[2]},
+                            .origin = {f->grid_origin[0], f->grid_origin[1], f->grid_origin[2]},
+                            .spacing = f->grid_spacing,
+                            .axes = axes,
+                            .cells = f->grid,
+                            .probe_count = f->probe_count,
+                            .coeff_count = nc,
+                            .coeffs = c,
+                            .validity = f->validity,
+                            .scale = f->probe_scale};
+    pb_result rc = pb_grid_field_build(&d, out, err);
+    free(c);
+    return rc;
+}

@@ -81,6 +81,9 @@ void sv_probes_destroy(sv_probes *probes);
 /* World-space centre of cell (x, y, z) of a grid: origin + sum_i (c_i + 0.5) * spacing * axis_i
  * (the GLSL twin is cell_centre() in shaders/gpu_types.glsl). */
 void sv_cell_centre(const pb_shprobe *file, int x, int y, int z, float out[3]);
+/* pb_grid_field_build on a dense grid file: its cells, coefficients (float64 copies, the file's colours),
+ * validity, scale, origin, spacing and axes. Used by per object and by the per-pixel texture. */
+pb_result sv_grid_field_build(const pb_shprobe *file, pb_grid_field **out, pb_error *err);
 
 /* Buffer index for a world-space point (DESIGN.md §7). */
 uint32_t sv_probes_lookup(const sv_probes *probes, const float point[3]);
