@@ -326,33 +326,8 @@ static pb_result leaf_tables(build *B, const pb_bricks_desc *d, uint8_t **pv)
  * that is a leaf gets the leaf's table. Returns whether some pair is blocked. */
 static bool trace_cell(const pb_bricks *b, const pb_bricks_desc *d, const uint32_t lo[3], uint32_t L, uint8_t o[64])
 {
-    double p[8][3];
-    for (uint32_t c = 0; c < 8; c++)
-        for (int k = 0; k < 3; k++)
-            p[c][k] = b->origin[k] + ((double)lo[k] + ((c >> k) & 1u ? (double)(1u << L) : 0.0)) * b->h;
-    bool blocked = false;
-    for (uint32_t k = 0; k < 8; k++)
-        for (uint32_t c = 0; c < 8; c++) {
-            double f = 1.0;
-            uint32_t flat = 7u & ~(k ^ c); /* axes on which the two corners agree */
-            uint32_t combos = 1u << ((flat & 1u) + ((flat >> 1) & 1u) + ((flat >> 2) & 1u));
-            for (uint32_t m = 0; k != c && m < combos; m++) {
-                double a[3], e[3];
-                uint32_t bit = 0;
-                for (int ax = 0; ax < 3; ax++) {
-                    double s = 0.0;
-                    if ((flat >> ax) & 1u) s = ((m >> bit++) & 1u ? PB_VIS_SHIFT : -PB_VIS_SHIFT) * b->h;
-                    a[ax] = p[c][ax] + s;
-                    e[ax] = p[k][ax] + s;
-                }
-                double fm = d->segment(d->segment_user, a, e);
-                if (fm < f) f = fm;
-            }
-            long q = !(f < 1.0) ? (long)PB_VIS_CLEAR : lround(255.0 * (f > 0.0 ? f : 0.0));
-            o[8u * k + c] = (uint8_t)(q < 1 ? 1 : (q > (long)PB_VIS_CLEAR ? (long)PB_VIS_CLEAR : q));
-            blocked = blocked || o[8u * k + c] != PB_VIS_CLEAR;
-        }
-    return blocked;
+    const uint32_t lv[3] = {L, L, L};
+    return pb_vis_trace_box(b->origin, b->h, lo, lv, d->segment, d->segment_user, o);
 }
 
 /* The brick table and the records: every brick cell inside a blocked leaf is traced; a record where

@@ -610,43 +610,49 @@ int32_t pb_cotree_find_probe(const pb_cotree *t, const uint32_t lattice[3])
     return (int32_t)v;
 }
 
+bool pb_vis_trace_box(const double origin[3], double h, const uint32_t lo[3], const uint32_t lv[3],
+                      pb_segment_fn segment, void *user, uint8_t o[64])
+{
+    double p[8][3];
+    for (uint32_t c = 0; c < 8; c++)
+        for (int k = 0; k < 3; k++)
+            p[c][k] = origin[k] + ((double)lo[k] + ((c >> k) & 1u ? (double)(1u << lv[k]) : 0.0)) * h;
+    bool blocked = false;
+    for (uint32_t k = 0; k < 8; k++)
+        for (uint32_t c = 0; c < 8; c++) {
+            double f = 1.0;
+            /* A segment along a box edge or face lies in the faces of the boxes around it, where walls and
+             * ceilings modelled on the lattice planes lie too (hit or missed by rounding): it is traced once
+             * moved by PB_VIS_SHIFT min cells to each side across every axis on which its ends agree, and
+             * the first hit of any counts. The same rays from every box sharing the segment: the table,
+             * and so the field, stays continuous across boxes. */
+            uint32_t flat = 7u & ~(k ^ c); /* axes on which the two corners agree */
+            uint32_t combos = 1u << ((flat & 1u) + ((flat >> 1) & 1u) + ((flat >> 2) & 1u));
+            for (uint32_t m = 0; k != c && m < combos; m++) {
+                double a[3], b[3];
+                uint32_t bit = 0;
+                for (int ax = 0; ax < 3; ax++) {
+                    double d = 0.0;
+                    if ((flat >> ax) & 1u) d = ((m >> bit++) & 1u ? PB_VIS_SHIFT : -PB_VIS_SHIFT) * h;
+                    a[ax] = p[c][ax] + d;
+                    b[ax] = p[k][ax] + d;
+                }
+                double fm = segment(user, a, b);
+                if (fm < f) f = fm;
+            }
+            /* NaN or beyond the ends: clear; a hit at the very start still leaves 1/255. */
+            long q = !(f < 1.0) ? (long)PB_VIS_CLEAR : lround(255.0 * (f > 0.0 ? f : 0.0));
+            o[8u * k + c] = (uint8_t)(q < 1 ? 1 : (q > (long)PB_VIS_CLEAR ? (long)PB_VIS_CLEAR : q));
+            blocked = blocked || o[8u * k + c] != PB_VIS_CLEAR;
+        }
+    return blocked;
+}
+
 pb_result pb_cotree_pair_visibility(const pb_cotree *t, pb_segment_fn segment, void *user, uint8_t *out, pb_error *err)
 {
     if (!t || !segment || (!out && t->leaf_count))
         return pb_error_set(err, PB_ERROR_INVALID_ARGUMENT, "pb_cotree_pair_visibility: NULL argument");
-    for (uint32_t i = 0; i < t->leaf_count; i++) {
-        const uint32_t *l = t->leaves + 4u * i, *lv = t->levels + 3u * i;
-        double p[8][3];
-        for (uint32_t c = 0; c < 8; c++)
-            for (int k = 0; k < 3; k++)
-                p[c][k] = t->origin[k] + ((double)l[k] + ((c >> k) & 1u ? (double)(1u << lv[k]) : 0.0)) * t->h;
-        uint8_t *o = out + 64u * i;
-        for (uint32_t k = 0; k < 8; k++)
-            for (uint32_t c = 0; c < 8; c++) {
-                double f = 1.0;
-                /* A segment along a leaf edge or face lies in the faces of the leaves around it, where
-                 * walls and ceilings modelled on the lattice planes lie too (hit or missed by rounding):
-                 * it is traced once moved by PB_VIS_SHIFT min cells to each side across every axis on
-                 * which its ends agree, and the first hit of any counts. The same rays from every leaf
-                 * sharing the segment: the table, and so the field, stays continuous across leaves. */
-                uint32_t flat = 7u & ~(k ^ c); /* axes on which the two corners agree */
-                uint32_t combos = 1u << ((flat & 1u) + ((flat >> 1) & 1u) + ((flat >> 2) & 1u));
-                for (uint32_t m = 0; k != c && m < combos; m++) {
-                    double a[3], b[3];
-                    uint32_t bit = 0;
-                    for (int ax = 0; ax < 3; ax++) {
-                        double d = 0.0;
-                        if ((flat >> ax) & 1u) d = ((m >> bit++) & 1u ? PB_VIS_SHIFT : -PB_VIS_SHIFT) * t->h;
-                        a[ax] = p[c][ax] + d;
-                        b[ax] = p[k][ax] + d;
-                    }
-                    double fm = segment(user, a, b);
-                    if (fm < f) f = fm;
-                }
-                /* NaN or beyond the ends: clear; a hit at the very start still leaves 1/255. */
-                long q = !(f < 1.0) ? (long)PB_VIS_CLEAR : lround(255.0 * (f > 0.0 ? f : 0.0));
-                o[8u * k + c] = (uint8_t)(q < 1 ? 1 : (q > (long)PB_VIS_CLEAR ? (long)PB_VIS_CLEAR : q));
-            }
-    }
+    for (uint32_t i = 0; i < t->leaf_count; i++)
+        (void)pb_vis_trace_box(t->origin, t->h, t->leaves + 4u * i, t->levels + 3u * i, segment, user, out + 64u * i);
     return PB_SUCCESS;
 }

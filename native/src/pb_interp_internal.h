@@ -205,4 +205,11 @@ static inline void trilinear8(const double t[3], double w[8])
         w[c] = (c & 1 ? t[0] : 1 - t[0]) * (c & 2 ? t[1] : 1 - t[1]) * (c & 4 ? t[2] : 1 - t[2]);
 }
 
+/* The pair table of a box (pb_cotree_pair_visibility's rule, docs: the leaf visibility field): corners at
+ * origin + (lo + bits · 2^lv) h, each of the 56 ordered pairs traced through `segment` (shifted by
+ * PB_VIS_SHIFT across the axes its ends share), round(255 t) into o[8k + c], PB_VIS_CLEAR on the diagonal.
+ * Returns whether some pair is blocked. Used for leaves (pb_cotree.c) and brick cells (pb_bricks.c). */
+bool pb_vis_trace_box(const double origin[3], double h, const uint32_t lo[3], const uint32_t lv[3],
+                      pb_segment_fn segment, void *user, uint8_t o[64]);
+
 #endif
