@@ -490,6 +490,19 @@ def read_shprobe(path: str) -> ShProbeFile:
     return _shprobe_from_dict(_lib().shprobe_read(path))
 
 
+class ShprobeRead:
+    """:func:`read_shprobe` on a native thread that runs no Python (the overlay's background read:
+    in Blender 3.4 a Python worker thread crashes the UI, docs/overlay.md). :meth:`poll` is None
+    while the file is read, then the :class:`ShProbeFile` (or the SchneeError) on every call."""
+
+    def __init__(self, path: str):
+        self._job = _lib().shprobe_read_start(path)
+
+    def poll(self) -> Optional[ShProbeFile]:
+        d = _lib().shprobe_read_poll(self._job)
+        return None if d is None else _shprobe_from_dict(d)
+
+
 def read_shprobe_bytes(data: bytes) -> ShProbeFile:
     """Like :func:`read_shprobe` for the bytes of a file (any buffer)."""
     return _shprobe_from_dict(_lib().shprobe_read_memory(data))

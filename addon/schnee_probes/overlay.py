@@ -3,14 +3,15 @@ its panel under Sidebar > Schnee Engine > SH Probes, and the draw handler.
 
 The handler is registered with the add-on and returns at once while the overlay is off. When on, it
 draws every ``.shprobe`` the scene's bakes wrote (overlay_data.scene_files), each read once and again
-only after its mtime or size changes. Reading runs in a worker thread (:func:`probe_set`; the native
-reader and numpy touch no ``bpy``), so a large file never stalls the UI: the viewport draws the other
-files meanwhile and a timer redraws it when the read is done. A file that cannot be drawn is listed
+only after its mtime or size changes. A file is parsed on a native thread that runs no Python
+(:func:`probe_set`; Blender 3.4 crashes when a Python thread runs while it draws) and turned into
+the overlay's arrays in short steps of a timer, so a large file never stalls the UI: the viewport
+draws the other files meanwhile and is redrawn when the read is done. A file that cannot be drawn is listed
 in the panel with the reason, and a drawing error is kept for the panel instead of raising in
 Blender's draw loop.
 """
 import os
-import threading
+import time
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, PointerProperty
@@ -27,39 +28,45 @@ COLOUR_MODES = (
 )
 
 _state = {"handler": None, "error": None}
-_loading = {}   # path -> the worker thread reading it
+_loading = {}   # path -> its overlay_data.Reader
+STEP_SECONDS = 0.02   # main-thread time per timer tick spent turning read files into ProbeSets
 
 
 def probe_set(path):
-    """The file's :class:`overlay_data.ProbeSet` when it is read and current; else None, with a read
-    started in a worker thread (once per path) and a timer that redraws the viewports when it ends."""
+    """The file's :class:`overlay_data.ProbeSet` when it is read and current; else None, with a
+    read started (once per path: the file parsed on a native thread) and a timer that finishes it in
+    short steps on the main thread and redraws the viewports when it is done."""
     ps = overlay_data.cached(path)
     if ps is not None:
         return ps
     if path not in _loading:
-        worker = threading.Thread(target=overlay_data.load, args=(path,), daemon=True,
-                                  name="schnee-overlay-read")
-        _loading[path] = worker
-        worker.start()
+        _loading[path] = overlay_data.Reader(path)
         if not bpy.app.timers.is_registered(_poll_reads):
-            bpy.app.timers.register(_poll_reads, first_interval=0.1)
+            bpy.app.timers.register(_poll_reads, first_interval=0.05)
     return None
 
 
 def wait_for_reads(timeout=60.0):
     """Block until the reads started by :func:`probe_set` end (tests, scripts)."""
-    for worker in list(_loading.values()):
-        worker.join(timeout)
-    _poll_reads()
+    end = time.monotonic() + timeout
+    while _loading and time.monotonic() < end:
+        _step_reads(time.perf_counter() + 1.0)
+        if _loading:
+            time.sleep(0.005)
+    _redraw()
+
+
+def _step_reads(deadline):
+    done = [p for p, reader in list(_loading.items()) if reader.step(deadline)]
+    for p in done:
+        del _loading[p]
+    return bool(done)
 
 
 def _poll_reads():
-    done = [p for p, w in _loading.items() if not w.is_alive()]
-    for p in done:
-        del _loading[p]
-    if done:
+    if _step_reads(time.perf_counter() + STEP_SECONDS):
         _redraw()
-    return 0.1 if _loading else None
+    return 0.05 if _loading else None
 
 
 def _redraw(_self=None, context=None):

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
 
@@ -109,9 +110,12 @@ def _box_lines(lo: np.ndarray, size: np.ndarray) -> np.ndarray:
     return corners[:, _BOX_EDGES.reshape(-1)].reshape(-1, 3)
 
 
-def _cells(f, ps: ProbeSet) -> None:
-    """The file's interpolation cells as line segments (Blender space) and a level per vertex."""
-    axes, origin, spacing = f.grid_axes, f.grid_origin, f.grid_spacing
+CHUNK_CELLS = 16_384   # cells turned into lines per step of a background read (Reader.step)
+
+
+def _cell_boxes(f, ps: ProbeSet):
+    """The file's cells as (lo, size, levels) lattice boxes, or tetrahedra as (tets, None, None); None
+    for a file with no cells. Sets ``cell_count`` and ``cells_left_out``."""
     if f.structure == "grid":
         dims = f.grid_dims
         flat = np.nonzero(np.asarray(f.grid) >= 0)[0]
@@ -119,8 +123,7 @@ def _cells(f, ps: ProbeSet) -> None:
         flat = flat[:MAX_CELLS]
         X, Y = dims[0], dims[1]
         lo = np.stack([flat % X, (flat // X) % Y, flat // (X * Y)], axis=1).astype(np.float64)
-        lines = _box_lines(lo, np.ones_like(lo))
-        levels = np.zeros(len(lines))
+        boxes = (lo, np.ones_like(lo), np.zeros(len(lo)))
     elif f.structure in ("octree", "kdtree"):
         leaves = np.asarray(f.leaves)
         ps.cell_count = len(leaves)
@@ -131,22 +134,39 @@ def _cells(f, ps: ProbeSet) -> None:
             lv = np.repeat(word[:, None], 3, axis=1)
         else:
             lv = np.stack([word & 0xFF, word >> 8 & 0xFF, word >> 16 & 0xFF], axis=1)
-        lines = _box_lines(lo, np.exp2(lv.astype(np.float64)))
-        levels = np.repeat(lv.max(axis=1).astype(np.float64), 24)
+        boxes = (lo, np.exp2(lv.astype(np.float64)), lv.max(axis=1).astype(np.float64))
     elif f.structure == "tetrahedra":
         tets = np.asarray(f.tets)
         ps.cell_count = len(tets)
-        tets = tets[:MAX_CELLS]
-        pos_b = ps.positions.astype(np.float64)
-        ps.cells_left_out = ps.cell_count - len(tets)
-        ps.cell_lines = pos_b[tets[:, _TET_EDGES.reshape(-1)].reshape(-1)].astype(np.float32)
-        ps.cell_levels = np.zeros(len(ps.cell_lines), np.float32)
-        return
+        boxes = (tets[:MAX_CELLS], None, None)
     else:
-        return
+        return None
     ps.cells_left_out = ps.cell_count - min(ps.cell_count, MAX_CELLS)
-    ps.cell_lines = lattice_to_blender(lines, origin, spacing, axes).astype(np.float32)
-    ps.cell_levels = levels.astype(np.float32)
+    return boxes
+
+
+def _cells(f, ps: ProbeSet) -> Iterator[None]:
+    """The file's interpolation cells as line segments (Blender space) and a level per vertex, made
+    :data:`CHUNK_CELLS` cells per step (a generator: it yields between steps)."""
+    boxes = _cell_boxes(f, ps)
+    if boxes is None:
+        return
+    first, size, levels = boxes
+    lines, lvls = [], []
+    for a in range(0, len(first), CHUNK_CELLS):
+        b = a + CHUNK_CELLS
+        if size is None:   # tetrahedra: their corner probes' positions
+            seg = ps.positions[first[a:b][:, _TET_EDGES.reshape(-1)].reshape(-1)].astype(np.float32)
+            lvls.append(np.zeros(len(seg), np.float32))
+        else:
+            seg = _box_lines(first[a:b], size[a:b])
+            lvls.append(np.repeat(levels[a:b], 24).astype(np.float32))
+            seg = lattice_to_blender(seg, f.grid_origin, f.grid_spacing, f.grid_axes).astype(np.float32)
+        lines.append(seg)
+        yield
+    if lines:
+        ps.cell_lines = np.concatenate(lines)
+        ps.cell_levels = np.concatenate(lvls)
 
 
 def _grid_positions(f) -> np.ndarray:
@@ -165,8 +185,8 @@ def _grid_positions(f) -> np.ndarray:
     return lattice_to_blender(u, f.grid_origin, f.grid_spacing, f.grid_axes)
 
 
-def read(path: str) -> ProbeSet:
-    """Read ``path`` into a :class:`ProbeSet`; a missing or malformed file gives one with ``error``."""
+def _begin(path: str) -> ProbeSet:
+    """The file's ProbeSet with its (mtime, size) stamp, or with ``error`` if it cannot be read."""
     ps = ProbeSet(path=path)
     try:
         st = os.stat(path)
@@ -174,30 +194,85 @@ def read(path: str) -> ProbeSet:
         ps.error = f"{os.path.basename(path)}: not found ({exc.strerror})"
         return ps
     ps.stamp = (st.st_mtime_ns, st.st_size)
-    problem = native.native_problem()
-    if problem:
-        ps.error = problem
+    ps.error = native.native_problem()
+    return ps
+
+
+def _build(ps: ProbeSet, f) -> Iterator[None]:
+    """Fill ``ps`` from the read file ``f`` (a generator: it yields between steps)."""
+    ps.version, ps.structure, ps.representation = f.version, f.structure, f.representation
+    ps.max_band, ps.spacing = f.max_band, float(f.grid_spacing)
+    if f.representation != "sh":
+        ps.error = (f"{os.path.basename(ps.path)}: an ambient-cube file; the overlay draws SH files "
+                    "(bake with Probe Representation SH to see it)")
+        return
+    if f.positions is not None:
+        ps.positions = scene_export.engine_to_blender(f.positions).astype(np.float32)
+    else:
+        ps.positions = _grid_positions(f).astype(np.float32)
+    ps.shading = shading_coefficients(f.coeffs, f.probe_scale)
+    ps.has_validity = f.version >= 2 and f.validity is not None and len(f.validity) == f.probe_count
+    ps.validity = (np.asarray(f.validity, np.float32) if ps.has_validity
+                   else np.ones(f.probe_count, np.float32))
+    yield
+    yield from _cells(f, ps)
+
+
+_READ_ERRORS = (native.SchneeError, OSError, ValueError)
+
+
+def _failed(ps: ProbeSet, exc: BaseException) -> ProbeSet:
+    return ProbeSet(path=ps.path, stamp=ps.stamp, error=f"{os.path.basename(ps.path)}: {exc}")
+
+
+def read(path: str) -> ProbeSet:
+    """Read ``path`` into a :class:`ProbeSet`; a missing or malformed file gives one with ``error``."""
+    ps = _begin(path)
+    if ps.error:
         return ps
     try:
-        f = native.read_shprobe(path)
-        ps.version, ps.structure, ps.representation = f.version, f.structure, f.representation
-        ps.max_band, ps.spacing = f.max_band, float(f.grid_spacing)
-        if f.representation != "sh":
-            ps.error = (f"{os.path.basename(path)}: an ambient-cube file; the overlay draws SH files "
-                        "(bake with Probe Representation SH to see it)")
-            return ps
-        if f.positions is not None:
-            ps.positions = scene_export.engine_to_blender(f.positions).astype(np.float32)
-        else:
-            ps.positions = _grid_positions(f).astype(np.float32)
-        ps.shading = shading_coefficients(f.coeffs, f.probe_scale)
-        ps.has_validity = f.version >= 2 and f.validity is not None and len(f.validity) == f.probe_count
-        ps.validity = (np.asarray(f.validity, np.float32) if ps.has_validity
-                       else np.ones(f.probe_count, np.float32))
-        _cells(f, ps)
-    except (native.SchneeError, OSError, ValueError) as exc:
-        ps = ProbeSet(path=path, stamp=ps.stamp, error=f"{os.path.basename(path)}: {exc}")
+        for _ in _build(ps, native.read_shprobe(path)):
+            pass
+    except _READ_ERRORS as exc:
+        return _failed(ps, exc)
     return ps
+
+
+class Reader:
+    """:func:`load` off the UI: the file is parsed on a native thread that runs no Python
+    (native.ShprobeRead: Blender 3.4 crashes when a Python thread runs while it draws), then
+    :meth:`step`, called from a timer on Blender's main thread, turns it into a :class:`ProbeSet`
+    :data:`CHUNK_CELLS` cells at a time until its deadline, and caches it."""
+
+    def __init__(self, path: str):
+        self.path = path
+        self.ps = _begin(path)
+        self._job = self._steps = None
+        if not self.ps.error:
+            try:
+                self._job = native.ShprobeRead(path)
+            except _READ_ERRORS as exc:
+                self.ps = _failed(self.ps, exc)
+
+    def step(self, deadline: float) -> bool:
+        """Work until ``time.perf_counter()`` passes ``deadline`` (at least one step); True when the
+        ProbeSet is done and in the cache, False while the file is still being read or built."""
+        try:
+            if self._steps is None and self._job is not None:
+                f = self._job.poll()
+                if f is None:
+                    return False
+                self._job = None
+                self._steps = _build(self.ps, f)
+            if self._steps is not None:
+                for _ in self._steps:
+                    if time.perf_counter() >= deadline:
+                        return False
+        except _READ_ERRORS as exc:
+            self.ps = _failed(self.ps, exc)
+        self._steps = None
+        _cache[self.path] = self.ps
+        return True
 
 
 _cache: Dict[str, ProbeSet] = {}
@@ -218,7 +293,7 @@ def cached(path: str) -> Optional[ProbeSet]:
 
 def load(path: str) -> ProbeSet:
     """:func:`read` through a cache keyed by path, re-read when the file's (mtime, size) changed.
-    Touches no ``bpy``: the overlay calls it from a worker thread (overlay.probe_set)."""
+    It blocks; the overlay reads with a :class:`Reader` instead (overlay.probe_set)."""
     hit = cached(path)
     if hit is not None:
         return hit

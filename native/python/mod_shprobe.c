@@ -6,6 +6,9 @@
 #include "schnee/pb_sh.h"
 #include "schnee/pb_shprobe.h"
 
+#include <errno.h>
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -98,6 +101,94 @@ static PyObject *py_shprobe_read(PyObject *module, PyObject *args)
     PyObject *d = shprobe_dict(p);
     pb_shprobe_destroy(p);
     return d;
+}
+
+/* A read on a thread of its own that runs no Python (the viewport overlay's background read,
+ * overlay_data.Reader): Blender 3.4's main thread can take the GIL from a Python thread that holds it
+ * (its BPY_thread_save), so a Python worker thread crashes it; this one parses the file in C only and
+ * the caller turns the result into a dict on its own thread (shprobe_read_poll). The job is freed by
+ * whichever of the thread and the capsule lets go last. */
+typedef struct read_job {
+    atomic_int refs;
+    atomic_int done;
+    char *path;
+    pb_shprobe *probes;
+    pb_result result;
+    pb_error err;
+} read_job;
+
+static const char READ_JOB[] = "schnee.shprobe_read_job";
+
+static void read_job_release(read_job *j)
+{
+    if (atomic_fetch_sub(&j->refs, 1) != 1) return;
+    pb_shprobe_destroy(j->probes);
+    free(j->path);
+    free(j);
+}
+
+static void *read_job_run(void *arg)
+{
+    read_job *j = arg;
+    j->result = pb_shprobe_read(j->path, &j->probes, &j->err);
+    atomic_store(&j->done, 1);
+    read_job_release(j);
+    return NULL;
+}
+
+static void read_job_capsule_free(PyObject *capsule)
+{
+    read_job *j = PyCapsule_GetPointer(capsule, READ_JOB);
+    if (j) read_job_release(j);
+}
+
+static PyObject *py_shprobe_read_start(PyObject *module, PyObject *args)
+{
+    (void)module;
+    PyObject *path = NULL;
+    if (!PyArg_ParseTuple(args, "O&:shprobe_read_start", PyUnicode_FSConverter, &path)) return NULL;
+    read_job *j = calloc(1, sizeof *j);
+    char *cpath = j ? strdup(PyBytes_AsString(path)) : NULL;
+    Py_DECREF(path);
+    if (!cpath) {
+        free(j);
+        return PyErr_NoMemory();
+    }
+    j->path = cpath;
+    atomic_init(&j->refs, 2);
+    atomic_init(&j->done, 0);
+    PyObject *capsule = PyCapsule_New(j, READ_JOB, read_job_capsule_free);
+    if (!capsule) {
+        free(cpath);
+        free(j);
+        return NULL;
+    }
+    pthread_attr_t attr;
+    pthread_t thread;
+    int rc = pthread_attr_init(&attr);
+    if (rc == 0) {
+        pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
+        rc = pthread_create(&thread, &attr, read_job_run, j);
+        pthread_attr_destroy(&attr);
+    }
+    if (rc != 0) {
+        atomic_store(&j->refs, 1); /* the capsule's reference only: freed with it */
+        Py_DECREF(capsule);
+        errno = rc;
+        return PyErr_SetFromErrno(PyExc_OSError);
+    }
+    return capsule;
+}
+
+static PyObject *py_shprobe_read_poll(PyObject *module, PyObject *args)
+{
+    PyObject *capsule;
+    if (!PyArg_ParseTuple(args, "O:shprobe_read_poll", &capsule)) return NULL;
+    read_job *j = PyCapsule_GetPointer(capsule, READ_JOB);
+    if (!j) return NULL;
+    if (!atomic_load(&j->done)) Py_RETURN_NONE;
+    if (j->result != PB_SUCCESS) return _pb_py_raise_core(module, j->result, &j->err);
+    return shprobe_dict(j->probes);
 }
 
 static PyObject *py_shprobe_read_memory(PyObject *module, PyObject *args)
@@ -353,6 +444,10 @@ PyMethodDef _pb_py_shprobe_methods[] = {
      "default_sh_scale=1, default_ambient=0.1, positions=None, probe_scale=None, probe_ambient=None, "
      "validity=None, grid_axes=None, version=0) -> version written"},
     {"shprobe_read", py_shprobe_read, METH_VARARGS, "shprobe_read(path) -> dict"},
+    {"shprobe_read_start", py_shprobe_read_start, METH_VARARGS,
+     "shprobe_read_start(path) -> job: shprobe_read on a thread that runs no Python"},
+    {"shprobe_read_poll", py_shprobe_read_poll, METH_VARARGS,
+     "shprobe_read_poll(job) -> None while reading, then shprobe_read's dict (or its error), each call"},
     {"shprobe_read_memory", py_shprobe_read_memory, METH_VARARGS, "shprobe_read_memory(buffer) -> dict"},
     {"shprobe_read_header", py_shprobe_read_header, METH_VARARGS, "shprobe_read_header(path) -> dict"},
     {"shprobe_lookup", (PyCFunction)(void (*)(void))py_shprobe_lookup, METH_VARARGS | METH_KEYWORDS,

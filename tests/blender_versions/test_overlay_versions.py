@@ -118,4 +118,5 @@ def test_files_errors_and_reload(drawn):
     assert drawn["errors"]["malformed"]["error"].startswith("bad.shprobe: ")
     assert drawn["reload"]["cached"] and drawn["reload"]["reread"]
     assert drawn["viewport"] == {"drawn": ["grid.shprobe", "points.shprobe"], "error": None, "panel_drawn": True,
-                                 "pending_after_first_redraw": ["grid.shprobe", "points.shprobe"]}
+                                 "pending_after_first_redraw": ["grid.shprobe", "points.shprobe"],
+                                 "python_threads_while_reading": 1}

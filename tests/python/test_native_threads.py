@@ -7,6 +7,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 
 from schnee_probes import native
 
@@ -70,3 +71,42 @@ def test_thread_runs_during_long_call():
             break
         n *= 2
     assert_ticks_during(lambda: native.irradiance(coeffs, normals))
+
+
+def test_background_read_runs_no_python_and_equals_the_read(tmp_path):
+    """native.ShprobeRead (the viewport overlay's read): the file is parsed on a native thread, no
+    Python thread is started (Blender 3.4 crashes when one runs while it draws), poll() is None until
+    the parse ends and then gives what read_shprobe gives, on every call; a malformed file's error
+    comes from poll() with read_shprobe's message; dropping a job mid-read frees it safely."""
+    rng = np.random.default_rng(5)
+    path = str(tmp_path / "big.shprobe")
+    dims = (64, 64, 64)
+    n = 64 ** 3
+    grid = np.arange(n, dtype=np.int32)
+    native.write_shprobe(path, rng.normal(size=(n, 9, 3)).astype(np.float32), grid, dims, (0, 0, 0), 0.5)
+    before = threading.active_count()
+    job = native.ShprobeRead(path)
+    assert threading.active_count() == before
+    f = None
+    while f is None:
+        f = job.poll()
+        time.sleep(0.001)
+    ref = native.read_shprobe(path)
+    for got in (f, job.poll()):
+        assert got.probe_count == n and np.array_equal(got.coeffs, ref.coeffs)
+        assert np.array_equal(got.grid, ref.grid) and got.grid_spacing == ref.grid_spacing
+    bad = tmp_path / "bad.shprobe"
+    bad.write_bytes(open(path, "rb").read()[:1000])
+    with pytest.raises(native.SchneeError) as want:
+        native.read_shprobe(str(bad))
+    job = native.ShprobeRead(str(bad))
+    while True:
+        try:
+            assert job.poll() is None
+        except native.SchneeError as exc:
+            assert str(exc) == str(want.value) and exc.code == want.value.code
+            break
+        time.sleep(0.001)
+    for _ in range(20):   # jobs dropped before their thread ends: the thread frees them
+        native.ShprobeRead(path)
+    time.sleep(0.5)

@@ -17,6 +17,7 @@ import json
 import math
 import os
 import sys
+import threading
 import time
 import traceback
 
@@ -185,6 +186,8 @@ def viewport_check():
         bpy.ops.wm.redraw_timer({"window": win}, type='DRAW_WIN_SWAP', iterations=1)
     # The first redraw starts the reads in worker threads and draws nothing of them yet.
     pending = sorted(os.path.basename(p) for p in overlay._loading)
+    # No Python thread reads them: Blender 3.4 crashes when one runs while it draws.
+    python_threads = len(threading.enumerate())
     overlay.wait_for_reads()
     if override is not None:
         with override(window=win):
@@ -194,7 +197,7 @@ def viewport_check():
     drawn = sorted(os.path.basename(p) for p in overlay_gpu._resources)
     bpy.context.scene.schnee_overlay.show = False
     return {"drawn": drawn, "error": overlay._state["error"], "panel_drawn": bool(panel_calls),
-            "pending_after_first_redraw": pending}
+            "pending_after_first_redraw": pending, "python_threads_while_reading": python_threads}
 
 
 def bench(n):
