@@ -37,11 +37,15 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q "${missing[@]}"  # with recommends, as tested
 fi
 
-if [ -f package.json ]; then
-  if [ ! -d node_modules ] || [ package.json -nt node_modules ] || \
-     { [ -f package-lock.json ] && [ package-lock.json -nt node_modules ]; }; then
-    echo "deps: npm packages"
-    if [ -f package-lock.json ]; then npm ci --no-audit --no-fund --loglevel=error; else npm install --no-audit --no-fund --loglevel=error; fi
-    touch node_modules
+# The root's packages (the glTF validator) and web/'s (three.js for the plugin, issue 32).
+for dir in . web; do
+  if [ -f "$dir/package.json" ]; then
+    if [ ! -d "$dir/node_modules" ] || [ "$dir/package.json" -nt "$dir/node_modules" ] || \
+       { [ -f "$dir/package-lock.json" ] && [ "$dir/package-lock.json" -nt "$dir/node_modules" ]; }; then
+      echo "deps: npm packages in $dir"
+      if [ -f "$dir/package-lock.json" ]; then (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error)
+      else (cd "$dir" && npm install --no-audit --no-fund --loglevel=error); fi
+      touch "$dir/node_modules"
+    fi
   fi
-fi
+done
