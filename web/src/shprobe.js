@@ -79,7 +79,10 @@ export class ShprobeError extends Error {
 
 /* ---- number formatting as C's printf (the messages must read as the C reader's) --------------- */
 
-/* %.<prec>g of a double; NaN's sign comes from the bits on disk (glibc prints "-nan"). */
+/* %.<prec>g of a double; NaN's sign comes from the bits on disk (glibc prints "-nan"). Known
+ * differences, not reached by the values a message quotes so far: an exact decimal tie (123456.5 at 6
+ * digits) rounds up here and to even in glibc; C truncates a message at 511 bytes (pb_error), this
+ * reader does not. */
 function fmtG(x, prec = 6, negativeNaN = false) {
   if (Number.isNaN(x)) return negativeNaN ? '-nan' : 'nan';
   if (x === Infinity) return 'inf';
