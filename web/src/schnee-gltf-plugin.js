@@ -1,0 +1,794 @@
+/* Schnee probes for three.js: a GLTFLoader plugin that lights MeshStandardMaterial meshes with the
+ * baked SH probes of a glTF exported by the add-on (docs/export.md: VULKAN_SCHNEE_engine_properties,
+ * VULKAN_SCHNEE_materials, VULKAN_SCHNEE_node).
+ *
+ * Usage:
+ *   import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+ *   import { SchneeProbesPlugin } from './schnee-gltf-plugin.js';
+ *   const loader = new GLTFLoader().register((parser) => new SchneeProbesPlugin(parser, { mode: 'material' }));
+ *   const gltf = await loader.loadAsync('scene.gltf');   // rejects with the ShprobeError of a bad file
+ *   scene.add(gltf.scene);
+ *   gltf.userData.schneeProbes.setMode('object');         // 'material' | 'off' | 'object' | 'pixel'
+ *
+ * Shading (DESIGN.md §3, docs/engine.md "Shading"): the indirect diffuse term of every lit mesh is
+ * replaced by  base · (shScale · probeScale · max(E(n), 0) / π + ambientTerm)  with E(n) from the SH
+ * (no Condon–Shortley phase, A_l = π, 2π/3, π/4, 0, −π/24), engine space = glTF space (Y-up).
+ * - off: the fallback probe 0 (the glTF sky's SH, else a uniform radiance of 0.2).
+ * - per object: the interpolated probe at the centre of the object's world bounds, as schnee-view's
+ *   sv_probe_query.c: octree / kd-tree files blend the leaf's corners (hanging corners expanded through
+ *   their rules), dense grids take docs/grid-field.md's movable rule; every weighted probe is judged by the
+ *   segment probe → centre through the static scene (the object itself left out); the first grid with a
+ *   value wins, else probe 0.
+ * - per pixel: one 3D texture (hardware trilinear) per scene holding N = Σ w s c and D = Σ w per texel
+ *   (docs/grid-field.md "Texture", docs/probe-bricks.md "Texels" at level 0); the fragment takes N / D.
+ *   Not in it: the C engine's visibility masks / visibility texels and back-face weights on static
+ *   surfaces, so per pixel light can still leak through a wall (and differs from schnee-view there).
+ */
+import * as THREE from 'three';
+import { parseShprobe, ShprobeError } from './shprobe.js';
+
+export { ShprobeError };
+
+const PI = Math.PI;
+/** A_l of DESIGN.md §3 for l = 0..4. */
+export const SH_BAND_FACTORS = [PI, (2 * PI) / 3, PI / 4, 0, -PI / 24];
+const Y0 = 0.282094792;
+/** schnee-view's fallback radiance (SV_FALLBACK_RADIANCE): probe 0 without a sky. */
+export const FALLBACK_RADIANCE = 0.2;
+const MAX_COEFFS = 25;
+const MODES = ['off', 'object', 'pixel'];
+
+/** Real SH basis of DESIGN.md §3 (no Condon–Shortley phase) at unit d = (x, y, z), l = 0..4. */
+export function shBasis(x, y, z) {
+  const x2 = x * x, y2 = y * y, z2 = z * z;
+  return [
+    Y0,
+    0.488602512 * y, 0.488602512 * z, 0.488602512 * x,
+    1.092548431 * x * y, 1.092548431 * y * z, 0.315391565 * (3 * z2 - 1), 1.092548431 * x * z, 0.546274215 * (x2 - y2),
+    0.590043590 * y * (3 * x2 - y2), 2.890611443 * x * y * z, 0.457045799 * y * (5 * z2 - 1), 0.373176333 * z * (5 * z2 - 3),
+    0.457045799 * x * (5 * z2 - 1), 1.445305721 * z * (x2 - y2), 0.590043590 * x * (x2 - 3 * y2),
+    2.503342942 * x * y * (x2 - y2), 1.770130770 * y * z * (3 * x2 - y2), 0.946174696 * x * y * (7 * z2 - 1),
+    0.669046544 * y * z * (7 * z2 - 3), 0.105785547 * (35 * z2 * z2 - 30 * z2 + 3), 0.669046544 * x * z * (7 * z2 - 3),
+    0.473087348 * (x2 - y2) * (7 * z2 - 1), 1.770130770 * x * z * (x2 - 3 * y2), 0.625835735 * (x2 * x2 - 6 * x2 * y2 + y2 * y2),
+  ];
+}
+
+/** Irradiance E(n) (RGB) of radiance SH `sh` (Float array, count × 3) at unit normal n. */
+export function shIrradiance(sh, count, n) {
+  const Y = shBasis(n[0], n[1], n[2]);
+  const e = [0, 0, 0];
+  for (let i = 0; i < count; i++) {
+    const a = SH_BAND_FACTORS[Math.floor(Math.sqrt(i))] * Y[i];
+    for (let c = 0; c < 3; c++) e[c] += a * sh[3 * i + c];
+  }
+  return e;
+}
+
+/* ---- GLSL ------------------------------------------------------------------------------------------ */
+
+const GLSL_COMMON = /* glsl */ `
+#define SCHNEE_MAX_COEFFS ${MAX_COEFFS}
+#define SCHNEE_MAX_GRIDS 4
+#define SCHNEE_MAX_GROUPS 19
+uniform vec3 schneeSH[SCHNEE_MAX_COEFFS];
+uniform int schneeCount;
+uniform int schneeMode;
+uniform float schneeShScale;
+uniform float schneeAmbient;
+uniform highp sampler3D schneeTex;
+uniform int schneeGridCount;
+uniform vec4 schneeGridA[SCHNEE_MAX_GRIDS];  // origin xyz, spacing
+uniform vec4 schneeGridB[SCHNEE_MAX_GRIDS];  // dims xyz, kind (0 dense: texels at cell centres; 1 lattice)
+uniform vec4 schneeGridC[SCHNEE_MAX_GRIDS];  // atlas texel z base, colour count, groups, 0
+uniform vec3 schneeGridAxes[3 * SCHNEE_MAX_GRIDS];
+uniform vec3 schneeTexSize;
+varying vec3 vSchneeWorldPos;
+
+// A_l · Y_i(n), DESIGN.md §3 (l = 3 has A_3 = 0).
+void schneeBasis(vec3 n, out float ay[SCHNEE_MAX_COEFFS]) {
+  float x = n.x, y = n.y, z = n.z, x2 = x * x, y2 = y * y, z2 = z * z;
+  const float PI_ = 3.14159265358979, A1 = 2.0 * PI_ / 3.0, A2 = PI_ / 4.0, A4 = -PI_ / 24.0;
+  ay[0] = PI_ * 0.282094792;
+  ay[1] = A1 * 0.488602512 * y; ay[2] = A1 * 0.488602512 * z; ay[3] = A1 * 0.488602512 * x;
+  ay[4] = A2 * 1.092548431 * x * y; ay[5] = A2 * 1.092548431 * y * z; ay[6] = A2 * 0.315391565 * (3.0 * z2 - 1.0);
+  ay[7] = A2 * 1.092548431 * x * z; ay[8] = A2 * 0.546274215 * (x2 - y2);
+  for (int i = 9; i < 16; i++) ay[i] = 0.0;
+  ay[16] = A4 * 2.503342942 * x * y * (x2 - y2); ay[17] = A4 * 1.770130770 * y * z * (3.0 * x2 - y2);
+  ay[18] = A4 * 0.946174696 * x * y * (7.0 * z2 - 1.0); ay[19] = A4 * 0.669046544 * y * z * (7.0 * z2 - 3.0);
+  ay[20] = A4 * 0.105785547 * (35.0 * z2 * z2 - 30.0 * z2 + 3.0); ay[21] = A4 * 0.669046544 * x * z * (7.0 * z2 - 3.0);
+  ay[22] = A4 * 0.473087348 * (x2 - y2) * (7.0 * z2 - 1.0); ay[23] = A4 * 1.770130770 * x * z * (x2 - 3.0 * y2);
+  ay[24] = A4 * 0.625835735 * (x2 * x2 - 6.0 * x2 * y2 + y2 * y2);
+}
+
+// Per pixel: grid g's N / D at world point p (false: no value here, the next grid).
+bool schneeGridSample(int g, vec3 p, float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
+  vec4 A = schneeGridA[g], B = schneeGridB[g], C = schneeGridC[g];
+  vec3 d = p - A.xyz;
+  vec3 u = vec3(dot(d, schneeGridAxes[3 * g]), dot(d, schneeGridAxes[3 * g + 1]), dot(d, schneeGridAxes[3 * g + 2])) / A.w;
+  vec3 t;
+  if (B.w < 0.5) { // dense grid: 0.01-cell margin, texels at cell centres (docs/grid-field.md)
+    if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, B.xyz + 0.01))) return false;
+    t = clamp(u - 0.5, vec3(0.0), B.xyz - 1.0);
+  } else {         // octree / kd lattice: texels at lattice points, the lattice box closed
+    if (any(lessThan(u, vec3(0.0))) || any(greaterThan(u, B.xyz))) return false;
+    t = u;
+  }
+  vec3 n = B.w < 0.5 ? B.xyz : B.xyz + 1.0; // texels per axis
+  vec3 tc = (t + 0.5) / schneeTexSize;
+  float zstep = n.z / schneeTexSize.z;
+  tc.z += C.x / schneeTexSize.z;
+  int count = int(C.y), groups = int(C.z);
+  vec4 g0 = texture(schneeTex, tc);
+  float D = g0.w;
+  if (D <= 1e-6) return false;
+  e = ay[0] * g0.rgb;
+  // channels 0-2 N0, 3 D, then N1 .. N(count-1) RGB packed consecutively
+  float ch[4 * SCHNEE_MAX_GROUPS];
+  for (int k = 0; k < 4 * SCHNEE_MAX_GROUPS; k++) ch[k] = 0.0;
+  for (int gi = 1; gi < SCHNEE_MAX_GROUPS; gi++) {
+    if (gi >= groups) break;
+    vec4 v = texture(schneeTex, vec3(tc.xy, tc.z + float(gi) * zstep));
+    ch[4 * gi] = v.x; ch[4 * gi + 1] = v.y; ch[4 * gi + 2] = v.z; ch[4 * gi + 3] = v.w;
+  }
+  for (int i = 1; i < SCHNEE_MAX_COEFFS; i++) {
+    if (i >= count) break;
+    int o = 4 + 3 * (i - 1);
+    e += ay[i] * vec3(ch[o], ch[o + 1], ch[o + 2]);
+  }
+  e /= D;
+  return true;
+}
+
+vec3 schneeIrradiance(vec3 p, vec3 n) {
+  float ay[SCHNEE_MAX_COEFFS];
+  schneeBasis(n, ay);
+  vec3 e;
+  if (schneeMode == 2)
+    for (int g = 0; g < SCHNEE_MAX_GRIDS; g++) {
+      if (g >= schneeGridCount) break;
+      if (schneeGridSample(g, p, ay, e)) return e;
+    }
+  e = vec3(0.0);
+  for (int i = 0; i < SCHNEE_MAX_COEFFS; i++) {
+    if (i >= schneeCount) break;
+    e += ay[i] * schneeSH[i];
+  }
+  return e;
+}
+`;
+
+/* ---- probe structures on the CPU --------------------------------------------------------------------- */
+
+const trilinear8 = (t) => {
+  const w = new Float64Array(8);
+  for (let c = 0; c < 8; c++)
+    w[c] = (c & 1 ? t[0] : 1 - t[0]) * (c & 2 ? t[1] : 1 - t[1]) * (c & 4 ? t[2] : 1 - t[2]);
+  return w;
+};
+
+const mergeAdd = (list, p, w) => {
+  const prev = list.get(p);
+  list.set(p, (prev || 0) + w);
+};
+
+/** One grid of the scene: the parsed file plus what its queries need. */
+class ProbeGrid {
+  constructor(file, entry, index) {
+    this.file = file;
+    this.entry = entry;
+    this.index = index;
+    this.name = entry.name || `grid ${index}`;
+    this.kind = file.structure;
+    this.count = file.colourCount;
+    this.isCube = file.representation === 'ambientCube';
+    if (this.kind === 'octree' || this.kind === 'kdtree') this._buildTree();
+  }
+
+  /* Lattice cell -> leaf map and each hanging node's expansion over probes (pb_cotree.c's exp_*, from
+   * the file's rules). */
+  _buildTree() {
+    const f = this.file, [X, Y, Z] = f.gridDims, cells = X * Y * Z;
+    if (cells > 2 ** 26) throw new Error(`${this.name}: lattice of ${cells} cells is too large for this viewer`);
+    this.cellLeaf = new Int32Array(cells).fill(-1);
+    const N = f.elementCount;
+    this.levels = new Uint32Array(3 * N);
+    for (let i = 0; i < N; i++) {
+      const L = f.leaves[4 * i + 3];
+      const lv = this.kind === 'kdtree' ? [L & 255, (L >> 8) & 255, (L >> 16) & 255] : [L, L, L];
+      this.levels.set(lv, 3 * i);
+      const lo = [f.leaves[4 * i], f.leaves[4 * i + 1], f.leaves[4 * i + 2]];
+      const hi = lo.map((v, k) => Math.min(v + 2 ** lv[k], f.gridDims[k]));
+      for (let z = lo[2]; z < hi[2]; z++)
+        for (let y = lo[1]; y < hi[1]; y++)
+          for (let x = lo[0]; x < hi[0]; x++) this.cellLeaf[x + X * (y + Y * z)] = i;
+    }
+    const P = f.probeCount;
+    this.expansion = [];
+    for (let j = 0; j < f.hangingCount; j++) {
+      const m = new Map();
+      for (let k = 0; k < 4; k++) {
+        const src = f.hangingSources[4 * j + k], w = f.hangingWeights[4 * j + k];
+        if (!(w > 0)) continue;
+        if (src < P) mergeAdd(m, src, w);
+        else for (const [p, we] of this.expansion[src - P]) mergeAdd(m, p, w * we);
+      }
+      this.expansion.push(m);
+    }
+  }
+
+  /* pb_interp.c locate_point_cell: the leaf of unit cell q, else (within 0.01 of a lower face) below. */
+  _locate(u, q) {
+    const [X, Y] = this.file.gridDims, at = (r) => this.cellLeaf[r[0] + X * (r[1] + Y * r[2])];
+    let li = at(q);
+    for (let m = 1; li < 0 && m < 8; m++) {
+      let ok = true;
+      const r = [0, 0, 0];
+      for (let k = 0; k < 3; k++) {
+        const down = (m >> k) & 1;
+        if (down && !(q[k] > 0 && u[k] - q[k] < 0.01)) ok = false;
+        r[k] = down ? q[k] - 1 : q[k];
+      }
+      if (ok) li = at(r);
+    }
+    return li;
+  }
+
+  /** Tree weights at world point p over the probes, before validity / visibility (Map probe -> w), or null. */
+  treeWeights(p) {
+    const f = this.file, u = [0, 0, 0], q = [0, 0, 0];
+    for (let k = 0; k < 3; k++) {
+      u[k] = (p[k] - f.gridOrigin[k]) / f.gridSpacing;
+      if (!(u[k] >= 0) || !(u[k] <= f.gridDims[k])) return null;
+      const fl = Math.floor(u[k]);
+      q[k] = fl >= f.gridDims[k] ? f.gridDims[k] - 1 : fl;
+    }
+    const li = this._locate(u, q);
+    if (li < 0) return null;
+    const t = [0, 0, 0];
+    for (let k = 0; k < 3; k++) {
+      const v = (u[k] - f.leaves[4 * li + k]) / 2 ** this.levels[3 * li + k];
+      t[k] = v < 0 ? 0 : v > 1 ? 1 : v;
+    }
+    const w8 = trilinear8(t), out = new Map(), P = f.probeCount;
+    for (let c = 0; c < 8; c++) {
+      if (w8[c] <= 0) continue;
+      const node = f.leafCorners[8 * li + c];
+      if (node < P) mergeAdd(out, node, w8[c]);
+      else for (const [pp, we] of this.expansion[node - P]) mergeAdd(out, pp, w8[c] * we);
+    }
+    return out;
+  }
+
+  _cellCentre(ci) {
+    const f = this.file, h = f.gridSpacing, a = f.gridAxes;
+    const l = [(ci[0] + 0.5) * h, (ci[1] + 0.5) * h, (ci[2] + 0.5) * h];
+    return [0, 1, 2].map((k) => f.gridOrigin[k] + l[0] * a[0][k] + l[1] * a[1][k] + l[2] * a[2][k]);
+  }
+
+  /**
+   * Per-object weights at world point c (Map probe -> normalised weight), or null for no value;
+   * `visible(from, to)` judges a segment through the static scene.
+   */
+  objectWeights(c, visible) {
+    const f = this.file;
+    if (this.kind === 'octree' || this.kind === 'kdtree') {
+      const w = this.treeWeights(c);
+      if (!w) return null;
+      /* pb_interp.c finish_weights: zero weights, invalid and hidden probes dropped, renormalised. */
+      const out = new Map();
+      let sum = 0;
+      for (const [p, wi] of w) {
+        if (!(wi > 0) || !(f.validity[p] > 0)) continue;
+        if (f.positions && !visible([f.positions[3 * p], f.positions[3 * p + 1], f.positions[3 * p + 2]], c)) continue;
+        out.set(p, wi);
+        sum += wi;
+      }
+      if (!(sum > 0)) return null;
+      for (const [p, wi] of out) out.set(p, wi / sum);
+      return out;
+    }
+    if (this.kind !== 'grid') return null; /* tetrahedra: not in this viewer (a warning at load) */
+    /* docs/grid-field.md, movable rule (no normal: no back faces, home = the cell of c), no masks. */
+    const dims = f.gridDims, h = f.gridSpacing, a = f.gridAxes, u = [0, 0, 0];
+    const d = [0, 1, 2].map((k) => c[k] - f.gridOrigin[k]);
+    for (let k = 0; k < 3; k++) {
+      u[k] = (d[0] * a[k][0] + d[1] * a[k][1] + d[2] * a[k][2]) / h;
+      if (u[k] < -0.01 || u[k] > dims[k] + 0.01) return null;
+    }
+    const clampi = (v, k) => Math.min(Math.max(v, 0), dims[k] - 1);
+    const i0 = u.map((v) => Math.floor(v - 0.5)), fr = u.map((v, k) => v - 0.5 - i0[k]);
+    const home = u.map((v, k) => clampi(Math.floor(v), k));
+    const cell = (ci) => f.grid[ci[0] + dims[0] * (ci[1] + dims[1] * ci[2])];
+    const out = new Map();
+    let sum = 0;
+    for (let k = 0; k < 8; k++) {
+      const ci = [0, 1, 2].map((ax) => clampi(i0[ax] + ((k >> ax) & 1), ax));
+      const p = cell(ci);
+      if (p < 0) continue;
+      let w = Math.max(f.validity[p], 0);
+      for (let ax = 0; ax < 3; ax++) w *= (k >> ax) & 1 ? fr[ax] : 1 - fr[ax];
+      if (!(w > 0)) continue;
+      if (!visible(this._cellCentre(ci), c)) continue;
+      mergeAdd(out, p, w);
+      sum += w;
+    }
+    if (sum > 1e-6) {
+      for (const [p, w] of out) out.set(p, w / sum);
+      return out;
+    }
+    const p = cell(home); /* step 5: the home cell alone, whatever its validity */
+    return p >= 0 ? new Map([[p, 1]]) : null;
+  }
+
+  /** Σ w s c over a weight map: SH (count × 3) of the blend. */
+  blend(weights) {
+    const f = this.file, n = this.count, sh = new Float64Array(3 * n);
+    for (const [p, w] of weights) {
+      const ws = w * f.probeScale[p];
+      for (let i = 0; i < 3 * n; i++) sh[i] += ws * f.coeffs[3 * n * p + i];
+    }
+    return sh;
+  }
+
+  /**
+   * The per-pixel texture's texels, N (count RGB) and D per texel, in the channel packing of
+   * docs/grid-field.md (0-2 N0, 3 D, then N1..: `groups` RGBA texels). Dense grids: a texel per cell at
+   * its centre, N = v s c, D = v. Trees: a texel per lattice point (level 0 bricks, docs/probe-bricks.md
+   * "Texels": N = Σ W m s c, D = Σ W m, without the visibility texels).
+   */
+  texels() {
+    const f = this.file, n = this.count, groups = Math.ceil((3 * n + 1) / 4);
+    const dense = this.kind === 'grid';
+    const dims = dense ? f.gridDims.slice() : f.gridDims.map((v) => v + 1);
+    const total = dims[0] * dims[1] * dims[2];
+    const data = new Float32Array(total * groups * 4);
+    const put = (t, ch, v) => { data[4 * (t + total * (ch >> 2)) + (ch & 3)] = v; };
+    const write = (t, weights) => {
+      let D = 0;
+      const N = new Float64Array(3 * n);
+      for (const [p, w0] of weights) {
+        const m = dense ? Math.max(f.validity[p], 0) * w0 : f.validity[p] > 0 ? w0 : 0;
+        if (!(m > 0)) continue;
+        D += m;
+        for (let i = 0; i < 3 * n; i++) N[i] += m * f.probeScale[p] * f.coeffs[3 * n * p + i];
+      }
+      put(t, 0, N[0]); put(t, 1, N[1]); put(t, 2, N[2]); put(t, 3, D);
+      for (let i = 3; i < 3 * n; i++) put(t, i + 1, N[i]);
+    };
+    for (let z = 0; z < dims[2]; z++)
+      for (let y = 0; y < dims[1]; y++)
+        for (let x = 0; x < dims[0]; x++) {
+          const t = x + dims[0] * (y + dims[1] * z);
+          if (dense) {
+            const p = f.grid[t];
+            if (p >= 0) write(t, new Map([[p, 1]]));
+          } else {
+            const pt = [0, 1, 2].map((k) => f.gridOrigin[k] + [x, y, z][k] * f.gridSpacing);
+            const w = this.treeWeights(pt);
+            if (w) write(t, w);
+          }
+        }
+    return { dims, groups, data };
+  }
+}
+
+/* ---- the static scene's segment test ----------------------------------------------------------------- */
+
+/** World-space triangles of the scene's meshes, tagged by object, for sv_probe_visible's segment test. */
+class StaticScene {
+  constructor(objects) {
+    let n = 0;
+    for (const o of objects) for (const m of o.meshes) n += triCount(m.geometry);
+    this.tris = new Float32Array(9 * n);
+    this.owner = new Int32Array(n);
+    let t = 0;
+    const v = new THREE.Vector3();
+    objects.forEach((o, oi) => {
+      for (const m of o.meshes) {
+        m.updateWorldMatrix(true, false);
+        const pos = m.geometry.attributes.position, idx = m.geometry.index, cnt = triCount(m.geometry);
+        for (let i = 0; i < cnt; i++) {
+          for (let k = 0; k < 3; k++) {
+            const vi = idx ? idx.getX(3 * i + k) : 3 * i + k;
+            v.fromBufferAttribute(pos, vi).applyMatrix4(m.matrixWorld);
+            this.tris[9 * t + 3 * k] = v.x; this.tris[9 * t + 3 * k + 1] = v.y; this.tris[9 * t + 3 * k + 2] = v.z;
+          }
+          this.owner[t++] = oi;
+        }
+      }
+    });
+  }
+
+  /** Whether the segment a -> b (ends left out by 1e-4 of its length) misses every triangle of every
+   * static object but `self` (both sides count, as the engine's occluder). */
+  clear(a, b, self, movable) {
+    const T = this.tris, dx = b[0] - a[0], dy = b[1] - a[1], dz = b[2] - a[2];
+    for (let t = 0; t < this.owner.length; t++) {
+      const o = this.owner[t];
+      if (o === self || movable[o]) continue;
+      const i = 9 * t;
+      const e1x = T[i + 3] - T[i], e1y = T[i + 4] - T[i + 1], e1z = T[i + 5] - T[i + 2];
+      const e2x = T[i + 6] - T[i], e2y = T[i + 7] - T[i + 1], e2z = T[i + 8] - T[i + 2];
+      const px = dy * e2z - dz * e2y, py = dz * e2x - dx * e2z, pz = dx * e2y - dy * e2x;
+      const det = e1x * px + e1y * py + e1z * pz;
+      if (Math.abs(det) < 1e-12) continue;
+      const inv = 1 / det, sx = a[0] - T[i], sy = a[1] - T[i + 1], sz = a[2] - T[i + 2];
+      const uu = (sx * px + sy * py + sz * pz) * inv;
+      if (uu < 0 || uu > 1) continue;
+      const qx = sy * e1z - sz * e1y, qy = sz * e1x - sx * e1z, qz = sx * e1y - sy * e1x;
+      const vv = (dx * qx + dy * qy + dz * qz) * inv;
+      if (vv < 0 || uu + vv > 1) continue;
+      const tt = (e2x * qx + e2y * qy + e2z * qz) * inv;
+      if (tt >= 1e-4 && tt <= 1 - 1e-4) return false;
+    }
+    return true;
+  }
+}
+
+function triCount(g) {
+  return g.index ? g.index.count / 3 : g.attributes.position.count / 3;
+}
+
+/* ---- the scene's probes --------------------------------------------------------------------------------- */
+
+/**
+ * What the plugin attaches to `gltf.userData.schneeProbes`: the grids, the objects (one per glTF node
+ * with a mesh, as schnee-view's objects), their per-object SH and the shading uniforms.
+ */
+export class SchneeProbes {
+  constructor({ grids, fallback, objects, mode }) {
+    this.grids = grids;
+    this.fallback = fallback; /* Float64Array, count × 3 */
+    this.objects = objects;
+    this.mode = mode || 'material';
+    this.texture = null;
+    this.gridUniforms = null;
+    this.movable = new Uint8Array(objects.length);
+    this.statics = new StaticScene(objects);
+    this.assignAll();
+  }
+
+  /** Per-object query of every object (sv_probes_assign). */
+  assignAll() {
+    this.objects.forEach((o, i) => this.assign(i));
+  }
+
+  assign(i) {
+    const o = this.objects[i];
+    o.box = new THREE.Box3();
+    for (const m of o.meshes) {
+      m.updateWorldMatrix(true, false);
+      if (!m.geometry.boundingBox) m.geometry.computeBoundingBox();
+      o.box.union(m.geometry.boundingBox.clone().applyMatrix4(m.matrixWorld));
+    }
+    o.sh = this.fallback;
+    o.count = this.fallback.length / 3;
+    o.weights = null;
+    o.grid = -1;
+    if (o.box.isEmpty()) return;
+    const c3 = o.box.getCenter(new THREE.Vector3());
+    const c = [c3.x, c3.y, c3.z];
+    const visible = (from, to) => this.statics.clear(from, to, i, this.movable);
+    for (const g of this.grids) {
+      const w = g.objectWeights(c, visible);
+      if (!w || w.size === 0) continue;
+      o.sh = g.blend(w);
+      o.count = g.count;
+      o.weights = w;
+      o.grid = g.index;
+      break;
+    }
+    o.centre = c;
+    this._writeUniforms(o);
+  }
+
+  /** Marks object i movable (it left the static scene) and re-queries every object. */
+  moved(i) {
+    this.movable[i] = 1;
+    this.assignAll();
+  }
+
+  /** 'material' (each material's / node's probeMode), 'off', 'object' or 'pixel'. */
+  setMode(mode) {
+    if (mode !== 'material' && !MODES.includes(mode)) throw new Error(`unknown probe mode '${mode}'`);
+    this.mode = mode;
+    for (const o of this.objects) this._writeUniforms(o);
+  }
+
+  _writeUniforms(o) {
+    for (const m of o.meshes) {
+      const u = m.userData.schneeUniforms;
+      if (!u) continue;
+      const mode = this.mode === 'material' ? m.userData.schneeMode : this.mode;
+      const modeIndex = MODES.indexOf(mode);
+      const sh = mode === 'object' ? o.sh : this.fallback;
+      const count = Math.min(sh.length / 3, MAX_COEFFS);
+      for (let i = 0; i < MAX_COEFFS; i++)
+        u.schneeSH.value[i].set(i < count ? sh[3 * i] : 0, i < count ? sh[3 * i + 1] : 0, i < count ? sh[3 * i + 2] : 0);
+      u.schneeCount.value = count;
+      u.schneeMode.value = modeIndex;
+    }
+  }
+
+  /** The per-pixel atlas: every dense SH grid and tree, their channel groups as z slabs of one 3D texture. */
+  buildTexture(useFloat) {
+    const parts = [];
+    for (const g of this.grids) {
+      if (g.isCube || !(g.kind === 'grid' || g.kind === 'octree' || g.kind === 'kdtree')) continue;
+      if (parts.length >= 4) break;
+      parts.push({ g, ...g.texels() });
+    }
+    const W = Math.max(1, ...parts.map((p) => p.dims[0])), H = Math.max(1, ...parts.map((p) => p.dims[1]));
+    let Dz = 0;
+    for (const p of parts) { p.zBase = Dz; Dz += p.groups * p.dims[2]; }
+    Dz = Math.max(Dz, 1);
+    const data = new Float32Array(W * H * Dz * 4);
+    for (const p of parts) {
+      const [X, Y, Z] = p.dims;
+      for (let s = 0; s < p.groups * Z; s++)
+        for (let y = 0; y < Y; y++)
+          for (let x = 0; x < X; x++) {
+            const src = 4 * (x + X * (y + Y * s)), dst = 4 * (x + W * (y + H * (p.zBase + s)));
+            for (let c = 0; c < 4; c++) data[dst + c] = p.data[src + c];
+          }
+    }
+    let tex;
+    if (useFloat) {
+      tex = new THREE.Data3DTexture(data, W, H, Dz);
+      tex.type = THREE.FloatType;
+    } else {
+      const half = new Uint16Array(data.length);
+      for (let i = 0; i < data.length; i++) half[i] = THREE.DataUtils.toHalfFloat(data[i]);
+      tex = new THREE.Data3DTexture(half, W, H, Dz);
+      tex.type = THREE.HalfFloatType;
+    }
+    tex.format = THREE.RGBAFormat;
+    tex.minFilter = tex.magFilter = THREE.LinearFilter;
+    tex.wrapS = tex.wrapT = tex.wrapR = THREE.ClampToEdgeWrapping;
+    tex.unpackAlignment = 1;
+    tex.needsUpdate = true;
+    this.texture = tex;
+    const A = [], B = [], C = [], axes = [];
+    for (let i = 0; i < 4; i++) {
+      const p = parts[i];
+      if (!p) {
+        A.push(new THREE.Vector4()); B.push(new THREE.Vector4()); C.push(new THREE.Vector4());
+        axes.push(new THREE.Vector3(1, 0, 0), new THREE.Vector3(0, 1, 0), new THREE.Vector3(0, 0, 1));
+        continue;
+      }
+      const f = p.g.file;
+      A.push(new THREE.Vector4(...f.gridOrigin, f.gridSpacing));
+      B.push(new THREE.Vector4(...f.gridDims, p.g.kind === 'grid' ? 0 : 1));
+      C.push(new THREE.Vector4(p.zBase, p.g.count, p.groups, 0));
+      for (const r of f.gridAxes) axes.push(new THREE.Vector3(...r));
+    }
+    this.gridUniforms = {
+      schneeTex: { value: tex }, schneeGridCount: { value: parts.length }, schneeGridA: { value: A },
+      schneeGridB: { value: B }, schneeGridC: { value: C }, schneeGridAxes: { value: axes },
+      schneeTexSize: { value: new THREE.Vector3(W, H, Dz) },
+    };
+    return tex;
+  }
+
+  /** The probe view: a small sphere per probe shaded with max(E(n), 0)/π of its own SH (× scale). */
+  probeView({ radius = 0.08 } = {}) {
+    const group = new THREE.Group();
+    group.name = 'SchneeProbeView';
+    for (const g of this.grids) {
+      const f = g.file;
+      if (!f.positions && g.kind !== 'grid') continue;
+      const pos = [];
+      if (f.positions) for (let p = 0; p < f.probeCount; p++) pos.push([p, f.positions.subarray(3 * p, 3 * p + 3)]);
+      else {
+        const [X, Y] = f.gridDims;
+        f.grid.forEach((p, t) => { if (p >= 0) pos.push([p, g._cellCentre([t % X, Math.floor(t / X) % Y, Math.floor(t / (X * Y))])]); });
+      }
+      const n = Math.min(g.count, 9);
+      const geo = new THREE.SphereGeometry(radius, 16, 8);
+      const ib = new THREE.InstancedMesh(geo, null, pos.length);
+      const attrs = [];
+      for (let k = 0; k < 7; k++) attrs.push(new Float32Array(4 * pos.length));
+      const m = new THREE.Matrix4();
+      pos.forEach(([p, at], j) => {
+        ib.setMatrixAt(j, m.makeTranslation(at[0], at[1], at[2]));
+        for (let i = 0; i < n; i++)
+          for (let c = 0; c < 3; c++) {
+            const ch = 3 * i + c;
+            attrs[ch >> 2][4 * j + (ch & 3)] = f.coeffs[3 * g.count * p + ch] * f.probeScale[p];
+          }
+      });
+      attrs.forEach((a, k) => geo.setAttribute(`sh${k}`, new THREE.InstancedBufferAttribute(a, 4)));
+      ib.material = new THREE.ShaderMaterial({
+        vertexShader: /* glsl */ `
+          attribute vec4 sh0, sh1, sh2, sh3, sh4, sh5, sh6;
+          varying vec3 vN; varying vec4 s0, s1, s2, s3, s4, s5, s6;
+          void main() {
+            vN = normal; s0 = sh0; s1 = sh1; s2 = sh2; s3 = sh3; s4 = sh4; s5 = sh5; s6 = sh6;
+            gl_Position = projectionMatrix * viewMatrix * modelMatrix * instanceMatrix * vec4(position, 1.0);
+          }`,
+        fragmentShader: /* glsl */ `
+          varying vec3 vN; varying vec4 s0, s1, s2, s3, s4, s5, s6;
+          void main() {
+            vec3 n = normalize(vN);
+            float c[28] = float[28](s0.x, s0.y, s0.z, s0.w, s1.x, s1.y, s1.z, s1.w, s2.x, s2.y, s2.z, s2.w,
+              s3.x, s3.y, s3.z, s3.w, s4.x, s4.y, s4.z, s4.w, s5.x, s5.y, s5.z, s5.w, s6.x, s6.y, s6.z, s6.w);
+            float x = n.x, y = n.y, z = n.z, PI_ = 3.14159265358979;
+            float ay[9] = float[9](PI_ * 0.282094792, 2.0 * PI_ / 3.0 * 0.488602512 * y, 2.0 * PI_ / 3.0 * 0.488602512 * z,
+              2.0 * PI_ / 3.0 * 0.488602512 * x, PI_ / 4.0 * 1.092548431 * x * y, PI_ / 4.0 * 1.092548431 * y * z,
+              PI_ / 4.0 * 0.315391565 * (3.0 * z * z - 1.0), PI_ / 4.0 * 1.092548431 * x * z, PI_ / 4.0 * 0.546274215 * (x * x - y * y));
+            vec3 e = vec3(0.0);
+            for (int i = 0; i < 9; i++) e += ay[i] * vec3(c[3 * i], c[3 * i + 1], c[3 * i + 2]);
+            gl_FragColor = vec4(max(e, 0.0) / PI_, 1.0);
+            #include <tonemapping_fragment>
+            #include <colorspace_fragment>
+          }`,
+      });
+      ib.name = `probes ${g.name}`;
+      group.add(ib);
+    }
+    return group;
+  }
+}
+
+/* ---- material injection ------------------------------------------------------------------------------- */
+
+function injectMaterial(material, uniforms, cacheKey) {
+  material.onBeforeCompile = (shader) => {
+    Object.assign(shader.uniforms, uniforms);
+    shader.vertexShader = shader.vertexShader
+      .replace('#include <common>', '#include <common>\nvarying vec3 vSchneeWorldPos;')
+      .replace('#include <project_vertex>',
+        '#include <project_vertex>\n\tvSchneeWorldPos = (modelMatrix * vec4(transformed, 1.0)).xyz;');
+    shader.fragmentShader = shader.fragmentShader
+      .replace('#include <common>', `#include <common>\n${GLSL_COMMON}`)
+      /* three's own indirect diffuse (ambient / hemisphere / light probes) is replaced, not added to; its
+       * energy-conserving split would also scale our term, so the probe term is added afterwards. */
+      .replace('#include <lights_fragment_end>', `irradiance = vec3(0.0);
+#include <lights_fragment_end>
+{
+  vec3 schneeN = normalize((vec4(normal, 0.0) * viewMatrix).xyz);
+  vec3 schneeE = schneeIrradiance(vSchneeWorldPos, schneeN);
+  reflectedLight.indirectDiffuse += diffuseColor.rgb * (schneeShScale * max(schneeE, vec3(0.0)) / PI + schneeAmbient);
+}`);
+  };
+  material.customProgramCacheKey = () => `schnee-probes-${cacheKey}`;
+  material.needsUpdate = true;
+}
+
+/* ---- the GLTFLoader plugin ------------------------------------------------------------------------------ */
+
+const EXT_SCENE = 'VULKAN_SCHNEE_engine_properties';
+const EXT_MATERIAL = 'VULKAN_SCHNEE_materials';
+const EXT_NODE = 'VULKAN_SCHNEE_node';
+const EXT_LIGHT = 'VULKAN_SCHNEE_light';
+
+/**
+ * GLTFLoader plugin. Options: `mode` ('material' default, 'off', 'object', 'pixel'), `sky` (false:
+ * probe 0 is the constant 0.2 radiance even when the glTF has a sky, as schnee-view --no-sky),
+ * `direct` (false: KHR_lights_punctual lights removed, as --no-direct; true: kept, intensity ×
+ * VULKAN_SCHNEE_light.intensityScale, baked lights removed), `floatTexture` (true: RGBA32F 3D texture
+ * when the context filters it, else RGBA16F), `renderer` (for that check), `onLoad(probes, timing)`.
+ */
+export class SchneeProbesPlugin {
+  constructor(parser, opts = {}) {
+    this.parser = parser;
+    this.name = EXT_SCENE;
+    this.opts = opts;
+  }
+
+  async _loadGrids(ext) {
+    const grids = [];
+    const entries = Array.isArray(ext.shProbeGrids) ? ext.shProbeGrids : [];
+    const loader = new THREE.FileLoader(this.parser.options.manager);
+    loader.setResponseType('arraybuffer');
+    loader.setRequestHeader(this.parser.options.requestHeader || {});
+    const path = this.parser.options.path || '';
+    const bufs = await Promise.all(entries.map((e) => {
+      if (typeof e.uri !== 'string') throw new Error(`${EXT_SCENE}.shProbeGrids entry without a uri`);
+      return loader.loadAsync(THREE.LoaderUtils.resolveURL(e.uri, path));
+    }));
+    entries.forEach((e, i) => {
+      const file = parseShprobe(bufs[i], { name: e.uri });
+      for (const [key, val] of [['probeCount', file.probeCount], ['maxBand', file.maxBand]])
+        if (e[key] !== undefined && e[key] !== val)
+          console.warn(`Schnee: shProbeGrids[${i}] '${e.name}': ${key} ${e[key]} in the glTF, ${val} in ${e.uri}; using the file`);
+      if (file.structure === 'tetrahedra')
+        console.warn(`Schnee: shProbeGrids[${i}] '${e.name}': tetrahedra are not supported by this viewer; skipped`);
+      else grids.push(new ProbeGrid(file, e, i));
+    });
+    return grids;
+  }
+
+  async afterRoot(gltf) {
+    const t0 = performance.now();
+    const json = this.parser.json;
+    const sceneIndex = json.scene || 0;
+    const ext = (json.scenes && json.scenes[sceneIndex] && json.scenes[sceneIndex].extensions || {})[EXT_SCENE] || {};
+    const grids = await this._loadGrids(ext);
+    const tLoad = performance.now() - t0;
+
+    let fallback;
+    const sky = ext.sky;
+    if (this.opts.sky !== false && sky && Array.isArray(sky.sh) && sky.sh.length) {
+      fallback = new Float64Array(sky.sh.flat().slice(0, 3 * MAX_COEFFS));
+    } else {
+      const l00 = FALLBACK_RADIANCE * Y0 * 4 * PI;
+      fallback = new Float64Array([l00, l00, l00]);
+    }
+
+    /* Objects: glTF nodes with a mesh, their three meshes (one per primitive). */
+    const assoc = this.parser.associations;
+    const objects = [];
+    const root = gltf.scene;
+    root.updateMatrixWorld(true);
+    root.traverse((obj) => {
+      const a = assoc.get(obj);
+      if (!a || a.nodes === undefined) return;
+      const node = json.nodes[a.nodes];
+      if (node.mesh === undefined) return;
+      const meshes = [];
+      if (obj.isMesh) meshes.push(obj);
+      else for (const ch of obj.children) if (ch.isMesh && !(assoc.get(ch) && assoc.get(ch).nodes !== undefined)) meshes.push(ch);
+      objects.push({ name: node.name || `node ${a.nodes}`, node: a.nodes, object: obj, meshes });
+    });
+
+    /* Per-primitive probe mode: node > material > 'object' (docs/export.md "Node"). */
+    for (const o of objects) {
+      const nodeExt = (json.nodes[o.node].extensions || {})[EXT_NODE];
+      let nodeMode;
+      if (nodeExt !== undefined) {
+        if (nodeExt && typeof nodeExt === 'object' && MODES.includes(nodeExt.probeMode)) nodeMode = nodeExt.probeMode;
+        else if (nodeExt && typeof nodeExt === 'object' && nodeExt.probeMode !== undefined)
+          console.warn(`Schnee: node '${o.name}': unknown ${EXT_NODE}.probeMode ${JSON.stringify(nodeExt.probeMode)}; following its materials`);
+        else if (!nodeExt || typeof nodeExt !== 'object') console.warn(`Schnee: node '${o.name}': ${EXT_NODE} is not an object; ignored`);
+      }
+      for (const m of o.meshes) {
+        if (!m.material || !m.material.isMeshStandardMaterial) continue;
+        const ma = assoc.get(m.material);
+        const mj = ma && ma.materials !== undefined ? json.materials[ma.materials] : null;
+        const me = (mj && mj.extensions || {})[EXT_MATERIAL] || {};
+        let mode = me.probeMode === undefined ? 'object' : me.probeMode;
+        if (!MODES.includes(mode)) throw new Error(`material '${mj.name}': unknown ${EXT_MATERIAL}.probeMode ${JSON.stringify(mode)}`);
+        if (nodeMode) mode = nodeMode;
+        const shScale = typeof me.shScale === 'number' ? me.shScale : 1.0;
+        const ambient = typeof me.ambientTerm === 'number' ? me.ambientTerm : 0.1;
+        m.material = m.material.clone(); /* one per mesh: the per-object SH are its own uniforms */
+        m.userData.schneeMode = mode;
+        m.userData.schneeUniforms = {
+          schneeSH: { value: Array.from({ length: MAX_COEFFS }, () => new THREE.Vector3()) },
+          schneeCount: { value: 1 }, schneeMode: { value: 1 },
+          schneeShScale: { value: shScale }, schneeAmbient: { value: ambient },
+        };
+      }
+    }
+
+    const probes = new SchneeProbes({ grids, fallback, objects, mode: this.opts.mode });
+    const r = this.opts.renderer;
+    const canFloat = !!(r && r.extensions && r.extensions.has('OES_texture_float_linear'));
+    probes.buildTexture(this.opts.floatTexture !== false && canFloat);
+    for (const o of objects)
+      for (const m of o.meshes)
+        if (m.userData.schneeUniforms) {
+          Object.assign(m.userData.schneeUniforms, probes.gridUniforms);
+          injectMaterial(m.material, m.userData.schneeUniforms, 'v1');
+        }
+    probes.setMode(probes.mode);
+
+    /* Lights: engine units (intensity × intensityScale); baked ones are in the probes. */
+    const lights = [];
+    root.traverse((obj) => { if (obj.isLight) lights.push(obj); });
+    const lightDefs = ((json.extensions || {}).KHR_lights_punctual || {}).lights || [];
+    for (const l of lights) {
+      const a = assoc.get(l) || (l.parent && assoc.get(l.parent));
+      const def = a && a.nodes !== undefined && json.nodes[a.nodes].extensions && json.nodes[a.nodes].extensions.KHR_lights_punctual
+        ? lightDefs[json.nodes[a.nodes].extensions.KHR_lights_punctual.light] : null;
+      const le = def && def.extensions && def.extensions[EXT_LIGHT];
+      if (this.opts.direct === false || (le && le.mode === 'baked')) { l.parent.remove(l); continue; }
+      if (le && typeof le.intensityScale === 'number') l.intensity *= le.intensityScale;
+    }
+
+    probes.timing = { loadMs: tLoad, totalMs: performance.now() - t0 };
+    gltf.userData.schneeProbes = probes;
+    if (this.opts.onLoad) this.opts.onLoad(probes);
+  }
+}
