@@ -90,11 +90,16 @@ def main():
                     help="the geometry octree's per-object error without baking all its probes: place it, "
                          "bake only the probes the points look up (the same renders a full bake makes "
                          "there: same settings and seed), time = probes x the measured time per probe")
+    ap.add_argument("--keep", default=None, metavar="DIR",
+                    help="bake into DIR and keep the files there, with points.npz (the points, engine and "
+                         "Blender axes, and the reference) for bench/bench_postprocess.py")
     a = ap.parse_args(argv)
 
     sc = placement_scenes.build(a.scene)
     schnee_probes.register()
-    tmp = tempfile.mkdtemp(prefix="bench_placement_")
+    if a.keep:
+        os.makedirs(a.keep, exist_ok=True)
+    tmp = a.keep or tempfile.mkdtemp(prefix="bench_placement_")
     scene, layer = bpy.context.scene, bpy.context.view_layer
 
     def settings(**kw):
@@ -142,6 +147,9 @@ def main():
         if a.ref_cache:
             np.savez(a.ref_cache, key=ref_key, ref=ref)
     out["reference_seconds"] = time.perf_counter() - t
+    if a.keep:
+        np.savez(os.path.join(a.keep, "points.npz"), engine=engine_pts, blender=blender_pts, ref=ref,
+                 direct=np.asarray(direct), key=ref_key)
     floor = bake_core.bake_points(scene, layer, settings(), engine_pts, log=lambda s: None)
     out["floor"] = stats(error(floor))
     out["floor_point_errors"] = [round(float(e), 5) for e in error(floor)]

@@ -28,7 +28,7 @@ from typing import Callable, List, Optional
 import bpy
 import numpy as np
 
-from . import adaptive, direct_light, native, render_settings, scene_export
+from . import adaptive, direct_light, native, postprocess, render_settings, scene_export
 from .adaptive import DEFAULT_POLICY, Policy
 from .bake_checks import BakeCancelled
 from .bake_outputs import (DEBUG_SHPROBE_NAME, DEBUG_SUBDIR, DEBUG_TEXT_NAME, SKY_FILE_NAME, SUN_FILE_NAME,
@@ -128,8 +128,10 @@ class PlacementPlan:
         return total
 
     def outputs(self, scratch: str) -> List[Output]:
-        return [dense_output(t, self.coeffs[t.probe_render_index], self.positions[t.probe_render_index],
-                             self.settings) for t in self.targets]
+        # SH Windowing (postprocess.py); Dilate Invalid Probes needs the octree's cells: Adaptive only.
+        return [dense_output(t, postprocess.window(self.coeffs[t.probe_render_index], self.settings.sh_window,
+                                                   self.settings.sh_window_strength),
+                             self.positions[t.probe_render_index], self.settings) for t in self.targets]
 
     def estimate_line(self, total: int, seconds: float) -> str:
         return (f"Schnee: {total} probe(s) to bake, estimated {format_duration(seconds)} "
@@ -506,6 +508,7 @@ class AdaptivePlan(_VolumePlan):
         out = []
         for t in self.targets:
             coeffs, validity = t.group.probe_values(self.cache)
+            coeffs, validity = postprocess.apply(coeffs, validity, t.group.tree, self.settings, log=self.log)
             out.append(octree_output(t, coeffs, validity, self.settings, os.path.join(scratch, "octree.shprobe")))
         return out
 

@@ -42,7 +42,8 @@ _NOT_VALUES = frozenset({"output_path", "probe_limit", "per_volume_files", "prob
 # Settings added after journals existed, with the value that bakes as before them: left out of the
 # digest at that value, so a journal of an earlier bake still resumes (Sky Sun "baked" is the bake
 # before issue 27 byte for byte; "mixed" changes the probes' sky and is digested).
-_LEGACY_VALUES = {"sky_sun": "baked", "render_device": "SCENE"}
+_LEGACY_VALUES = {"sky_sun": "baked", "render_device": "SCENE", "dilate_invalid": False, "sh_window": "NONE",
+                  "sh_window_strength": 0.0}
 
 
 def _at_legacy_value(name, value) -> bool:

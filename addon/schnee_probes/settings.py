@@ -236,6 +236,35 @@ SETTINGS: Tuple[Setting, ...] = (
                 "which then also stores each probe's position and validity (1 − the placement's "
                 "back-face ratio).",
             minimum=0, maximum=4),
+    # What the bake does to the final probes before writing them (postprocess.py, issue 31).
+    Setting("dilate_invalid", "bool", False, "Dilate Invalid Probes",
+            "Adaptive placement: a probe inside geometry (never rendered, left out of the interpolation) "
+            "gets the validity-weighted mean of the valid probes of its cells and is then interpolated "
+            "like the others (its validity becomes 0.01); off: it stays out of the interpolation",
+            doc="Adaptive only: a probe the solid test put inside geometry (validity 0: never rendered, "
+                "left out of the interpolation) gets the mean of the valid probes of the cells it is a "
+                "corner of, weighted by validity / distance², and validity 0.01, so readers interpolate "
+                "with it as APV and EEVEE do with their dilated probes. Measured "
+                "(bench/results/postprocess.md): see there.",
+            ui="volumes"),
+    Setting("sh_window", "enum", 'NONE', "SH Windowing",
+            "Deringing: scale each probe's SH bands by a window before writing (Laplacian: Sloan's "
+            "deringing, Sinc⁴: Filament's), trading directional detail for less ringing",
+            doc="Deringing (docs/sh.md *Ringing windows*): each probe's band l scaled by the window's "
+                "factor before the file is written. **Laplacian** 1/(1 + λ l²(l+1)²) (Sloan 2017), "
+                "**Sinc⁴** (sin x / x)⁴, x = πl/w (Filament). Measured (bench/results/postprocess.md): "
+                "see there.",
+            choices=(('NONE', "None", "Write the probes' SH as baked"),
+                     ('LAPLACIAN', "Laplacian", "Band l scaled by 1/(1 + strength · l²(l+1)²)"),
+                     ('SINC4', "Sinc⁴", "Band l scaled by sinc⁴(πl / strength), 0 from band strength on")),
+            ui="volumes", ui_row="window"),
+    Setting("sh_window_strength", "float", 0.0, "SH Window Strength",
+            "SH Windowing's strength: Laplacian λ, Sinc⁴ cutoff band w; 0 = per probe, the weakest "
+            "window that makes its irradiance non-negative in every direction",
+            doc="Laplacian: λ; Sinc⁴: the cutoff band w (bands ≥ w are removed: w ≤ L removes bands). "
+                "0 = automatic per probe: the weakest window whose irradiance is ≥ 0 in every direction "
+                "(a probe that is nowhere negative is left as it is).",
+            minimum=0.0, soft_max=10.0, ui="volumes", ui_row="window", ui_text="Strength"),
     # Settings that trade time against error.
     Setting("samples", "int", 8, "Samples",
             "Cycles samples per panorama pixel: render time grows linearly, noise falls as "

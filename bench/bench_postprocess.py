@@ -1,0 +1,148 @@
+"""Dilation and SH windowing (issue 31 item 4, addon/schnee_probes/postprocess.py): their effect on the
+error between probes, at the placement bench's points and on the sphere benchmark.
+
+    blender -b --factory-startup -P bench/bench_postprocess.py -- OUT.json --keep DIR
+        [--spheres TREE --spheres-out DIR2] [--variants NAME ...]
+
+Points: DIR is a ``bench/bench_placement.py ... --keep DIR`` run (its points.npz: the seeded points,
+the reference SH baked there, the mixed-sun direct term; its adaptive_*.shprobe: the bake). Each
+variant post-processes the file's probes as the bake's write does (postprocess.apply with the
+variant's settings), interpolates them at the points with the file's structure and validity (as
+bench_placement does) and reports bench_placement.stats of adaptive.irradiance_error against the
+reference: exactly the placement bench's error, the same points.
+
+Spheres: TREE is a finished ``bench/bench_spheres.py`` output folder (sh_coeffs/probes.shprobe,
+the Cycles renders, floor.npz). Per variant it is copied to DIR2/<variant>, its probe file
+post-processed and rewritten, and ``bench_spheres.py DIR2/<variant> --reuse`` run (the engine
+renders and the comparison redone on the same Cycles references); the per-sphere errors are read
+from its spheres.json. The report is bench/results/postprocess.md.
+"""
+import argparse
+import glob
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from types import SimpleNamespace
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(REPO, "bench"))
+sys.path.insert(0, os.path.join(REPO, "addon"))
+
+import numpy as np  # noqa: E402
+
+from bench_placement import stats  # noqa: E402
+from schnee_probes import adaptive, native, postprocess  # noqa: E402
+
+# name: (Dilate Invalid Probes, SH Windowing, SH Window Strength)
+VARIANTS = {
+    "off": (False, "NONE", 0.0),
+    "dilate": (True, "NONE", 0.0),
+    "laplacian_auto": (False, "LAPLACIAN", 0.0),
+    "laplacian_0.002": (False, "LAPLACIAN", 0.002),
+    "laplacian_0.01": (False, "LAPLACIAN", 0.01),
+    "laplacian_0.05": (False, "LAPLACIAN", 0.05),
+    "sinc4_auto": (False, "SINC4", 0.0),
+    "sinc4_12": (False, "SINC4", 12.0),
+    "sinc4_6": (False, "SINC4", 6.0),
+    "dilate+laplacian_0.002": (True, "LAPLACIAN", 0.002),
+    "dilate+laplacian_0.01": (True, "LAPLACIAN", 0.01),
+}
+
+
+def variant_settings(name):
+    d, kind, strength = VARIANTS[name]
+    return SimpleNamespace(dilate_invalid=d, sh_window=kind, sh_window_strength=strength)
+
+
+def processed(path, name, log=None):
+    """(file, structure, coeffs, validity) of ``path`` post-processed as variant ``name``."""
+    f = native.read_shprobe(path)
+    s = native.interpolation_from_file(path)
+    c, v = postprocess.apply(f.coeffs, f.validity, s, variant_settings(name), log=log)
+    return f, s, c, v
+
+
+def write_variant(src, dst, name):
+    f, s, c, v = processed(src, name, log=print)
+    native.write_shprobe_v3(dst, s, c.astype(np.float32), validity=v, probe_scale=f.probe_scale,
+                            probe_ambient=f.probe_ambient, default_sh_scale=f.default_sh_scale,
+                            default_ambient=f.default_ambient)
+
+
+def points_rows(keep, names):
+    z = np.load(os.path.join(keep, "points.npz"))
+    pts, ref, direct = z["engine"], z["ref"], z["direct"]
+    files = sorted(glob.glob(os.path.join(keep, "adaptive_*.shprobe")))
+    if not files:
+        sys.exit(f"bench_postprocess: no adaptive_*.shprobe in {keep}")
+    rows = []
+    for path in files:
+        for name in names:
+            t = time.perf_counter()
+            f, s, c, v = processed(path, name)
+            sec = time.perf_counter() - t
+            got = s.interpolate(pts, c, v)
+            err = adaptive.irradiance_error(got + direct, ref + direct)
+            rows.append({"file": os.path.basename(path), "variant": name, "probes": int(f.probe_count),
+                         "invalid": int((f.validity <= 0).sum()), "seconds": round(sec, 3),
+                         "error": stats(err), "point_errors": [round(float(e), 5) for e in err]})
+            e = rows[-1]["error"]
+            print(f"POINTS {name:24s} mean {100 * e['mean']:.3f} % median {100 * e['median']:.3f} % "
+                  f"max {100 * e['max']:.2f} % uncovered {e['uncovered']}  ({sec:.2f} s)", flush=True)
+    return rows
+
+
+def sphere_rows(tree, out, names, blender):
+    rows = []
+    src = os.path.join(tree, "sh_coeffs", "probes.shprobe")
+    for name in names:
+        d = os.path.join(out, name)
+        if os.path.exists(d):
+            shutil.rmtree(d)
+        shutil.copytree(tree, d, ignore=shutil.ignore_patterns("gltf"))
+        write_variant(src, os.path.join(d, "sh_coeffs", "probes.shprobe"), name)
+        cmd = [blender, "-b", "--factory-startup", "-P", os.path.join(REPO, "bench", "bench_spheres.py"), "--",
+               d, "--reuse"]
+        t = time.perf_counter()
+        r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        with open(os.path.join(d, "bench_spheres.log"), "w", encoding="utf-8") as fh:
+            fh.write(r.stdout)
+        if r.returncode != 0:
+            sys.exit(f"bench_postprocess: {' '.join(cmd)} failed ({r.returncode}); log in {d}/bench_spheres.log")
+        with open(os.path.join(d, "spheres.json"), encoding="utf-8") as fh:
+            res = json.load(fh)
+        rows.append({"variant": name, "seconds": round(time.perf_counter() - t, 1), "spheres": res.get("spheres"),
+                     "table": open(os.path.join(d, "table.md"), encoding="utf-8").read()})
+        print("SPHERES", name, flush=True)
+    return rows
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out")
+    ap.add_argument("--keep", default=None, help="a bench_placement.py --keep folder (points.npz, the bake)")
+    ap.add_argument("--spheres", default=None, help="a finished bench_spheres.py output folder")
+    ap.add_argument("--spheres-out", default=None, help="where the sphere variants' folders go")
+    ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
+    ap.add_argument("--sphere-variants", nargs="+", default=None, choices=list(VARIANTS),
+                    help="variants of the sphere benchmark (default: --variants)")
+    ap.add_argument("--blender", default="blender")
+    a = ap.parse_args(argv)
+    out = {"argv": argv, "variants": {k: VARIANTS[k] for k in a.variants}}
+    if a.keep:
+        out["points"] = points_rows(a.keep, a.variants)
+    if a.spheres:
+        if not a.spheres_out:
+            sys.exit("bench_postprocess: --spheres needs --spheres-out")
+        out["spheres"] = sphere_rows(a.spheres, a.spheres_out, a.sphere_variants or a.variants, a.blender)
+    with open(a.out, "w", encoding="utf-8") as fh:
+        json.dump(out, fh, indent=1)
+    print("WROTE", a.out)
+
+
+if __name__ == "__main__":
+    main()
