@@ -13,6 +13,7 @@ APT_PACKAGES=(
   libvulkan-dev glslc mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
   libcjson-dev libglfw3-dev xvfb xauth
   nodejs npm
+  chromium  # tests/web/test_web_page.py: the three.js page in headless Chromium (WebGL2 on SwiftShader)
   debootstrap patchelf
   slurm-wlm munge
 )
