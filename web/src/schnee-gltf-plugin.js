@@ -109,9 +109,10 @@ bool schneeGridSample(int g, vec3 p, float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
   if (B.w < 0.5) { // dense grid: 0.01-cell margin, texels at cell centres (docs/grid-field.md)
     if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, B.xyz + 0.01))) return false;
     t = clamp(u - 0.5, vec3(0.0), B.xyz - 1.0);
-  } else {         // octree / kd lattice: texels at lattice points, the lattice box closed
-    if (any(lessThan(u, vec3(0.0))) || any(greaterThan(u, B.xyz))) return false;
-    t = u;
+  } else {         // octree / kd lattice: texels at lattice points; the 0.01-cell margin, u clamped into
+                   // [0, E] (bricks_surface.glsl: walls modelled on the lattice's faces)
+    if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, B.xyz + 0.01))) return false;
+    t = clamp(u, vec3(0.0), B.xyz);
   }
   vec3 n = B.w < 0.5 ? B.xyz : B.xyz + 1.0; // texels per axis
   vec3 tc = (t + 0.5) / schneeTexSize;
