@@ -66,4 +66,11 @@ check("samples setting", lambda: None, lambda: None, dataclasses.replace(base_se
 check("output path only", lambda: None, lambda: None, dataclasses.replace(base_settings, output_path="//elsewhere.shprobe"))
 check("probe representation only", lambda: None, lambda: None,
       dataclasses.replace(base_settings, probe_representation="CUBE_HALF"))
+# issue 31: the post-process settings change the written probes, so a resumed bake must not mix them
+check("dilate setting", lambda: None, lambda: None,
+      dataclasses.replace(base_settings, dilate_invalid=not base_settings.dilate_invalid))
+check("window setting", lambda: None, lambda: None,
+      dataclasses.replace(base_settings, sh_window="SINC4" if base_settings.sh_window != "SINC4" else "NONE"))
+check("window strength", lambda: None, lambda: None,
+      dataclasses.replace(base_settings, sh_window_strength=base_settings.sh_window_strength + 0.5))
 common.emit(changed=changed)
