@@ -173,7 +173,7 @@ const mergeAdd = (list, p, w) => {
 };
 
 /** One grid of the scene: the parsed file plus what its queries need. */
-class ProbeGrid {
+export class ProbeGrid {
   constructor(file, entry, index) {
     this.file = file;
     this.entry = entry;
