@@ -120,6 +120,36 @@ def sphere_rows(tree, out, names, blender):
     return rows
 
 
+COLUMNS = ("per_object", "per_pixel", "per_pixel_cpu_plain")
+
+
+def report(out):
+    """Markdown tables of an OUT.json (the numbers bench/results/postprocess.md quotes)."""
+    lines = []
+    if out.get("points"):
+        lines += ["| variant | mean | median | p90 | worst | uncovered | post-process s |", "|---|---|---|---|---|---|---|"]
+        for r in out["points"]:
+            e = r["error"]
+            lines.append(f"| {r['variant']} | {100 * e['mean']:.2f} % | {100 * e['median']:.2f} % | "
+                         f"{100 * e['p90']:.2f} % | {100 * e['max']:.2f} % | {e['uncovered']} | {r['seconds']:.2f} |")
+    if out.get("spheres"):
+        names = [sp["name"] for sp in out["spheres"][0]["spheres"]]
+        lines += ["", "Relative RMS net of the reference's noise, % (mean colour error in brackets); "
+                  "per pixel cpu plain = the file's interpolation with validity at each surface point.", "",
+                  "| variant | " + " | ".join(f"{c} (mean of {len(names)})" for c in COLUMNS) + " | "
+                  + " | ".join(f"{n} per pixel" for n in names) + " |",
+                  "|---" * (1 + len(COLUMNS) + len(names)) + "|"]
+        for r in out["spheres"]:
+            cells = []
+            for c in COLUMNS:
+                net = np.mean([sp["errors"][c]["rel_rms_net"] for sp in r["spheres"]])
+                mean = np.mean([sp["errors"][c]["mean_rel"] for sp in r["spheres"]])
+                cells.append(f"{100 * net:.2f} ({100 * mean:.2f})")
+            cells += [f"{100 * sp['errors']['per_pixel']['rel_rms_net']:.2f}" for sp in r["spheres"]]
+            lines.append(f"| {r['variant']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
     ap = argparse.ArgumentParser()
@@ -131,7 +161,18 @@ def main():
     ap.add_argument("--sphere-variants", nargs="+", default=None, choices=list(VARIANTS),
                     help="variants of the sphere benchmark (default: --variants)")
     ap.add_argument("--blender", default="blender")
+    ap.add_argument("--report", action="store_true", help="print the tables of OUT (an earlier run's JSON)")
+    ap.add_argument("--merge", nargs="*", default=[], help="with --report: more JSON files whose rows are added")
     a = ap.parse_args(argv)
+    if a.report:
+        out = {"points": [], "spheres": []}
+        for path in [a.out] + a.merge:
+            with open(path, encoding="utf-8") as fh:
+                d = json.load(fh)
+            out["points"] += d.get("points", [])
+            out["spheres"] += d.get("spheres", [])
+        print(report(out))
+        return
     out = {"argv": argv, "variants": {k: VARIANTS[k] for k in a.variants}}
     if a.keep:
         out["points"] = points_rows(a.keep, a.variants)
