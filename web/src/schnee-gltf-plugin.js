@@ -21,8 +21,12 @@
  *   value wins, else probe 0.
  * - per pixel: one 3D texture (hardware trilinear) per scene holding N = Σ w s c and D = Σ w per texel
  *   (docs/grid-field.md "Texture", docs/probe-bricks.md "Texels" at level 0); the fragment takes N / D.
- *   Not in it: the C engine's visibility masks / visibility texels and back-face weights on static
- *   surfaces, so per pixel light can still leak through a wall (and differs from schnee-view there).
+ *   Trees follow the engine's brick rule (shaders/bricks_surface.glsl, pb_bricks_sample_surface): each
+ *   min cell's brick level (a second, nearest-filtered 3D texture), the face margin, and on static
+ *   surfaces the back-face weights of the brick cell's 8 corners (one filtered tap where the kept weights
+ *   are separable, else 8 texelFetch taps). Not in it: the engine's visibility texels and records (they
+ *   need its tracer) and the dense grids' neighbour masks and back faces, so per pixel light can still
+ *   leak through a wall that crosses a leaf (and differs from schnee-view there).
  */
 import * as THREE from 'three';
 import { parseShprobe, ShprobeError } from './shprobe.js';
@@ -66,7 +70,8 @@ export function shIrradiance(sh, count, n) {
 
 /* ---- GLSL ------------------------------------------------------------------------------------------ */
 
-const GLSL_COMMON = /* glsl */ `
+/** The fragment code the plugin injects (uniforms, schneeGridSample, schneeIrradiance): exported for tests. */
+export const SCHNEE_GLSL_COMMON = /* glsl */ `
 #define SCHNEE_MAX_COEFFS ${MAX_COEFFS}
 #define SCHNEE_MAX_GRIDS 4
 #define SCHNEE_MAX_GROUPS 19
@@ -79,7 +84,9 @@ uniform highp sampler3D schneeTex;
 uniform int schneeGridCount;
 uniform vec4 schneeGridA[SCHNEE_MAX_GRIDS];  // origin xyz, spacing
 uniform vec4 schneeGridB[SCHNEE_MAX_GRIDS];  // dims xyz, kind (0 dense: texels at cell centres; 1 lattice)
-uniform vec4 schneeGridC[SCHNEE_MAX_GRIDS];  // atlas texel z base, colour count, groups, 0
+uniform vec4 schneeGridC[SCHNEE_MAX_GRIDS];  // atlas texel z base, colour count, groups, level atlas z base
+uniform highp sampler3D schneeLevelTex;       // trees: each min cell's brick level L, -1 = no leaf (nearest)
+uniform int schneeStatic;                     // 1: a static surface (back-face weights), 0: movable
 uniform vec3 schneeGridAxes[3 * SCHNEE_MAX_GRIDS];
 uniform vec3 schneeTexSize;
 varying vec3 vSchneeWorldPos;
@@ -100,28 +107,17 @@ void schneeBasis(vec3 n, out float ay[SCHNEE_MAX_COEFFS]) {
   ay[24] = A4 * 0.625835735 * (x2 * x2 - 6.0 * x2 * y2 + y2 * y2);
 }
 
-// Per pixel: grid g's N / D at world point p (false: no value here, the next grid).
-bool schneeGridSample(int g, vec3 p, float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
-  vec4 A = schneeGridA[g], B = schneeGridB[g], C = schneeGridC[g];
-  vec3 d = p - A.xyz;
-  vec3 u = vec3(dot(d, schneeGridAxes[3 * g]), dot(d, schneeGridAxes[3 * g + 1]), dot(d, schneeGridAxes[3 * g + 2])) / A.w;
-  vec3 t;
-  if (B.w < 0.5) { // dense grid: 0.01-cell margin, texels at cell centres (docs/grid-field.md)
-    if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, B.xyz + 0.01))) return false;
-    t = clamp(u - 0.5, vec3(0.0), B.xyz - 1.0);
-  } else {         // octree / kd lattice: texels at lattice points; the 0.01-cell margin, u clamped into
-                   // [0, E] (bricks_surface.glsl: walls modelled on the lattice's faces)
-    if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, B.xyz + 0.01))) return false;
-    t = clamp(u, vec3(0.0), B.xyz);
-  }
-  vec3 n = B.w < 0.5 ? B.xyz : B.xyz + 1.0; // texels per axis
-  vec3 tc = (t + 0.5) / schneeTexSize;
-  float zstep = n.z / schneeTexSize.z;
+// One filtered tap (hardware trilinear) of grid g's channel groups at texel coordinate tt (grid-local,
+// group 0's slab), then E(n) = sum_i A_l(i) Y_i(n) N_i / D. False when D <= dmin.
+bool schneeTap(vec3 tt, vec4 C, float nz, float ay[SCHNEE_MAX_COEFFS], float dmin, out vec3 e) {
+  vec3 tc = (tt + 0.5) / schneeTexSize;
+  float zstep = nz / schneeTexSize.z;
   tc.z += C.x / schneeTexSize.z;
   int count = int(C.y), groups = int(C.z);
   vec4 g0 = texture(schneeTex, tc);
   float D = g0.w;
-  if (D <= 1e-6) return false;
+  e = vec3(0.0);
+  if (!(D > dmin)) return false;
   e = ay[0] * g0.rgb;
   // channels 0-2 N0, 3 D, then N1 .. N(count-1) RGB packed consecutively
   float ch[4 * SCHNEE_MAX_GROUPS];
@@ -140,6 +136,125 @@ bool schneeGridSample(int g, vec3 p, float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
   return true;
 }
 
+// The 8-tap form (bricks_surface.glsl brick_tap8 = pb_bricks.c cell_weighted): texelFetch of the cell's 8
+// corner texels t0 + s * bits(k), exact weights w; E = sum_i A_l(i) Y_i(n) N'_i / D'. False when D' <= 0.
+bool schneeTap8(ivec3 t0, int s, vec4 C, int nz, float w[8], float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
+  int count = int(C.y), groups = int(C.z);
+  vec3 acc = vec3(0.0);
+  float D = 0.0;
+  e = vec3(0.0);
+  for (int k = 0; k < 8; k++) {
+    if (w[k] == 0.0) continue;
+    ivec3 tk = t0 + s * ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1) + ivec3(0, 0, int(C.x));
+    vec4 v0 = texelFetch(schneeTex, tk, 0);
+    D += w[k] * v0.w;
+    acc += w[k] * ay[0] * v0.rgb;
+    for (int gi = 1; gi < SCHNEE_MAX_GROUPS; gi++) {
+      if (gi >= groups) break;
+      vec4 v = texelFetch(schneeTex, tk + ivec3(0, 0, gi * nz), 0);
+      for (int j = 0; j < 4; j++) { // channel 4 gi + j = N_i colour c % 3, i = 1 + c / 3
+        int c = 4 * gi + j - 4, i = 1 + c / 3;
+        if (i < count) acc[c % 3] += w[k] * ay[i] * v[j];
+      }
+    }
+  }
+  if (!(D > 0.0)) return false;
+  e = acc / D;
+  return true;
+}
+
+// bricks.glsl brick_separable (pb_bricks_separable): w'_k (sum w')^2 = prod_a M_a(bit_a(k)) within 1e-5
+// relative for every k; f1 = the per-axis means of the kept weights.
+bool schneeSeparable(float w[8], out vec3 f1) {
+  float sw = 0.0;
+  vec3 m0 = vec3(0.0), m1 = vec3(0.0);
+  for (int k = 0; k < 8; k++) {
+    vec3 o = vec3(float(k & 1), float((k >> 1) & 1), float((k >> 2) & 1));
+    sw += w[k];
+    m1 += w[k] * o;
+    m0 += w[k] * (1.0 - o);
+  }
+  f1 = sw > 0.0 ? m1 / sw : vec3(0.0);
+  if (!(sw > 0.0)) return false;
+  for (int k = 0; k < 8; k++) {
+    vec3 m = mix(m0, m1, vec3(float(k & 1), float((k >> 1) & 1), float((k >> 2) & 1)));
+    float lhs = w[k] * sw * sw, rhs = m.x * m.y * m.z;
+    if (!(abs(lhs - rhs) <= 1e-5 * max(lhs, rhs))) return false;
+  }
+  return true;
+}
+
+// Per pixel: grid g at world point p with normal n (false: no value here, the next grid). Trees follow
+// bricks_surface.glsl brick_surface_irradiance (pb_bricks_sample_surface) without visibility texels or
+// records: locate the min cell (with the face margin) and its brick level L (schneeLevelTex), the brick
+// cell k0 of size 2^L in the brick region r0; on a static surface each corner's trilinear weight times its
+// back-face weight smoothstep(-0.1, 0.1, dot(x_k - u_s, n) / 2^L); separable kept weights: one filtered tap
+// at r0 + 2^L (k0 + f'), else 8 texelFetch taps; no weight left or D <= 0: the plain sample. The level-0
+// texture holds the brick texels' values (the same lattice points), so the taps read the same N and D.
+bool schneeGridSample(int g, vec3 p, vec3 nrm, bool isStatic, float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
+  vec4 A = schneeGridA[g], B = schneeGridB[g], C = schneeGridC[g];
+  vec3 d = p - A.xyz;
+  vec3 u = vec3(dot(d, schneeGridAxes[3 * g]), dot(d, schneeGridAxes[3 * g + 1]), dot(d, schneeGridAxes[3 * g + 2])) / A.w;
+  e = vec3(0.0);
+  if (B.w < 0.5) { // dense grid: 0.01-cell margin, texels at cell centres (docs/grid-field.md)
+    if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, B.xyz + 0.01))) return false;
+    return schneeTap(clamp(u - 0.5, vec3(0.0), B.xyz - 1.0), C, B.z, ay, 1e-6, e);
+  }
+  // octree / kd lattice: texels at lattice points; the 0.01-cell margin, u clamped into [0, E]
+  // (bricks_surface.glsl brick_locate: walls modelled on the lattice's faces)
+  if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, B.xyz + 0.01))) return false;
+  vec3 us = u; // the surface point's lattice coordinates (the page has no normal bias: schnee-view's default 0)
+  u = clamp(u, vec3(0.0), B.xyz);
+  ivec3 q = ivec3(min(floor(u), B.xyz - 1.0));
+  ivec3 lz = ivec3(0, 0, int(C.w));
+  float L = texelFetch(schneeLevelTex, q + lz, 0).r;
+  bool found = L >= 0.0;
+  for (int m = 1; !found && m < 8; ++m) { // the face margin: the first occupied q - m within 0.01 below
+    ivec3 r = q;
+    bool ok = true;
+    for (int a = 0; a < 3; ++a) {
+      if (((m >> a) & 1) == 0) continue;
+      if (!(q[a] > 0 && u[a] - float(q[a]) < 0.01)) ok = false;
+      r[a] = q[a] - 1;
+    }
+    if (!ok) continue;
+    float Lr = texelFetch(schneeLevelTex, r + lz, 0).r;
+    if (Lr < 0.0) continue;
+    q = r;
+    u = clamp(u, vec3(q), vec3(q) + 1.0);
+    L = Lr;
+    found = true;
+  }
+  if (!found) return false;
+  int Li = int(L + 0.5), si = 1 << Li;
+  float s = float(si);
+  ivec3 r0 = (q >> (Li + 2)) << (Li + 2);
+  vec3 x = clamp((u - vec3(r0)) / s, vec3(0.0), vec3(4.0));
+  float nz = B.z + 1.0;
+  if (isStatic) {
+    vec3 k0 = min(floor(x), vec3(3.0));
+    vec3 f = x - k0;
+    float w[8];
+    float sw = 0.0;
+    for (int k = 0; k < 8; k++) {
+      vec3 o = vec3(float(k & 1), float((k >> 1) & 1), float((k >> 2) & 1));
+      vec3 w3 = mix(1.0 - f, f, o);
+      float dd = dot((vec3(r0) + s * (k0 + o) - us) / s, nrm);
+      w[k] = w3.x * w3.y * w3.z * smoothstep(-0.1, 0.1, dd);
+      sw += w[k];
+    }
+    if (sw > 0.0) {
+      vec3 f1;
+      if (schneeSeparable(w, f1)) {
+        if (schneeTap(vec3(r0) + s * (k0 + f1), C, nz, ay, 0.0, e)) return true;
+      } else if (schneeTap8(r0 + si * ivec3(k0), si, C, int(nz), w, ay, e)) {
+        return true;
+      }
+    }
+  }
+  return schneeTap(vec3(r0) + s * x, C, nz, ay, 0.0, e); // the plain sample
+}
+
 vec3 schneeIrradiance(vec3 p, vec3 n) {
   float ay[SCHNEE_MAX_COEFFS];
   schneeBasis(n, ay);
@@ -147,7 +262,7 @@ vec3 schneeIrradiance(vec3 p, vec3 n) {
   if (schneeMode == 2)
     for (int g = 0; g < SCHNEE_MAX_GRIDS; g++) {
       if (g >= schneeGridCount) break;
-      if (schneeGridSample(g, p, ay, e)) return e;
+      if (schneeGridSample(g, p, n, schneeStatic == 1, ay, e)) return e;
     }
   e = vec3(0.0);
   for (int i = 0; i < SCHNEE_MAX_COEFFS; i++) {
@@ -215,6 +330,51 @@ export class ProbeGrid {
       }
       this.expansion.push(m);
     }
+  }
+
+  /**
+   * Each min cell's brick level (docs/probe-bricks.md "Bricks and levels": regions of 4 * 2^L min cells,
+   * aligned, visited top down; a region whose overlapped leaves all have every axis level >= L is a brick of
+   * level L), -1 where no leaf holds the cell (the indirection's occupancy bit clear). Float32Array X*Y*Z.
+   */
+  brickLevels() {
+    const [X, Y, Z] = this.file.gridDims, INF = 255, cells = X * Y * Z;
+    const cellMin = new Uint8Array(cells);
+    let top = 0;
+    for (let c = 0; c < cells; c++) {
+      const li = this.cellLeaf[c];
+      if (li < 0) { cellMin[c] = INF; continue; }
+      const m = Math.min(this.levels[3 * li], this.levels[3 * li + 1], this.levels[3 * li + 2]);
+      cellMin[c] = m;
+      if (m > top) top = m;
+    }
+    /* region minima per level: level 0 pools 4^3 cells, each further level 2^3 regions */
+    const regs = [];
+    let cur = cellMin, cx = X, cy = Y, cz = Z;
+    for (let L = 0; L <= top; L++) {
+      const k = L === 0 ? 4 : 2, dx = Math.ceil(cx / k), dy = Math.ceil(cy / k), dz = Math.ceil(cz / k);
+      const out = new Uint8Array(dx * dy * dz).fill(INF);
+      for (let z = 0; z < cz; z++)
+        for (let y = 0; y < cy; y++)
+          for (let x = 0; x < cx; x++) {
+            const o = Math.floor(x / k) + dx * (Math.floor(y / k) + dy * Math.floor(z / k)), v = cur[x + cx * (y + cy * z)];
+            if (v < out[o]) out[o] = v;
+          }
+      regs.push({ a: out, dx, dy });
+      cur = out; cx = dx; cy = dy; cz = dz;
+    }
+    const lv = new Float32Array(cells);
+    for (let z = 0; z < Z; z++)
+      for (let y = 0; y < Y; y++)
+        for (let x = 0; x < X; x++) {
+          const c = x + X * (y + Y * z);
+          if (this.cellLeaf[c] < 0) { lv[c] = -1; continue; }
+          for (let L = top; L >= 0; L--) {
+            const R = regs[L], sh = L + 2;
+            if (R.a[(x >> sh) + R.dx * ((y >> sh) + R.dy * (z >> sh))] >= L) { lv[c] = L; break; }
+          }
+        }
+    return lv;
   }
 
   /* pb_interp.c locate_point_cell: the leaf of unit cell q, else (within 0.01 of a lower face) below. */
@@ -508,6 +668,7 @@ export class SchneeProbes {
         u.schneeSH.value[i].set(i < count ? sh[3 * i] : 0, i < count ? sh[3 * i + 1] : 0, i < count ? sh[3 * i + 2] : 0);
       u.schneeCount.value = count;
       u.schneeMode.value = modeIndex;
+      u.schneeStatic.value = this.movable[this.objects.indexOf(o)] ? 0 : 1;
     }
   }
 
@@ -549,6 +710,26 @@ export class SchneeProbes {
     tex.unpackAlignment = 1;
     tex.needsUpdate = true;
     this.texture = tex;
+    /* The trees' brick levels per min cell, their own atlas (nearest, R32F), z slabs as above. */
+    const trees = parts.filter((p) => p.g.kind !== 'grid');
+    const LW = Math.max(1, ...trees.map((p) => p.g.file.gridDims[0])), LH = Math.max(1, ...trees.map((p) => p.g.file.gridDims[1]));
+    let LD = 0;
+    for (const p of trees) { p.levelBase = LD; LD += p.g.file.gridDims[2]; }
+    const lvData = new Float32Array(LW * LH * Math.max(LD, 1)).fill(-1);
+    for (const p of trees) {
+      const [X, Y, Z] = p.g.file.gridDims, lv = p.g.brickLevels();
+      for (let z = 0; z < Z; z++)
+        for (let y = 0; y < Y; y++)
+          for (let x = 0; x < X; x++) lvData[x + LW * (y + LH * (p.levelBase + z))] = lv[x + X * (y + Y * z)];
+    }
+    const lvTex = new THREE.Data3DTexture(lvData, LW, LH, Math.max(LD, 1));
+    lvTex.format = THREE.RedFormat;
+    lvTex.type = THREE.FloatType;
+    lvTex.minFilter = lvTex.magFilter = THREE.NearestFilter;
+    lvTex.wrapS = lvTex.wrapT = lvTex.wrapR = THREE.ClampToEdgeWrapping;
+    lvTex.unpackAlignment = 1;
+    lvTex.needsUpdate = true;
+    this.levelTexture = lvTex;
     const A = [], B = [], C = [], axes = [];
     for (let i = 0; i < 4; i++) {
       const p = parts[i];
@@ -560,11 +741,11 @@ export class SchneeProbes {
       const f = p.g.file;
       A.push(new THREE.Vector4(...f.gridOrigin, f.gridSpacing));
       B.push(new THREE.Vector4(...f.gridDims, p.g.kind === 'grid' ? 0 : 1));
-      C.push(new THREE.Vector4(p.zBase, p.g.count, p.groups, 0));
+      C.push(new THREE.Vector4(p.zBase, p.g.count, p.groups, p.levelBase || 0));
       for (const r of f.gridAxes) axes.push(new THREE.Vector3(...r));
     }
     this.gridUniforms = {
-      schneeTex: { value: tex }, schneeGridCount: { value: parts.length }, schneeGridA: { value: A },
+      schneeTex: { value: tex }, schneeLevelTex: { value: lvTex }, schneeGridCount: { value: parts.length }, schneeGridA: { value: A },
       schneeGridB: { value: B }, schneeGridC: { value: C }, schneeGridAxes: { value: axes },
       schneeTexSize: { value: new THREE.Vector3(W, H, Dz) },
     };
@@ -641,7 +822,7 @@ function injectMaterial(material, uniforms, cacheKey) {
       .replace('#include <project_vertex>',
         '#include <project_vertex>\n\tvSchneeWorldPos = (modelMatrix * vec4(transformed, 1.0)).xyz;');
     shader.fragmentShader = shader.fragmentShader
-      .replace('#include <common>', `#include <common>\n${GLSL_COMMON}`)
+      .replace('#include <common>', `#include <common>\n${SCHNEE_GLSL_COMMON}`)
       /* three's own indirect diffuse (ambient / hemisphere / light probes) is replaced, not added to; its
        * energy-conserving split would also scale our term, so the probe term is added afterwards. */
       .replace('#include <lights_fragment_end>', `irradiance = vec3(0.0);
@@ -757,7 +938,7 @@ export class SchneeProbesPlugin {
         m.userData.schneeMode = mode;
         m.userData.schneeUniforms = {
           schneeSH: { value: Array.from({ length: MAX_COEFFS }, () => new THREE.Vector3()) },
-          schneeCount: { value: 1 }, schneeMode: { value: 1 },
+          schneeCount: { value: 1 }, schneeMode: { value: 1 }, schneeStatic: { value: 1 },
           schneeShScale: { value: shScale }, schneeAmbient: { value: ambient },
         };
       }
@@ -771,7 +952,7 @@ export class SchneeProbesPlugin {
       for (const m of o.meshes)
         if (m.userData.schneeUniforms) {
           Object.assign(m.userData.schneeUniforms, probes.gridUniforms);
-          injectMaterial(m.material, m.userData.schneeUniforms, 'v1');
+          injectMaterial(m.material, m.userData.schneeUniforms, 'v2');
         }
     probes.setMode(probes.mode);
 
