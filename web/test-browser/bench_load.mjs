@@ -9,8 +9,9 @@
  *   fetch   fetch(url, { cache: 'no-store' }) + arrayBuffer()         (local HTTP server)
  *   parse   parseShprobe (web/src/shprobe.js: every check of the C reader)
  *   build   ProbeGrid (tree cell map, hanging expansion) + SchneeProbes.buildTexture: the N / D texels
- *           of the per-pixel 3D texture on the CPU (the plugin's work before the GPU sees anything)
- *   upload  renderer.initTexture (texImage3D, RGBA32F or RGBA16F as the plugin picks) + a 1-pixel
+ *           of the per-pixel 3D texture and the trees' brick levels per min cell on the CPU (the
+ *           plugin's work before the GPU sees anything)
+ *   upload  renderer.initTexture of both (texImage3D, RGBA32F or RGBA16F as the plugin picks; R32F) + a 1-pixel
  *           readPixels, so the GPU process has executed the upload when the clock stops
  * Node: parseShprobe of the same bytes read from disk (no fetch), `runs` times.
  * Every figure is in milliseconds; each list holds the runs in order (run 0 is the cold one). */
@@ -74,13 +75,16 @@ try {
         const tex = probes.buildTexture(useFloat);
         const t3 = performance.now();
         renderer.initTexture(tex);
+        renderer.initTexture(probes.levelTexture);
         gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
         const t4 = performance.now();
         const glErr = gl.getError();
         if (glErr !== gl.NO_ERROR) throw new Error(`GL error ${glErr} after the upload of ${label}`);
         res.texture = { w: tex.image.width, h: tex.image.height, d: tex.image.depth,
-          type: useFloat ? 'RGBA32F' : 'RGBA16F', bytes: tex.image.data.byteLength };
+          type: useFloat ? 'RGBA32F' : 'RGBA16F', bytes: tex.image.data.byteLength,
+          levelBytes: probes.levelTexture.image.data.byteLength };
         tex.dispose();
+        probes.levelTexture.dispose();
         res.fetch.push(t1 - t0); res.parse.push(t2 - t1); res.build.push(t3 - t2); res.upload.push(t4 - t3);
         res.total.push(t4 - t0);
       }
