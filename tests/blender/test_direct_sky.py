@@ -1,6 +1,6 @@
-"""The world seen directly (issue 11): sky-only bakes at the add-on's defaults, seeds 0 and 1, for
-every HDRI Blender bundles and a Nishita Sky Texture (scripts/direct_sky.py, ~100 CPU-s here, most of
-it the two Nishita captures; the 4096x2048 reference, ~50 CPU-s more, is rendered once per Blender,
+"""The world seen directly (issue 11): sky-only bakes at the add-on's defaults (seed 0; the first HDRI
+also seed 1) for every HDRI Blender bundles and a Nishita Sky Texture (scripts/direct_sky.py; most of
+its time is the Nishita capture, which ran for seeds 0 and 1 until the suite had to be shortened; the 4096x2048 reference, ~50 CPU-s more, is rendered once per Blender,
 script, scene_lib and native module and then read from build/test-cache/).
 
 The panoramas are rendered with a transparent film and the world is added per panorama cell from
@@ -59,7 +59,7 @@ def _errors(native, rows):
 def test_sky_only_bake_equals_hdri_projection(results, name):
     from schnee_probes import native
     rows = [r for r in results if r["name"] == name]
-    assert sorted(r["seed"] for r in rows) == [0, 1]
+    assert sorted(r["seed"] for r in rows) == ([0, 1] if name == HDRIS[0] else [0])
     assert all(r["source"].startswith(f"image '{name}'") for r in rows)
     assert max(_errors(native, rows)) <= 0.005
     assert max(_errors(native, rows)) <= 1e-5     # measured < 1e-6: the HDRI's own projection
@@ -68,6 +68,6 @@ def test_sky_only_bake_equals_hdri_projection(results, name):
 def test_nishita_sky_against_a_converged_capture(results):
     from schnee_probes import native
     rows = [r for r in results if r["name"] == "nishita"]
-    assert sorted(r["seed"] for r in rows) == [0, 1]
+    assert sorted(r["seed"] for r in rows) == [0]
     assert all(r["source"].startswith("Cycles capture 2048x1024") for r in rows)
     assert max(_errors(native, rows)) <= 0.005

@@ -130,7 +130,9 @@ def main():
             lib.hdri_world(name)
             reference = native.project_file(lib.studiolight_path(name), 2, negative="clamp")
             origin = "native.project_file of the HDRI"
-        for seed in (0, 1):
+        # Seeds 0 and 1 for the first HDRI (a plain image's projection must not depend on the seed),
+        # seed 0 for the rest and for the Nishita sky (each Nishita bake captures 2048x1024 at 32 spp).
+        for seed in ((0, 1) if name == names[0] else (0,)):
             job, result = bake(out, name, seed)
             common.emit(case="sky", name=name, seed=seed, coeffs=job.coeffs.tolist(),
                         reference=reference.tolist(), reference_origin=origin, source=job.direct.sky_source,
