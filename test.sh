@@ -12,8 +12,8 @@
 #
 # The markers (blender, chroot, engine, farm, bench, slow) are assigned in tests/conftest.py and
 # registered in pyproject.toml; pytest -m selects any mix of them.
-# SCHNEE_FUZZ_SECONDS sets the fuzzing time per target (default here 40 s; the three fuzz scripts run
-# side by side).
+# SCHNEE_FUZZ_SECONDS sets the fuzzing time per target (default here 25 s, to keep the suite near
+# 25 min; the fuzz scripts run side by side).
 set -euo pipefail
 cd "$(dirname "$0")"
 export SCHNEE_WERROR=ON
@@ -42,7 +42,7 @@ if [ "$tier" = full ]; then
 
   echo "== fuzz targets (bounded, side by side)"
   # Each fuzzer is single-threaded: running the three scripts at once keeps both cores busy.
-  export SCHNEE_FUZZ_SECONDS="${SCHNEE_FUZZ_SECONDS:-40}"
+  export SCHNEE_FUZZ_SECONDS="${SCHNEE_FUZZ_SECONDS:-25}"
   fuzz_logs=$(mktemp -d)
   pids=()
   for f in tests/fuzz/run_*.sh; do
