@@ -80,6 +80,12 @@ def points_rows(keep, names):
         sys.exit(f"bench_postprocess: no adaptive_*.shprobe in {keep}")
     rows = []
     for path in files:
+        # the points whose cell has an invalid corner: the only ones dilation can change
+        f0, s0 = native.read_shprobe(path), native.interpolation_from_file(path)
+        idx, w = s0.query(pts)
+        touched = int(np.sum(np.any((w > 0) & (f0.validity[np.maximum(idx, 0)] <= 0) & (idx >= 0), axis=1)))
+        print(f"POINTS {os.path.basename(path)}: {f0.probe_count} probes, {int((f0.validity <= 0).sum())} invalid, "
+              f"{touched} of {len(pts)} points in a cell with an invalid corner", flush=True)
         for name in names:
             t = time.perf_counter()
             f, s, c, v = processed(path, name)
@@ -87,11 +93,85 @@ def points_rows(keep, names):
             got = s.interpolate(pts, c, v)
             err = adaptive.irradiance_error(got + direct, ref + direct)
             rows.append({"file": os.path.basename(path), "variant": name, "probes": int(f.probe_count),
-                         "invalid": int((f.validity <= 0).sum()), "seconds": round(sec, 3),
+                         "invalid": int((f.validity <= 0).sum()), "points_touching_invalid": touched,
+                         "probes_changed": int(np.sum(np.any(c != f.coeffs, axis=(1, 2)))),
+                         "seconds": round(sec, 3),
                          "error": stats(err), "point_errors": [round(float(e), 5) for e in err]})
             e = rows[-1]["error"]
             print(f"POINTS {name:24s} mean {100 * e['mean']:.3f} % median {100 * e['median']:.3f} % "
                   f"max {100 * e['max']:.2f} % uncovered {e['uncovered']}  ({sec:.2f} s)", flush=True)
+    return rows
+
+
+def near_invalid_points(keep, scene_name, n, seed, ref_samples, ref_res, ref_bounces):
+    """``n`` seeded points in the cells that have an invalid corner (the only points dilation can
+    change), outside the scene's solids by its margin (placement_scenes.points' rule), with a
+    reference baked there at the --ref-* quality; cached in DIR/near_invalid.npz."""
+    cache = os.path.join(keep, "near_invalid.npz")
+    key = json.dumps([scene_name, n, seed, ref_samples, ref_res, ref_bounces])
+    if os.path.exists(cache) and str(np.load(cache)["key"]) == key:
+        z = np.load(cache)
+        return z["engine"], z["ref"]
+    import bpy
+    import placement_scenes
+    import schnee_probes
+    from schnee_probes import bake_core, scene_export
+    sc = placement_scenes.build(scene_name)
+    schnee_probes.register()
+    path = sorted(glob.glob(os.path.join(keep, "adaptive_*.shprobe")))[0]
+    f, s = native.read_shprobe(path), native.interpolation_from_file(path)
+    pos = s.positions()
+    bad = np.flatnonzero(f.validity <= 0)
+    if bad.size == 0:
+        sys.exit(f"bench_postprocess: {path} has no invalid probe")
+    p, q = postprocess.neighbour_pairs(s, pos, bad)
+    reach = np.zeros(len(pos))
+    np.maximum.at(reach, p, np.abs(pos[p] - pos[q]).max(axis=1))  # the cells' extent around each
+    rng = np.random.default_rng(seed)
+    out, tries = [], 0
+    while len(out) < n and tries < 200 * n:
+        tries += 1
+        b = rng.choice(bad)
+        cand = pos[b] + rng.uniform(-1, 1, size=(64, 3)) * reach[b]
+        idx, w = s.query(cand)
+        hit = np.any((w > 0) & (idx >= 0) & (f.validity[np.maximum(idx, 0)] <= 0), axis=1)
+        for e in cand[hit]:
+            bl = scene_export.engine_to_blender(e[None])[0]
+            if any(np.all(bl > np.subtract(a, sc.margin)) and np.all(bl < np.add(c, sc.margin)) for a, c in sc.solids):
+                continue
+            out.append(e)
+            break
+    print(f"NEAR {len(out)} points outside the solids in cells with an invalid corner ({tries} tries)", flush=True)
+    pts = np.array(out).reshape(-1, 3)
+    if len(pts) == 0:
+        np.savez(cache, key=key, engine=pts, ref=np.zeros((0, 9, 3)))
+        return pts, np.zeros((0, 9, 3))
+    for ob in bpy.context.scene.objects:  # as bench_placement's default --sun-mode baked
+        if ob.type == 'LIGHT' and ob.data.type == 'SUN':
+            ob["schnee_light_mode"] = "baked"
+    st = bake_core.BakeSettings(panorama_resolution=ref_res, samples=ref_samples, max_bounces=ref_bounces,
+                                capture_sky=False, probe_limit=0,
+                                output_path=os.path.join(keep, "near_invalid_scratch.shprobe"))
+    ref = bake_core.bake_points(bpy.context.scene, bpy.context.view_layer, st, pts, log=lambda t: None)
+    np.savez(cache, key=key, engine=pts, ref=ref)
+    return pts, ref
+
+
+def near_rows(keep, names, pts, ref):
+    path = sorted(glob.glob(os.path.join(keep, "adaptive_*.shprobe")))[0]
+    rows = []
+    for name in names if len(pts) else []:
+        f, s, c, v = processed(path, name)
+        base = s.interpolate(pts, f.coeffs, f.validity)
+        got = s.interpolate(pts, c, v)
+        err = adaptive.irradiance_error(got, ref)
+        rows.append({"file": os.path.basename(path), "variant": name, "set": "near_invalid", "probes": int(f.probe_count),
+                     "invalid": int((f.validity <= 0).sum()), "seconds": 0.0, "error": stats(err),
+                     "changed_points": int(np.sum(np.any(np.abs(got - base) > 0, axis=(1, 2)))),
+                     "point_errors": [round(float(e), 5) for e in err]})
+        e = rows[-1]["error"]
+        print(f"NEAR {name:24s} mean {100 * e['mean']:.3f} % median {100 * e['median']:.3f} % "
+              f"max {100 * e['max']:.2f} % uncovered {e['uncovered']}", flush=True)
     return rows
 
 
@@ -127,11 +207,14 @@ def report(out):
     """Markdown tables of an OUT.json (the numbers bench/results/postprocess.md quotes)."""
     lines = []
     if out.get("points"):
-        lines += ["| variant | mean | median | p90 | worst | uncovered | post-process s |", "|---|---|---|---|---|---|---|"]
+        lines += ["| variant | mean | median | p90 | worst | uncovered | probes changed | post-process s |",
+                  "|---|---|---|---|---|---|---|---|"]
         for r in out["points"]:
             e = r["error"]
-            lines.append(f"| {r['variant']} | {100 * e['mean']:.2f} % | {100 * e['median']:.2f} % | "
-                         f"{100 * e['p90']:.2f} % | {100 * e['max']:.2f} % | {e['uncovered']} | {r['seconds']:.2f} |")
+            label = r["variant"] + (" (near invalid)" if r.get("set") == "near_invalid" else "")
+            lines.append(f"| {label} | {100 * e['mean']:.2f} % | {100 * e['median']:.2f} % | "
+                         f"{100 * e['p90']:.2f} % | {100 * e['max']:.2f} % | {e['uncovered']} | {r.get('probes_changed', '')} | "
+                         f"{r['seconds']:.2f} |")
     if out.get("spheres"):
         names = [sp["name"] for sp in out["spheres"][0]["spheres"]]
         lines += ["", "Relative RMS net of the reference's noise, % (mean colour error in brackets); "
@@ -163,6 +246,14 @@ def main():
     ap.add_argument("--blender", default="blender")
     ap.add_argument("--report", action="store_true", help="print the tables of OUT (an earlier run's JSON)")
     ap.add_argument("--merge", nargs="*", default=[], help="with --report: more JSON files whose rows are added")
+    ap.add_argument("--near-invalid", type=int, default=0, metavar="N",
+                    help="with --keep and --scene: also N seeded points in the cells with an invalid corner, "
+                         "outside the solids, with a reference baked there (cached in DIR/near_invalid.npz)")
+    ap.add_argument("--scene", default=None, help="the placement scene of --keep (for --near-invalid)")
+    ap.add_argument("--seed", type=int, default=31)
+    ap.add_argument("--ref-samples", type=int, default=128)
+    ap.add_argument("--ref-res", type=int, default=128)
+    ap.add_argument("--ref-bounces", type=int, default=32)
     a = ap.parse_args(argv)
     if a.report:
         out = {"points": [], "spheres": []}
@@ -176,6 +267,10 @@ def main():
     out = {"argv": argv, "variants": {k: VARIANTS[k] for k in a.variants}}
     if a.keep:
         out["points"] = points_rows(a.keep, a.variants)
+        if a.near_invalid:
+            pts, ref = near_invalid_points(a.keep, a.scene, a.near_invalid, a.seed, a.ref_samples, a.ref_res,
+                                           a.ref_bounces)
+            out["points"] += near_rows(a.keep, a.variants, pts, ref)
     if a.spheres:
         if not a.spheres_out:
             sys.exit("bench_postprocess: --spheres needs --spheres-out")
