@@ -30,6 +30,7 @@
  */
 import * as THREE from 'three';
 import { parseShprobe, ShprobeError } from './shprobe.js';
+import { SegmentGrid, traceBox, pairValue, visRamp, VIS_CLEAR } from './schnee-vis.js';
 
 export { ShprobeError };
 
@@ -87,6 +88,7 @@ uniform vec4 schneeGridB[SCHNEE_MAX_GRIDS];  // dims xyz, kind (0 dense: texels 
 uniform vec4 schneeGridC[SCHNEE_MAX_GRIDS];  // atlas texel z base, colour count, groups, level atlas z base
 uniform highp sampler3D schneeLevelTex;       // trees: each min cell's brick level L, -1 = no leaf (nearest)
 uniform int schneeStatic;                     // 1: a static surface (back-face weights), 0: movable
+uniform highp sampler2D schneeVisRec;         // visibility records: 16 RGBA texels of bytes each, 64 a row
 uniform vec3 schneeGridAxes[3 * SCHNEE_MAX_GRIDS];
 uniform vec3 schneeTexSize;
 varying vec3 vSchneeWorldPos;
@@ -184,6 +186,21 @@ bool schneeSeparable(float w[8], out vec3 f1) {
   return true;
 }
 
+// A tap of the brick region r0 (brick cells of si min cells) at brick-local xt in [0, 4]: level 0 one
+// filtered tap; level L >= 1 the trilinear of the brick cell's 8 corner texels (texelFetch): the texture
+// holds every lattice point, and the visibility texels are not trilinear inside a brick cell, so the
+// points between a brick's texels must not be read (pb_bricks.c cell_filtered reads only its texels).
+bool schneeBrickTap(ivec3 r0, int si, vec3 xt, vec4 C, float nz, float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
+  if (si == 1) return schneeTap(vec3(r0) + xt, C, nz, ay, 0.0, e);
+  vec3 k0 = min(floor(xt), vec3(3.0)), f = xt - k0;
+  float w[8];
+  for (int k = 0; k < 8; k++) {
+    vec3 w3 = mix(1.0 - f, f, vec3(float(k & 1), float((k >> 1) & 1), float((k >> 2) & 1)));
+    w[k] = w3.x * w3.y * w3.z;
+  }
+  return schneeTap8(r0 + si * ivec3(k0), si, C, int(nz), w, ay, e);
+}
+
 // Per pixel: grid g at world point p with normal n (false: no value here, the next grid). Trees follow
 // bricks_surface.glsl brick_surface_irradiance (pb_bricks_sample_surface) without visibility texels or
 // records: locate the min cell (with the face margin) and its brick level L (schneeLevelTex), the brick
@@ -231,28 +248,51 @@ bool schneeGridSample(int g, vec3 p, vec3 nrm, bool isStatic, float ay[SCHNEE_MA
   ivec3 r0 = (q >> (Li + 2)) << (Li + 2);
   vec3 x = clamp((u - vec3(r0)) / s, vec3(0.0), vec3(4.0));
   float nz = B.z + 1.0;
-  if (isStatic) {
-    vec3 k0 = min(floor(x), vec3(3.0));
-    vec3 f = x - k0;
+  vec3 k0 = min(floor(x), vec3(3.0));
+  vec3 f = x - k0;
+  // a. the brick cell's record (blocked): kept at the level texture's G of its min corner's min cell
+  ivec3 lo = r0 + si * ivec3(k0);
+  float rec = -1.0;
+  if (all(lessThan(vec3(lo), B.xyz))) rec = texelFetch(schneeLevelTex, lo + lz, 0).g;
+  bool blocked = rec >= 0.0;
+  if (isStatic || blocked) {
     float w[8];
-    float sw = 0.0;
-    for (int k = 0; k < 8; k++) {
+    float sw = 0.0, wbsum = 0.0;
+    for (int k = 0; k < 8; k++) { // b. trilinear, c. back faces (static only)
       vec3 o = vec3(float(k & 1), float((k >> 1) & 1), float((k >> 2) & 1));
       vec3 w3 = mix(1.0 - f, f, o);
-      float dd = dot((vec3(r0) + s * (k0 + o) - us) / s, nrm);
-      w[k] = w3.x * w3.y * w3.z * smoothstep(-0.1, 0.1, dd);
-      sw += w[k];
+      w[k] = w3.x * w3.y * w3.z;
+      if (isStatic) w[k] *= smoothstep(-0.1, 0.1, dot((vec3(r0) + s * (k0 + o) - us) / s, nrm));
+      wbsum += w[k];
     }
+    if (blocked) { // d. the visibility ramp of the cell's record, v_c blended over the back-face weights
+      int ri = int(rec + 0.5);
+      ivec2 rb = ivec2(16 * (ri % 64), ri / 64);
+      float V[64];
+      for (int j = 0; j < 16; j++) {
+        vec4 t = texelFetch(schneeVisRec, rb + ivec2(j, 0), 0);
+        for (int c = 0; c < 4; c++) V[4 * j + c] = t[c] >= 255.0 ? 1.0 : 1.0 - 127.5 / max(t[c], 1.0);
+      }
+      float wv[8];
+      for (int c = 0; c < 8; c++) {
+        float v = 0.0;
+        for (int k = 0; k < 8; k++) v += w[k] * V[8 * k + c];
+        v = wbsum > 0.0 ? v / wbsum : 0.0;
+        wv[c] = w[c] * smoothstep(0.5, 0.75, v);
+      }
+      for (int c = 0; c < 8; c++) w[c] = wv[c];
+    }
+    for (int k = 0; k < 8; k++) sw += w[k];
     if (sw > 0.0) {
       vec3 f1;
       if (schneeSeparable(w, f1)) {
-        if (schneeTap(vec3(r0) + s * (k0 + f1), C, nz, ay, 0.0, e)) return true;
+        if (schneeBrickTap(r0, si, k0 + f1, C, nz, ay, e)) return true;
       } else if (schneeTap8(r0 + si * ivec3(k0), si, C, int(nz), w, ay, e)) {
         return true;
       }
     }
   }
-  return schneeTap(vec3(r0) + s * x, C, nz, ay, 0.0, e); // the plain sample
+  return schneeBrickTap(r0, si, x, C, nz, ay, e); // the plain sample
 }
 
 vec3 schneeIrradiance(vec3 p, vec3 n) {
@@ -492,6 +532,94 @@ export class ProbeGrid {
   }
 
   /**
+   * The engine's anti-leak data of a tree (pb_bricks.c leaf_tables / build_records, sv_bricks_vis.c):
+   * `seg(a, b)` is the static scene's segment function. Sets `pairVis` (the leaves' 64-B pair tables,
+   * for the visibility texels), `records` (Uint8Array, 64 B per blocked brick cell) and `cellRecord`
+   * (Int32Array per min cell: the record of the brick cell whose min corner is this cell, else -1).
+   */
+  buildVisibility(seg) {
+    if (this.kind !== 'octree' && this.kind !== 'kdtree') return;
+    const f = this.file, N = f.elementCount, [X, Y, Z] = f.gridDims, h = f.gridSpacing, o = f.gridOrigin;
+    const pv = new Uint8Array(64 * N), blockedLeaf = new Uint8Array(N);
+    let segments = 0;
+    const counted = (a, b) => { segments++; return seg(a, b); };
+    for (let i = 0; i < N; i++) {
+      const lo = [f.leaves[4 * i], f.leaves[4 * i + 1], f.leaves[4 * i + 2]];
+      blockedLeaf[i] = traceBox(o, h, lo, this.levels.subarray(3 * i, 3 * i + 3), counted, pv, 64 * i) ? 1 : 0;
+    }
+    const lv = this.brickLevels();
+    this._levels = lv;
+    const cellRecord = new Int32Array(X * Y * Z).fill(-1), recs = [];
+    const rec = new Uint8Array(64);
+    let traced = 0;
+    for (let z = 0; z < Z; z++)
+      for (let y = 0; y < Y; y++)
+        for (let x = 0; x < X; x++) {
+          const c = x + X * (y + Y * z), L = lv[c];
+          if (L < 0) continue;
+          const li = this.cellLeaf[c], s = 1 << L, m = s - 1;
+          /* a brick cell's min corner: aligned to 2^L inside its region (regions are 4 * 2^L aligned) */
+          if ((x & m) || (y & m) || (z & m) || !blockedLeaf[li]) continue;
+          traced++;
+          if (!traceBox(o, h, [x, y, z], [L, L, L], counted, rec, 0)) continue;
+          cellRecord[c] = recs.length;
+          recs.push(rec.slice());
+        }
+    this.pairVis = pv;
+    this.blockedLeaf = blockedLeaf;
+    this.cellRecord = cellRecord;
+    this.records = new Uint8Array(64 * recs.length);
+    recs.forEach((r, i) => this.records.set(r, 64 * i));
+    this.visInfo = { blockedLeaves: blockedLeaf.reduce((a, b) => a + b, 0), tracedCells: traced, records: recs.length, segments };
+  }
+
+  /* texel_value's leaf of lattice point X (pb_bricks.c: the first of the 8 unit cells X - bits(m) inside
+   * the lattice that a leaf holds), its weights with the leaf's pair table where there is one
+   * (pb_interp.c leaf_weights with pair_visibility: the ramped weights, else the plain ones), each list
+   * finished as finish_weights (zero weights dropped, renormalised). Map probe -> W, or null. */
+  _texelWeights(X) {
+    const f = this.file, [DX, DY, DZ] = f.gridDims, dims = f.gridDims;
+    let li = -1;
+    for (let m = 0; m < 8 && li < 0; m++) {
+      const q = [0, 1, 2].map((a) => X[a] - ((m >> a) & 1));
+      if (q.some((v, a) => v < 0 || v >= dims[a])) continue;
+      li = this.cellLeaf[q[0] + DX * (q[1] + DY * q[2])];
+    }
+    if (li < 0) return null;
+    void DZ;
+    const t = [0, 1, 2].map((k) => {
+      const v = (X[k] - f.leaves[4 * li + k]) / 2 ** this.levels[3 * li + k];
+      return v < 0 ? 0 : v > 1 ? 1 : v;
+    });
+    const w8 = trilinear8(t), P = f.probeCount;
+    const expand = (w) => {
+      const out = new Map();
+      for (let c = 0; c < 8; c++) {
+        if (!(w[c] > 0)) continue;
+        const node = f.leafCorners[8 * li + c];
+        if (node < P) mergeAdd(out, node, w[c]);
+        else for (const [pp, we] of this.expansion[node - P]) mergeAdd(out, pp, w[c] * we);
+      }
+      let sum = 0;
+      for (const [p, wi] of out) if (wi > 0) sum += wi; else out.delete(p);
+      if (!(sum > 0)) return null;
+      for (const [p, wi] of out) out.set(p, wi / sum);
+      return out;
+    };
+    if (this.pairVis) {
+      const wv = new Float64Array(8);
+      for (let c = 0; c < 8; c++) {
+        let v = 0;
+        for (let k = 0; k < 8; k++) v += w8[k] * pairValue(this.pairVis[64 * li + 8 * k + c]);
+        wv[c] = w8[c] > 0 ? w8[c] * visRamp(v) : 0;
+      }
+      const r = expand(wv);
+      if (r) return r;
+    }
+    return expand(w8);
+  }
+
+  /**
    * The per-pixel texture's texels, N (count RGB) and D per texel, in the channel packing of
    * docs/grid-field.md (0-2 N0, 3 D, then N1..: `groups` RGBA texels). Dense grids: a texel per cell at
    * its centre, N = v s c, D = v. Trees: a texel per lattice point (level 0 bricks, docs/probe-bricks.md
@@ -524,8 +652,7 @@ export class ProbeGrid {
             const p = f.grid[t];
             if (p >= 0) write(t, new Map([[p, 1]]));
           } else {
-            const pt = [0, 1, 2].map((k) => f.gridOrigin[k] + [x, y, z][k] * f.gridSpacing);
-            const w = this.treeWeights(pt);
+            const w = this._texelWeights([x, y, z]);
             if (w) write(t, w);
           }
         }
@@ -558,6 +685,14 @@ class StaticScene {
         }
       }
     });
+  }
+
+  /** The triangles of the objects not moved (9 numbers each): the engine's static occluder. */
+  staticTriangles(movable) {
+    const out = [];
+    for (let t = 0; t < this.owner.length; t++)
+      if (!movable[this.owner[t]]) for (let k = 0; k < 9; k++) out.push(this.tris[9 * t + k]);
+    return out;
   }
 
   /** Whether the segment a -> b (ends left out by 1e-4 of its length) misses every triangle of every
@@ -597,7 +732,8 @@ function triCount(g) {
  * with a mesh, as schnee-view's objects), their per-object SH and the shading uniforms.
  */
 export class SchneeProbes {
-  constructor({ grids, fallback, objects, mode }) {
+  constructor({ grids, fallback, objects, mode, visibility }) {
+    this.visibility = visibility;
     this.grids = grids;
     this.fallback = fallback; /* Float64Array, count × 3 */
     this.objects = objects;
@@ -675,11 +811,23 @@ export class SchneeProbes {
   /** The per-pixel atlas: every dense SH grid and tree, their channel groups as z slabs of one 3D texture. */
   buildTexture(useFloat) {
     const parts = [];
+    let seg = null;
+    const tv = performance.now();
     for (const g of this.grids) {
       if (g.isCube || !(g.kind === 'grid' || g.kind === 'octree' || g.kind === 'kdtree')) continue;
       if (parts.length >= 4) break;
+      if (g.kind !== 'grid' && this.visibility !== false) {
+        /* the engine's static scene at load (sv_static_occluder: every object not moved) */
+        if (!seg) {
+          const grid = new SegmentGrid(this.statics.staticTriangles(this.movable));
+          seg = (a, b) => grid.firstHit(a, b);
+          this.visTriangles = grid.count;
+        }
+        if (this.visTriangles) g.buildVisibility(seg);
+      }
       parts.push({ g, ...g.texels() });
     }
+    this.visMs = performance.now() - tv;
     const W = Math.max(1, ...parts.map((p) => p.dims[0])), H = Math.max(1, ...parts.map((p) => p.dims[1]));
     let Dz = 0;
     for (const p of parts) { p.zBase = Dz; Dz += p.groups * p.dims[2]; }
@@ -715,15 +863,38 @@ export class SchneeProbes {
     const LW = Math.max(1, ...trees.map((p) => p.g.file.gridDims[0])), LH = Math.max(1, ...trees.map((p) => p.g.file.gridDims[1]));
     let LD = 0;
     for (const p of trees) { p.levelBase = LD; LD += p.g.file.gridDims[2]; }
-    const lvData = new Float32Array(LW * LH * Math.max(LD, 1)).fill(-1);
+    /* R: the level; G: the visibility record of the brick cell whose min corner is this min cell (index
+     * into the record texture, the grid's records after the earlier grids'), -1 = none (not blocked). */
+    const lvData = new Float32Array(2 * LW * LH * Math.max(LD, 1)).fill(-1);
+    const allRecs = [];
+    let recBase = 0;
     for (const p of trees) {
-      const [X, Y, Z] = p.g.file.gridDims, lv = p.g.brickLevels();
+      const [X, Y, Z] = p.g.file.gridDims, lv = p.g._levels || p.g.brickLevels(), cr = p.g.cellRecord;
       for (let z = 0; z < Z; z++)
         for (let y = 0; y < Y; y++)
-          for (let x = 0; x < X; x++) lvData[x + LW * (y + LH * (p.levelBase + z))] = lv[x + X * (y + Y * z)];
+          for (let x = 0; x < X; x++) {
+            const c = x + X * (y + Y * z), o = 2 * (x + LW * (y + LH * (p.levelBase + z)));
+            lvData[o] = lv[c];
+            if (cr && cr[c] >= 0) lvData[o + 1] = recBase + cr[c];
+          }
+      if (p.g.records) { allRecs.push(p.g.records); recBase += p.g.records.length / 64; }
     }
+    /* The records: 64 bytes = 16 RGBA texels (one byte a channel, as floats), 64 records a row. */
+    const RW = 16 * 64, RH = Math.max(1, Math.ceil(recBase / 64));
+    const recData = new Float32Array(4 * RW * RH);
+    let ri = 0;
+    for (const R of allRecs)
+      for (let r = 0; r < R.length / 64; r++, ri++) {
+        const base = 4 * (16 * (ri % 64) + RW * Math.floor(ri / 64));
+        for (let j = 0; j < 64; j++) recData[base + j] = R[64 * r + j];
+      }
+    const recTex = new THREE.DataTexture(recData, RW, RH, THREE.RGBAFormat, THREE.FloatType);
+    recTex.minFilter = recTex.magFilter = THREE.NearestFilter;
+    recTex.needsUpdate = true;
+    this.recordTexture = recTex;
+    this.visRecords = recBase;
     const lvTex = new THREE.Data3DTexture(lvData, LW, LH, Math.max(LD, 1));
-    lvTex.format = THREE.RedFormat;
+    lvTex.format = THREE.RGFormat;
     lvTex.type = THREE.FloatType;
     lvTex.minFilter = lvTex.magFilter = THREE.NearestFilter;
     lvTex.wrapS = lvTex.wrapT = lvTex.wrapR = THREE.ClampToEdgeWrapping;
@@ -745,7 +916,7 @@ export class SchneeProbes {
       for (const r of f.gridAxes) axes.push(new THREE.Vector3(...r));
     }
     this.gridUniforms = {
-      schneeTex: { value: tex }, schneeLevelTex: { value: lvTex }, schneeGridCount: { value: parts.length }, schneeGridA: { value: A },
+      schneeTex: { value: tex }, schneeLevelTex: { value: lvTex }, schneeVisRec: { value: recTex }, schneeGridCount: { value: parts.length }, schneeGridA: { value: A },
       schneeGridB: { value: B }, schneeGridC: { value: C }, schneeGridAxes: { value: axes },
       schneeTexSize: { value: new THREE.Vector3(W, H, Dz) },
     };
