@@ -22,11 +22,11 @@
  * - per pixel: one 3D texture (hardware trilinear) per scene holding N = Σ w s c and D = Σ w per texel
  *   (docs/grid-field.md "Texture", docs/probe-bricks.md "Texels" at level 0); the fragment takes N / D.
  *   Trees follow the engine's brick rule (shaders/bricks_surface.glsl, pb_bricks_sample_surface): each
- *   min cell's brick level (a second, nearest-filtered 3D texture), the face margin, and on static
- *   surfaces the back-face weights of the brick cell's 8 corners (one filtered tap where the kept weights
- *   are separable, else 8 texelFetch taps). Not in it: the engine's visibility texels and records (they
- *   need its tracer) and the dense grids' neighbour masks and back faces, so per pixel light can still
- *   leak through a wall that crosses a leaf (and differs from schnee-view there).
+ *   min cell's brick level (a second, nearest-filtered 3D texture), the face margin, on static surfaces
+ *   the back-face weights of the brick cell's 8 corners, and the visibility: texels and 64-B records of
+ *   blocked brick cells traced at load through the static scene's triangles (schnee-vis.js, as
+ *   sv_bricks_vis.c); one filtered tap where the kept weights are separable, else 8 texelFetch taps. Not
+ *   in it: the dense grids' neighbour masks and back faces.
  */
 import * as THREE from 'three';
 import { parseShprobe, ShprobeError } from './shprobe.js';
