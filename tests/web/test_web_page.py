@@ -125,7 +125,7 @@ def _engine_frame(tmp_path, mode="object"):
     p = viewer.check(viewer.run(SCENE, "--headless", "--output", exr, "--width", W, "--height", H,
                                 "--probe-mode", mode, "--no-direct", "--no-sky", "--no-specular",
                                 "--tonemap", "none", "--print-assignments"))
-    return viewer.read_image(exr)[:, :, :3], p.stdout
+    return viewer.read_image(exr)[:, :, :3], p.stdout + "\n" + p.stderr
 
 
 def _edges(img, thresh):
@@ -212,7 +212,12 @@ def test_page_per_pixel_against_schnee_view(page_frames, tmp_path):
     at load through the static scene) against schnee-view's bricks (the same rules)."""
     res, px = page_frames["pixel"]
     assert res["errors"] == [] and res["state"]["error"] is None, (res["errors"], res["state"]["error"])
-    eng, _ = _engine_frame(tmp_path, "pixel")
+    eng, log = _engine_frame(tmp_path, "pixel")
+    m = re.search(r"probe brick visibility: (\d+) record", log)
+    tm = res["state"]["timing"]
+    print(f"\npage visibility: {tm['visRecords']} records from {tm['visTriangles']} triangles in {tm['visMs']:.0f} ms; "
+          f"schnee-view: {m.group(1) if m else '?'} records")
+    assert m and int(m.group(1)) == tm["visRecords"], (m and m.group(1), tm["visRecords"])  # the same blocked cells
     rgb, alpha = px[:, :, :3], px[:, :, 3]
     peak = eng.max()
     mask = (alpha > 0.5) & (eng.max(axis=2) > 0)

@@ -1140,7 +1140,8 @@ export class SchneeProbesPlugin {
       if (le && typeof le.intensityScale === 'number') l.intensity *= le.intensityScale;
     }
 
-    probes.timing = { loadMs: tLoad, totalMs: performance.now() - t0 };
+    probes.timing = { loadMs: tLoad, totalMs: performance.now() - t0, visMs: probes.visMs, visRecords: probes.visRecords,
+      visTriangles: probes.visTriangles || 0 };
     gltf.userData.schneeProbes = probes;
     if (this.opts.onLoad) this.opts.onLoad(probes);
   }
