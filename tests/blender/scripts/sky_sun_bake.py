@@ -88,12 +88,13 @@ def sky_case():
     from schnee_probes import fingerprint
     fp = {m: fingerprint.parts(bpy.context.scene, bpy.context.view_layer, settings(folder, sky_sun=m))["settings"]
           for m in ("mixed", "baked")}
-    # (Render Device at its default is left out the same way; Adaptive bakes name their sampling
-    # scheme, issue 29, so journals of the two-halves scheme do not resume.)
+    # (Render Device, Dilate Invalid Probes and SH Windowing at their defaults are left out the same
+    # way: fingerprint._LEGACY_VALUES; Adaptive bakes name their sampling scheme, issue 29, so journals
+    # of the two-halves scheme do not resume.)
     from schnee_probes import adaptive
     s = settings(folder)
     legacy = fingerprint._digest(sorted((k, v) for k, v in asdict(s).items()
-                                        if k not in fingerprint._NOT_VALUES and k not in ("sky_sun", "render_device"))
+                                        if k not in fingerprint._NOT_VALUES and k not in fingerprint._LEGACY_VALUES)
                                  + ([("sampling", adaptive.SAMPLING)] if s.placement == "ADAPTIVE" else []))
     out["fingerprint"] = dict(fp, legacy=legacy)
     # The world as the bake reads it (Blender's pixels x strength 1), for the expected values.
