@@ -25,8 +25,8 @@
  *   min cell's brick level (a second, nearest-filtered 3D texture), the face margin, on static surfaces
  *   the back-face weights of the brick cell's 8 corners, and the visibility: texels and 64-B records of
  *   blocked brick cells traced at load through the static scene's triangles (schnee-vis.js, as
- *   sv_bricks_vis.c); one filtered tap where the kept weights are separable, else 8 texelFetch taps. Not
- *   in it: the dense grids' neighbour masks and back faces.
+ *   sv_bricks_vis.c); one filtered tap where the kept weights are separable, else 8 texelFetch taps. Dense
+ *   grids: docs/grid-field.md (neighbour masks traced at load, back faces, one or 8 taps, home-cell fallback).
  */
 import * as THREE from 'three';
 import { parseShprobe, ShprobeError } from './shprobe.js';
@@ -111,13 +111,13 @@ void schneeBasis(vec3 n, out float ay[SCHNEE_MAX_COEFFS]) {
 
 // One filtered tap (hardware trilinear) of grid g's channel groups at texel coordinate tt (grid-local,
 // group 0's slab), then E(n) = sum_i A_l(i) Y_i(n) N_i / D. False when D <= dmin.
-bool schneeTap(vec3 tt, vec4 C, float nz, float ay[SCHNEE_MAX_COEFFS], float dmin, out vec3 e) {
+bool schneeTapD(vec3 tt, vec4 C, float nz, float ay[SCHNEE_MAX_COEFFS], float dmin, out vec3 e, out float D) {
   vec3 tc = (tt + 0.5) / schneeTexSize;
   float zstep = nz / schneeTexSize.z;
   tc.z += C.x / schneeTexSize.z;
   int count = int(C.y), groups = int(C.z);
   vec4 g0 = texture(schneeTex, tc);
-  float D = g0.w;
+  D = g0.w;
   e = vec3(0.0);
   if (!(D > dmin)) return false;
   e = ay[0] * g0.rgb;
@@ -137,17 +137,22 @@ bool schneeTap(vec3 tt, vec4 C, float nz, float ay[SCHNEE_MAX_COEFFS], float dmi
   e /= D;
   return true;
 }
+bool schneeTap(vec3 tt, vec4 C, float nz, float ay[SCHNEE_MAX_COEFFS], float dmin, out vec3 e) {
+  float D;
+  return schneeTapD(tt, C, nz, ay, dmin, e, D);
+}
 
 // The 8-tap form (bricks_surface.glsl brick_tap8 = pb_bricks.c cell_weighted): texelFetch of the cell's 8
 // corner texels t0 + s * bits(k), exact weights w; E = sum_i A_l(i) Y_i(n) N'_i / D'. False when D' <= 0.
-bool schneeTap8(ivec3 t0, int s, vec4 C, int nz, float w[8], float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
+// The same with each corner clamped into [0, tmax] (dense grids: clamped corners) and D' > dmin.
+bool schneeTap8c(ivec3 t0, int s, ivec3 tmax, vec4 C, int nz, float w[8], float ay[SCHNEE_MAX_COEFFS], float dmin, out vec3 e) {
   int count = int(C.y), groups = int(C.z);
   vec3 acc = vec3(0.0);
   float D = 0.0;
   e = vec3(0.0);
   for (int k = 0; k < 8; k++) {
     if (w[k] == 0.0) continue;
-    ivec3 tk = t0 + s * ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1) + ivec3(0, 0, int(C.x));
+    ivec3 tk = clamp(t0 + s * ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1), ivec3(0), tmax) + ivec3(0, 0, int(C.x));
     vec4 v0 = texelFetch(schneeTex, tk, 0);
     D += w[k] * v0.w;
     acc += w[k] * ay[0] * v0.rgb;
@@ -160,9 +165,12 @@ bool schneeTap8(ivec3 t0, int s, vec4 C, int nz, float w[8], float ay[SCHNEE_MAX
       }
     }
   }
-  if (!(D > 0.0)) return false;
+  if (!(D > dmin)) return false;
   e = acc / D;
   return true;
+}
+bool schneeTap8(ivec3 t0, int s, vec4 C, int nz, float w[8], float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
+  return schneeTap8c(t0, s, ivec3(1 << 20), C, nz, w, ay, 0.0, e);
 }
 
 // bricks.glsl brick_separable (pb_bricks_separable): w'_k (sum w')^2 = prod_a M_a(bit_a(k)) within 1e-5
@@ -201,6 +209,51 @@ bool schneeBrickTap(ivec3 r0, int si, vec3 xt, vec4 C, float nz, float ay[SCHNEE
   return schneeTap8(r0 + si * ivec3(k0), si, C, int(nz), w, ay, e);
 }
 
+// Dense grids per pixel: pb_grid_field_sample_surface_texture (docs/grid-field.md "The rule" steps 2-5,
+// bricks.glsl grid_tex_irradiance + shading.glsl grid_irradiance's home-cell fallback). u: the point's grid
+// coordinates (in the box with the 0.01 margin; the page's normal bias is 0, as schnee-view's default).
+// The level atlas holds per cell R/G = the 27-bit neighbour mask (low 16 / high 11 bits, traced at load
+// through the static scene as sv_probe_visibility_masks), B = 1 where the cell holds a probe; the atlas
+// holds after the groups N/D slabs as many fallback slabs (N = s c, D = 1: the probe whatever its validity).
+bool schneeDenseSample(int g, vec3 u, vec3 nrm, bool isStatic, float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
+  vec4 B = schneeGridB[g], C = schneeGridC[g];
+  ivec3 dims = ivec3(B.xyz), lz = ivec3(0, 0, int(C.w));
+  vec3 rn = vec3(dot(nrm, schneeGridAxes[3 * g]), dot(nrm, schneeGridAxes[3 * g + 1]), dot(nrm, schneeGridAxes[3 * g + 2]));
+  vec3 c = u - 0.5;
+  ivec3 i0 = ivec3(floor(c));
+  vec3 f = c - vec3(i0);
+  ivec3 home = clamp(ivec3(floor(u + 0.01 * rn)), ivec3(0), dims - 1); // 3. the home cell 0.01 cells along n
+  vec4 hm = texelFetch(schneeLevelTex, home + lz, 0);
+  uint vis = uint(hm.r + 0.5) | (uint(hm.g + 0.5) << 16u);
+  float w[8];
+  for (int k = 0; k < 8; k++) { // 4. trilinear x (mask ? 0 : back face); validity is in N and D
+    ivec3 o = ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+    ivec3 ci = clamp(i0 + o, ivec3(0), dims - 1);
+    ivec3 d = ci - home;
+    bool masked = all(lessThanEqual(abs(d), ivec3(1))) && (vis & (1u << uint(d.x + 1 + 3 * (d.y + 1) + 9 * (d.z + 1)))) == 0u;
+    float b = isStatic ? smoothstep(-0.1, 0.1, dot(vec3(ci) + 0.5 - u, rn)) : 1.0;
+    vec3 w3 = mix(1.0 - f, f, vec3(o));
+    w[k] = w3.x * w3.y * w3.z * (masked ? 0.0 : b);
+  }
+  float sw = 0.0;
+  for (int k = 0; k < 8; k++) sw += w[k];
+  vec3 f1;
+  float D;
+  // 5. separable: one filtered tap at clamp(i0 + f', 0, dims - 1), kept where D >= 1/64; else 8 exact taps
+  if (schneeSeparable(w, f1) && schneeTapD(clamp(vec3(i0) + f1, vec3(0.0), B.xyz - 1.0), C, B.z, ay, 0.0, e, D) &&
+      D >= 1.0 / 64.0) {
+    if (sw * D > 1e-6) return true;
+  } else if (schneeTap8c(i0, 1, dims - 1, C, int(B.z), w, ay, 1e-6, e)) {
+    return true;
+  }
+  // 5b. no weight left: the cell clamp(floor(u)) alone when it holds a probe, whatever its validity
+  ivec3 cell = clamp(ivec3(floor(u)), ivec3(0), dims - 1);
+  e = vec3(0.0);
+  if (texelFetch(schneeLevelTex, cell + lz, 0).b < 0.5) return false;
+  float w1[8] = float[8](1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+  return schneeTap8(cell + ivec3(0, 0, int(C.z) * dims.z), 1, C, int(B.z), w1, ay, e);
+}
+
 // Per pixel: grid g at world point p with normal n (false: no value here, the next grid). Trees follow
 // bricks_surface.glsl brick_surface_irradiance (pb_bricks_sample_surface) without visibility texels or
 // records: locate the min cell (with the face margin) and its brick level L (schneeLevelTex), the brick
@@ -215,7 +268,7 @@ bool schneeGridSample(int g, vec3 p, vec3 nrm, bool isStatic, float ay[SCHNEE_MA
   e = vec3(0.0);
   if (B.w < 0.5) { // dense grid: 0.01-cell margin, texels at cell centres (docs/grid-field.md)
     if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, B.xyz + 0.01))) return false;
-    return schneeTap(clamp(u - 0.5, vec3(0.0), B.xyz - 1.0), C, B.z, ay, 1e-6, e);
+    return schneeDenseSample(g, u, nrm, isStatic, ay, e);
   }
   // octree / kd lattice: texels at lattice points; the 0.01-cell margin, u clamped into [0, E]
   // (bricks_surface.glsl brick_locate: walls modelled on the lattice's faces)
@@ -460,6 +513,37 @@ export class ProbeGrid {
     return out;
   }
 
+  /**
+   * The dense grid's 27-bit neighbour masks (sv_probe_visibility_masks): for each pair of occupied
+   * neighbouring cells, the segment between their centres (float32) traced through the static scene
+   * (`seg(a, b)` < 1: blocked) clears both cells' bits. this.masks: Uint32Array per cell, this.maskCleared.
+   */
+  buildMasks(seg) {
+    const f = this.file, [X, Y, Z] = f.gridDims, G = f.grid;
+    const M = new Uint32Array(X * Y * Z).fill(0x7ffffff);
+    const centre = (x, y, z) => this._cellCentre([x, y, z]).map(Math.fround);
+    let cleared = 0;
+    for (let z = 0; z < Z; z++)
+      for (let y = 0; y < Y; y++)
+        for (let x = 0; x < X; x++) {
+          const ci = x + X * (y + Y * z);
+          if (G[ci] < 0) continue;
+          const a = centre(x, y, z);
+          for (let k = 14; k < 27; k++) {
+            const nx = x + (k % 3) - 1, ny = y + (Math.floor(k / 3) % 3) - 1, nz = z + Math.floor(k / 9) - 1;
+            if (nx < 0 || ny < 0 || nz < 0 || nx >= X || ny >= Y || nz >= Z) continue;
+            const cj = nx + X * (ny + Y * nz);
+            if (G[cj] < 0) continue;
+            if (seg(a, centre(nx, ny, nz)) < 1) {
+              M[ci] &= ~(1 << k); M[cj] &= ~(1 << (26 - k));
+              cleared++;
+            }
+          }
+        }
+    this.masks = M;
+    this.maskCleared = cleared;
+  }
+
   _cellCentre(ci) {
     const f = this.file, h = f.gridSpacing, a = f.gridAxes;
     const l = [(ci[0] + 0.5) * h, (ci[1] + 0.5) * h, (ci[2] + 0.5) * h];
@@ -630,7 +714,8 @@ export class ProbeGrid {
     const dense = this.kind === 'grid';
     const dims = dense ? f.gridDims.slice() : f.gridDims.map((v) => v + 1);
     const total = dims[0] * dims[1] * dims[2];
-    const data = new Float32Array(total * groups * 4);
+    const slabs = dense ? 2 * groups : groups; /* dense: then the fallback slabs (N = s c, D = 1) */
+    const data = new Float32Array(total * slabs * 4);
     const put = (t, ch, v) => { data[4 * (t + total * (ch >> 2)) + (ch & 3)] = v; };
     const write = (t, weights) => {
       let D = 0;
@@ -650,13 +735,17 @@ export class ProbeGrid {
           const t = x + dims[0] * (y + dims[1] * z);
           if (dense) {
             const p = f.grid[t];
-            if (p >= 0) write(t, new Map([[p, 1]]));
+            if (p >= 0) {
+              write(t, new Map([[p, 1]]));
+              put(t + total * groups, 3, 1);
+              for (let i = 0; i < 3 * n; i++) put(t + total * groups, i < 3 ? i : i + 1, f.probeScale[p] * f.coeffs[3 * n * p + i]);
+            }
           } else {
             const w = this._texelWeights([x, y, z]);
             if (w) write(t, w);
           }
         }
-    return { dims, groups, data };
+    return { dims, groups, slabs, data };
   }
 }
 
@@ -816,26 +905,26 @@ export class SchneeProbes {
     for (const g of this.grids) {
       if (g.isCube || !(g.kind === 'grid' || g.kind === 'octree' || g.kind === 'kdtree')) continue;
       if (parts.length >= 4) break;
-      if (g.kind !== 'grid' && this.visibility !== false) {
+      if (this.visibility !== false) {
         /* the engine's static scene at load (sv_static_occluder: every object not moved) */
         if (!seg) {
           const grid = new SegmentGrid(this.statics.staticTriangles(this.movable));
           seg = (a, b) => grid.firstHit(a, b);
           this.visTriangles = grid.count;
         }
-        if (this.visTriangles) g.buildVisibility(seg);
+        if (this.visTriangles) { if (g.kind === 'grid') g.buildMasks(seg); else g.buildVisibility(seg); }
       }
       parts.push({ g, ...g.texels() });
     }
     this.visMs = performance.now() - tv;
     const W = Math.max(1, ...parts.map((p) => p.dims[0])), H = Math.max(1, ...parts.map((p) => p.dims[1]));
     let Dz = 0;
-    for (const p of parts) { p.zBase = Dz; Dz += p.groups * p.dims[2]; }
+    for (const p of parts) { p.zBase = Dz; Dz += p.slabs * p.dims[2]; }
     Dz = Math.max(Dz, 1);
     const data = new Float32Array(W * H * Dz * 4);
     for (const p of parts) {
       const [X, Y, Z] = p.dims;
-      for (let s = 0; s < p.groups * Z; s++)
+      for (let s = 0; s < p.slabs * Z; s++)
         for (let y = 0; y < Y; y++)
           for (let x = 0; x < X; x++) {
             const src = 4 * (x + X * (y + Y * s)), dst = 4 * (x + W * (y + H * (p.zBase + s)));
@@ -859,21 +948,32 @@ export class SchneeProbes {
     tex.needsUpdate = true;
     this.texture = tex;
     /* The trees' brick levels per min cell, their own atlas (nearest, R32F), z slabs as above. */
-    const trees = parts.filter((p) => p.g.kind !== 'grid');
+    const trees = parts; /* dense grids too: their masks and occupancy (below) */
     const LW = Math.max(1, ...trees.map((p) => p.g.file.gridDims[0])), LH = Math.max(1, ...trees.map((p) => p.g.file.gridDims[1]));
     let LD = 0;
     for (const p of trees) { p.levelBase = LD; LD += p.g.file.gridDims[2]; }
     /* R: the level; G: the visibility record of the brick cell whose min corner is this min cell (index
      * into the record texture, the grid's records after the earlier grids'), -1 = none (not blocked). */
-    const lvData = new Float32Array(2 * LW * LH * Math.max(LD, 1)).fill(-1);
+    const lvData = new Float32Array(4 * LW * LH * Math.max(LD, 1)).fill(-1);
     const allRecs = [];
     let recBase = 0;
     for (const p of trees) {
-      const [X, Y, Z] = p.g.file.gridDims, lv = p.g._levels || p.g.brickLevels(), cr = p.g.cellRecord;
+      const [X, Y, Z] = p.g.file.gridDims;
+      if (p.g.kind === 'grid') { /* R, G: the 27-bit neighbour mask (low 16, high 11 bits), B: the cell holds a probe */
+        const M = p.g.masks, G = p.g.file.grid;
+        for (let c = 0, z = 0; z < Z; z++)
+          for (let y = 0; y < Y; y++)
+            for (let x = 0; x < X; x++, c++) {
+              const o = 4 * (x + LW * (y + LH * (p.levelBase + z))), m = M ? M[c] : 0x7ffffff;
+              lvData[o] = m & 0xffff; lvData[o + 1] = m >>> 16; lvData[o + 2] = G[c] >= 0 ? 1 : 0;
+            }
+        continue;
+      }
+      const lv = p.g._levels || p.g.brickLevels(), cr = p.g.cellRecord;
       for (let z = 0; z < Z; z++)
         for (let y = 0; y < Y; y++)
           for (let x = 0; x < X; x++) {
-            const c = x + X * (y + Y * z), o = 2 * (x + LW * (y + LH * (p.levelBase + z)));
+            const c = x + X * (y + Y * z), o = 4 * (x + LW * (y + LH * (p.levelBase + z)));
             lvData[o] = lv[c];
             if (cr && cr[c] >= 0) lvData[o + 1] = recBase + cr[c];
           }
@@ -894,7 +994,7 @@ export class SchneeProbes {
     this.recordTexture = recTex;
     this.visRecords = recBase;
     const lvTex = new THREE.Data3DTexture(lvData, LW, LH, Math.max(LD, 1));
-    lvTex.format = THREE.RGFormat;
+    lvTex.format = THREE.RGBAFormat;
     lvTex.type = THREE.FloatType;
     lvTex.minFilter = lvTex.magFilter = THREE.NearestFilter;
     lvTex.wrapS = lvTex.wrapT = lvTex.wrapR = THREE.ClampToEdgeWrapping;
