@@ -137,3 +137,62 @@ def test_dense_grid_shader_equals_c_field(server, tmp_path):  # noqa: F811
               f"{cleared} cells with cleared mask bits): {has.sum()} of {len(p)} points with a value, |E| diff max "
               f"{d.max():.2e}, p99 {np.percentile(d, 99):.2e}, median {np.median(d):.2e}; peak {np.abs(e[has]).max():.2f}")
         assert d.max() < 2e-3 and np.percentile(d, 99) < 2e-5, (d.max(), np.percentile(d, 99))
+
+
+_TETRA_JS = r"""
+import { readFileSync } from 'node:fs';
+const job = JSON.parse(readFileSync(process.argv[2], 'utf8'));
+const { parseShprobe } = await import(job.web + '/src/shprobe.js');
+const P = await import(job.web + '/src/schnee-gltf-plugin.js');
+const buf = readFileSync(job.file);
+const f = parseShprobe(buf.buffer.slice(buf.byteOffset, buf.byteOffset + buf.length), { name: 'tetra' });
+const g = new P.ProbeGrid(f, { name: 'tetra' }, 0);
+const out = job.points.map((c) => {
+  const w = g.objectWeights(c, () => true);
+  return w && w.size ? { w: [...w], sh: [...g.blend(w)] } : null;
+});
+console.log(JSON.stringify(out));
+"""
+
+
+def test_tetrahedra_per_object_equals_c(tmp_path):
+    """A tetrahedra file's per-object weights and blended SH in the plugin (ProbeGrid.objectWeights: the
+    pb_interp_query_tetra rule, validity dropped and renormalised; no occluders) equal the C's
+    native.Tetrahedra.query at random object centres (run in node: the page's module)."""
+    from schnee_probes import native
+    if shutil.which("node") is None:
+        pytest.skip("node is not installed (scripts/deps.sh installs nodejs)")
+    rng = np.random.default_rng(7)
+    pos = np.float32(rng.uniform(-2.0, 2.0, (60, 3)) * [1.0, 0.5, 0.8]).astype(np.float64)
+    t = native.Tetrahedra.create(pos)
+    coeffs = rng.normal(0.0, 0.3, (60, 9, 3))
+    coeffs[:, 0] += 2.0
+    val = np.where(rng.random(60) < 0.15, 0.0, 1.0)
+    scale = rng.uniform(0.5, 2.0, 60)
+    path = tmp_path / "tetra.shprobe"
+    native.write_shprobe_v3(str(path), t, coeffs, validity=val, probe_scale=scale)
+    f = native.read_shprobe(str(path))
+    pts = rng.uniform(-2.2, 2.2, (48, 3)) * [1.0, 0.5, 0.8] * np.where(np.arange(48)[:, None] < 36, 0.6, 1.0)
+    job = tmp_path / "job.json"
+    js = tmp_path / "tetra.mjs"
+    js.write_text(_TETRA_JS)
+    job.write_text(json.dumps({"web": WEB.as_uri(), "file": str(path), "points": pts.tolist()}))
+    r = subprocess.run(["node", str(js), str(job)], capture_output=True, text=True, timeout=60, cwd=WEB)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
+    got = json.loads(r.stdout.strip().splitlines()[-1])
+    pr, wt = t.query(pts, validity=np.asarray(f.validity, np.float32))
+    c = np.asarray(f.coeffs, np.float64).reshape(60, 9, 3) * np.asarray(f.probe_scale, np.float64)[:, None, None]
+    inside, worst = 0, 0.0
+    for i in range(len(pts)):
+        want = {int(p): float(w) for p, w in zip(pr[i], wt[i]) if p >= 0 and w > 0}
+        if not want:
+            assert got[i] is None, (i, got[i])
+            continue
+        inside += 1
+        gw = dict(got[i]["w"])
+        assert set(gw) == set(want), (i, gw, want)
+        worst = max(worst, max(abs(gw[p] - w) for p, w in want.items()))
+        sh = sum(w * c[p] for p, w in want.items()).ravel()
+        assert np.allclose(np.asarray(got[i]["sh"]), sh, rtol=1e-6, atol=1e-6), i
+    print(f"\ntetrahedra per object, plugin vs C: {inside} of {len(pts)} centres with a value, weights max diff {worst:.1e}")
+    assert inside >= 20 and worst < 1e-9

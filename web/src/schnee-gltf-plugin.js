@@ -544,6 +544,57 @@ export class ProbeGrid {
     this.maskCleared = cleared;
   }
 
+  /**
+   * pb_interp_query_tetra: the tetrahedron with the largest smallest barycentric (accepted >= -1e-9) among
+   * those whose bounds hold c, its barycentrics clamped at 0 and merged per probe, then finish_weights
+   * (zero, invalid and hidden probes dropped, renormalised); null outside.
+   */
+  tetraWeights(c, visible) {
+    const f = this.file, P = f.positions, T = f.tets, n = T.length / 4;
+    if (!this._tetInv) { /* per tetrahedron: the inverse of [p1 - p0, p2 - p0, p3 - p0] (double) and p0 */
+      const inv = new Float64Array(12 * n);
+      for (let i = 0; i < n; i++) {
+        const q = [0, 1, 2, 3].map((k) => [P[3 * T[4 * i + k]], P[3 * T[4 * i + k] + 1], P[3 * T[4 * i + k] + 2]]);
+        const m = [1, 2, 3].map((k) => [0, 1, 2].map((a) => q[k][a] - q[0][a])); /* columns */
+        const [a, b, cc] = m;
+        const cr = (x, y) => [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]];
+        const bc = cr(b, cc), ca = cr(cc, a), ab = cr(a, b);
+        const det = a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2];
+        for (let k = 0; k < 3; k++) { inv[12 * i + k] = bc[k] / det; inv[12 * i + 3 + k] = ca[k] / det; inv[12 * i + 6 + k] = ab[k] / det; }
+        inv[12 * i + 9] = q[0][0]; inv[12 * i + 10] = q[0][1]; inv[12 * i + 11] = q[0][2];
+      }
+      this._tetInv = inv;
+    }
+    const o = this._tetInv;
+    let best = -1, bestMin = -1e-9;
+    const bl = [0, 0, 0, 0];
+    for (let i = 0; i < n; i++) {
+      const d0 = c[0] - o[12 * i + 9], d1 = c[1] - o[12 * i + 10], d2 = c[2] - o[12 * i + 11];
+      const l1 = o[12 * i] * d0 + o[12 * i + 1] * d1 + o[12 * i + 2] * d2;
+      const l2 = o[12 * i + 3] * d0 + o[12 * i + 4] * d1 + o[12 * i + 5] * d2;
+      const l3 = o[12 * i + 6] * d0 + o[12 * i + 7] * d1 + o[12 * i + 8] * d2;
+      const l0 = 1 - l1 - l2 - l3, mn = Math.min(l0, l1, l2, l3);
+      if (mn >= bestMin) {
+        bestMin = mn; best = i; bl[0] = l0; bl[1] = l1; bl[2] = l2; bl[3] = l3;
+        if (mn >= 0) break;
+      }
+    }
+    if (best < 0) return null;
+    const w = new Map();
+    for (let k = 0; k < 4; k++) mergeAdd(w, T[4 * best + k], Math.max(bl[k], 0));
+    const out = new Map();
+    let sum = 0;
+    for (const [p, wi] of w) {
+      if (!(wi > 0) || !(f.validity[p] > 0)) continue;
+      if (!visible([P[3 * p], P[3 * p + 1], P[3 * p + 2]], c)) continue;
+      out.set(p, wi);
+      sum += wi;
+    }
+    if (!(sum > 0)) return null;
+    for (const [p, wi] of out) out.set(p, wi / sum);
+    return out;
+  }
+
   _cellCentre(ci) {
     const f = this.file, h = f.gridSpacing, a = f.gridAxes;
     const l = [(ci[0] + 0.5) * h, (ci[1] + 0.5) * h, (ci[2] + 0.5) * h];
@@ -572,7 +623,8 @@ export class ProbeGrid {
       for (const [p, wi] of out) out.set(p, wi / sum);
       return out;
     }
-    if (this.kind !== 'grid') return null; /* tetrahedra: not in this viewer (a warning at load) */
+    if (this.kind === 'tetrahedra') return this.tetraWeights(c, visible);
+    if (this.kind !== 'grid') return null;
     /* docs/grid-field.md, movable rule (no normal: no back faces, home = the cell of c), no masks. */
     const dims = f.gridDims, h = f.gridSpacing, a = f.gridAxes, u = [0, 0, 0];
     const d = [0, 1, 2].map((k) => c[k] - f.gridOrigin[k]);
@@ -885,7 +937,9 @@ export class SchneeProbes {
     for (const m of o.meshes) {
       const u = m.userData.schneeUniforms;
       if (!u) continue;
-      const mode = this.mode === 'material' ? m.userData.schneeMode : this.mode;
+      let mode = this.mode === 'material' ? m.userData.schneeMode : this.mode;
+      /* tetrahedra per pixel fall back to per object (the engine keeps them in storage buffers) */
+      if (mode === 'pixel' && o.grid >= 0 && this.grids.some((g) => g.index === o.grid && g.kind === 'tetrahedra')) mode = 'object';
       const modeIndex = MODES.indexOf(mode);
       const sh = mode === 'object' ? o.sh : this.fallback;
       const count = Math.min(sh.length / 3, MAX_COEFFS);
@@ -1146,8 +1200,8 @@ export class SchneeProbesPlugin {
         if (e[key] !== undefined && e[key] !== val)
           console.warn(`Schnee: shProbeGrids[${i}] '${e.name}': ${key} ${e[key]} in the glTF, ${val} in ${e.uri}; using the file`);
       if (file.structure === 'tetrahedra')
-        console.warn(`Schnee: shProbeGrids[${i}] '${e.name}': tetrahedra are not supported by this viewer; skipped`);
-      else grids.push(new ProbeGrid(file, e, i));
+        console.warn(`Schnee: shProbeGrids[${i}] '${e.name}': tetrahedra are lit per object only; per pixel falls back to per object there`);
+      grids.push(new ProbeGrid(file, e, i));
     });
     return grids;
   }
