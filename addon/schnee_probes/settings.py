@@ -244,16 +244,23 @@ SETTINGS: Tuple[Setting, ...] = (
             doc="Adaptive only: a probe the solid test put inside geometry (validity 0: never rendered, "
                 "left out of the interpolation) gets the mean of the valid probes of the cells it is a "
                 "corner of, weighted by validity / distance², and validity 0.01, so readers interpolate "
-                "with it as APV and EEVEE do with their dilated probes. Measured "
-                "(bench/results/postprocess.md): see there.",
+                "with it as APV and EEVEE do with their dilated probes. Off by default: measured "
+                "(bench/results/postprocess.md) it changes no value at the 64 points of the room and "
+                "the courtyard nor on the 5 test spheres (none lies in a cell with an invalid "
+                "corner), and at 28 points chosen in such cells of the room it raised the median "
+                "error from 37 to 58 % (next to the emissive ceiling panel); the interpolation "
+                "already renormalises over a cell's valid corners.",
             ui="volumes"),
     Setting("sh_window", "enum", 'NONE', "SH Windowing",
             "Deringing: scale each probe's SH bands by a window before writing (Laplacian: Sloan's "
             "deringing, Sinc⁴: Filament's), trading directional detail for less ringing",
             doc="Deringing (docs/sh.md *Ringing windows*): each probe's band l scaled by the window's "
                 "factor before the file is written. **Laplacian** 1/(1 + λ l²(l+1)²) (Sloan 2017), "
-                "**Sinc⁴** (sin x / x)⁴, x = πl/w (Filament). Measured (bench/results/postprocess.md): "
-                "see there.",
+                "**Sinc⁴** (sin x / x)⁴, x = πl/w (Filament). None by default: every fixed window raised the error between probes "
+                "(bench/results/postprocess.md; room 1.77 % → 2.06 % at λ 0.002, 3.43 % at 0.01, 2.88 % "
+                "at w 12; test spheres per pixel 7.2 → 7.4 / 8.8 / 8.1 %); the automatic strength "
+                "changes only probes whose irradiance goes negative (none in those bakes): use it where "
+                "probes see a small bright baked source.",
             choices=(('NONE', "None", "Write the probes' SH as baked"),
                      ('LAPLACIAN', "Laplacian", "Band l scaled by 1/(1 + strength · l²(l+1)²)"),
                      ('SINC4', "Sinc⁴", "Band l scaled by sinc⁴(πl / strength), 0 from band strength on")),
