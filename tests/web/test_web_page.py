@@ -1,8 +1,9 @@
 """The three.js page (web/index.html + web/src/schnee-gltf-plugin.js, issue 32) in a real browser.
 
 Debian's chromium, headless, driven by playwright-core from web/node_modules (web/test-browser/
-drive_page.mjs), WebGL2 on SwiftShader. The page opens the main job's export (out/default/gltf/
-scene.gltf, the bundled room; `./run.sh` writes it) served by a local HTTP server:
+drive_page.mjs), WebGL2 on SwiftShader. The page opens the main job's export of the bundled room, made
+by this module at coarse settings (build/test-cache/web-main-job; `./run.sh` writes out/default at the
+preview settings, which the screenshots use), served by a local HTTP server:
 
 - it loads with no console error, and its per-object weights equal schnee-view --print-assignments
   (same probes, weights within 1e-6);
@@ -50,7 +51,6 @@ import struct
 import subprocess
 import sys
 import threading
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -61,8 +61,27 @@ sys.path.insert(0, str(REPO / "tests" / "engine" / "scripts"))
 import viewer  # noqa: E402
 
 WEB = REPO / "web"
-SCENE = REPO / "out" / "default" / "gltf" / "scene.gltf"
+# The main job's export of the bundled room, made by this module at test_main_job.py's coarse settings
+# (a clean clone has no out/default; a user's ./run.sh output is not a test input), under the repository
+# so that the page's server reaches it: the page opens it with ?gltf=GLTF_PARAM.
+JOB = REPO / "build" / "test-cache" / "web-main-job"
+SCENE = JOB / "gltf" / "scene.gltf"
+GLTF_PARAM = "gltf=../build/test-cache/web-main-job/gltf/scene.gltf"
 W, H = 480, 270
+_made = []
+
+
+def _bundled_scene():
+    """SCENE, made once per test session by scripts/main_job.py (~15 s)."""
+    if not _made:
+        shutil.rmtree(JOB, ignore_errors=True)
+        proc = subprocess.run(
+            [sys.executable, str(REPO / "scripts" / "main_job.py"), "--out", str(JOB), "--width", "160",
+             "--height", "90", "--bake-args", "--min-cell-size 2 --max-cell-size 4 --panorama-resolution 32 "
+             "--samples 4 --max-bounces 2"], capture_output=True, text=True, timeout=900)
+        assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+        _made.append(SCENE)
+    return SCENE
 
 
 def _chromium():
@@ -94,8 +113,7 @@ def _drive(pages, tmp_path):
         pytest.skip("chromium is not installed (scripts/deps.sh installs it)")
     if node is None:
         pytest.skip("node is not installed (scripts/deps.sh installs nodejs)")
-    if not SCENE.exists():
-        pytest.skip(f"{SCENE} is missing: run ./run.sh (the main job) first")
+    _bundled_scene()
     assert (WEB / "node_modules" / "playwright-core").is_dir(), "web/node_modules lacks playwright-core: npm ci in web/"
     job = tmp_path / "job.json"
     job.write_text(json.dumps({"chromium": chromium, "pages": pages}))
@@ -122,7 +140,7 @@ def _assignments(stdout):
 
 def _engine_frame(tmp_path, mode="object"):
     exr = tmp_path / f"engine_{mode}.exr"
-    p = viewer.check(viewer.run(SCENE, "--headless", "--output", exr, "--width", W, "--height", H,
+    p = viewer.check(viewer.run(_bundled_scene(), "--headless", "--output", exr, "--width", W, "--height", H,
                                 "--probe-mode", mode, "--no-direct", "--no-sky", "--no-specular",
                                 "--tonemap", "none", "--print-assignments"))
     return viewer.read_image(exr)[:, :, :3], p.stdout + "\n" + p.stderr
@@ -147,7 +165,7 @@ def _edges(img, thresh):
 def page_frames(server, tmp_path_factory):
     """The page per object and per pixel (one browser run), {mode: (result, linear RGBA float64)}."""
     tmp = tmp_path_factory.mktemp("web_page")
-    pages = [{"url": f"{server}/web/index.html?mode={m}&direct=0&sky=0&linear=1&width={W}&height={H}",
+    pages = [{"url": f"{server}/web/index.html?{GLTF_PARAM}&mode={m}&direct=0&sky=0&linear=1&width={W}&height={H}",
               "frame": {"w": W, "h": H, "out": str(tmp / f"page_{m}.f32")}} for m in ("object", "pixel")]
     res = _drive(pages, tmp)
     return {m: (r, np.frombuffer((tmp / f"page_{m}.f32").read_bytes(), np.float32).reshape(H, W, 4)[::-1]
@@ -228,9 +246,11 @@ def test_page_per_pixel_against_schnee_view(page_frames, tmp_path):
     print(f"\nweb vs schnee-view per pixel: {mask.sum()} px compared, {100 * within:.2f} % within 1e-3 + 0.5 %, "
           f"median abs {np.median(diff):.2e}, p90 {np.percentile(diff, 90):.2e}, max {diff.max():.3f}")
     assert mask.sum() > 0.6 * W * H
-    # measured with the visibility texels and records 99.85 %, median 3.74e-5, p90 9.12e-5 (back faces
-    # only: 98.06 %, 3.85e-5, 1.12e-4; before the back faces: 95.54 %, 3.92e-5, 1.28e-4)
-    assert np.median(diff) < 6e-5 and np.percentile(diff, 90) < 1.5e-4 and within >= 0.995, (
+    # Measured on this module's coarse export (min cell 2 m, 23 visibility records): 99.33 %, median
+    # 2.77e-5, p90 7.67e-5. On ./run.sh's preview export (42 records), with the visibility texels and
+    # records 99.85 %, median 3.74e-5, p90 9.12e-5 (back faces only: 98.06 %, 3.85e-5, 1.12e-4; before
+    # the back faces: 95.54 %, 3.92e-5, 1.28e-4).
+    assert np.median(diff) < 6e-5 and np.percentile(diff, 90) < 1.5e-4 and within >= 0.99, (
         np.median(diff), np.percentile(diff, 90), within)
 
 
@@ -403,7 +423,7 @@ def test_per_pixel_shader_equals_c_bricks(server, tmp_path):
 
 
 def _malformed(tmp_path):
-    good = (SCENE.parent / "sh_coeffs" / "probes.shprobe").read_bytes() if SCENE.exists() else b""
+    good = (_bundled_scene().parent / "sh_coeffs" / "probes.shprobe").read_bytes()
     trunc = tmp_path / "trunc.shprobe"
     trunc.write_bytes(good[:-7])
     nan = bytearray(good)
@@ -417,7 +437,7 @@ def _malformed(tmp_path):
 
 def test_malformed_shprobe_shows_the_error(server, tmp_path):
     trunc, nanf = _malformed(tmp_path)
-    url = f"{server}/web/index.html?width={W}&height={H}"
+    url = f"{server}/web/index.html?{GLTF_PARAM}&width={W}&height={H}"
     pages = [{"url": url, "fulfil": {"pattern": "**/probes.shprobe", "file": str(f)}} for f in (trunc, nanf)]
     res = _drive(pages, tmp_path)
     for r, what in zip(res, ("truncated", "non-finite")):
