@@ -36,14 +36,17 @@ _IGNORED = frozenset({
 
 # Settings that change where or how the values are written, not the values (the journal holds the
 # baked SH; the ambient cube, float or half, is fitted from them when the file is written).
-_NOT_VALUES = frozenset({"output_path", "probe_limit", "per_volume_files", "probe_representation"})
+# Write-time choices: they change the written file, not a journal record (a render), so a resumed bake
+# with other values reuses the records and applies its own (probe representation; Dilate Invalid Probes
+# and SH Windowing, postprocess.py, applied to the final probes in bake_plans' outputs).
+_NOT_VALUES = frozenset({"output_path", "probe_limit", "per_volume_files", "probe_representation",
+                         "dilate_invalid", "sh_window", "sh_window_strength"})
 
 
 # Settings added after journals existed, with the value that bakes as before them: left out of the
 # digest at that value, so a journal of an earlier bake still resumes (Sky Sun "baked" is the bake
 # before issue 27 byte for byte; "mixed" changes the probes' sky and is digested).
-_LEGACY_VALUES = {"sky_sun": "baked", "render_device": "SCENE", "dilate_invalid": False, "sh_window": "NONE",
-                  "sh_window_strength": 0.0}
+_LEGACY_VALUES = {"sky_sun": "baked", "render_device": "SCENE"}
 
 
 def _at_legacy_value(name, value) -> bool:

@@ -66,7 +66,8 @@ check("samples setting", lambda: None, lambda: None, dataclasses.replace(base_se
 check("output path only", lambda: None, lambda: None, dataclasses.replace(base_settings, output_path="//elsewhere.shprobe"))
 check("probe representation only", lambda: None, lambda: None,
       dataclasses.replace(base_settings, probe_representation="CUBE_HALF"))
-# issue 31: the post-process settings change the written probes, so a resumed bake must not mix them
+# issue 31: the post-process settings are applied when the file is written, not to the journal's
+# records: a resumed bake with other values reuses the renders (as for the probe representation)
 check("dilate setting", lambda: None, lambda: None,
       dataclasses.replace(base_settings, dilate_invalid=not base_settings.dilate_invalid))
 check("window setting", lambda: None, lambda: None,

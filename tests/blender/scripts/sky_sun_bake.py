@@ -88,9 +88,8 @@ def sky_case():
     from schnee_probes import fingerprint
     fp = {m: fingerprint.parts(bpy.context.scene, bpy.context.view_layer, settings(folder, sky_sun=m))["settings"]
           for m in ("mixed", "baked")}
-    # (Render Device, Dilate Invalid Probes and SH Windowing at their defaults are left out the same
-    # way: fingerprint._LEGACY_VALUES; Adaptive bakes name their sampling scheme, issue 29, so journals
-    # of the two-halves scheme do not resume.)
+    # (Render Device at its default is left out the same way: fingerprint._LEGACY_VALUES; Adaptive
+    # bakes name their sampling scheme, issue 29, so journals of the two-halves scheme do not resume.)
     from schnee_probes import adaptive
     s = settings(folder)
     legacy = fingerprint._digest(sorted((k, v) for k, v in asdict(s).items()
