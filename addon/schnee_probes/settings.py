@@ -249,7 +249,9 @@ SETTINGS: Tuple[Setting, ...] = (
                 "the courtyard nor on the 5 test spheres (none lies in a cell with an invalid "
                 "corner), and at 28 points chosen in such cells of the room it raised the median "
                 "error from 37 to 58 % (next to the emissive ceiling panel); the interpolation "
-                "already renormalises over a cell's valid corners.",
+                "already renormalises over a cell's valid corners. Applied when the file is written, "
+                "so it is not part of the journal's fingerprint: a resumed bake with the other value "
+                "reuses the rendered probes.",
             ui="volumes"),
     Setting("sh_window", "enum", 'NONE', "SH Windowing",
             "Deringing: scale each probe's SH bands by a window before writing (Laplacian: Sloan's "
@@ -260,7 +262,8 @@ SETTINGS: Tuple[Setting, ...] = (
                 "(bench/results/postprocess.md; room 1.77 % → 2.06 % at λ 0.002, 3.43 % at 0.01, 2.88 % "
                 "at w 12; test spheres per pixel 7.2 → 7.4 / 8.8 / 8.1 %); the automatic strength "
                 "changes only probes whose irradiance goes negative (none in those bakes): use it where "
-                "probes see a small bright baked source.",
+                "probes see a small bright baked source. Like dilation, applied at write time and not "
+                "part of the journal's fingerprint.",
             choices=(('NONE', "None", "Write the probes' SH as baked"),
                      ('LAPLACIAN', "Laplacian", "Band l scaled by 1/(1 + strength · l²(l+1)²)"),
                      ('SINC4', "Sinc⁴", "Band l scaled by sinc⁴(πl / strength), 0 from band strength on")),
