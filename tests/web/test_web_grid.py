@@ -15,7 +15,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from test_web_page import WEB, _SHADER_JS, _chromium, _lambert_basis_l2, _wall, server  # noqa: F401
+from test_web_page import WEB, _SHADER_JS, _chromium, run_node_cases, _lambert_basis_l2, _wall, server  # noqa: F401
 
 _JS = _SHADER_JS.replace("return [...out, probes.visRecords || 0];",
                          "return [...out, probes.visRecords || 0, ...(probes.grids[0].masks || [])];").replace(
@@ -106,14 +106,7 @@ def test_dense_grid_shader_equals_c_field(server, tmp_path):  # noqa: F811
                      pts[0, :, :3].astype(float), pts[1, :, :3].astype(float), stat, tris))
         cases.append({"file": str(path), "points": str(tmp_path / f"pts{seed}.f32"), "n": N,
                       "out": str(tmp_path / f"out{seed}.f32"), "tris": [] if tris is None else tris.ravel().tolist()})
-    js, job = tmp_path / "grid_vs_c.mjs", tmp_path / "job.json"
-    js.write_text(_JS)
-    job.write_text(json.dumps({"chromium": chromium, "base": server, "cases": cases,
-                               "playwright": (WEB / "node_modules" / "playwright-core" / "index.mjs").as_uri()}))
-    r = subprocess.run(["node", str(js), str(job)], capture_output=True, text=True, timeout=180, cwd=WEB)
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
-    out = json.loads(r.stdout.strip().splitlines()[-1])
-    assert out["errors"] == []
+    out = run_node_cases(tmp_path, "grid_vs_c.mjs", _JS, chromium, server, cases)
     for case, (cells, c, v, s, R, o, h, p, n, stat, tris), pm in zip(cases, want, out["records"]):
         masks = np.asarray(pm, np.int64).reshape(cells.shape) if pm else np.full(cells.shape, (1 << 27) - 1)
         cleared = int(((1 << 27) - 1 - masks).astype(bool).sum())

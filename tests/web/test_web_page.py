@@ -402,14 +402,7 @@ def test_per_pixel_shader_equals_c_bricks(server, tmp_path):
                      br.info()["vis_record_count"]))
         cases.append({"file": str(path), "points": str(tmp_path / f"pts{seed}.f32"), "n": N,
                       "out": str(tmp_path / f"out{seed}.f32"), "tris": [] if tris is None else tris.ravel().tolist()})
-    js, job = tmp_path / "shader_vs_c.mjs", tmp_path / "job.json"
-    js.write_text(_SHADER_JS)
-    job.write_text(json.dumps({"chromium": chromium, "base": server, "cases": cases,
-                               "playwright": (WEB / "node_modules" / "playwright-core" / "index.mjs").as_uri()}))
-    r = subprocess.run(["node", str(js), str(job)], capture_output=True, text=True, timeout=180, cwd=WEB)
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
-    out = json.loads(r.stdout.strip().splitlines()[-1])
-    assert out["errors"] == []
+    out = run_node_cases(tmp_path, "shader_vs_c.mjs", _SHADER_JS, chromium, server, cases)
     assert out["records"] == [w[2] for w in want], (out["records"], [w[2] for w in want])  # same record count
     for case, (e, has, rc) in zip(cases, want):
         g = np.fromfile(case["out"], np.float32).reshape(N, 4).astype(np.float64)
@@ -420,6 +413,20 @@ def test_per_pixel_shader_equals_c_bricks(server, tmp_path):
               f"{d.max():.2e}, p99 {np.percentile(d, 99):.2e}, median {np.median(d):.2e}; peak {np.abs(e[has]).max():.2f}; "
               f"{rc} visibility records")
         assert d.max() < 2e-3 and np.percentile(d, 99) < 2e-5, (d.max(), np.percentile(d, 99))
+
+
+def run_node_cases(tmp_path, name, script, chromium, server, cases):
+    """Runs the Node script ``script`` (saved as ``name``) on the page's cases in Chromium; its last
+    stdout line's JSON, asserted to have no errors."""
+    js, job = tmp_path / name, tmp_path / "job.json"
+    js.write_text(script)
+    job.write_text(json.dumps({"chromium": chromium, "base": server, "cases": cases,
+                               "playwright": (WEB / "node_modules" / "playwright-core" / "index.mjs").as_uri()}))
+    r = subprocess.run(["node", str(js), str(job)], capture_output=True, text=True, timeout=180, cwd=WEB)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["errors"] == []
+    return out
 
 
 def _malformed(tmp_path):
