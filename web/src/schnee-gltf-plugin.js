@@ -862,6 +862,18 @@ class StaticScene {
   }
 }
 
+/** An RGBA 3D texture of `data` (W × H × D texels), clamped at its edges, filtered by `filter`. */
+function rgbaTexture3D(data, W, H, D, type, filter) {
+  const tex = new THREE.Data3DTexture(data, W, H, D);
+  tex.format = THREE.RGBAFormat;
+  tex.type = type;
+  tex.minFilter = tex.magFilter = filter;
+  tex.wrapS = tex.wrapT = tex.wrapR = THREE.ClampToEdgeWrapping;
+  tex.unpackAlignment = 1;
+  tex.needsUpdate = true;
+  return tex;
+}
+
 function triCount(g) {
   return g.index ? g.index.count / 3 : g.attributes.position.count / 3;
 }
@@ -985,22 +997,13 @@ export class SchneeProbes {
             for (let c = 0; c < 4; c++) data[dst + c] = p.data[src + c];
           }
     }
-    let tex;
     if (useFloat) {
-      tex = new THREE.Data3DTexture(data, W, H, Dz);
-      tex.type = THREE.FloatType;
+      this.texture = rgbaTexture3D(data, W, H, Dz, THREE.FloatType, THREE.LinearFilter);
     } else {
       const half = new Uint16Array(data.length);
       for (let i = 0; i < data.length; i++) half[i] = THREE.DataUtils.toHalfFloat(data[i]);
-      tex = new THREE.Data3DTexture(half, W, H, Dz);
-      tex.type = THREE.HalfFloatType;
+      this.texture = rgbaTexture3D(half, W, H, Dz, THREE.HalfFloatType, THREE.LinearFilter);
     }
-    tex.format = THREE.RGBAFormat;
-    tex.minFilter = tex.magFilter = THREE.LinearFilter;
-    tex.wrapS = tex.wrapT = tex.wrapR = THREE.ClampToEdgeWrapping;
-    tex.unpackAlignment = 1;
-    tex.needsUpdate = true;
-    this.texture = tex;
     /* The trees' brick levels per min cell, their own atlas (nearest, R32F), z slabs as above. */
     const trees = parts; /* dense grids too: their masks and occupancy (below) */
     const LW = Math.max(1, ...trees.map((p) => p.g.file.gridDims[0])), LH = Math.max(1, ...trees.map((p) => p.g.file.gridDims[1]));
@@ -1047,14 +1050,7 @@ export class SchneeProbes {
     recTex.needsUpdate = true;
     this.recordTexture = recTex;
     this.visRecords = recBase;
-    const lvTex = new THREE.Data3DTexture(lvData, LW, LH, Math.max(LD, 1));
-    lvTex.format = THREE.RGBAFormat;
-    lvTex.type = THREE.FloatType;
-    lvTex.minFilter = lvTex.magFilter = THREE.NearestFilter;
-    lvTex.wrapS = lvTex.wrapT = lvTex.wrapR = THREE.ClampToEdgeWrapping;
-    lvTex.unpackAlignment = 1;
-    lvTex.needsUpdate = true;
-    this.levelTexture = lvTex;
+    this.levelTexture = rgbaTexture3D(lvData, LW, LH, Math.max(LD, 1), THREE.FloatType, THREE.NearestFilter);
     const A = [], B = [], C = [], axes = [];
     for (let i = 0; i < 4; i++) {
       const p = parts[i];
@@ -1070,11 +1066,11 @@ export class SchneeProbes {
       for (const r of f.gridAxes) axes.push(new THREE.Vector3(...r));
     }
     this.gridUniforms = {
-      schneeTex: { value: tex }, schneeLevelTex: { value: lvTex }, schneeVisRec: { value: recTex }, schneeGridCount: { value: parts.length }, schneeGridA: { value: A },
+      schneeTex: { value: this.texture }, schneeLevelTex: { value: this.levelTexture }, schneeVisRec: { value: recTex }, schneeGridCount: { value: parts.length }, schneeGridA: { value: A },
       schneeGridB: { value: B }, schneeGridC: { value: C }, schneeGridAxes: { value: axes },
       schneeTexSize: { value: new THREE.Vector3(W, H, Dz) },
     };
-    return tex;
+    return this.texture;
   }
 
   /** The probe view: a small sphere per probe shaded with max(E(n), 0)/π of its own SH (× scale). */
