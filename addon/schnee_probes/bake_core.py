@@ -49,7 +49,7 @@ from typing import List, Optional, Sequence, Tuple
 import bpy
 import numpy as np
 
-from . import bake_sky, direct_light, fingerprint, journal, native, render_settings
+from . import bake_sky, direct_light, fingerprint, journal, native, region, render_settings
 from .adaptive import DEFAULT_POLICY, Policy
 # The parts, and the names scripts import from bake_core (re-exported).
 from .bake_checks import (BakeCancelled, BakeTooLarge, check_finite_emission, check_panorama_size,  # noqa: F401
@@ -89,13 +89,14 @@ class ProbeBake:
     """One bake run. ``mode`` is "VOLUMES" (Bake SH in Volumes), "CURSOR" (Bake SH at Cursor,
     ``cursor`` = Blender-space position) or "POINTS" (``points``, engine space, nothing written).
     ``log`` receives human-readable lines. ``shard`` = (k, n) / ``merge_shards`` = n: farm bakes
-    (bake_points.py); ``policy``: the Adaptive refinement's adaptive.Policy. The parts are public:
+    (bake_points.py); ``policy``: the Adaptive refinement's adaptive.Policy; ``only_volume``: bake
+    that volume alone and keep the other volumes' files (region.py). The parts are public:
     ``plan`` (Adaptive: ``plan.cache``, ``plan.groups``), ``session``, ``store``, ``direct``."""
 
     def __init__(self, scene, view_layer, settings: BakeSettings, mode: str = "VOLUMES",
                  cursor: Optional[Sequence[float]] = None, log=print, allow_large=False, points=None,
                  shard: Optional[Tuple[int, int]] = None, merge_shards: Optional[int] = None,
-                 restart: bool = False, policy: Policy = DEFAULT_POLICY):
+                 restart: bool = False, policy: Policy = DEFAULT_POLICY, only_volume: Optional[str] = None):
         if mode not in ("VOLUMES", "CURSOR", "POINTS"):
             raise ValueError(f"unknown bake mode {mode!r}")
         if mode == "CURSOR" and cursor is None:
@@ -118,6 +119,10 @@ class ProbeBake:
             self.plan = AdaptivePlan(settings, policy)
         else:
             self.plan = UniformPlan(settings)
+        # Region rebake (region.py): one volume's file, its journal beside it, no sky.
+        self.rebake = None if only_volume is None or mode != "VOLUMES" else region.VolumeRebake(only_volume)
+        self.plan.rebake = self.rebake
+        self._scene_parts = None            # the fingerprint's parts, for the bake record
         self.timings = {"placement": 0.0, "render": 0.0, "write_exr": 0.0, "project": 0.0}
         self.messages: List[str] = []
         self.session = RenderSession(scene, view_layer, settings, self.timings, log)
@@ -187,9 +192,12 @@ class ProbeBake:
         realtime, mixed = check_light_modes(self.scene, self.messages)
         check_shading(self.scene)
         check_panorama_size(s)
+        if self.rebake is not None:
+            self.rebake.check_settings(s)
         if self.plan.volumes:  # before placement: a second bake of this output refuses (output_lock.py)
-            self.store = PointStore.locked(abspath(s.output_path), self.shard, self.merge_shards, self.restart,
-                                           self.log, self.messages)
+            output = abspath(s.output_path)
+            self.store = PointStore.locked(output if self.rebake is None else self.rebake.output(output), self.shard,
+                                           self.merge_shards, self.restart, self.log, self.messages)
 
         def progress(fraction, stage):
             if placement_progress is not None and placement_progress(fraction, stage) is False:
@@ -201,7 +209,7 @@ class ProbeBake:
             raise BakeError("No probe could be placed: every candidate position is inside solid "
                             "geometry. Check the probe volumes or use a smaller Min Cell Size.")
         self._check_cancel()
-        self.estimated_seconds = estimate_seconds(self.total, s, sky=self.plan.volumes,
+        self.estimated_seconds = estimate_seconds(self.total, s, sky=self._writes_sky,
                                                   renders=self.renders_per_point)
         self.log(f"{self.plan.estimate_line(self.total, self.estimated_seconds)}, {device_note(self.session.device)}")
         if s.probe_limit and self.total > s.probe_limit and not self.allow_large:
@@ -217,8 +225,10 @@ class ProbeBake:
         self.plan.attach(self.session, self.direct)
 
     def _open_store(self):
-        manifest = journal.make_manifest(fingerprint.parts(self.scene, self.view_layer, self.settings),
-                                         scene=self.scene.name, blend=bpy.data.filepath)
+        self._scene_parts = fingerprint.parts(self.scene, self.view_layer, self.settings)
+        manifest = journal.make_manifest(self._scene_parts, scene=self.scene.name, blend=bpy.data.filepath)
+        if self.rebake is not None:
+            self.messages.extend(self.rebake.scene_notes(self._scene_parts))
         self.store.open(manifest, native.sh_count(self.settings.max_band))
         self.store.log_resume([journal.key_of(self.positions[i]) for i in self._todo], self.adaptive)
 
@@ -288,7 +298,7 @@ class ProbeBake:
         (without the first probe's scene upload once a second one is done)."""
         left = self.total - self.done
         if self.rendered == 0:
-            return estimate_seconds(left, self.settings, sky=self.plan.volumes, renders=self.renders_per_point)
+            return estimate_seconds(left, self.settings, sky=self._writes_sky, renders=self.renders_per_point)
         spent = self.timings["render"] + self.timings["write_exr"] + self.timings["project"]
         if self.rendered >= 2 and self.first_probe_seconds is not None:
             per = (spent - self.first_probe_seconds) / (self.rendered - 1)
@@ -323,7 +333,7 @@ class ProbeBake:
                 if self.done < self.total or not self.plan.finished:
                     raise BakeError(f"finish() after {self.done} of {self.total} probes")
                 self._check_cancel()
-                if self.plan.volumes and self.settings.capture_sky and self._sky_exr is None:
+                if self._writes_sky and self.settings.capture_sky and self._sky_exr is None:
                     self.capture_sky()
                 self.plan.finish_values(self.direct, self.timings)
                 self._check_cancel()
@@ -342,11 +352,20 @@ class ProbeBake:
     def _write_outputs(self) -> List[str]:
         """The plan's files, and for a volume bake the sky and the sun (bake_outputs.write_all)."""
         outputs, stale = self.plan.outputs(self.session.tmpdir), None
-        if self.plan.volumes:
-            more, stale = bake_sky.outputs(self.session, self.direct, self._sky_exr,
-                                           os.path.dirname(abspath(self.settings.output_path)))
+        main = abspath(self.settings.output_path)
+        if self._writes_sky:
+            more, stale = bake_sky.outputs(self.session, self.direct, self._sky_exr, os.path.dirname(main))
             outputs += more
+        if self.plan.volumes and self.settings.per_volume_files:  # last: the files it describes first
+            outputs.append(region.record_output(main, self.settings, self._scene_parts,
+                                                [t.name for t in self.plan.targets],
+                                                None if self.rebake is None else self.rebake.record))
         return write_all(outputs, stale, self.log)
+
+    @property
+    def _writes_sky(self) -> bool:
+        """sky.exr and sun.json: a volume bake's, not a rebake's (which keeps them with the other volumes)."""
+        return self.plan.volumes and self.rebake is None
 
     def cancel(self):
         """Abandon the bake: restore the scene and remove temporary files; write no output. The

@@ -33,6 +33,10 @@ SKY_FILE_NAME = "sky.exr"
 SUN_FILE_NAME = "sun.json"
 SUN_FORMAT = "schnee-sky-sun"
 SUN_MAGIC = b'{\n  "format": "schnee-sky-sun"'
+# The bake record beside the files of a bake with One File per Volume (region.py): what a rebake of
+# one volume checks; it starts with RECORD_MAGIC (json.dumps, indent 2, "format" first).
+RECORD_FORMAT = "schnee-bake-record"
+RECORD_MAGIC = b'{\n  "format": "schnee-bake-record"'
 DEBUG_TEXT_NAME = "debug_probe.txt"
 # Where Bake SH at Cursor puts its single-probe file when probes.shprobe holds a full bake:
 # a subfolder, so the glTF exporter (which scans sh_coeffs/*.shprobe) never exports it.
@@ -222,7 +226,8 @@ def check_half_range(cubes, positions, path):
 # ------------------------------------------------------------------ what we may replace
 def check_replaceable(path, kind):
     """Raise :class:`BakeError` unless ``path`` is absent or a file the bake wrote: ``kind``
-    "shprobe" (magic SPHR), "exr" (the sky), "sun" (sun.json) or "text" (debug_probe.txt). Never the open .blend,
+    "shprobe" (magic SPHR), "exr" (the sky), "sun" (sun.json), "record" (region.py's bake record) or
+    "text" (debug_probe.txt). Never the open .blend,
     never something that is not a regular file. Opens nothing that could block (no FIFO)."""
     blend = bpy.data.filepath
     try:
@@ -242,7 +247,7 @@ def check_replaceable(path, kind):
         raise BakeError(f"Refusing to replace {path}: it exists and is a {file_kind(st.st_mode)}; "
                         "the bake only replaces files it wrote")
     want = {"shprobe": SHPROBE_MAGIC, "exr": EXR_MAGIC, "text": DEBUG_TEXT_FIRST_LINE.encode(),
-            "journal": journal.MAGIC, "sun": SUN_MAGIC}[kind]
+            "journal": journal.MAGIC, "sun": SUN_MAGIC, "record": RECORD_MAGIC}[kind]
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
         try:
@@ -256,6 +261,7 @@ def check_replaceable(path, kind):
     if head != want:
         what = {"shprobe": "a .shprobe file (no Schnee probe header)", "exr": "an OpenEXR image",
                 "journal": "a Schnee bake journal", "sun": "a sun.json written by a bake",
+                "record": "a bake record written by a bake",
                 "text": "a debug_probe.txt written by Bake SH at Cursor"}[kind]
         raise BakeError(f"Refusing to replace {path}: it exists and is not {what}; move it away or "
                         "choose another output")

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 import time
 from dataclasses import dataclass
 from typing import Callable, List, Optional
@@ -28,7 +27,7 @@ from typing import Callable, List, Optional
 import bpy
 import numpy as np
 
-from . import adaptive, direct_light, native, postprocess, render_settings, scene_export
+from . import adaptive, direct_light, native, postprocess, region, render_settings, scene_export
 from .adaptive import DEFAULT_POLICY, Policy
 from .bake_checks import BakeCancelled
 from .bake_outputs import (DEBUG_SHPROBE_NAME, DEBUG_SUBDIR, DEBUG_TEXT_NAME, SKY_FILE_NAME, SUN_FILE_NAME,
@@ -202,8 +201,10 @@ class CursorPlan(PlacementPlan):
 
 
 class _VolumePlan(PlacementPlan):
-    """Bake SH in Volumes: the volumes, the render geometry and the output files per volume."""
+    """Bake SH in Volumes: the volumes, the render geometry and the output files per volume.
+    ``rebake`` (region.VolumeRebake, set by the driver): bake that volume alone, keeping the rest."""
     volumes = True
+    rebake = None
 
     def _gather(self, placing: Placing):
         """(groups [(name, path, volumes)], geometry) after refusing what is not ours to replace."""
@@ -219,7 +220,7 @@ class _VolumePlan(PlacementPlan):
             folder = os.path.dirname(main_path)
             groups, seen = [], {}
             for vol in volumes:
-                stem = _safe_file_stem(vol[0])
+                stem = region.volume_file_stem(vol[0])
                 if stem in seen:
                     raise BakeError(f"Volumes '{seen[stem]}' and '{vol[0]}' would both be written to "
                                     f"'{stem}.shprobe': rename one of them")
@@ -227,13 +228,18 @@ class _VolumePlan(PlacementPlan):
                 groups.append((vol[0], os.path.join(folder, stem + ".shprobe"), [vol]))
         else:
             groups = [(os.path.splitext(os.path.basename(main_path))[0], main_path, volumes)]
+        if self.rebake is not None:  # one volume; the sky, the sun and the other files are kept
+            groups = self.rebake.select(groups, s, main_path, s.volume_collection)
+            volumes = groups[0][2]
         # Refuse before any work is done to replace something that is not ours.
         for _, path, _ in groups:
             check_replaceable(path, "shprobe")
-        if s.capture_sky:
+        if s.per_volume_files:
+            check_replaceable(region.record_path(main_path), "record")
+        if s.capture_sky and self.rebake is None:
             check_replaceable(os.path.join(os.path.dirname(main_path), SKY_FILE_NAME), "exr")
-        # Written (Sky Sun "mixed" and a sun) or removed (else: a stale sun would be added twice).
-        check_replaceable(os.path.join(os.path.dirname(main_path), SUN_FILE_NAME), "sun")
+        if self.rebake is None:  # written (Sky Sun "mixed" and a sun) or removed (else: a stale sun would be added twice)
+            check_replaceable(os.path.join(os.path.dirname(main_path), SUN_FILE_NAME), "sun")
         exclude = frozenset(ob.name for ob in objects)
         # Solid geometry as Cycles renders it, not as the viewport shows it (render_settings.py).
         coll = bpy.data.collections.get(s.volume_collection)
@@ -625,8 +631,3 @@ def volume_objects(name: str) -> list:
             raise BakeError(f"Object '{ob.name}' in probe volume collection '{name}' is a "
                             f"{ob.type.lower()}, not a mesh: only closed meshes can be probe volumes")
     return objects
-
-
-def _safe_file_stem(name: str) -> str:
-    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")
-    return stem or "volume"

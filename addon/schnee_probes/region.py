@@ -1,0 +1,164 @@
+"""Region rebake: bake one probe volume again after an edit and keep every other volume's file
+(docs/region-rebake.md).
+
+With One File per Volume every volume is placed on its own and written to its own
+``sh_coeffs/<volume>.shprobe``, so baking one volume again never needs to open the others: their
+files stay byte for byte. What this module adds is the knowledge of the previous bake, the *bake
+record* ``<output>.bake.json`` beside the files (``probes.shprobe.bake.json``), written by every
+volume bake with One File per Volume::
+
+    {"format": "schnee-bake-record", "version": 1,
+     "settings": {setting: value, ...},          # the values a probe depends on (fingerprint.py)
+     "volumes": {"Kitchen": {"file": "Kitchen.shprobe",
+                             "scene": {"geometry": "<sha256>", "lights": ..., ...}}}}
+
+A rebake (:class:`VolumeRebake`, ``bake.py --only-volume NAME``, the panel's Rebake Selected Volume)
+refuses when there is no previous bake to keep (no record, or another volume's file missing), when
+the previous bake had other settings (naming each one that differs) and when the name is no volume
+of the collection; it journals beside the volume's own file (``Kitchen.shprobe.journal``, shards
+``Kitchen.shprobe.shard-K-of-N.journal``), writes that file and the updated record, and leaves the
+sky, the sun and every other file as they were. Plain Python apart from the record's Output.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import asdict
+from typing import Dict, List, Optional
+
+from .bake_outputs import RECORD_FORMAT, text_output
+from .file_names import sibling
+from .safe_open import RefusedFile, open_regular
+from .settings import BakeError
+
+RECORD_SUFFIX = ".bake.json"
+RECORD_VERSION = 1
+# Fingerprint parts that describe the scene (the rest, "settings", is compared value by value).
+SCENE_PARTS = ("geometry", "materials", "lights", "world", "render")
+# What a change of each part means for the volumes a rebake keeps (a warning, not a refusal: the
+# geometry is what one edits before a rebake).
+_STALE = {"lights": "the lamps", "world": "the world (sky)", "render": "the render settings",
+          "materials": "materials"}
+# Settings a rebake may change without refusing: where and how files are written, not the light.
+_FREE = frozenset({"output_path", "probe_limit"})
+
+
+def volume_file_stem(name: str) -> str:
+    """The file stem of volume ``name``'s own .shprobe (One File per Volume)."""
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")
+    return stem or "volume"
+
+
+def volume_file(main_output: str, name: str) -> str:
+    """The .shprobe of volume ``name`` beside the bake's ``main_output`` (absolute paths)."""
+    return os.path.join(os.path.dirname(main_output), volume_file_stem(name) + ".shprobe")
+
+
+def record_path(main_output: str) -> str:
+    """The bake record beside ``main_output`` (an absolute .shprobe path)."""
+    return sibling(main_output, RECORD_SUFFIX)
+
+
+def settings_values(settings) -> Dict[str, object]:
+    """The settings a record compares: every one but those of :data:`_FREE`."""
+    return {k: v for k, v in asdict(settings).items() if k not in _FREE}
+
+
+def read_record(path: str) -> Optional[dict]:
+    """The record at ``path``, None when absent; BakeError when it is not a readable record."""
+    if not os.path.lexists(path):
+        return None
+    try:
+        f, _ = open_regular(path, "a bake record", 1 << 24)
+        with f:
+            record = json.loads(f.read().decode("utf-8"))
+    except (RefusedFile, OSError, ValueError) as exc:
+        raise BakeError(f"Cannot read the previous bake's record {path}: {exc}; bake every volume again") from None
+    if not isinstance(record, dict) or record.get("format") != RECORD_FORMAT or \
+            record.get("version") != RECORD_VERSION or not isinstance(record.get("volumes"), dict):
+        raise BakeError(f"{path} is not a bake record this add-on reads; bake every volume again")
+    return record
+
+
+def _differences(before: dict, now: dict) -> List[str]:
+    out = []
+    for k in sorted(set(before) | set(now)):
+        if k in _FREE or before.get(k) == now.get(k):
+            continue
+        out.append(f"{k} {before.get(k, '(absent)')!r} then, {now.get(k, '(absent)')!r} now")
+    return out
+
+
+def record_output(main_output: str, settings, scene: Dict[str, str], names: List[str],
+                  previous: Optional[dict] = None):
+    """The bake record (bake_outputs.Output) after a bake of the volumes ``names`` with
+    ``settings`` in a scene of fingerprint parts ``scene``; ``previous``: the record a rebake keeps
+    the other volumes' entries of."""
+    volumes = dict(previous["volumes"]) if previous else {}
+    part = {k: scene[k] for k in SCENE_PARTS if k in scene}
+    for name in names:
+        volumes[name] = {"file": volume_file_stem(name) + ".shprobe", "scene": part}
+    record = {"format": RECORD_FORMAT, "version": RECORD_VERSION,
+              "settings": json.loads(json.dumps(settings_values(settings))), "volumes": volumes}
+    return text_output(record_path(main_output), "record", json.dumps(record, indent=2, sort_keys=False) + "\n",
+                       sync=True)
+
+
+class VolumeRebake:
+    """Bake the volume ``name`` again, keeping the other volumes' files (module docstring).
+    ``record`` is the previous bake's, once :meth:`select` has checked it."""
+
+    def __init__(self, name: str):
+        self.name = name
+        self.record: Optional[dict] = None
+
+    def output(self, main_output: str) -> str:
+        """The file this rebake writes (its journal and shards are named after it)."""
+        return volume_file(main_output, self.name)
+
+    def check_settings(self, settings):
+        """Before anything else: the rebake needs One File per Volume."""
+        if not settings.per_volume_files:
+            raise BakeError(f"Rebaking volume '{self.name}' alone needs One File per Volume (--per-volume-files "
+                            "on): without it every volume is in one probes.shprobe, which a rebake would replace "
+                            "whole; turn it on and bake every volume once")
+
+    def select(self, groups: list, settings, main_output: str, collection: str) -> list:
+        """The group (name, path, volumes) of this volume among a bake's ``groups``, after checking
+        the previous bake: BakeError for an unknown name, no previous bake to keep or other
+        settings."""
+        names = [g[0] for g in groups]
+        if self.name not in names:
+            raise BakeError(f"No probe volume named '{self.name}' in collection '{collection}' (its volumes: "
+                            f"{', '.join(repr(n) for n in names)})")
+        path = record_path(main_output)
+        record = read_record(path)
+        if record is None:
+            raise BakeError(f"No previous bake to keep: {path} is missing (the record a bake with One File per "
+                            f"Volume writes); bake every volume once, then rebake '{self.name}'")
+        diff = _differences(record.get("settings", {}), json.loads(json.dumps(settings_values(settings))))
+        if diff:
+            raise BakeError(f"The previous bake ({os.path.basename(path)}) was made with other settings: "
+                            + "; ".join(diff) + f". Rebake every volume, or rebake '{self.name}' with the "
+                            "previous settings")
+        for name, file, _ in groups:
+            if name != self.name and not os.path.exists(file):
+                raise BakeError(f"No previous bake to keep for volume '{name}': {file} is missing; bake every "
+                                f"volume once, then rebake '{self.name}'")
+        self.record = record
+        return [g for g in groups if g[0] == self.name]
+
+    def scene_notes(self, scene: Dict[str, str]) -> List[str]:
+        """What changed in the scene since the kept volumes were baked, beyond geometry: each of them
+        keeps the earlier light (a message, not a refusal)."""
+        notes = []
+        for name, entry in sorted((self.record or {}).get("volumes", {}).items()):
+            if name == self.name:
+                continue
+            before = entry.get("scene", {})
+            changed = [_STALE[k] for k in _STALE if k in before and before[k] != scene.get(k)]
+            if changed:
+                notes.append(f"Volume '{name}' keeps its earlier bake, made before " + ", ".join(changed)
+                             + " changed: bake every volume to bring it up to date")
+        return notes

@@ -1,0 +1,160 @@
+"""Region rebake of one probe volume (issue 31 item 3; docs/region-rebake.md), in real headless
+Blender 3.4 through bake.py: after an edit inside the volume Left, ``--only-volume Left`` renders
+Left's probes only, writes Left.shprobe and the bake record, and leaves Right.shprobe and sky.exr
+byte for byte; its Left.shprobe is the bytes of a full bake of the edited scene (the expected value:
+Cycles renders the same bits for the same position and seed). Killed, it resumes from its own
+journal; sharded and merged it gives the same bytes; it refuses, in one line and without a
+traceback, an unknown volume, a bake without a previous one, other settings (naming them) and
+One File per Volume off. Scenes: scripts/region_scenes.py (the window room in two volumes, 1 m
+cells: 16 probes each, 15 in Left once the crate is in). Runtime: about a minute on 2 cores."""
+import hashlib
+import json
+import re
+import shutil
+import signal
+
+import numpy as np
+import pytest
+
+from conftest import requires_native
+from schnee_probes import journal, native
+from test_bake_hazards import SCRIPTS, TINY, Running, bake, last_error, scenes_made_by
+
+pytestmark = requires_native
+
+CELLS = ["--min-cell-size", "1", "--max-cell-size", "1"]
+PER_VOLUME = ["--per-volume-files", "on"]
+ARGS = [*CELLS, *TINY, *PER_VOLUME]
+
+scenes = scenes_made_by("region_scenes.py")
+
+
+def _sha(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _baked(scenes, folder, name):
+    """``name`` copied into ``folder`` and baked whole (both volumes): the folder's sh_coeffs."""
+    folder.mkdir(parents=True, exist_ok=True)
+    blend = folder / name
+    shutil.copyfile(scenes / name, blend)
+    proc = bake(blend, *ARGS)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    return folder / "sh_coeffs"
+
+
+@pytest.fixture(scope="module")
+def previous(scenes, tmp_path_factory):
+    """The full bake of the scene before the edit: its sh_coeffs folder."""
+    return _baked(scenes, tmp_path_factory.mktemp("previous"), "two_rooms.blend")
+
+
+@pytest.fixture(scope="module")
+def edited_full(scenes, tmp_path_factory):
+    """The full bake of the edited scene: the reference a rebake of Left must equal."""
+    return _baked(scenes, tmp_path_factory.mktemp("edited_full"), "two_rooms_edited.blend")
+
+
+def _edited(scenes, previous, tmp_path):
+    """The previous bake's files and the edited scene in one folder: (blend, sh_coeffs)."""
+    shutil.copytree(previous, tmp_path / "sh_coeffs")
+    blend = tmp_path / "two_rooms_edited.blend"
+    shutil.copyfile(scenes / "two_rooms_edited.blend", blend)
+    return blend, tmp_path / "sh_coeffs"
+
+
+def _arrays(path):
+    """The probes as read back (a v1 file has no positions: its grid places them)."""
+    f = native.read_shprobe(str(path))
+    return [np.zeros(0) if getattr(f, k) is None else np.asarray(getattr(f, k))
+            for k in ("positions", "coeffs", "validity", "grid")]
+
+
+def test_rebake_renders_one_volume_and_keeps_the_others(scenes, previous, edited_full, tmp_path):
+    blend, out = _edited(scenes, previous, tmp_path)
+    kept = {p.name: _sha(p) for p in out.iterdir()}
+    log = tmp_path / "renders.log"
+    run = Running(blend, [*ARGS, "--only-volume", "Left"], {"SCHNEE_TEST_RENDER_LOG": str(log)},
+                  pre=SCRIPTS / "count_renders.py")
+    rc, stdout, stderr = run.finish()
+    assert rc == 0, stdout[-2000:] + stderr[-2000:]
+    # Left's probes only: 16 cells of 1 m, one inside the crate (the full bake rendered 32).
+    assert len(log.read_text().splitlines()) == 15
+    assert "bake.py: 15 probes in" in stdout
+    assert sorted(re.findall(r"bake\.py: wrote (\S+)", stdout)) == [str(out / "Left.shprobe"),
+                                                                     str(out / "probes.shprobe.bake.json")]
+    # Right and the sky: the previous bake's bytes; Left: the full bake of the edited scene's bytes.
+    assert _sha(out / "Right.shprobe") == kept["Right.shprobe"]
+    assert _sha(out / "sky.exr") == kept["sky.exr"]
+    for a, b in zip(_arrays(out / "Right.shprobe"), _arrays(previous / "Right.shprobe")):
+        assert a.tobytes() == b.tobytes()
+    assert _sha(out / "Left.shprobe") != kept["Left.shprobe"]
+    assert _sha(out / "Left.shprobe") == _sha(edited_full / "Left.shprobe")
+    # The record: Left's scene is the edited one, Right's the previous bake's.
+    rec = json.loads((out / "probes.shprobe.bake.json").read_text())
+    old = json.loads((previous / "probes.shprobe.bake.json").read_text())
+    full = json.loads((edited_full / "probes.shprobe.bake.json").read_text())
+    assert rec["volumes"]["Right"] == old["volumes"]["Right"]
+    assert rec["volumes"]["Left"] == full["volumes"]["Left"] != old["volumes"]["Left"]
+    assert not (out / "Left.shprobe.journal").exists()  # spent once the file is written
+
+
+@pytest.mark.parametrize("args,expected", [
+    (["--only-volume", "Kitchen"], "No probe volume named 'Kitchen' in collection 'ProbeVolumes' (its volumes: "
+                                   "'Left', 'Right')"),
+    (["--only-volume", "Left", "--samples", "2"], "was made with other settings: samples 1 then, 2 now"),
+    (["--only-volume", "Left", "--per-volume-files", "off"], "needs One File per Volume"),
+    (["--only-volume", "Left", "--max-band", "3"], "max_band 2 then, 3 now"),
+], ids=["unknown-volume", "other-samples", "one-file", "other-band"])
+def test_rebake_refuses_clearly(scenes, previous, tmp_path, args, expected):
+    blend, out = _edited(scenes, previous, tmp_path)
+    kept = {p.name: _sha(p) for p in out.iterdir()}
+    proc = bake(blend, *ARGS, *args)
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert expected in last_error(proc) and last_error(proc).startswith("bake.py: error: ")
+    assert "Traceback" not in proc.stderr
+    assert {p.name: _sha(p) for p in out.iterdir()} == kept
+
+
+def test_rebake_without_a_previous_bake_is_refused(scenes, previous, tmp_path):
+    blend, out = _edited(scenes, previous, tmp_path)
+    (out / "Right.shprobe").unlink()
+    proc = bake(blend, *ARGS, "--only-volume", "Left")
+    assert proc.returncode == 3 and "Traceback" not in proc.stderr
+    assert last_error(proc) == (f"bake.py: error: No previous bake to keep for volume 'Right': {out / 'Right.shprobe'} "
+                                "is missing; bake every volume once, then rebake 'Left'")
+    (out / "probes.shprobe.bake.json").unlink()
+    proc = bake(blend, *ARGS, "--only-volume", "Left")
+    assert proc.returncode == 3 and "Traceback" not in proc.stderr
+    assert "No previous bake to keep" in last_error(proc) and "probes.shprobe.bake.json is missing" in last_error(proc)
+    assert not (out / "Left.shprobe.journal").exists()
+    # --cursor with --only-volume: a usage error.
+    proc = bake(blend, *ARGS, "--only-volume", "Left", "--cursor", "0", "0", "1")
+    assert proc.returncode == 2 and "--cursor cannot be combined with --only-volume" in proc.stderr
+
+
+def test_rebake_killed_resumes_and_shards_merge(scenes, previous, edited_full, tmp_path):
+    expected = _sha(edited_full / "Left.shprobe")
+    blend, out = _edited(scenes, previous, tmp_path / "killed")
+    right = _sha(out / "Right.shprobe")
+    run = Running(blend, [*ARGS, "--only-volume", "Left"], {}, pre=SCRIPTS / "slow_render.py")
+    path = out / "Left.shprobe.journal"
+    run.wait_for("probe 4/")
+    run.proc.send_signal(signal.SIGKILL)
+    run.finish()
+    kept = len(journal.read(str(path)).values)
+    assert 3 <= kept < 15
+    proc = bake(blend, *ARGS, "--only-volume", "Left")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert f"resuming from {path}: {kept} of 15 probes already baked, {15 - kept} to render" in proc.stdout
+    assert _sha(out / "Left.shprobe") == expected and _sha(out / "Right.shprobe") == right
+    # Two shards and their merge, beside Left's file.
+    blend, out = _edited(scenes, previous, tmp_path / "shards")
+    for k in range(2):
+        proc = bake(blend, *ARGS, "--only-volume", "Left", "--shard", f"{k}/2")
+        assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+        assert (out / f"Left.shprobe.shard-{k}-of-2.journal").exists()
+    proc = bake(blend, *ARGS, "--only-volume", "Left", "--merge-shards", "2")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "15 of 15 probes already baked, 0 to render" in proc.stdout
+    assert _sha(out / "Left.shprobe") == expected and _sha(out / "Right.shprobe") == right
