@@ -1,4 +1,6 @@
-"""Operators: Bake SH in Volumes (modal, one panorama per timer tick) and Bake SH at Cursor.
+"""Operators: Bake SH in Volumes (modal, one panorama per timer tick), Rebake Selected Volume (the
+same bake of the active probe volume alone, keeping the other volumes' files: region.py) and Bake SH
+at Cursor.
 
 Both drive a :class:`bake_core.ProbeBake`. In a UI session Bake SH in Volumes runs modally (progress
 bar, status bar text, Esc or Ctrl+C in the terminal cancels); without a window (``blender -b``)
@@ -48,6 +50,9 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
     allow_large: bpy.props.BoolProperty(
         name="Allow Large", default=False, options={'HIDDEN', 'SKIP_SAVE'},
         description="Bake even above Confirm Above (set by the confirmation dialog)")
+    only_volume: bpy.props.StringProperty(
+        name="Only Volume", default="", options={'HIDDEN', 'SKIP_SAVE'},
+        description="Bake this probe volume alone and keep the other volumes' files (Rebake Selected Volume)")
 
     @classmethod
     def poll(cls, context):
@@ -64,7 +69,7 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
     def execute(self, context):
         props = context.scene.schnee_probes
         bake = ProbeBake(context.scene, context.view_layer, BakeSettings.from_props(props),
-                         allow_large=self.allow_large)
+                         allow_large=self.allow_large, only_volume=self.only_volume or None)
         if context.window is None or bpy.app.background:
             return self._run_blocking(bake, props)
         try:
@@ -75,7 +80,8 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
             _record(props, message=str(exc))
             self.report({'WARNING'}, str(exc))
             bpy.ops.schnee.confirm_large_bake('INVOKE_DEFAULT', probes=exc.probes,
-                                              estimate=format_duration(exc.seconds), limit=exc.limit)
+                                              estimate=format_duration(exc.seconds), limit=exc.limit,
+                                              only_volume=self.only_volume)
             return {'CANCELLED'}
         except (BakeError, OSError) as exc:
             bake.cancel()
@@ -195,6 +201,7 @@ class SCHNEE_OT_confirm_large_bake(bpy.types.Operator):
     probes: bpy.props.IntProperty(name="Probes", options={'SKIP_SAVE'})
     estimate: bpy.props.StringProperty(name="Estimate", options={'SKIP_SAVE'})
     limit: bpy.props.IntProperty(name="Limit", options={'SKIP_SAVE'})
+    only_volume: bpy.props.StringProperty(name="Only Volume", options={'HIDDEN', 'SKIP_SAVE'})
 
     def invoke(self, context, event):
         return context.window_manager.invoke_props_dialog(self, width=420)
@@ -206,8 +213,28 @@ class SCHNEE_OT_confirm_large_bake(bpy.types.Operator):
         col.label(text="OK bakes them all; click outside to leave everything as it is.")
 
     def execute(self, context):
-        bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT', allow_large=True)
+        bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT', allow_large=True, only_volume=self.only_volume)
         return {'FINISHED'}
+
+
+class SCHNEE_OT_rebake_selected_volume(bpy.types.Operator):
+    """Bake the active probe volume again after an edit: only its own .shprobe is rewritten; every
+    other volume's file, the sky and the sun stay as the previous bake left them (needs One File
+    per Volume and a previous bake with the same settings)"""
+    bl_idname = "schnee.rebake_selected_volume"
+    bl_label = "Rebake Selected Volume"
+    bl_options = {'REGISTER'}
+
+    @classmethod
+    def poll(cls, context):
+        ob, scene = context.active_object, context.scene
+        if ob is None or scene is None or SCHNEE_OT_bake_sh_volumes._running:
+            return False
+        coll = bpy.data.collections.get(scene.schnee_probes.volume_collection)
+        return coll is not None and ob.name in coll.all_objects
+
+    def execute(self, context):
+        return bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT', only_volume=context.active_object.name)
 
 
 class SCHNEE_OT_bake_sh_cursor(bpy.types.Operator):
@@ -240,6 +267,7 @@ class SCHNEE_OT_bake_sh_cursor(bpy.types.Operator):
         return {'FINISHED'}
 
 
-classes = (SCHNEE_OT_bake_sh_volumes, SCHNEE_OT_confirm_large_bake, SCHNEE_OT_bake_sh_cursor)
+classes = (SCHNEE_OT_bake_sh_volumes, SCHNEE_OT_confirm_large_bake, SCHNEE_OT_rebake_selected_volume,
+           SCHNEE_OT_bake_sh_cursor)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

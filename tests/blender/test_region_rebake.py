@@ -16,7 +16,7 @@ import signal
 import numpy as np
 import pytest
 
-from conftest import requires_native
+from conftest import requires_native, run_blender
 from schnee_probes import journal, native
 from test_bake_hazards import SCRIPTS, TINY, Running, bake, last_error, scenes_made_by
 
@@ -158,3 +158,16 @@ def test_rebake_killed_resumes_and_shards_merge(scenes, previous, edited_full, t
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     assert "15 of 15 probes already baked, 0 to render" in proc.stdout
     assert _sha(out / "Left.shprobe") == expected and _sha(out / "Right.shprobe") == right
+
+
+def test_panel_button_rebakes_the_active_volume(scenes, previous, edited_full, tmp_path):
+    blend, out = _edited(scenes, previous, tmp_path)
+    right, sky = _sha(out / "Right.shprobe"), _sha(out / "sky.exr")
+    proc = run_blender(SCRIPTS / "region_operator.py", blend=blend, timeout=300)
+    r = json.loads([line for line in proc.stdout.splitlines() if line.startswith("RESULT ")][-1][7:])
+    assert r["label"] == "Rebake Selected Volume"
+    assert (r["poll_none"], r["poll_crate"], r["poll_left"]) == (False, False, True)
+    assert r["result"] == ["FINISHED"], r
+    assert r["files"] == ["Left.shprobe", "probes.shprobe.bake.json"] and r["message"].startswith("Baked 15 probes")
+    assert _sha(out / "Left.shprobe") == _sha(edited_full / "Left.shprobe")
+    assert _sha(out / "Right.shprobe") == right and _sha(out / "sky.exr") == sky
