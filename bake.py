@@ -125,6 +125,9 @@ def _parser(settings):
       help="rebake the probe volume NAME alone after an edit: write only sh_coeffs/NAME.shprobe and keep every "
            "other volume's file, the sky and the sun as the previous bake left them (needs One File per Volume "
            "and a previous bake with the same settings; docs/region-rebake.md)")
+    a("--region", type=float, nargs=6, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
+      help="with --only-volume: rebake only inside this box (Blender coordinates, two opposite corners); the "
+           "previous bake's points outside it are kept (docs/region-rebake.md)")
     a("--allow-large", action="store_true",
       help="bake even when the probe count is above --probe-limit (otherwise refused, exit 3)")
     a("--shard", type=_shard, metavar="K/N",
@@ -185,7 +188,7 @@ def _main():
     overrides = {k: v for k, v in vars(args).items()
                  if v is not None and k not in ("cursor", "scene", "quiet", "allow_large", "shard", "merge_shards",
                                                 "restart", "farm", "shards", "sbatch_option", "sbatch",
-                                                "only_volume")}
+                                                "only_volume", "region")}
     bake_settings = settings.BakeSettings.from_props(scene.schnee_probes, **overrides)
     if args.farm:
         _submit(args, bake_core, bake_settings)
@@ -194,7 +197,8 @@ def _main():
     bake = bake_core.ProbeBake(scene, view_layer, bake_settings, mode=mode, cursor=args.cursor,
                                log=(lambda line: None) if args.quiet else print,
                                allow_large=args.allow_large, shard=args.shard, merge_shards=args.merge_shards,
-                               restart=args.restart, only_volume=args.only_volume)
+                               restart=args.restart, only_volume=args.only_volume,
+                               region=args.region)
     last = [0.0]
 
     def progress(b):
@@ -239,6 +243,8 @@ def _check_combinations(parser, args):
     if args.cursor is not None and (args.shard is not None or args.merge_shards is not None):
         parser.error(f"--cursor cannot be combined with {'--shard' if args.shard else '--merge-shards'}: "
                      "farm shards bake volumes; Bake SH at Cursor is one probe, baked here")
+    if args.region is not None and args.only_volume is None:
+        parser.error("--region needs --only-volume NAME: the volume whose probes inside the box are baked again")
     if args.cursor is not None and args.only_volume is not None:
         parser.error("--cursor cannot be combined with --only-volume: Bake SH at Cursor bakes one probe, "
                      "--only-volume rebakes one probe volume")

@@ -2,9 +2,11 @@
 (scenes/make_default_scene.py) with its probe volume split into four quarters (Blender x < 0 / x > 0
 by y < 0 / y > 0, each 5 x 5 x 4 m, One File per Volume), baked whole; then the Table (in the
 quarter x < 0, y < 0) moved 0.5 m along +x inside its quarter, and the edited scene baked twice: whole
-(what one would do without a rebake) and ``--only-volume RoomSW`` beside the first bake's files.
-Reports wall seconds, CPU seconds (the Blender process and its threads) and renders of each, and
-checks that the rebake left the other three volumes' files and sky.exr byte for byte.
+(what one would do without a rebake), ``--only-volume RoomSW`` beside the first bake's files, and
+``--only-volume RoomSW --region`` a box around the Table's old and new places (REGION). Reports
+wall seconds, CPU seconds (the Blender process and its threads) and renders of each, checks that
+the rebakes left the other three volumes' files and sky.exr byte for byte, and counts RoomSW's
+probes outside the region whose coefficients are the previous bake's bits.
 
     /usr/bin/python3 bench/bench_region.py OUT_DIR [--bake-args "..."]
 
@@ -26,6 +28,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 QUARTERS = {"RoomSW": ((-5.0, -5.0, 0.0), (0.0, 0.0, 4.0)), "RoomSE": ((0.0, -5.0, 0.0), (5.0, 0.0, 4.0)),
             "RoomNW": ((-5.0, 0.0, 0.0), (0.0, 5.0, 4.0)), "RoomNE": ((0.0, 0.0, 0.0), (5.0, 5.0, 4.0))}
+# Blender coordinates: the Table's old (x -3..-1) and new (-2.5..-0.5) places, y -3..-2, z 0..1, with 0.5 m.
+REGION = ("-3.5", "-3.5", "0", "0", "-1.5", "1.5")
 PREVIEW = ("--placement ADAPTIVE --min-cell-size 1 --max-cell-size 4 --panorama-resolution 64 --samples 16 "
            "--max-bounces 6")
 
@@ -68,6 +72,26 @@ def _bake(blend, args):
     return dict(wall=round(wall, 2), cpu=round(cpu, 2), renders=renders, probes=probes), proc.stdout
 
 
+def _outside(prev, part):
+    """RoomSW's probes of the region rebake whose position lies outside REGION: how many, and how many
+    hold the previous bake's coefficient bits at the same position."""
+    sys.path.insert(0, os.path.join(REPO, "addon"))
+    import numpy as np
+    from schnee_probes import native
+    old, new = (native.read_shprobe(os.path.join(d, "sh_coeffs", "RoomSW.shprobe")) for d in (prev, part))
+    box = np.array([float(v) for v in REGION]).reshape(2, 3)
+    lo = np.array([box[0, 0], box[0, 2], -box[1, 1]])   # Blender (x, y, z) -> engine (x, z, -y)
+    hi = np.array([box[1, 0], box[1, 2], -box[0, 1]])
+    before = {tuple(p): c.tobytes() for p, c in zip(np.asarray(old.positions), np.asarray(old.coeffs))}
+    outside = same = 0
+    for p, c in zip(np.asarray(new.positions), np.asarray(new.coeffs)):
+        if np.all(p >= lo) and np.all(p <= hi):
+            continue
+        outside += 1
+        same += before.get(tuple(p)) == c.tobytes()
+    return dict(probes=int(len(new.positions)), outside=outside, outside_identical=same)
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("out")
@@ -78,32 +102,39 @@ def main():
     subprocess.run(["blender", "-b", "--factory-startup", "-P", os.path.abspath(__file__), "--", "--make", out],
                    check=True, capture_output=True)
     args = a.bake_args.split() + ["--per-volume-files", "on"]
-    prev, edit, full = (os.path.join(out, d) for d in ("previous", "rebake", "full"))
-    for d in (prev, edit, full):
+    prev, edit, full, part = (os.path.join(out, d) for d in ("previous", "rebake", "full", "region"))
+    for d in (prev, edit, full, part):
         shutil.rmtree(d, ignore_errors=True)
         os.makedirs(d)
     shutil.copy(os.path.join(out, "room4.blend"), prev)
     first, _ = _bake(os.path.join(prev, "room4.blend"), args)
-    shutil.copytree(os.path.join(prev, "sh_coeffs"), os.path.join(edit, "sh_coeffs"))
-    for d in (edit, full):
+    for d in (edit, part):
+        shutil.copytree(os.path.join(prev, "sh_coeffs"), os.path.join(d, "sh_coeffs"))
+    for d in (edit, full, part):
         shutil.copy(os.path.join(out, "room4_edited.blend"), d)
     whole, _ = _bake(os.path.join(full, "room4_edited.blend"), args)
-    rebake, log = _bake(os.path.join(edit, "room4_edited.blend"), args + ["--only-volume", "RoomSW"])
+    rebake, _ = _bake(os.path.join(edit, "room4_edited.blend"), args + ["--only-volume", "RoomSW"])
+    region, _ = _bake(os.path.join(part, "room4_edited.blend"), args + ["--only-volume", "RoomSW", "--region", *REGION])
     kept = sorted(n for n in os.listdir(os.path.join(prev, "sh_coeffs"))
                   if n not in ("RoomSW.shprobe", "probes.shprobe.bake.json"))
-    same = {n: _sha(os.path.join(prev, "sh_coeffs", n)) == _sha(os.path.join(edit, "sh_coeffs", n)) for n in kept}
+    same = {f"{d}/{n}": _sha(os.path.join(prev, "sh_coeffs", n)) == _sha(os.path.join(out, d, "sh_coeffs", n))
+            for n in kept for d in ("rebake", "region")}
     rebaked_equal = _sha(os.path.join(full, "sh_coeffs", "RoomSW.shprobe")) == \
         _sha(os.path.join(edit, "sh_coeffs", "RoomSW.shprobe"))
-    result = dict(bake_args=a.bake_args, first_full=first, full=whole, rebake=rebake, kept_identical=same,
-                  rebaked_equals_full=rebaked_equal, load=os.getloadavg(),
-                  ratio={k: round(rebake[k] / whole[k], 3) for k in ("wall", "cpu", "renders")})
+    result = dict(bake_args=a.bake_args, first_full=first, full=whole, rebake=rebake, region=region,
+                  region_box=REGION, kept_identical=same, rebaked_equals_full=rebaked_equal,
+                  region_probes=_outside(prev, part), load=os.getloadavg(),
+                  ratio={k: round(rebake[k] / whole[k], 3) for k in ("wall", "cpu", "renders")},
+                  ratio_region={k: round(region[k] / whole[k], 3) for k in ("wall", "cpu", "renders")})
     with open(os.path.join(out, "region.json"), "w") as fh:
         json.dump(result, fh, indent=2)
     print("| bake | probes | renders | wall s | CPU s |\n|---|---|---|---|---|")
-    for name, r in (("full, before the edit", first), ("full, edited", whole), ("rebake RoomSW, edited", rebake)):
+    for name, r in (("full, before the edit", first), ("full, edited", whole), ("rebake RoomSW, edited", rebake),
+                    ("rebake RoomSW --region, edited", region)):
         print(f"| {name} | {r['probes']} | {r['renders']} | {r['wall']} | {r['cpu']} |")
-    print(f"\nratio rebake / full: {result['ratio']}; kept files byte-identical: {same}; "
-          f"RoomSW rebaked = RoomSW of the full edited bake: {rebaked_equal}")
+    print(f"\nratio rebake / full: {result['ratio']}; region / full: {result['ratio_region']}; kept files "
+          f"byte-identical: {same}; RoomSW rebaked = RoomSW of the full edited bake: {rebaked_equal}; RoomSW's "
+          f"probes outside the region: {result['region_probes']}")
 
 
 if __name__ == "__main__":

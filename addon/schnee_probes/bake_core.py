@@ -49,7 +49,8 @@ from typing import List, Optional, Sequence, Tuple
 import bpy
 import numpy as np
 
-from . import bake_sky, direct_light, fingerprint, journal, native, region, render_settings
+from . import bake_sky, direct_light, fingerprint, journal, native, render_settings
+from . import region as rebake_region
 from .adaptive import DEFAULT_POLICY, Policy
 # The parts, and the names scripts import from bake_core (re-exported).
 from .bake_checks import (BakeCancelled, BakeTooLarge, check_finite_emission, check_panorama_size,  # noqa: F401
@@ -90,13 +91,16 @@ class ProbeBake:
     ``cursor`` = Blender-space position) or "POINTS" (``points``, engine space, nothing written).
     ``log`` receives human-readable lines. ``shard`` = (k, n) / ``merge_shards`` = n: farm bakes
     (bake_points.py); ``policy``: the Adaptive refinement's adaptive.Policy; ``only_volume``: bake
-    that volume alone and keep the other volumes' files (region.py). The parts are public:
+    that volume alone and keep the other volumes' files, ``region``: and only inside this Blender-space
+    box (x0, y0, z0, x1, y1, z1), keeping the previous bake's points outside it (region.py). The parts
+    are public:
     ``plan`` (Adaptive: ``plan.cache``, ``plan.groups``), ``session``, ``store``, ``direct``."""
 
     def __init__(self, scene, view_layer, settings: BakeSettings, mode: str = "VOLUMES",
                  cursor: Optional[Sequence[float]] = None, log=print, allow_large=False, points=None,
                  shard: Optional[Tuple[int, int]] = None, merge_shards: Optional[int] = None,
-                 restart: bool = False, policy: Policy = DEFAULT_POLICY, only_volume: Optional[str] = None):
+                 restart: bool = False, policy: Policy = DEFAULT_POLICY, only_volume: Optional[str] = None,
+                 region: Optional[Sequence[float]] = None):
         if mode not in ("VOLUMES", "CURSOR", "POINTS"):
             raise ValueError(f"unknown bake mode {mode!r}")
         if mode == "CURSOR" and cursor is None:
@@ -120,9 +124,11 @@ class ProbeBake:
         else:
             self.plan = UniformPlan(settings)
         # Region rebake (region.py): one volume's file, its journal beside it, no sky.
-        self.rebake = None if only_volume is None or mode != "VOLUMES" else region.VolumeRebake(only_volume)
+        self.rebake = (rebake_region.VolumeRebake(only_volume, region)
+                       if only_volume is not None and mode == "VOLUMES" else None)
         self.plan.rebake = self.rebake
         self._scene_parts = None            # the fingerprint's parts, for the bake record
+        self._manifest = None               # the journal's manifest, for the kept points
         self.timings = {"placement": 0.0, "render": 0.0, "write_exr": 0.0, "project": 0.0}
         self.messages: List[str] = []
         self.session = RenderSession(scene, view_layer, settings, self.timings, log)
@@ -227,9 +233,11 @@ class ProbeBake:
     def _open_store(self):
         self._scene_parts = fingerprint.parts(self.scene, self.view_layer, self.settings)
         manifest = journal.make_manifest(self._scene_parts, scene=self.scene.name, blend=bpy.data.filepath)
-        if self.rebake is not None:
-            self.messages.extend(self.rebake.scene_notes(self._scene_parts))
+        self._manifest = manifest
         self.store.open(manifest, native.sh_count(self.settings.max_band))
+        if self.rebake is not None:  # after the journal's own points, which win
+            self.messages.extend(self.rebake.scene_notes(self._scene_parts))
+            self.rebake.seed(self.store, abspath(self.settings.output_path), manifest, self.log)
         self.store.log_resume([journal.key_of(self.positions[i]) for i in self._todo], self.adaptive)
 
     def bake_positions(self, positions):
@@ -356,10 +364,12 @@ class ProbeBake:
         if self._writes_sky:
             more, stale = bake_sky.outputs(self.session, self.direct, self._sky_exr, os.path.dirname(main))
             outputs += more
-        if self.plan.volumes and self.settings.per_volume_files:  # last: the files it describes first
-            outputs.append(region.record_output(main, self.settings, self._scene_parts,
-                                                [t.name for t in self.plan.targets],
-                                                None if self.rebake is None else self.rebake.record))
+        if self.plan.volumes and self.settings.per_volume_files:  # last: the files they describe first
+            outputs.append(rebake_region.points_output(main, self._manifest, native.sh_count(self.settings.max_band),
+                                                       self.store))
+            outputs.append(rebake_region.record_output(main, self.settings, self._scene_parts,
+                                                       [t.name for t in self.plan.targets],
+                                                       None if self.rebake is None else self.rebake.record))
         return write_all(outputs, stale, self.log)
 
     @property

@@ -21,6 +21,7 @@ import numpy as np
 
 from . import journal, native, scene_export
 from .file_names import temporary
+from .region import RECORD_MAGIC
 from .safe_open import file_kind
 from .settings import BakeError
 
@@ -33,10 +34,6 @@ SKY_FILE_NAME = "sky.exr"
 SUN_FILE_NAME = "sun.json"
 SUN_FORMAT = "schnee-sky-sun"
 SUN_MAGIC = b'{\n  "format": "schnee-sky-sun"'
-# The bake record beside the files of a bake with One File per Volume (region.py): what a rebake of
-# one volume checks; it starts with RECORD_MAGIC (json.dumps, indent 2, "format" first).
-RECORD_FORMAT = "schnee-bake-record"
-RECORD_MAGIC = b'{\n  "format": "schnee-bake-record"'
 DEBUG_TEXT_NAME = "debug_probe.txt"
 # Where Bake SH at Cursor puts its single-probe file when probes.shprobe holds a full bake:
 # a subfolder, so the glTF exporter (which scans sh_coeffs/*.shprobe) never exports it.

@@ -236,6 +236,7 @@ class _VolumePlan(PlacementPlan):
             check_replaceable(path, "shprobe")
         if s.per_volume_files:
             check_replaceable(region.record_path(main_path), "record")
+            check_replaceable(region.points_path(main_path), "journal")
         if s.capture_sky and self.rebake is None:
             check_replaceable(os.path.join(os.path.dirname(main_path), SKY_FILE_NAME), "exr")
         if self.rebake is None:  # written (Sky Sun "mixed" and a sun) or removed (else: a stale sun would be added twice)

@@ -77,6 +77,7 @@ class PointStore:
         self._known = {}                    # journal key -> coefficients, from journals at open
         self._known_noise = {}
         self._kept = 0                      # points in the journal when it was closed
+        self._seeded = 0                    # points of an earlier bake taken by seed()
 
     @property
     def merging(self) -> bool:
@@ -171,6 +172,8 @@ class PointStore:
         if not self._known:
             return
         where = self.path if self.merge_shards is None else "the journals"
+        if self._seeded:
+            where += " and the previous bake's kept points"
         hits = sum(key in self._known for key in keys)
         more = f" in the first pass ({len(self._known)} points in the journals)" if adaptive else ""
         self.log(f"Schnee: resuming from {where}: {hits} of {len(keys)} probes already baked, "
@@ -182,6 +185,25 @@ class PointStore:
         return BakeError(f"Cannot merge: the point at Blender ({where[0]:.3f}, {where[1]:.3f}, "
                          f"{where[2]:.3f}) is in no shard journal (shards still running or failed); "
                          "re-run the incomplete shards, then merge again")
+
+    def seed(self, values: dict, noise: dict) -> int:
+        """Take points of an earlier bake as if rendered (region.py: a rebake's kept points outside
+        its region); the journals' own points win. Returns how many were taken."""
+        taken = 0
+        for key, v in values.items():
+            if key not in self._known:
+                self._known[key], self._known_noise[key] = v, noise.get(key, 0.0)
+                taken += 1
+        self._seeded += taken
+        return taken
+
+    def points(self):
+        """(values, noise) of every point this bake holds: journals, seeds and renders."""
+        values, noise = dict(self._known), dict(self._known_noise)
+        if self._writer is not None:
+            values.update(self._writer.values)
+            noise.update(self._writer.noise)
+        return values, noise
 
     def lookup(self, key: bytes):
         """(coeffs, noise) of a point the journals held at open, or None."""

@@ -189,9 +189,7 @@ class Writer:
         if self._fd < 0:
             _create(self.path, self._manifest, self.coeff_count, self._shard)
             self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CLOEXEC | os.O_NOFOLLOW)
-        c = np.ascontiguousarray(coeffs, dtype="<f8").reshape(self.coeff_count, CHANNELS)
-        body = key + c.tobytes() + struct.pack("<d", float(noise))
-        rec = body + struct.pack("<I", zlib.crc32(body))
+        c, rec = _record(key, coeffs, noise, self.coeff_count)
         n = os.write(self._fd, rec)
         if n != len(rec):  # a short write (disk full): cut it off so the file stays well formed
             size = os.fstat(self._fd).st_size
@@ -213,19 +211,42 @@ class Writer:
         self.close()
 
 
-def _create(path: str, manifest: dict, coeff_count: int, shard) -> None:
+def _record(key: bytes, coeffs, noise: float, coeff_count: int):
+    """(the coefficients as float64, the record's bytes with its CRC)."""
+    c = np.ascontiguousarray(coeffs, dtype="<f8").reshape(coeff_count, CHANNELS)
+    body = key + c.tobytes() + struct.pack("<d", float(noise))
+    return c, body + struct.pack("<I", zlib.crc32(body))
+
+
+def _head(path: str, manifest: dict, coeff_count: int, shard) -> bytes:
     raw = json.dumps(manifest, sort_keys=True).encode()
     if len(raw) > MAX_MANIFEST_BYTES:
         raise JournalError(f"{path}: the manifest is {len(raw)} bytes, above {MAX_MANIFEST_BYTES}")
     k, n = shard if shard else (0, 0)
-    head = HEADER.pack(MAGIC, VERSION, coeff_count, CHANNELS, k, n, len(raw), bytes.fromhex(manifest["fingerprint"]))
+    return HEADER.pack(MAGIC, VERSION, coeff_count, CHANNELS, k, n, len(raw),
+                       bytes.fromhex(manifest["fingerprint"])) + raw
+
+
+def write_whole(path: str, manifest: dict, coeff_count: int, values: Dict[bytes, np.ndarray],
+                noise: Dict[bytes, float]) -> None:
+    """A complete journal of ``values`` in one write (keys in sorted order), to ``path`` (the
+    caller's temporary name: bake_outputs.write_all renames it): region.py's kept points."""
+    recs = b"".join(_record(k, values[k], noise.get(k, 0.0), coeff_count)[1] for k in sorted(values))
+    with open(path, "wb") as fh:
+        fh.write(_head(path, manifest, coeff_count, None) + recs)
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def _create(path: str, manifest: dict, coeff_count: int, shard) -> None:
+    head = _head(path, manifest, coeff_count, shard)
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     # Hidden, beside the journal, at most 255 bytes even for the longest legal output name.
     tmp = temporary(os.path.join(folder, "." + os.path.basename(path)))
     fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644)
     try:
-        os.write(fd, head + raw)
+        os.write(fd, head)
         os.fsync(fd)
     finally:
         os.close(fd)

@@ -17,7 +17,8 @@ refuses when there is no previous bake to keep (no record, or another volume's f
 the previous bake had other settings (naming each one that differs) and when the name is no volume
 of the collection; it journals beside the volume's own file (``Kitchen.shprobe.journal``, shards
 ``Kitchen.shprobe.shard-K-of-N.journal``), writes that file and the updated record, and leaves the
-sky, the sun and every other file as they were. Plain Python apart from the record's Output.
+sky, the sun and every other file as they were. Plain Python (no Blender: bake_outputs, which
+imports bpy, only inside the two functions that make an Output), so tests/python runs it.
 """
 from __future__ import annotations
 
@@ -27,12 +28,24 @@ import re
 from dataclasses import asdict
 from typing import Dict, List, Optional
 
-from .bake_outputs import RECORD_FORMAT, text_output
+import numpy as np
+
+from . import journal, scene_export
 from .file_names import sibling
 from .safe_open import RefusedFile, open_regular
 from .settings import BakeError
 
 RECORD_SUFFIX = ".bake.json"
+# The record starts with RECORD_MAGIC (json.dumps, indent 2, "format" first): how
+# bake_outputs.check_replaceable recognises one of ours.
+RECORD_FORMAT = "schnee-bake-record"
+RECORD_MAGIC = b'{\n  "format": "schnee-bake-record"'
+# Every point of the last bake (journal format, docs/farm.md "Journal file"): what a rebake keeps
+# outside its region.
+POINTS_SUFFIX = ".points"
+# A rebake of a whole volume drops the kept points within this margin of its bounds too (points on
+# its faces are rendered 1 cm inside, nodes in solids move up to 5 cm).
+VOLUME_MARGIN = 0.1
 RECORD_VERSION = 1
 # Fingerprint parts that describe the scene (the rest, "settings", is compared value by value).
 SCENE_PARTS = ("geometry", "materials", "lights", "world", "render")
@@ -60,6 +73,21 @@ def record_path(main_output: str) -> str:
     return sibling(main_output, RECORD_SUFFIX)
 
 
+def points_path(main_output: str) -> str:
+    """The kept points beside ``main_output``."""
+    return sibling(main_output, POINTS_SUFFIX)
+
+
+def points_output(main_output: str, manifest: dict, coeff_count: int, store):
+    """The kept points (every point ``store``, a bake_points.PointStore, holds), written whole: a
+    bake_outputs.Output."""
+    from .bake_outputs import Output
+
+    def write(tmp):
+        journal.write_whole(tmp, manifest, coeff_count, *store.points())
+    return Output(points_path(main_output), "journal", write)
+
+
 def settings_values(settings) -> Dict[str, object]:
     """The settings a record compares: every one but those of :data:`_FREE`."""
     return {k: v for k, v in asdict(settings).items() if k not in _FREE}
@@ -81,6 +109,18 @@ def read_record(path: str) -> Optional[dict]:
     return record
 
 
+def kept_outside(values: dict, box) -> dict:
+    """The points of ``values`` (journal key -> coefficients) whose position lies outside ``box``
+    ((lo, hi), engine space, closed): what a rebake keeps."""
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in box)
+    out = {}
+    for key, v in values.items():
+        p = np.array(journal.KEY.unpack(key)[:3])
+        if np.any(p < lo) or np.any(p > hi):
+            out[key] = v
+    return out
+
+
 def _differences(before: dict, now: dict) -> List[str]:
     out = []
     for k in sorted(set(before) | set(now)):
@@ -95,6 +135,7 @@ def record_output(main_output: str, settings, scene: Dict[str, str], names: List
     """The bake record (bake_outputs.Output) after a bake of the volumes ``names`` with
     ``settings`` in a scene of fingerprint parts ``scene``; ``previous``: the record a rebake keeps
     the other volumes' entries of."""
+    from .bake_outputs import text_output
     volumes = dict(previous["volumes"]) if previous else {}
     part = {k: scene[k] for k in SCENE_PARTS if k in scene}
     for name in names:
@@ -109,9 +150,13 @@ class VolumeRebake:
     """Bake the volume ``name`` again, keeping the other volumes' files (module docstring).
     ``record`` is the previous bake's, once :meth:`select` has checked it."""
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, box=None):
         self.name = name
         self.record: Optional[dict] = None
+        # The region, engine space (lo, hi): ``box`` (Blender space, x0 y0 z0 x1 y1 z1) within the
+        # volume's bounds, else the bounds with VOLUME_MARGIN; set by select().
+        self.box = None if box is None else np.asarray(box, dtype=np.float64).reshape(2, 3)
+        self.region = None
 
     def output(self, main_output: str) -> str:
         """The file this rebake writes (its journal and shards are named after it)."""
@@ -147,7 +192,44 @@ class VolumeRebake:
                 raise BakeError(f"No previous bake to keep for volume '{name}': {file} is missing; bake every "
                                 f"volume once, then rebake '{self.name}'")
         self.record = record
-        return [g for g in groups if g[0] == self.name]
+        group = [g for g in groups if g[0] == self.name]
+        self.region = self._region(group[0][2])
+        return group
+
+    def _region(self, volumes):
+        """The region in engine space: the box within the volume's bounds, or the bounds."""
+        verts = np.concatenate([np.asarray(v[1], dtype=np.float64).reshape(-1, 3) for v in volumes])
+        lo, hi = verts.min(axis=0), verts.max(axis=0)
+        if self.box is None:
+            return lo - VOLUME_MARGIN, hi + VOLUME_MARGIN
+        corners = scene_export.blender_to_engine(np.sort(self.box, axis=0))
+        blo, bhi = corners.min(axis=0), corners.max(axis=0)
+        if np.any(np.maximum(blo, lo) > np.minimum(bhi, hi)):
+            a, b = (scene_export.engine_to_blender(c) for c in (lo, hi))
+            bounds = " .. ".join("(" + ", ".join(f"{x:g}" for x in c) + ")" for c in (np.minimum(a, b), np.maximum(a, b)))
+            raise BakeError(f"The region lies outside volume '{self.name}' (its bounds, Blender coordinates: "
+                            f"{bounds}); give a box that meets the volume")
+        return np.maximum(blo, lo), np.minimum(bhi, hi)
+
+    def seed(self, store, main_output: str, manifest: dict, log) -> None:
+        """Give ``store`` the previous bake's points outside the region (they stand for renders);
+        BakeError when a box is given and no points were kept, or they are of other settings."""
+        path = points_path(main_output)
+        if not os.path.lexists(path):
+            if self.box is not None:
+                raise BakeError(f"No previous bake to keep: {path} is missing (the points a bake with One File "
+                                "per Volume keeps); bake every volume once, then rebake a region")
+            return
+        try:
+            kept = journal.read(path)
+        except journal.JournalError as exc:
+            raise BakeError(f"Cannot read the previous bake's points: {exc}; bake every volume again") from None
+        if kept.manifest.get("parts", {}).get("settings") != manifest["parts"]["settings"]:
+            raise BakeError(f"{path} was baked with other settings; bake every volume again")
+        values = kept_outside(kept.values, self.region)
+        taken = store.seed(values, kept.noise)
+        log(f"Schnee: rebake of '{self.name}': {taken} point(s) of the previous bake kept outside the region, "
+            f"{len(kept.values) - len(values)} inside it baked again")
 
     def scene_notes(self, scene: Dict[str, str]) -> List[str]:
         """What changed in the scene since the kept volumes were baked, beyond geometry: each of them

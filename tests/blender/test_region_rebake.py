@@ -12,6 +12,7 @@ import json
 import re
 import shutil
 import signal
+import time
 
 import numpy as np
 import pytest
@@ -81,8 +82,8 @@ def test_rebake_renders_one_volume_and_keeps_the_others(scenes, previous, edited
     # Left's probes only: 16 cells of 1 m, one inside the crate (the full bake rendered 32).
     assert len(log.read_text().splitlines()) == 15
     assert "bake.py: 15 probes in" in stdout
-    assert sorted(re.findall(r"bake\.py: wrote (\S+)", stdout)) == [str(out / "Left.shprobe"),
-                                                                     str(out / "probes.shprobe.bake.json")]
+    assert sorted(re.findall(r"bake\.py: wrote (\S+)", stdout)) == [
+        str(out / n) for n in ("Left.shprobe", "probes.shprobe.bake.json", "probes.shprobe.points")]
     # Right and the sky: the previous bake's bytes; Left: the full bake of the edited scene's bytes.
     assert _sha(out / "Right.shprobe") == kept["Right.shprobe"]
     assert _sha(out / "sky.exr") == kept["sky.exr"]
@@ -139,14 +140,20 @@ def test_rebake_killed_resumes_and_shards_merge(scenes, previous, edited_full, t
     right = _sha(out / "Right.shprobe")
     run = Running(blend, [*ARGS, "--only-volume", "Left"], {}, pre=SCRIPTS / "slow_render.py")
     path = out / "Left.shprobe.journal"
-    run.wait_for("probe 4/")
+    end = time.monotonic() + 240
+    while time.monotonic() < end and run.proc.poll() is None:   # killed once 3 probes are journaled
+        info = journal.summary(str(path))
+        if info and info["records"] >= 3:
+            break
+        time.sleep(0.01)
     run.proc.send_signal(signal.SIGKILL)
     run.finish()
     kept = len(journal.read(str(path)).values)
     assert 3 <= kept < 15
     proc = bake(blend, *ARGS, "--only-volume", "Left")
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
-    assert f"resuming from {path}: {kept} of 15 probes already baked, {15 - kept} to render" in proc.stdout
+    assert f"resuming from {path} and the previous bake's kept points: {kept} of 15 probes already baked, " \
+           f"{15 - kept} to render" in proc.stdout
     assert _sha(out / "Left.shprobe") == expected and _sha(out / "Right.shprobe") == right
     # Two shards and their merge, beside Left's file.
     blend, out = _edited(scenes, previous, tmp_path / "shards")
@@ -168,6 +175,61 @@ def test_panel_button_rebakes_the_active_volume(scenes, previous, edited_full, t
     assert r["label"] == "Rebake Selected Volume"
     assert (r["poll_none"], r["poll_crate"], r["poll_left"]) == (False, False, True)
     assert r["result"] == ["FINISHED"], r
-    assert r["files"] == ["Left.shprobe", "probes.shprobe.bake.json"] and r["message"].startswith("Baked 15 probes")
+    assert r["files"] == ["Left.shprobe", "probes.shprobe.bake.json", "probes.shprobe.points"] and r["message"].startswith("Baked 15 probes")
     assert _sha(out / "Left.shprobe") == _sha(edited_full / "Left.shprobe")
     assert _sha(out / "Right.shprobe") == right and _sha(out / "sky.exr") == sky
+
+
+# The crate's corner of Left with a margin (Blender coordinates): the probe centres (-1.5|-0.5,
+# -1.5|-0.5, 0.5) lie inside, (-1.5, -1.5, 0.5) within the crate itself (pruned).
+REGION = ["-1.8", "-1.8", "0", "-0.2", "-0.2", "1"]
+
+
+def _by_cell(path):
+    """{engine-space cell centre (rounded to 1 mm): coefficient bytes} of a dense-grid file."""
+    f = native.read_shprobe(str(path))
+    dims, origin, h = f.grid_dims, np.asarray(f.grid_origin), f.grid_spacing
+    out = {}
+    for flat, probe in enumerate(np.asarray(f.grid)):
+        if probe >= 0:
+            ijk = np.array([flat % dims[0], flat // dims[0] % dims[1], flat // (dims[0] * dims[1])])
+            out[tuple(np.round(origin + (ijk + 0.5) * h, 3))] = np.asarray(f.coeffs[probe]).tobytes()
+    return out
+
+
+def test_region_inside_a_volume_keeps_the_probes_outside(scenes, previous, edited_full, tmp_path):
+    blend, out = _edited(scenes, previous, tmp_path)
+    right = _sha(out / "Right.shprobe")
+    log = tmp_path / "renders.log"
+    run = Running(blend, [*ARGS, "--only-volume", "Left", "--region", *REGION], {"SCHNEE_TEST_RENDER_LOG": str(log)},
+                  pre=SCRIPTS / "count_renders.py")
+    rc, stdout, stderr = run.finish()
+    assert rc == 0, stdout[-2000:] + stderr[-2000:]
+    assert len(log.read_text().splitlines()) == 3   # the region's probes outside the crate, nothing else
+    assert "rebake of 'Left': 28 point(s) of the previous bake kept outside the region, 4 inside it baked again" \
+        in stdout   # the 4th inside: the one in the crate, pruned now
+    assert "kept points: 12 of 15 probes already baked, 3 to render" in stdout
+    new, old, full = (_by_cell(d / "Left.shprobe") for d in (out, previous, edited_full))
+    assert set(new) == set(full) and len(new) == 16  # the crate's cell maps to a neighbour's probe
+    lo, hi = np.array([-1.8, 0.0, 0.2]), np.array([-0.2, 1.0, 1.8])   # REGION in engine space (x, z, -y)
+    inside = [c for c in new if np.all(np.array(c) >= lo) and np.all(np.array(c) <= hi)]
+    assert len(inside) == 4
+    for c in new:  # outside: the previous bake's bits; inside: the edited scene's
+        assert new[c] == (full[c] if c in inside else old[c])
+    assert _sha(out / "Right.shprobe") == right
+    # The kept points: the 28 outside the region and the region's 3 new ones (the crate's is gone).
+    assert len(journal.read(str(out / "probes.shprobe.points")).values) == 31
+
+
+def test_region_refusals(scenes, previous, tmp_path):
+    blend, out = _edited(scenes, previous, tmp_path)
+    proc = bake(blend, *ARGS, "--only-volume", "Left", "--region", "1", "1", "0.5", "1.5", "1.5", "1")
+    assert proc.returncode == 3 and "Traceback" not in proc.stderr
+    assert last_error(proc) == ("bake.py: error: The region lies outside volume 'Left' (its bounds, Blender "
+                                "coordinates: (-2, -2, 0) .. (0, 2, 2)); give a box that meets the volume")
+    proc = bake(blend, *ARGS, "--region", *REGION)
+    assert proc.returncode == 2 and "--region needs --only-volume NAME" in proc.stderr
+    (out / "probes.shprobe.points").unlink()
+    proc = bake(blend, *ARGS, "--only-volume", "Left", "--region", *REGION)
+    assert proc.returncode == 3 and "Traceback" not in proc.stderr
+    assert "No previous bake to keep" in last_error(proc) and "probes.shprobe.points is missing" in last_error(proc)
