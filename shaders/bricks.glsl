@@ -7,7 +7,24 @@
 // (back faces, visibility records) are in bricks_surface.glsl.
 #ifndef SV_BRICKS_GLSL
 #define SV_BRICKS_GLSL
+#extension GL_EXT_control_flow_attributes : require // [[unroll]]
 #include "sh.glsl"
+
+// The most channel groups of a texel: ceil((3 * 25 + 1) / 4) = 19 (L4).
+#define SV_BRICK_GROUPS_MAX 19u
+
+// s += the SH channels of group g >= 1 of a texel t (channel 4g + j = N_i colour k, i = 1 + (4g + j - 4) / 3),
+// weighted by AY. The callers loop over g with the constant bound SV_BRICK_GROUPS_MAX and break at the file's
+// group count, so the compiler unrolls both loops and every index into AY and s is a constant: AY stays in
+// registers. With the loop bound the file's count, AY[i] and s[c % 3] were dynamically indexed, which puts
+// them in local memory on GPUs (as the probe buffers' copies were: bench/results/engine_gpu.md).
+void brick_group_add(uint g, vec4 t, uint C, float AY[25], inout vec3 s)
+{
+    [[unroll]] for (uint j = 0u; j < 4u; ++j) {
+        uint c = 4u * g + j - 4u, i = 1u + c / 3u;
+        if (i < C) s[c % 3u] += AY[i] * t[j];
+    }
+}
 
 // The indirection entry of the level-0 region holding min cell q of grid gr (grids along z).
 uvec4 brick_entry(sv_gpu_grid gr, uvec3 q)
@@ -134,12 +151,9 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
         D = t0.w;                           // N / D of the tap = sum w (N, D) / sum w (N, D): sw cancels
         if (!(sw * D > 1e-6)) return false; // 5. sum w <= 1e-6: the caller's home-cell fallback
         s = AY[0] * t0.rgb;
-        for (uint g = 1u; g < groups; ++g) {
-            vec4 tg = textureLod(brick_pool, tc + vec3(0.0, 0.0, float(g) * slab), 0.0);
-            for (uint j = 0u; j < 4u; ++j) { // channel 4g + j = N_i colour k, i = 1 + (4g + j - 4) / 3
-                uint ch = 4u * g + j - 4u, i = 1u + ch / 3u;
-                if (i < C) s[ch % 3u] += AY[i] * tg[j];
-            }
+        [[unroll]] for (uint g = 1u; g < SV_BRICK_GROUPS_MAX; ++g) {
+            if (g >= groups) break;
+            brick_group_add(g, textureLod(brick_pool, tc + vec3(0.0, 0.0, float(g) * slab), 0.0), C, AY, s);
         }
     } else {
         // The rule's weights exactly: sum_k w_k (N, D)_k = (sum w v s c, sum w v).
@@ -152,17 +166,15 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
         D = a0.w;
         if (!(D > 1e-6)) return false; // 5. sum w <= 1e-6: the caller's home-cell fallback
         s = AY[0] * a0.rgb;
-        for (uint g = 1u; g < groups; ++g) {
+        [[unroll]] for (uint g = 1u; g < SV_BRICK_GROUPS_MAX; ++g) {
+            if (g >= groups) break;
             vec4 tg = vec4(0.0);
             for (int k = 0; k < 8; ++k) {
                 if (w[k] <= 0.0) continue;
                 tg += w[k] *
                       grid_tex_fetch(gr, clamp(i0 + ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1), ivec3(0), dims - 1), g);
             }
-            for (uint j = 0u; j < 4u; ++j) {
-                uint ch = 4u * g + j - 4u, i = 1u + ch / 3u;
-                if (i < C) s[ch % 3u] += AY[i] * tg[j];
-            }
+            brick_group_add(g, tg, C, AY, s);
         }
     }
     e_out = s / D; // 5. renormalised: sum w v s E / sum w v

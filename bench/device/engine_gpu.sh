@@ -12,6 +12,8 @@ FRAMES=${FRAMES:-60}
 ROUNDS=${ROUNDS:-2}
 mkdir -p "$OUT"
 LOG=$OUT/engine_gpu.log
+# prep_engine_gpu.py packs the libraries (lib.tar.xz: the tree and DIR must travel within 64 MiB).
+[ -d "$DIR/lib" ] || tar xJf "$DIR/lib.tar.xz" -C "$DIR"
 export LD_LIBRARY_PATH=$PWD/$DIR/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
 for f in /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json /usr/share/vulkan/icd.d/nvidia_icd.json \
          /etc/vulkan/icd.d/nvidia_icd.json; do
@@ -31,7 +33,7 @@ run() { # tag scene args...
     local err
     err=$("$VIEW" "$scene" --headless --output "$OUT/t.pfm" --frames "$FRAMES" "$@" 2>&1 >/dev/null)
     local rc=$?
-    echo "$err" | grep -E "device |frame\(s\) at|GPU time|warning|error" | sed "s|^|$tag rc=$rc: |" >>"$LOG"
+    echo "$err" | grep -E "device |frame\(s\) at|GPU time|probe brick|warning|error" | sed "s|^|$tag rc=$rc: |" >>"$LOG"
 }
 
 HD="--width 1920 --height 1080"
@@ -39,6 +41,39 @@ HD="--width 1920 --height 1080"
 # configurations too, interleaved with the current build on the same machine.
 BINS="$VIEW"
 [ -x "$VIEW.old" ] && BINS="$VIEW.old $VIEW"
+# SET=bricks: issue 30's table (bench_engine_v3.py --bricks-table's four configurations, --no-direct) on the
+# generated room's v1 grid, its v3 octree and the bundled room (scenes/bundled/scene.gltf), plus the raster
+# floor as --debug normals, the brick lookup's parts as --debug brick-level / brick-validity; then the
+# bundled room per pixel (bricks) at FRAME_ARGS for the comparison.
+if [ "${SET:-shader}" = bricks ]; then
+    for r in $(seq "$ROUNDS"); do
+        for b in $BINS; do
+            VIEW=$b
+            v=new
+            [ "${b%.old}" != "$b" ] && v=old
+            for sc in room room_v3 bundled/scene; do
+                # The bundled room's sky is an EXR, which the viewer without OpenImageIO cannot read.
+                nosky=
+                [ "$sc" = bundled/scene ] && nosky=--no-sky
+                for cfg in "object buffers" "pixel bricks" "pixel buffers" "off buffers"; do
+                    set -- $cfg
+                    run "r$r $v $sc $1-$2" "$S/$sc.gltf" $HD --no-direct $nosky --probe-mode "$1" --probe-path "$2"
+                done
+                run "r$r $v $sc debug-normals" "$S/$sc.gltf" $HD --no-direct $nosky --debug normals
+                # The brick lookup's parts: the indirection alone (brick-level), + the sample's D (brick-validity).
+                for dbg in brick-level brick-validity; do
+                    run "r$r $v $sc debug-$dbg" "$S/$sc.gltf" $HD --no-direct $nosky --probe-path bricks --debug $dbg
+                done
+            done
+        done
+    done
+    VIEW=$DIR/bin/schnee-view-noimage
+    "$VIEW" "$S/bundled/scene.gltf" --headless --output "$OUT/frame_bundled.pfm" --width 640 --height 360 \
+        --probe-mode pixel --probe-path bricks --no-sky >>"$LOG" 2>&1
+    rm -f "$OUT/t.pfm"
+    cat "$LOG"
+    exit 0
+fi
 # SET=repr: the probe representations instead (bench_engine_representations.py's configurations on the
 # v1 grid room, --no-direct), current build only.
 if [ "${SET:-shader}" = repr ]; then

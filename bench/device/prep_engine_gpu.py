@@ -4,13 +4,18 @@ compares the frame it brings back with lavapipe's (bench/results/engine_gpu.md).
 The GPU machines have no OpenImageIO and no Debian packages, so this puts into DIR (default .devgpu,
 a folder of the repo root that .git/info/exclude ignores and the device call carries):
   bin/schnee-view-noimage  the viewer without OpenImageIO (engine/CMakeLists.txt)
-  lib/                     its shared libraries outside glibc and libstdc++ (Vulkan loader, Embree,
+  lib.tar.xz               (lib/ packed: the tree and DIR travel within 64 MiB; engine_gpu.sh unpacks it)
+                           its shared libraries outside glibc and libstdc++ (Vulkan loader, Embree,
                            TBB, qhull, cJSON, GLFW and GLFW's X11 libraries), from this machine
   scenes/                  the generated benchmark room (tests/engine/scripts/make_room.py: 56 objects,
                            58 k triangles, a realtime point lamp, a 20 x 8 x 20 v1 grid of 3200 probes),
                            the same room with bench_engine_v3's corner octree, and that octree room
                            with a mixed sun added (4 cascades + the lamp's 6 cube faces: 10 layers)
   ref_lavapipe.exr         the frame engine_gpu.sh writes as a PFM, rendered here on lavapipe
+  scenes/bundled/          the bundled room's export (out/default/gltf, scripts/main_job.py), when there,
+                           and ref_bundled_lavapipe.exr: its frame per pixel from the bricks, --no-sky (no
+                           EXR reader there); SET=bricks writes frame_bundled.pfm, and compare picks the
+                           reference by the frame's name
 
 Usage:
   /usr/bin/python3 bench/device/prep_engine_gpu.py prep [DIR] [--old BINARY]
@@ -37,6 +42,7 @@ import viewer  # noqa: E402
 SKIP = ("libc.so", "libm.so", "libdl.so", "libpthread.so", "librt.so", "libstdc++.so", "libgcc_s.so", "ld-linux",
         "linux-vdso")
 FRAME_ARGS = ["--width", "640", "--height", "360", "--probe-mode", "pixel"]  # the frame compared (engine_gpu.sh)
+BUNDLED = REPO / "out" / "default" / "gltf"  # the bundled room's export (scripts/main_job.py), SET=bricks
 
 
 def add_sun(src, dst):
@@ -76,18 +82,28 @@ def prep(out, old=None):
         name, path = parts[0].strip(), parts[1].split()[0]
         if not name.startswith(SKIP):
             shutil.copy2(Path(path).resolve(), out / "lib" / name)
+    subprocess.run(["tar", "cJf", "lib.tar.xz", "lib"], cwd=out, check=True)
+    shutil.rmtree(out / "lib")
     room = make_room.main(out / "scenes")
     v3, probes, hanging, leaves = bench_engine_v3.octree_scene(room)
     sun = add_sun(v3, out / "scenes" / "room_v3_sun.gltf")
     print(f"room: 3200-probe grid; octree: {probes} probes, {hanging} hanging, {leaves} leaves; {sun.name}")
     viewer.check(viewer.run(sun, "--headless", "--output", out / "ref_lavapipe.exr", *FRAME_ARGS, validation=False))
+    if BUNDLED.joinpath("scene.gltf").exists():
+        shutil.copytree(BUNDLED, out / "scenes" / "bundled")
+        viewer.check(viewer.run(out / "scenes" / "bundled" / "scene.gltf", "--headless", "--output",
+                                out / "ref_bundled_lavapipe.exr", *FRAME_ARGS, "--probe-path", "bricks", "--no-sky",
+                                validation=False))
+    else:
+        print(f"note: {BUNDLED / 'scene.gltf'} is missing (scripts/main_job.py makes it): SET=bricks needs it")
     size = sum(f.stat().st_size for f in out.rglob("*") if f.is_file())
     print(f"{out}: {size / 2**20:.1f} MiB")
 
 
 def compare(frame, out):
+    ref_name = "ref_bundled_lavapipe.exr" if Path(frame).name == "frame_bundled.pfm" else "ref_lavapipe.exr"
     got = viewer.read_image(frame)[..., :3]
-    ref = viewer.read_image(Path(out) / "ref_lavapipe.exr")[..., :3]
+    ref = viewer.read_image(Path(out) / ref_name)[..., :3]
     d = np.abs(got - ref)
     rel = d.max(-1) / np.maximum(ref.max(-1), 1e-3)
     print(f"GPU frame vs lavapipe ({ref.shape[1]}x{ref.shape[0]}, linear HDR): max abs {d.max():.3g}, mean abs "
