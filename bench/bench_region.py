@@ -26,6 +26,7 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
+COUNT = os.path.join(REPO, "tests", "blender", "scripts", "count_renders.py")
 QUARTERS = {"RoomSW": ((-5.0, -5.0, 0.0), (0.0, 0.0, 4.0)), "RoomSE": ((0.0, -5.0, 0.0), (5.0, 0.0, 4.0)),
             "RoomNW": ((-5.0, 0.0, 0.0), (0.0, 5.0, 4.0)), "RoomNE": ((0.0, 0.0, 0.0), (5.0, 5.0, 4.0))}
 # Blender coordinates: the Table's old (x -3..-1) and new (-2.5..-0.5) places, y -3..-2, z 0..1, with 0.5 m.
@@ -56,19 +57,22 @@ def _sha(path):
 
 
 def _bake(blend, args):
-    """bake.py on ``blend``: (wall s, CPU s of Blender and its threads, renders, probes, stdout)."""
-    cmd = ["blender", "-b", blend, "--factory-startup", "-P", os.path.join(REPO, "bake.py"), "--", *args]
+    """bake.py on ``blend``: (wall s, CPU s of Blender and its threads, Cycles renders (counted by
+    tests/blender/scripts/count_renders.py, the sky's included), probes, stdout)."""
+    log = blend + ".renders"
+    cmd = ["blender", "-b", blend, "--factory-startup", "-P", COUNT, "-P", os.path.join(REPO, "bake.py"), "--", *args]
     cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "PYTHONPATH": ""})
+    proc = subprocess.run(cmd, capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": "", "SCHNEE_TEST_RENDER_LOG": log})
     wall = time.perf_counter() - t0
     cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         sys.exit(f"bake failed ({' '.join(cmd)}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
     cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
     probes = int(re.search(r"bake\.py: (\d+) probes in", proc.stdout).group(1))
-    m = re.search(r"(\d+) points rendered \(probes and test points; (\d+) more rounds", proc.stdout)
-    renders = int(m.group(1)) + int(m.group(2)) if m else probes
+    with open(log) as fh:
+        renders = len(fh.read().splitlines())
     return dict(wall=round(wall, 2), cpu=round(cpu, 2), renders=renders, probes=probes), proc.stdout
 
 

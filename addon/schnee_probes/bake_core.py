@@ -264,6 +264,8 @@ class ProbeBake:
             pos = self.plan.position(i)
             key = journal.key_of(pos, self.plan.journal_flags(i)) if store is not None else None
             hit = store.lookup(key) if key is not None else None
+            if hit is not None and store.seeded(key) and not self.plan.accepts(i, hit[1]):
+                hit = None  # a kept point's later round of other samples (region.py): rendered again
             rendered = False
             if hit is not None:
                 self.plan.store(i, *hit)

@@ -104,6 +104,10 @@ class PlacementPlan:
     def store(self, i: int, coeffs, noise: float):
         self.coeffs[i] = coeffs
 
+    def accepts(self, i: int, noise: float) -> bool:
+        """Whether a kept point of an earlier bake (region.py) can stand for point ``i``'s next record."""
+        return True
+
     def measure(self, i: int, pos, session, direct):
         """Render point ``i`` at ``pos`` and keep its value: (value, noise)."""
         value = session.render(pos, i, direct)
@@ -404,6 +408,10 @@ class AdaptivePlan(_VolumePlan):
                             f"wants {int(cache.pending[i])}: bake with --restart")
         else:
             cache.add(i, coeffs, int(noise))
+
+    def accepts(self, i, noise):
+        # A later round holds its samples in the noise field: another count is another render.
+        return self.cache.rounds[i] == 0 or int(noise) == int(self.cache.pending[i])
 
     def measure(self, i, pos, session, direct):
         # A new point: two rounds of the first round's samples with seeds Seed and Seed + 1, their

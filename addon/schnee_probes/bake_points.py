@@ -77,7 +77,7 @@ class PointStore:
         self._known = {}                    # journal key -> coefficients, from journals at open
         self._known_noise = {}
         self._kept = 0                      # points in the journal when it was closed
-        self._seeded = 0                    # points of an earlier bake taken by seed()
+        self._seeds = set()                 # keys of an earlier bake's points taken by seed()
 
     @property
     def merging(self) -> bool:
@@ -172,7 +172,7 @@ class PointStore:
         if not self._known:
             return
         where = self.path if self.merge_shards is None else "the journals"
-        if self._seeded:
+        if self._seeds:
             where += " and the previous bake's kept points"
         hits = sum(key in self._known for key in keys)
         more = f" in the first pass ({len(self._known)} points in the journals)" if adaptive else ""
@@ -189,13 +189,16 @@ class PointStore:
     def seed(self, values: dict, noise: dict) -> int:
         """Take points of an earlier bake as if rendered (region.py: a rebake's kept points outside
         its region); the journals' own points win. Returns how many were taken."""
-        taken = 0
+        before = len(self._seeds)
         for key, v in values.items():
             if key not in self._known:
                 self._known[key], self._known_noise[key] = v, noise.get(key, 0.0)
-                taken += 1
-        self._seeded += taken
-        return taken
+                self._seeds.add(key)
+        return len(self._seeds) - before
+
+    def seeded(self, key: bytes) -> bool:
+        """The point was taken from an earlier bake by :meth:`seed`, not from this bake's journals."""
+        return key in self._seeds
 
     def points(self):
         """(values, noise) of every point this bake holds: journals, seeds and renders."""
