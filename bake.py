@@ -285,6 +285,9 @@ def _report(result):
         print(f"bake.py: adaptive placement: {len(result.passes)} pass(es), {result.points} points rendered "
               f"(probes and test points; {result.renders - result.points} more rounds where noise or an unclear "
               f"split needed them, {result.samples} samples per pixel in all)")
+    if result.resumed:
+        print(f"bake.py: {result.rendered} render(s) by this run, {result.resumed} taken from journals or the previous "
+              "bake's kept points")
     print(f"bake.py: {result.probe_count} probes in {result.seconds:.1f} s (placement {t['placement']:.2f} s, "
           f"render {t['render']:.2f} s, EXR write {t['write_exr']:.2f} s, projection {t['project']:.2f} s)")
     for f in result.files:

@@ -84,6 +84,8 @@ class BakeResult:
     samples: int = 0            # samples per pixel summed over every Cycles render of this run
     points: int = 0             # distinct points with a value (Adaptive: probes and test points; else renders)
     passes: list = field(default_factory=list)  # Adaptive: adaptive.PassRecord per pass (first group)
+    rendered: int = 0           # queue entries this run rendered (not taken from journals or kept points)
+    resumed: int = 0            # queue entries taken from journals or (region.py) kept points
 
 
 class ProbeBake:
@@ -357,7 +359,7 @@ class ProbeBake:
         return BakeResult(files=files, probe_count=probes, seconds=time.perf_counter() - self._t0,
                           timings=dict(self.timings), messages=list(self.messages), renders=self.done,
                           passes=self.plan.passes, samples=self.plan.samples_rendered,
-                          points=self.plan.points_rendered(self.done))
+                          points=self.plan.points_rendered(self.done), rendered=self.rendered, resumed=self.resumed)
 
     def _write_outputs(self) -> List[str]:
         """The plan's files, and for a volume bake the sky and the sun (bake_outputs.write_all)."""

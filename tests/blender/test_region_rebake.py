@@ -209,6 +209,7 @@ def test_region_inside_a_volume_keeps_the_probes_outside(scenes, previous, edite
     assert "rebake of 'Left': 28 point(s) of the previous bake kept outside the region, 4 inside it baked again" \
         in stdout   # the 4th inside: the one in the crate, pruned now
     assert "kept points: 12 of 15 probes already baked, 3 to render" in stdout
+    assert "bake.py: 3 render(s) by this run, 12 taken from journals or the previous bake's kept points" in stdout
     new, old, full = (_by_cell(d / "Left.shprobe") for d in (out, previous, edited_full))
     assert set(new) == set(full) and len(new) == 16  # the crate's cell maps to a neighbour's probe
     lo, hi = np.array([-1.8, 0.0, 0.2]), np.array([-0.2, 1.0, 1.8])   # REGION in engine space (x, z, -y)
