@@ -77,8 +77,10 @@ def _bake(blend, args):
 
 
 def _outside(prev, part):
-    """RoomSW's probes of the region rebake whose position lies outside REGION: how many, and how many
-    hold the previous bake's coefficient bits at the same position."""
+    """RoomSW's probes of the region rebake whose position lies outside REGION, in three kinds:
+    corners of a leaf that meets REGION (decided again, their rounds too), on a face RoomSW shares
+    with another volume (a full bake gives those the rounds either volume asks for, a rebake of one
+    only its own) and the rest; how many of each hold the previous bake's coefficient bits."""
     sys.path.insert(0, os.path.join(REPO, "addon"))
     import numpy as np
     from schnee_probes import native
@@ -86,14 +88,23 @@ def _outside(prev, part):
     box = np.array([float(v) for v in REGION]).reshape(2, 3)
     lo = np.array([box[0, 0], box[0, 2], -box[1, 1]])   # Blender (x, y, z) -> engine (x, z, -y)
     hi = np.array([box[1, 0], box[1, 2], -box[0, 1]])
+    leaves = np.asarray(new.leaves, dtype=np.float64)
+    llo = np.asarray(new.grid_origin) + leaves[:, :3] * new.grid_spacing
+    lhi = llo + new.grid_spacing * 2.0 ** leaves[:, 3:4]
+    meets = np.all((llo <= hi) & (lhi >= lo), axis=1)
+    corners = {tuple(np.round([(a if i >> k & 1 == 0 else b)[k] for k in range(3)], 4))
+               for a, b in zip(llo[meets], lhi[meets]) for i in range(8)}
     before = {tuple(p): c.tobytes() for p, c in zip(np.asarray(old.positions), np.asarray(old.coeffs))}
-    outside = same = 0
+    kinds = {k: [0, 0] for k in ("meeting_leaves", "shared_faces", "rest")}
     for p, c in zip(np.asarray(new.positions), np.asarray(new.coeffs)):
         if np.all(p >= lo) and np.all(p <= hi):
             continue
-        outside += 1
-        same += before.get(tuple(p)) == c.tobytes()
-    return dict(probes=int(len(new.positions)), outside=outside, outside_identical=same)
+        kind = ("meeting_leaves" if tuple(np.round(p.astype(np.float64), 4)) in corners
+                else "shared_faces" if abs(p[0]) < 0.02 or abs(p[2]) < 0.02 else "rest")
+        kinds[kind][0] += 1
+        kinds[kind][1] += before.get(tuple(p)) == c.tobytes()
+    return dict(probes=int(len(new.positions)), previous_probes=int(len(old.positions)),
+                **{k: dict(probes=v[0], identical=v[1]) for k, v in kinds.items()})
 
 
 def main():
@@ -120,7 +131,7 @@ def main():
     rebake, _ = _bake(os.path.join(edit, "room4_edited.blend"), args + ["--only-volume", "RoomSW"])
     region, _ = _bake(os.path.join(part, "room4_edited.blend"), args + ["--only-volume", "RoomSW", "--region", *REGION])
     kept = sorted(n for n in os.listdir(os.path.join(prev, "sh_coeffs"))
-                  if n not in ("RoomSW.shprobe", "probes.shprobe.bake.json"))
+                  if n not in ("RoomSW.shprobe", "probes.shprobe.bake.json", "probes.shprobe.points"))
     same = {f"{d}/{n}": _sha(os.path.join(prev, "sh_coeffs", n)) == _sha(os.path.join(out, d, "sh_coeffs", n))
             for n in kept for d in ("rebake", "region")}
     rebaked_equal = _sha(os.path.join(full, "sh_coeffs", "RoomSW.shprobe")) == \
