@@ -266,11 +266,9 @@ class ProbeBake:
             pos = self.plan.position(i)
             key = journal.key_of(pos, self.plan.journal_flags(i)) if store is not None else None
             hit = store.lookup(key) if key is not None else None
-            if hit is not None and store.seeded(key) and not self.plan.accepts(i, hit[1]):
-                hit = None  # a kept point's later round of other samples (region.py): rendered again
             rendered = False
-            if hit is not None:
-                self.plan.store(i, *hit)
+            if hit is not None:  # a kept point of an earlier bake (region.py) is replayed as it was
+                self.plan.store(i, *hit, kept=store.seeded(key))
                 self.resumed += 1
             elif store is not None and store.others(self.done - self._pass_start):
                 self._missing += 1  # another shard's point

@@ -101,12 +101,9 @@ class PlacementPlan:
     def journal_flags(self, i: int) -> int:
         return 0
 
-    def store(self, i: int, coeffs, noise: float):
+    def store(self, i: int, coeffs, noise: float, kept: bool = False):
+        """Keep a value taken from a journal (``kept``: an earlier bake's kept point, region.py)."""
         self.coeffs[i] = coeffs
-
-    def accepts(self, i: int, noise: float) -> bool:
-        """Whether a kept point of an earlier bake (region.py) can stand for point ``i``'s next record."""
-        return True
 
     def measure(self, i: int, pos, session, direct):
         """Render point ``i`` at ``pos`` and keep its value: (value, noise)."""
@@ -398,20 +395,18 @@ class AdaptivePlan(_VolumePlan):
         # holds the round's samples).
         return int(self.cache.rounds[i])
 
-    def store(self, i, coeffs, noise):
+    def store(self, i, coeffs, noise, kept=False):
+        # A later round holds its samples in the noise field. A kept round (region.py) is replayed
+        # with the samples it had, so a point outside a rebake's region keeps its previous mean.
         cache = self.cache
         if cache.rounds[i] == 0:
             cache.set_first(i, coeffs, noise)
-        elif int(noise) != int(cache.pending[i]):
+        elif int(noise) != int(cache.pending[i]) and not kept:
             raise BakeError(f"The bake journal's round {int(cache.rounds[i])} of the point at "
                             f"{tuple(np.round(cache.positions[i], 3))} has {noise:g} samples, this bake "
                             f"wants {int(cache.pending[i])}: bake with --restart")
         else:
             cache.add(i, coeffs, int(noise))
-
-    def accepts(self, i, noise):
-        # A later round holds its samples in the noise field: another count is another render.
-        return self.cache.rounds[i] == 0 or int(noise) == int(self.cache.pending[i])
 
     def measure(self, i, pos, session, direct):
         # A new point: two rounds of the first round's samples with seeds Seed and Seed + 1, their
