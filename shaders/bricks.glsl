@@ -13,11 +13,22 @@
 // The most channel groups of a texel: ceil((3 * 25 + 1) / 4) = 19 (L4).
 #define SV_BRICK_GROUPS_MAX 19u
 
+// SV_FOR_GROUPS(g, groups) { ... }: a loop over the channel groups g = 1 .. groups - 1. The build of mesh.frag
+// with SV_UNROLL_GROUPS (mesh.frag.unrolled.inc, which GPUs take: sv_pipelines.c) loops to the constant bound
+// SV_BRICK_GROUPS_MAX and breaks at the grid's count, under [[unroll]]: the compiler unrolls it and every index
+// into AY and the colour sum (brick_group_add) is a constant, so they stay in registers. Bounded by the grid's
+// count, they are indexed at run time, which puts them in local memory on a GPU: 1.45-1.95x the per-pixel
+// time on an NVIDIA H200. On lavapipe (a CPU device) the unrolled form costs 1.6-1.9x instead, so the
+// plain loop is its build (bench/results/engine_gpu.md "Probe bricks (issue 30)").
+#ifdef SV_UNROLL_GROUPS
+#define SV_FOR_GROUPS(g, groups)                                                                                      \
+    [[unroll]] for (uint g = 1u; g < SV_BRICK_GROUPS_MAX; ++g) if (g >= (groups)) break; else
+#else
+#define SV_FOR_GROUPS(g, groups) for (uint g = 1u; g < (groups); ++g)
+#endif
+
 // s += the SH channels of group g >= 1 of a texel t (channel 4g + j = N_i colour k, i = 1 + (4g + j - 4) / 3),
-// weighted by AY. The callers loop over g with the constant bound SV_BRICK_GROUPS_MAX and break at the file's
-// group count, so the compiler unrolls both loops and every index into AY and s is a constant: AY stays in
-// registers. With the loop bound the file's count, AY[i] and s[c % 3] were dynamically indexed, which puts
-// them in local memory on GPUs (as the probe buffers' copies were: bench/results/engine_gpu.md).
+// weighted by AY (in an SV_FOR_GROUPS loop).
 void brick_group_add(uint g, vec4 t, uint C, float AY[25], inout vec3 s)
 {
     [[unroll]] for (uint j = 0u; j < 4u; ++j) {
@@ -151,8 +162,7 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
         D = t0.w;                           // N / D of the tap = sum w (N, D) / sum w (N, D): sw cancels
         if (!(sw * D > 1e-6)) return false; // 5. sum w <= 1e-6: the caller's home-cell fallback
         s = AY[0] * t0.rgb;
-        [[unroll]] for (uint g = 1u; g < SV_BRICK_GROUPS_MAX; ++g) {
-            if (g >= groups) break;
+        SV_FOR_GROUPS(g, groups) {
             brick_group_add(g, textureLod(brick_pool, tc + vec3(0.0, 0.0, float(g) * slab), 0.0), C, AY, s);
         }
     } else {
@@ -166,8 +176,7 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
         D = a0.w;
         if (!(D > 1e-6)) return false; // 5. sum w <= 1e-6: the caller's home-cell fallback
         s = AY[0] * a0.rgb;
-        [[unroll]] for (uint g = 1u; g < SV_BRICK_GROUPS_MAX; ++g) {
-            if (g >= groups) break;
+        SV_FOR_GROUPS(g, groups) {
             vec4 tg = vec4(0.0);
             for (int k = 0; k < 8; ++k) {
                 if (w[k] <= 0.0) continue;

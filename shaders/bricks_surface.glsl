@@ -68,8 +68,7 @@ bool brick_tap(sv_gpu_grid gr, uint b, vec3 xt, uint C, float AY[25], out vec3 e
     if (!(t0.w > 0.0)) return false;
     vec3 s = AY[0] * t0.rgb;
     uint groups = (3u * C + 4u) / 4u; // ceil((3C + 1) / 4)
-    [[unroll]] for (uint g = 1u; g < SV_BRICK_GROUPS_MAX; ++g) {
-        if (g >= groups) break;
+    SV_FOR_GROUPS(g, groups) {
         brick_group_add(g, textureLod(brick_pool, tc + vec3(0.0, 0.0, float(g) * slab), 0.0), C, AY, s);
     }
     e_out = s / t0.w;
@@ -94,8 +93,7 @@ bool brick_tap8(sv_gpu_grid gr, uint b, vec3 k0, float w[8], uint C, float AY[25
         vec4 t0 = texelFetch(brick_pool, tk, 0); // N_0 (RGB), D
         d += w[k] * t0.w;
         s += w[k] * AY[0] * t0.rgb;
-        [[unroll]] for (uint g = 1u; g < SV_BRICK_GROUPS_MAX; ++g) {
-            if (g >= groups) break;
+        SV_FOR_GROUPS(g, groups) {
             brick_group_add(g, w[k] * texelFetch(brick_pool, tk + ivec3(0, 0, int(g) * slab), 0), C, AY, s);
         }
     }

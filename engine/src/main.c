@@ -51,6 +51,9 @@ static void usage(FILE *f)
         "                           buffers; ambient cubes and tetrahedra keep the buffers; a device that cannot\n"
         "                           hold or filter them: a warning and the buffers) or from the storage buffers (the\n"
         "                           reference: the leaf search; docs/engine.md \"Probe bricks\")\n"
+        "  --shader-loops auto|plain|unrolled  the scene shader's channel-group loops: unrolled (GPUs) or plain\n"
+        "                           (CPU devices such as lavapipe, where unrolled is slower); default auto by the\n"
+        "                           device type (docs/engine.md \"Probe bricks\")\n"
         "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
         "  --shadow-res N           texels per side of each shadow map layer of a mixed/realtime light (a sun:\n"
         "                           one per cascade, a spot: one, a point light: six; default %u; at most %u;\n"
@@ -115,7 +118,7 @@ static const struct {
     {"--write-sky-mips", 1}, {"--fallback-radiance", 1},
     {"--move", 4},           {"--frames", 1},
     {"--screenshot", 1},     {"--probe-path", 1},
-    {"--brick-view", 1},
+    {"--brick-view", 1},     {"--shader-loops", 1},
 };
 
 /* The values option `a` takes, 0 when it takes none or is not an option. */
@@ -198,6 +201,11 @@ static int parse_choice(const char *a, const char *v, sv_options *o)
         if (strcmp(v, "buffers") != 0 && strcmp(v, "bricks") != 0) return bad_value(a, v);
         o->bricks = strcmp(v, "bricks") == 0;
         o->bricks_given = true;
+    } else if (strcmp(a, "--shader-loops") == 0) {
+        static const char *const names[3] = {"auto", "plain", "unrolled"}; /* SV_SHADER_LOOPS_* */
+        for (k = 0; k < 3 && strcmp(v, names[k]) != 0; ++k) continue;
+        if (k == 3) return bad_value(a, v);
+        o->shader_loops = (uint32_t)k;
     } else {
         return -1;
     }

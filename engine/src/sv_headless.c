@@ -120,8 +120,9 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
         !sv_buffer_create(ctx, (VkDeviceSize)w * h * (linear ? 16 : 4), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true,
                           &readback))
         goto done;
-    fprintf(stderr, "schnee-view: device %s; Vulkan setup %.1f ms, scene upload %.1f ms\n", ctx->properties.deviceName,
-            gpu.setup_ms, gpu.upload_ms);
+    fprintf(stderr, "schnee-view: device %s; Vulkan setup %.1f ms, scene upload %.1f ms; shader loops %s\n",
+            ctx->properties.deviceName, gpu.setup_ms, gpu.upload_ms,
+            gpu.renderer.unrolled_groups ? "unrolled" : "plain");
 
     VkCommandBuffer cmd = gpu.cmd;
     uint32_t frames = opt->frames ? opt->frames : 1;

@@ -14,6 +14,10 @@ static const uint32_t mesh_vert_spv[] =
 static const uint32_t mesh_frag_spv[] =
 #include "mesh.frag.inc"
     ;
+/* mesh.frag built with SV_UNROLL_GROUPS (shaders/bricks.glsl SV_FOR_GROUPS): GPUs take it (SV_SHADER_LOOPS_*). */
+static const uint32_t mesh_frag_unrolled_spv[] =
+#include "mesh.frag.unrolled.inc"
+    ;
 static const uint32_t probe_cells_vert_spv[] =
 #include "probe_cells.vert.inc"
     ;
@@ -439,10 +443,21 @@ bool sv_pipelines_create(sv_renderer *r)
     VkSpecializationInfo spec = {1, &entry, sizeof(half), &half};
     for (uint32_t i = 0; i < SV_PIPELINE_COUNT; ++i) {
         if (pipeline_table[i].layout == LAYOUT_SHADOW && !r->shadow_count) continue; /* no shadow pass */
-        r->pipelines[i] = create_pipeline(r, &pipeline_table[i], &spec);
+        pipeline_desc d = pipeline_table[i];
+        if (i == SV_PIPELINE_MESH && r->unrolled_groups) {
+            d.fs = mesh_frag_unrolled_spv;
+            d.fs_size = sizeof(mesh_frag_unrolled_spv);
+        }
+        r->pipelines[i] = create_pipeline(r, &d, &spec);
         if (!r->pipelines[i]) return false;
     }
     return true;
+}
+
+bool sv_shader_loops_unrolled(uint32_t shader_loops, VkPhysicalDeviceType type)
+{
+    if (shader_loops == SV_SHADER_LOOPS_AUTO) return type != VK_PHYSICAL_DEVICE_TYPE_CPU;
+    return shader_loops == SV_SHADER_LOOPS_UNROLLED;
 }
 
 void sv_pipelines_destroy(sv_renderer *r)

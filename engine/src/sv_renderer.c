@@ -57,6 +57,7 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
     r->encode_srgb = output_format != VK_FORMAT_B8G8R8A8_SRGB && output_format != VK_FORMAT_R8G8B8A8_SRGB;
     r->shadow_cascades = desc->shadow_cascades ? desc->shadow_cascades : SV_SHADOW_DEFAULT_CASCADES;
     if (r->shadow_cascades > SV_MAX_SHADOW_CASCADES) r->shadow_cascades = SV_MAX_SHADOW_CASCADES;
+    r->unrolled_groups = sv_shader_loops_unrolled(desc->shader_loops, ctx->properties.deviceType);
     const sv_gltf *g = scene->gltf;
     if (!sv_upload_geometry(r, g) || !sv_upload_materials(r, g, &scene->ext) || !sv_upload_textures(r, g) ||
         !sv_upload_lights(r, g, &scene->ext, desc->shadow_res) || !sv_shadows_create(r, desc->shadow_res) ||

@@ -59,7 +59,12 @@ typedef struct sv_renderer_desc {
                                  samples; false = the storage buffers only (--probe-path buffers) */
     bool bricks_required;     /* asked for explicitly: a brick set the device cannot hold is an error (exit 1);
                                  else a warning and the storage buffers */
+    uint32_t shader_loops;    /* --shader-loops: SV_SHADER_LOOPS_* (default AUTO) */
 } sv_renderer_desc;
+/* Which build of mesh.frag a device gets (shaders/bricks.glsl SV_FOR_GROUPS): AUTO = the unrolled channel-group
+ * loops on a GPU, the plain loops on a CPU device (lavapipe), where the unrolled ones cost 1.6-1.9x. */
+enum { SV_SHADER_LOOPS_AUTO, SV_SHADER_LOOPS_PLAIN, SV_SHADER_LOOPS_UNROLLED };
+bool sv_shader_loops_unrolled(uint32_t shader_loops, VkPhysicalDeviceType type);
 #define SV_SHADOW_DEFAULT_RES 2048u
 #define SV_SHADOW_MAX_RES     8192u
 #define SV_RENDERER_DESC_DEFAULT                                                                                       \
@@ -98,7 +103,8 @@ typedef struct sv_renderer {
     int32_t sphere_vertex_offset;
     uint32_t light_count, sphere_count, outline_count, probe_count, grid_count;
     bool half_probes;
-    bool has_cubes; /* the cube buffer (float or half by half_probes) holds the probes' ambient cubes */
+    bool unrolled_groups; /* mesh.frag with SV_UNROLL_GROUPS (sv_shader_loops_unrolled) */
+    bool has_cubes;       /* the cube buffer (float or half by half_probes) holds the probes' ambient cubes */
     bool has_sky;
     const sv_probes *probes_src; /* the probes uploaded (their per-object slots are re-uploaded) */
     uint32_t slots_uploaded;     /* probes_src->slots_version last written to the GPU */

@@ -335,3 +335,35 @@ def test_pool_beyond_the_device_3d_limit_is_a_clear_error(tmp_path):
     assert "warning: --probe-path bricks: the brick pool needs a 5 x 5 x 4180 3D texture" in d.stderr, d.stderr
     assert "probe bricks unavailable (above); per-pixel probes from the storage buffers" in d.stderr
     assert np.array_equal(viewer.read_image(tmp_path / "d.exr"), viewer.read_image(tmp_path / "b.exr"))
+
+
+def test_unrolled_and_plain_shader_loops_shade_alike(tmp_path):
+    # docs/engine.md "Probe bricks": a GPU gets mesh.frag built with SV_UNROLL_GROUPS (the channel-group loops
+    # unrolled to a constant bound), a CPU device such as lavapipe the plain loops (--shader-loops auto); the
+    # tests above compare the plain build with the C. The unrolled build must shade the same: the generated
+    # benchmark room's v1 grid (the dense-grid texture's one-tap and 8-tap sums) and its v3 octree (the bricks'
+    # one tap, 8 taps, back faces and visibility records), per pixel. Same arithmetic in the same order: equal
+    # to float32 rounding (1e-6 relative to the frame's peak).
+    import sys
+    sys.path.insert(0, str(viewer.REPO / "tests" / "engine" / "scripts"))
+    sys.path.insert(0, str(viewer.REPO / "bench"))
+    import bench_engine_v3
+    import make_room
+    room = make_room.main(tmp_path / "room")
+    v3 = bench_engine_v3.octree_scene(room)[0]
+    for scene in (room, v3):
+        imgs = {}
+        for loops in ("plain", "unrolled", "auto") if scene == room else ("plain", "unrolled"):
+            out = tmp_path / f"{scene.stem}-{loops}.exr"
+            proc = viewer.check(viewer.run(scene, "--headless", "--output", out, "--width", 160, "--height", 90,
+                                           "--probe-mode", "pixel", "--no-direct", "--shader-loops", loops))
+            want = "plain" if loops == "auto" else loops  # lavapipe is a CPU device
+            assert f"; shader loops {want}" in proc.stderr, proc.stderr
+            imgs[loops] = viewer.read_image(out)[..., :3]
+        peak = imgs["plain"].max()
+        assert peak > 0.01
+        assert np.abs(imgs["unrolled"] - imgs["plain"]).max() <= 1e-6 * peak
+        if "auto" in imgs:
+            assert np.array_equal(imgs["auto"], imgs["plain"])
+    bad = viewer.run(room, "--headless", "--output", tmp_path / "x.exr", "--shader-loops", "fast")
+    assert bad.returncode == 2 and "bad value 'fast' for --shader-loops" in bad.stderr
