@@ -1,5 +1,7 @@
 """Shared pytest helpers: repository paths, running scripts in real headless Blender, and the test
 tiers (markers assigned here by folder and by what a test launches; registered in pyproject.toml)."""
+import contextlib
+import fcntl
 import functools
 import inspect
 import os
@@ -42,6 +44,46 @@ def run_blender(script, *args, blend=None, timeout=900, check=True, env=None):
             f"blender exited {proc.returncode}: {' '.join(cmd)}\n--- stdout\n{proc.stdout[-6000:]}"
             f"\n--- stderr\n{proc.stderr[-4000:]}")
     return proc
+
+
+@contextlib.contextmanager
+def file_lock(path):
+    """An exclusive flock on `path` (created if missing) for the with-block: what the tests share
+    between pytest-xdist workers (./test.sh runs two) is made or changed by one worker at a time."""
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def build_target(target, timeout=900):
+    """`cmake --build build --target TARGET` (a no-op when up to date), one at a time across workers
+    (two ninja runs in one build tree would race); False when there is no configured build."""
+    if not (BUILD_DIR / "build.ninja").exists():
+        return False
+    with file_lock(BUILD_DIR / "test-build.lock"):
+        proc = subprocess.run(["cmake", "--build", str(BUILD_DIR), "--target", target], timeout=timeout,
+                              capture_output=True, text=True)
+    assert proc.returncode == 0, f"cmake --build build --target {target}: exit {proc.returncode}\n" + \
+        (proc.stdout + proc.stderr)[-4000:]
+    return True
+
+
+def once_per_run(stamp, make):
+    """Runs make() once per test run, also across pytest-xdist workers: the first worker to get here
+    runs it under a lock and writes `stamp` (this run's id) when it succeeded; the others wait on the
+    lock and reuse its result. A later run makes it anew (it never trusts an earlier run's output)."""
+    run_id = os.environ.get("PYTEST_XDIST_TESTRUNUID") or f"pid-{os.getpid()}"
+    stamp = Path(stamp)
+    with file_lock(stamp.with_name(stamp.name + ".lock")):
+        if stamp.exists() and stamp.read_text() == run_id:
+            return
+        stamp.unlink(missing_ok=True)
+        make()
+        stamp.write_text(run_id)
 
 
 def native_ready():
@@ -140,7 +182,43 @@ def _launches_blender(func):
         return False
 
 
+# --- Order under pytest-xdist ----------------------------------------------------------------------
+# ./test.sh runs pytest on two workers with --dist loadfile: each file goes whole to one worker, in
+# collection order, as a worker runs low. So the longest files go first and both workers end together:
+# the files below (the longest measured, longest first), then every other file marked slow or chroot,
+# then the rest in their usual order. The list is only a hint: a new file needs no entry (one with a
+# slow or chroot marker goes early anyway). A serial run keeps the usual order.
+LONG_FILES_FIRST = [
+    "tests/blender/test_direct_sky.py",
+    "tests/blender/test_resume.py",
+    "tests/blender_versions/test_blender_versions.py",
+    "tests/build_versions/test_build_newer.py",
+    "tests/farm/test_slurm.py",
+    "tests/blender/test_bake_hazards.py",
+    "tests/blender/test_sky_sun_bake.py",
+    "tests/blender/test_addon_modal.py",
+    "tests/web/test_web_page.py",
+    "tests/blender/test_refine_bake.py",
+]
+
+
+def _run_order(items):
+    """items sorted by their file's rank (LONG_FILES_FIRST, then slow/chroot files, then the rest),
+    files kept whole and in their usual order within a rank (the same order on every worker)."""
+    first_index, rank = {}, {}
+    for i, item in enumerate(items):
+        path = item.nodeid.split("::", 1)[0]
+        first_index.setdefault(path, i)
+        r = LONG_FILES_FIRST.index(path) if path in LONG_FILES_FIRST else (
+            len(LONG_FILES_FIRST) if item.get_closest_marker("slow") or item.get_closest_marker("chroot") else
+            len(LONG_FILES_FIRST) + 1)
+        rank[path] = min(rank.get(path, r), r)
+    return sorted(items, key=lambda it: (rank[it.nodeid.split("::", 1)[0]], first_index[it.nodeid.split("::", 1)[0]]))
+
+
 def pytest_collection_modifyitems(config, items):
     for item in items:
         for name in sorted(_markers_of(item)):
             item.add_marker(name)
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        items[:] = _run_order(items)

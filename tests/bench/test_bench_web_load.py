@@ -45,9 +45,12 @@ def test_bench_web_load_tiny(tmp_path):
             v = row[f"{s}_ms"]
             # the browser's clock is coarsened to 0.1 ms: a tiny file's parse may read 0
             assert (0 <= v if s == "parse" else 0 < v) and v < 20000, (row["file"], s, v)
-        # medians: the stages' medians sum to about the total's (each run's total is its stages' sum)
-        parts = sum(row[f"{s}_ms"] for s in ("fetch", "parse", "build", "upload"))
-        assert 0.5 * row["total_ms"] <= parts <= 2.0 * row["total_ms"], row
         raw = res["raw"]["browser"][row["file"]]
         assert all(len(raw[s]) == 3 for s in ("fetch", "parse", "build", "upload", "total"))
+        # Each run's total is its stages' sum (the four intervals between five clock readings). The
+        # medians need not add up: they may come from different runs, and on a loaded machine (beside
+        # another test worker) one slow run made the stages' medians 28.5 ms against a 57.2 ms total.
+        for i in range(3):
+            parts = sum(raw[s][i] for s in ("fetch", "parse", "build", "upload"))
+            assert abs(parts - raw["total"][i]) <= 1e-6 * max(1.0, raw["total"][i]), (row["file"], i, raw)
     assert md.read_text().startswith("| file | probes |")

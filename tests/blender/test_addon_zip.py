@@ -10,15 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import BUILD_DIR, REPO, run_blender
+from conftest import REPO, build_target, run_blender
 
 SCRIPTS = Path(__file__).resolve().parent / "scripts"
 
 
 def _zip():
     zips = sorted(z for z in glob.glob(str(REPO / "dist" / "schnee_probes-*.zip")) if "-extension" not in z)
-    if not zips and (BUILD_DIR / "build.ninja").exists():
-        subprocess.run(["cmake", "--build", str(BUILD_DIR), "--target", "schnee_addon_zip"], check=True)
+    if not zips and build_target("schnee_addon_zip"):
         zips = sorted(z for z in glob.glob(str(REPO / "dist" / "schnee_probes-*.zip")) if "-extension" not in z)
     return zips[-1] if zips else None
 

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import BUILD_DIR, REPO
+from conftest import REPO, build_target
 
 HERE = Path(__file__).resolve().parent
 CHROOT = REPO / "scripts" / "blender-chroot.sh"
@@ -41,9 +41,7 @@ sys.path.insert(0, str(REPO / "tests" / "engine" / "scripts"))
 
 
 def _extension_zip():
-    if (BUILD_DIR / "build.ninja").exists():  # up to date with the sources (no-op when it is)
-        subprocess.run(["cmake", "--build", str(BUILD_DIR), "--target", "schnee_extension"], check=True,
-                       timeout=900, capture_output=True)
+    build_target("schnee_extension")  # up to date with the sources (no-op when it is)
     zips = sorted((REPO / "dist").glob("schnee_probes-*-extension.zip"))
     return zips[-1] if zips else None
 

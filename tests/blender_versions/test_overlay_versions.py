@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import REPO
+from conftest import REPO, build_target
 
 CHROOT = REPO / "scripts" / "blender-chroot.sh"
 SCRIPT = REPO / "tests" / "blender" / "scripts" / "overlay_draw.py"
@@ -65,6 +65,7 @@ def _chroot(suite):
 def drawn(request, xserver):
     suite = request.param
     root = _chroot(suite)
+    build_target("schnee_extension")  # this file may run before test_blender_versions.py's build of it
     zips = sorted((REPO / "dist").glob("schnee_probes-*-extension.zip"))
     if not zips:
         pytest.skip("no extension package: cmake --build build --target schnee_extension")

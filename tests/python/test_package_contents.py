@@ -9,11 +9,10 @@ import re
 import subprocess
 import sys
 import zipfile
-from pathlib import Path
 
 import pytest
 
-from conftest import BUILD_DIR, REPO
+from conftest import REPO, build_target
 
 # What a stock Linux system (and every Blender) has; anything else must come from the package.
 SYSTEM = re.compile(r"^(linux-vdso\.so\.1|ld-linux-x86-64\.so\.2|libc\.so\.6|libm\.so\.6|libpthread\.so\.0|"
@@ -24,8 +23,7 @@ MAX_UNPACKED_BYTES = 50 * 2**20  # measured 44.5 MB
 
 def _dist(pattern):
     zips = sorted((REPO / "dist").glob(pattern))
-    if not zips and (BUILD_DIR / "build.ninja").exists():
-        subprocess.run(["cmake", "--build", str(BUILD_DIR), "--target", "schnee_addon_zip"], check=True)
+    if not zips and build_target("schnee_addon_zip"):
         zips = sorted((REPO / "dist").glob(pattern))
     if not zips:
         pytest.skip(f"no dist/{pattern}: cmake --build build")
@@ -119,6 +117,8 @@ def test_package_alone_loads_its_embree_and_places_probes(unpacked):
 
 def test_extension_package_same_files_plus_manifest(unpacked):
     z, pkg = unpacked
+    if os.geteuid() == 0:  # Blender 4.3 in a chroot builds it: made current here, not by an earlier file's test
+        build_target("schnee_extension")
     ext = sorted((REPO / "dist").glob("schnee_probes-*-extension.zip"))
     if not ext:
         pytest.skip("no extension package (cmake --build build --target schnee_extension; needs root)")

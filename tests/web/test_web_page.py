@@ -55,7 +55,7 @@ import threading
 import numpy as np
 import pytest
 
-from conftest import REPO
+from conftest import REPO, once_per_run
 
 sys.path.insert(0, str(REPO / "tests" / "engine" / "scripts"))
 import viewer  # noqa: E402
@@ -68,19 +68,20 @@ JOB = REPO / "build" / "test-cache" / "web-main-job"
 SCENE = JOB / "gltf" / "scene.gltf"
 GLTF_PARAM = "gltf=../build/test-cache/web-main-job/gltf/scene.gltf"
 W, H = 480, 270
-_made = []
+
+
+def _make_bundled_scene():
+    shutil.rmtree(JOB, ignore_errors=True)
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "scripts" / "main_job.py"), "--out", str(JOB), "--width", "160",
+         "--height", "90", "--bake-args", "--min-cell-size 2 --max-cell-size 4 --panorama-resolution 32 "
+         "--samples 4 --max-bounces 2"], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
 
 
 def _bundled_scene():
-    """SCENE, made once per test session by scripts/main_job.py (~15 s)."""
-    if not _made:
-        shutil.rmtree(JOB, ignore_errors=True)
-        proc = subprocess.run(
-            [sys.executable, str(REPO / "scripts" / "main_job.py"), "--out", str(JOB), "--width", "160",
-             "--height", "90", "--bake-args", "--min-cell-size 2 --max-cell-size 4 --panorama-resolution 32 "
-             "--samples 4 --max-bounces 2"], capture_output=True, text=True, timeout=900)
-        assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
-        _made.append(SCENE)
+    """SCENE, made once per test run (also across pytest-xdist workers) by scripts/main_job.py (~15 s)."""
+    once_per_run(JOB.parent / "web-main-job.made", _make_bundled_scene)
     return SCENE
 
 
