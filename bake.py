@@ -217,14 +217,16 @@ def _main():
         try:
             result = bake.run(progress)
         except bake_core.BakeCancelled as exc:
-            kept = f"; {bake.kept_message}" if bake.kept_message else ""
+            kept = bake_core.kept_message(bake)
+            kept = f"; {kept}" if kept else ""
             if sig.caught:
                 first = sig.caught[0]
                 _fail(128 + first, f"cancelled by {signal.Signals(first).name}; render settings "
                                    f"restored, existing files unchanged{kept}")
             _fail(EXIT_BAKE, str(exc) + kept)
         except bake_core.BakeError as exc:
-            _fail(EXIT_BAKE, str(exc) + (f"; {bake.kept_message}" if bake.kept_message else ""))
+            kept = bake_core.kept_message(bake)
+            _fail(EXIT_BAKE, str(exc) + (f"; {kept}" if kept else ""))
         except native.SchneeError as exc:
             _fail(EXIT_BAKE, f"native core: {exc}")
         except OSError as exc:  # bake_core turns its own file errors into BakeError; a backstop

@@ -92,10 +92,8 @@ class ProbeBake:
     """One bake run. ``mode`` is "VOLUMES" (Bake SH in Volumes), "CURSOR" (Bake SH at Cursor,
     ``cursor`` = Blender-space position) or "POINTS" (``points``, engine space, nothing written).
     ``log`` receives human-readable lines. ``shard`` = (k, n) / ``merge_shards`` = n: farm bakes
-    (bake_points.py); ``policy``: the Adaptive refinement's adaptive.Policy; ``only_volume``: bake
-    that volume alone and keep the other volumes' files, ``region``: and only inside this Blender-space
-    box (x0, y0, z0, x1, y1, z1), keeping the previous bake's points outside it (region.py). The parts
-    are public:
+    (bake_points.py); ``policy``: the Adaptive refinement's adaptive.Policy; ``only_volume`` / ``region``:
+    a rebake of one volume / of a Blender-space box in it (region.py). The parts are public:
     ``plan`` (Adaptive: ``plan.cache``, ``plan.groups``), ``session``, ``store``, ``direct``."""
 
     def __init__(self, scene, view_layer, settings: BakeSettings, mode: str = "VOLUMES",
@@ -129,6 +127,7 @@ class ProbeBake:
         self.rebake = (rebake_region.VolumeRebake(only_volume, region)
                        if only_volume is not None and mode == "VOLUMES" else None)
         self.plan.rebake = self.rebake
+        self._writes_sky = self.plan.volumes and self.rebake is None  # sky.exr, sun.json: not a rebake's
         self._scene_parts = None            # the fingerprint's parts, for the bake record
         self._manifest = None               # the journal's manifest, for the kept points
         self.timings = {"placement": 0.0, "render": 0.0, "write_exr": 0.0, "project": 0.0}
@@ -238,8 +237,7 @@ class ProbeBake:
         self._manifest = manifest
         self.store.open(manifest, native.sh_count(self.settings.max_band))
         if self.rebake is not None:  # after the journal's own points, which win
-            self.messages.extend(self.rebake.scene_notes(self._scene_parts))
-            self.rebake.seed(self.store, abspath(self.settings.output_path), manifest, self.log)
+            self.rebake.open(self.store, abspath(self.settings.output_path), manifest, self.messages, self.log)
         self.store.log_resume([journal.key_of(self.positions[i]) for i in self._todo], self.adaptive)
 
     def bake_positions(self, positions):
@@ -347,7 +345,7 @@ class ProbeBake:
                     self.capture_sky()
                 self.plan.finish_values(self.direct, self.timings)
                 self._check_cancel()
-                files = self._write_outputs()
+                files = write_outputs(self)
                 if self.store is not None:  # the output is complete: the local journal is spent
                     self.store.close()
                     remove_quietly(self.store.path)
@@ -359,39 +357,10 @@ class ProbeBake:
                           passes=self.plan.passes, samples=self.plan.samples_rendered,
                           points=self.plan.points_rendered(self.done), rendered=self.rendered, resumed=self.resumed)
 
-    def _write_outputs(self) -> List[str]:
-        """The plan's files, and for a volume bake the sky and the sun (bake_outputs.write_all)."""
-        outputs, stale = self.plan.outputs(self.session.tmpdir), None
-        main = abspath(self.settings.output_path)
-        if self._writes_sky:
-            more, stale = bake_sky.outputs(self.session, self.direct, self._sky_exr, os.path.dirname(main))
-            outputs += more
-        if self.plan.volumes and self.settings.per_volume_files:  # last: the files they describe first
-            outputs.append(rebake_region.points_output(main, self._manifest, native.sh_count(self.settings.max_band),
-                                                       self.store))
-            outputs.append(rebake_region.record_output(main, self.settings, self._scene_parts,
-                                                       [t.name for t in self.plan.targets],
-                                                       None if self.rebake is None else self.rebake.record))
-        return write_all(outputs, stale, self.log)
-
-    @property
-    def _writes_sky(self) -> bool:
-        """sky.exr and sun.json: a volume bake's, not a rebake's (which keeps them with the other volumes)."""
-        return self.plan.volumes and self.rebake is None
-
     def cancel(self):
         """Abandon the bake: restore the scene and remove temporary files; write no output. The
         points already baked stay in the journal, and the same bake run again resumes from them."""
         self._close()
-
-    @property
-    def kept_message(self) -> str:
-        """What a cancelled or failed bake kept in its journal, for the user ('' when nothing)."""
-        kept = 0 if self.store is None else self.store.kept
-        if self.journal_path is None or kept <= 0:
-            return ""
-        what = f"{kept} of {self.total} probes" if not self.adaptive else f"{kept} baked point(s)"
-        return f"{what} kept in {self.journal_path}; the same bake run again resumes from them"
 
     def _close(self):
         if self._closed:
@@ -416,6 +385,32 @@ class ProbeBake:
         except BaseException:
             self.cancel()
             raise
+
+
+def kept_message(bake: ProbeBake) -> str:
+    """What a cancelled or failed bake kept in its journal, for the user ('' when nothing)."""
+    kept = 0 if bake.store is None else bake.store.kept
+    if bake.journal_path is None or kept <= 0:
+        return ""
+    what = f"{kept} of {bake.total} probes" if not bake.adaptive else f"{kept} baked point(s)"
+    return f"{what} kept in {bake.journal_path}; the same bake run again resumes from them"
+
+
+def write_outputs(bake: ProbeBake) -> List[str]:
+    """A finished bake's files (bake_outputs.write_all, all or none): the plan's, for a volume bake the sky
+    and the sun (not a rebake's, which keeps them with the other volumes), and with One File per Volume the
+    kept points and the bake record last, after the files they describe (region.py)."""
+    s = bake.settings
+    outputs, stale = bake.plan.outputs(bake.session.tmpdir), None
+    main = abspath(s.output_path)
+    if bake._writes_sky:
+        more, stale = bake_sky.outputs(bake.session, bake.direct, bake._sky_exr, os.path.dirname(main))
+        outputs += more
+    if bake.plan.volumes and s.per_volume_files:
+        outputs.append(rebake_region.points_output(main, bake._manifest, native.sh_count(s.max_band), bake.store))
+        outputs.append(rebake_region.record_output(main, s, bake._scene_parts, [t.name for t in bake.plan.targets],
+                                                   None if bake.rebake is None else bake.rebake.record))
+    return write_all(outputs, stale, bake.log)
 
 
 def bake_points(scene, view_layer, settings, points, log=print) -> np.ndarray:

@@ -14,7 +14,7 @@ import time
 import bpy
 
 from .bake_core import (BakeCancelled, BakeError, BakeSettings, BakeTooLarge, CancelOnSignals, ProbeBake,
-                        format_duration)
+                        format_duration, kept_message)
 from .properties import draw_estimate, draw_settings
 
 
@@ -117,8 +117,8 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
             result = bake.run(progress)
         except (BakeError, OSError) as exc:
             print()
-            if bake.kept_message:
-                exc = f"{exc}; {bake.kept_message}"
+            if kept_message(bake):
+                exc = f"{exc}; {kept_message(bake)}"
             _record(props, message=str(exc))
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
@@ -173,8 +173,8 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
         if cancelled or error is not None:
             bake.cancel()
             msg = "Bake cancelled; existing files are unchanged" if cancelled else f"Bake failed: {error}"
-            if bake.kept_message:
-                msg += "; " + bake.kept_message
+            if kept_message(bake):
+                msg += "; " + kept_message(bake)
             _record(props, message=msg)
             self.report({'WARNING'} if cancelled else {'ERROR'}, msg)
             return {'CANCELLED'}

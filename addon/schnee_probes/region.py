@@ -211,6 +211,12 @@ class VolumeRebake:
                             f"{bounds}); give a box that meets the volume")
         return np.maximum(blo, lo), np.minimum(bhi, hi)
 
+    def open(self, store, main_output: str, manifest: dict, messages: List[str], log) -> None:
+        """After the journal is open: what changed in the kept volumes' scenes into ``messages``
+        (scene_notes), then the previous bake's points into ``store`` (seed)."""
+        messages.extend(self.scene_notes(manifest["parts"]))
+        self.seed(store, main_output, manifest, log)
+
     def seed(self, store, main_output: str, manifest: dict, log) -> None:
         """Give ``store`` the previous bake's points outside the region (they stand for renders);
         BakeError when a box is given and no points were kept, or they are of other settings."""
