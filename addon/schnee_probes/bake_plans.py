@@ -513,7 +513,7 @@ class AdaptivePlan(_VolumePlan):
             shprobe = octree_output(t, coeffs, validity, self.settings, os.path.join(scratch, "octree.shprobe"))
             if self.settings.file_version == "V3":  # File Version 1 resamples: no probe or leaf of the tree
                 out += bakeinfo.with_sidecar(shprobe, bakeinfo.adaptive_arrays(t.group, self.cache, self.settings),
-                                             Output)
+                                             Output, self.log)
             else:
                 out.append(shprobe)
         return out

@@ -21,6 +21,8 @@ from typing import Iterator, List, Optional
 
 import numpy as np
 
+from .file_names import NAME_MAX
+
 SUFFIX = ".bakeinfo"
 FORMAT = "schnee-bakeinfo"
 VERSION = 1
@@ -147,9 +149,14 @@ def write(path: str, shprobe_path: str, arrays: dict) -> None:
         np.savez(fh, **head, **arrays)
 
 
-def with_sidecar(output, arrays: dict, output_class):
+def with_sidecar(output, arrays: dict, output_class, log=print):
     """[the .shprobe's Output, its sidecar's Output]: the sidecar hashes the .shprobe's temporary
-    file, which write_all has written just before (outputs are written in list order)."""
+    file, which write_all has written just before (outputs are written in list order). A .shprobe
+    whose sidecar's name would exceed the file system's 255 bytes gets none (logged)."""
+    if len(os.path.basename(path_for(output.path)).encode()) > NAME_MAX:
+        log(f"Schnee: no bake-info sidecar for {os.path.basename(output.path)}: its name would be longer "
+            f"than {NAME_MAX} bytes (the overlay's Noise and Refinement modes need it)")
+        return [output]
     written = {}
 
     def write_shprobe(tmp):
@@ -240,6 +247,9 @@ def read_steps(path: str, shprobe_path: str, probe_count: int, leaves, out: List
     try:
         if info.stamp[1] > MAX_BYTES:
             raise ValueError(f"{info.stamp[1]} bytes, more than the {MAX_BYTES >> 20} MiB a sidecar may have")
+        with open(path, "rb") as fh:
+            if fh.read(len(MAGIC)) != MAGIC:
+                raise ValueError("not a bake-info file (not a .npz archive)")
         h = hashlib.sha256()
         with open(shprobe_path, "rb") as fh:
             while True:
