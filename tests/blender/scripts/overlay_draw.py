@@ -261,6 +261,8 @@ def viewport_check():
     overlay_gpu.free_resources()
     overlay_data.clear_cache()
     bpy.context.scene.schnee_overlay.show = True
+    # The Refinement mode with its legend in the panel; these files have no sidecar (white spheres).
+    bpy.context.scene.schnee_overlay.colour_mode = "REFINEMENT"
     win = bpy.context.window_manager.windows[0]
     # The panel too: the sidebar shows its first tab (Item), so a copy of the panel is put there
     # (as ui_harness.py does); its draw is recorded, an exception would reach stderr.
@@ -297,6 +299,7 @@ def viewport_check():
         bpy.ops.wm.redraw_timer({"window": win}, type='DRAW_WIN_SWAP', iterations=1)
     drawn = sorted(os.path.basename(p) for p in overlay_gpu._resources)
     bpy.context.scene.schnee_overlay.show = False
+    bpy.context.scene.schnee_overlay.colour_mode = "IRRADIANCE"
     return {"drawn": drawn, "error": overlay._state["error"], "panel_drawn": bool(panel_calls),
             "pending_after_first_redraw": pending, "python_threads_while_reading": python_threads}
 
