@@ -35,7 +35,7 @@ from typing import Callable, List, Optional, Tuple
 
 import numpy as np
 
-from . import native, refine_axes
+from . import bakeinfo, native, refine_axes
 from .metric import _rel, irradiance_error, irradiance_norm  # noqa: F401 (re-exported)
 
 TEST_MODES = ("CENTRE_FACES", "CENTRE")   # Refinement Tests: a leaf's centre + 6 face centres, or its centre
@@ -558,6 +558,7 @@ class AdaptiveGroup:
         self.last_errors = None
         self.predict = float(policy.predict)
         self.settled = set()        # leaf keys (x, y, z, level) predicted to pass: never tested
+        self.decisions = []         # every pass's decision, for the bake-info sidecar (bakeinfo.py)
         self.parent_ratio = {}      # leaf key -> its parent's error over threshold next to it
         self.parent_rate = {}       # leaf key -> the rate its parent's error fell by (when measured)
         # The lamps' exact direct light at engine-space points ((N, C, 3) radiance SH, or None when
@@ -670,6 +671,7 @@ class AdaptiveGroup:
             self._direct_split = self.direct_check(cache)
             if len(tests.positions) == 0 or not (tests.leaf_tests >= 0).any():
                 if self._direct_split.any():
+                    bakeinfo.record_decision(self, None, self._direct_split, None, None, None)
                     self.passes[-1].direct_split = int((self._direct_split != 0).sum())
                     self.passes[-1].split = int((self._direct_split != 0).sum())
                     return more + self._split(self._direct_split, cache)
@@ -760,6 +762,7 @@ class AdaptiveGroup:
     def _conclude(self, cache: PointCache, split, err, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
         """The pass's decision made: record it, predict the children that pass, split."""
         self.last_errors = (err, thr)
+        bakeinfo.record_decision(self, split, self._direct_split, err, thr, test_valid)
         if self._direct_split is not None:
             self.passes[-1].direct_split = int(((self._direct_split != 0) & (split == 0)).sum())
             split = split | self._direct_split

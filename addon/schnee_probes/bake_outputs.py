@@ -19,7 +19,7 @@ from typing import Callable, List, Optional
 import bpy
 import numpy as np
 
-from . import journal, native, scene_export
+from . import bakeinfo, journal, native, scene_export
 from .file_names import temporary
 from .region import RECORD_MAGIC
 from .safe_open import file_kind
@@ -244,7 +244,7 @@ def check_replaceable(path, kind):
         raise BakeError(f"Refusing to replace {path}: it exists and is a {file_kind(st.st_mode)}; "
                         "the bake only replaces files it wrote")
     want = {"shprobe": SHPROBE_MAGIC, "exr": EXR_MAGIC, "text": DEBUG_TEXT_FIRST_LINE.encode(),
-            "journal": journal.MAGIC, "sun": SUN_MAGIC, "record": RECORD_MAGIC}[kind]
+            "journal": journal.MAGIC, "sun": SUN_MAGIC, "record": RECORD_MAGIC, "bakeinfo": bakeinfo.MAGIC}[kind]
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
         try:
@@ -259,6 +259,7 @@ def check_replaceable(path, kind):
         what = {"shprobe": "a .shprobe file (no Schnee probe header)", "exr": "an OpenEXR image",
                 "journal": "a Schnee bake journal", "sun": "a sun.json written by a bake",
                 "record": "a bake record written by a bake",
+                "bakeinfo": "a bake-info sidecar (a .npz archive)",
                 "text": "a debug_probe.txt written by Bake SH at Cursor"}[kind]
         raise BakeError(f"Refusing to replace {path}: it exists and is not {what}; move it away or "
                         "choose another output")

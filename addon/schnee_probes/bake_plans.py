@@ -27,7 +27,7 @@ from typing import Callable, List, Optional
 import bpy
 import numpy as np
 
-from . import adaptive, direct_light, native, postprocess, region, render_settings, scene_export
+from . import adaptive, bakeinfo, direct_light, native, postprocess, region, render_settings, scene_export
 from .adaptive import DEFAULT_POLICY, Policy
 from .bake_checks import BakeCancelled
 from .bake_outputs import (DEBUG_SHPROBE_NAME, DEBUG_SUBDIR, DEBUG_TEXT_NAME, SKY_FILE_NAME, SUN_FILE_NAME,
@@ -235,6 +235,7 @@ class _VolumePlan(PlacementPlan):
         # Refuse before any work is done to replace something that is not ours.
         for _, path, _ in groups:
             check_replaceable(path, "shprobe")
+            check_replaceable(bakeinfo.path_for(path), "bakeinfo")
         if s.per_volume_files:
             check_replaceable(region.record_path(main_path), "record")
             check_replaceable(region.points_path(main_path), "journal")
@@ -519,7 +520,12 @@ class AdaptivePlan(_VolumePlan):
         for t in self.targets:
             coeffs, validity = t.group.probe_values(self.cache)
             coeffs, validity = postprocess.apply(coeffs, validity, t.group.tree, self.settings, log=self.log)
-            out.append(octree_output(t, coeffs, validity, self.settings, os.path.join(scratch, "octree.shprobe")))
+            shprobe = octree_output(t, coeffs, validity, self.settings, os.path.join(scratch, "octree.shprobe"))
+            if self.settings.file_version == "V3":  # File Version 1 resamples: no probe or leaf of the tree
+                out += bakeinfo.with_sidecar(shprobe, bakeinfo.adaptive_arrays(t.group, self.cache, self.settings),
+                                             Output, self.log)
+            else:
+                out.append(shprobe)
         return out
 
     def estimate_line(self, total, seconds):

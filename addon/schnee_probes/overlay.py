@@ -24,8 +24,23 @@ COLOUR_MODES = (
                                  "its scale (the engine's movable-diffuse shading of a white surface)"),
     ("VALIDITY", "Validity", "Red (0, the probe sees mostly back faces) through yellow to green (1); "
                              "files without validity (version 1) are all green"),
+    ("NOISE", "Noise", "Each probe's Monte-Carlo noise σ relative to the bake's Error Tolerance: green 0, yellow "
+                       "half the tolerance (the bake's target for a probe), red the tolerance or more; grey: not "
+                       "measured. Needs the file's bake-info sidecar (Adaptive bakes)"),
+    ("REFINEMENT", "Refinement", "Per octree leaf (a sphere at its centre and its lines): why it is a leaf and its "
+                                 "worst test error / threshold. Needs the file's bake-info sidecar (Adaptive bakes)"),
     ("WHITE", "White", "Plain white spheres (positions only)"),
 )
+# The panel's legends of the modes Noise and Refinement (overlay_data.noise_colours, refinement_colours).
+LEGENDS = {
+    "NOISE": ("Green: σ 0, yellow: ½ Error Tolerance (the bake's target),",
+              "red: σ ≥ Error Tolerance, grey: not measured"),
+    "REFINEMENT": ("Green → yellow: passed, error / threshold 0 → 1",
+                   "Magenta: noise-limited (error > tolerance, within the noise)",
+                   "Red: at Min Cell Size, parent's error here > threshold",
+                   "Orange: at Min Cell Size, parent's error here within it",
+                   "Blue: never tested (predicted to pass), grey: not compared"),
+}
 
 _state = {"handler": None, "error": None}
 _loading = {}   # path -> its overlay_data.Reader
@@ -162,6 +177,8 @@ def draw_overlay_panel(layout, scene):
     row.prop(ov, "show_probes", toggle=True)
     row.prop(ov, "show_cells", toggle=True)
     col.prop(ov, "colour_mode")
+    for line in LEGENDS.get(ov.colour_mode, ()):
+        col.label(text=line)
     col.prop(ov, "sphere_size")
     col.prop(ov, "exposure")
     col.prop(ov, "cell_alpha")
@@ -181,7 +198,7 @@ def draw_overlay_panel(layout, scene):
             continue
         box.label(text=f"v{ps.version} {ps.structure}, {ps.probe_count} probes, {ps.cell_count} cells")
         box.label(text="Validity stored" if ps.has_validity else "No validity in the file (all 1)")
-        box.label(text="Noise, refinement error: not in .shprobe")
+        box.label(text=ps.info_line(), icon='ERROR' if ps.info is not None and ps.info.error else 'NONE')
         if ps.cells_left_out:
             box.label(text=f"{ps.cells_left_out} cells not drawn (over {overlay_data.MAX_CELLS})", icon='INFO')
     if _state["error"]:

@@ -17,7 +17,7 @@ from typing import Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
 
-from . import native, scene_export
+from . import bakeinfo, native, scene_export
 
 # DESIGN.md §3: Lambert's A_l for bands 0..2, and the real SH basis constants (no Condon-Shortley).
 A_L = (math.pi, 2.0 * math.pi / 3.0, math.pi / 4.0)
@@ -48,10 +48,31 @@ class ProbeSet:
     cell_count: int = 0
     cells_left_out: int = 0
     stamp: Tuple[int, int] = (0, 0)
+    leaves: Optional[np.ndarray] = None       # (L, 4) the file's octree / kd-tree leaves
+    leaf_centres: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))  # Blender space
+    info: Optional[bakeinfo.BakeInfo] = None  # the bake-info sidecar (docs/bakeinfo.md)
 
     @property
     def probe_count(self) -> int:
         return int(self.positions.shape[0])
+
+    @property
+    def has_noise(self) -> bool:
+        return self.info is not None and self.info.error is None and self.info.noise is not None
+
+    @property
+    def has_refinement(self) -> bool:
+        return self.info is not None and self.info.error is None and self.info.leaf_reason is not None
+
+    def info_line(self) -> str:
+        """One line for the panel: what the sidecar adds (Noise and Refinement modes), or why not."""
+        if self.info is None or self.info.missing:
+            return ("Noise, refinement: not stored for this file (baked before bake-info sidecars, "
+                    "or not by Adaptive placement with File Version 3)")
+        if self.info.error:
+            return self.info.error
+        return "Noise" + (", refinement" if self.has_refinement else "") + \
+            f" stored (Error Tolerance {self.info.tolerance:g})"
 
     def holds(self) -> str:
         """One line for the panel: what the file holds that the colour modes can show."""
@@ -59,7 +80,7 @@ class ProbeSet:
             return self.error
         parts = [f"v{self.version} {self.structure}", f"{self.probe_count} probes"]
         parts.append("validity" if self.has_validity else "no validity (all 1)")
-        parts.append("no noise or refinement error (not stored in .shprobe)")
+        parts.append(self.info_line())
         return ", ".join(parts)
 
 
@@ -128,13 +149,8 @@ def _cell_boxes(f, ps: ProbeSet):
         leaves = np.asarray(f.leaves)
         ps.cell_count = len(leaves)
         leaves = leaves[:MAX_CELLS]
-        lo = leaves[:, :3].astype(np.float64)
-        word = leaves[:, 3].astype(np.int64)
-        if f.structure == "octree":
-            lv = np.repeat(word[:, None], 3, axis=1)
-        else:
-            lv = np.stack([word & 0xFF, word >> 8 & 0xFF, word >> 16 & 0xFF], axis=1)
-        boxes = (lo, np.exp2(lv.astype(np.float64)), lv.max(axis=1).astype(np.float64))
+        lo, size = _leaf_boxes(f.structure, leaves)
+        boxes = (lo, size, np.log2(size).max(axis=1))
     elif f.structure == "tetrahedra":
         tets = np.asarray(f.tets)
         ps.cell_count = len(tets)
@@ -143,6 +159,17 @@ def _cell_boxes(f, ps: ProbeSet):
         return None
     ps.cells_left_out = ps.cell_count - min(ps.cell_count, MAX_CELLS)
     return boxes
+
+
+def _leaf_boxes(structure: str, leaves: np.ndarray):
+    """(lo, size) lattice boxes (N, 3) of a v3 octree's (level) or a v4 kd-tree's (packed levels) leaves."""
+    lo = leaves[:, :3].astype(np.float64)
+    word = leaves[:, 3].astype(np.int64)
+    if structure == "octree":
+        lv = np.repeat(word[:, None], 3, axis=1)
+    else:
+        lv = np.stack([word & 0xFF, word >> 8 & 0xFF, word >> 16 & 0xFF], axis=1)
+    return lo, np.exp2(lv.astype(np.float64))
 
 
 def _cells(f, ps: ProbeSet) -> Iterator[None]:
@@ -214,8 +241,21 @@ def _build(ps: ProbeSet, f) -> Iterator[None]:
     ps.has_validity = f.version >= 2 and f.validity is not None and len(f.validity) == f.probe_count
     ps.validity = (np.asarray(f.validity, np.float32) if ps.has_validity
                    else np.ones(f.probe_count, np.float32))
+    if f.structure in ("octree", "kdtree"):
+        ps.leaves = np.asarray(f.leaves, np.uint32)
+        lo, size = _leaf_boxes(f.structure, ps.leaves)
+        ps.leaf_centres = lattice_to_blender(lo + size / 2, f.grid_origin, f.grid_spacing,
+                                             f.grid_axes).astype(np.float32)
     yield
     yield from _cells(f, ps)
+    yield from _sidecar(ps)
+
+
+def _sidecar(ps: ProbeSet) -> Iterator[None]:
+    """The bake-info sidecar beside the file (bakeinfo.read_steps: the .shprobe hashed in steps)."""
+    out: List[bakeinfo.BakeInfo] = []
+    yield from bakeinfo.read_steps(bakeinfo.path_for(ps.path), ps.path, ps.probe_count, ps.leaves, out)
+    ps.info = out[0]
 
 
 _READ_ERRORS = (native.SchneeError, OSError, ValueError)
@@ -286,9 +326,17 @@ def cached(path: str) -> Optional[ProbeSet]:
     except OSError:
         stamp = None
     hit = _cache.get(path)
-    if hit is not None and stamp is not None and hit.stamp == stamp:
+    if hit is not None and stamp is not None and hit.stamp == stamp and _info_current(hit):
         return hit
     return None
+
+
+def _info_current(ps: ProbeSet) -> bool:
+    """The sidecar read with ``ps`` is still the one on disk (written, replaced or removed since: no)."""
+    if ps.error or ps.info is None:
+        return True
+    now = bakeinfo.stamp_of(bakeinfo.path_for(ps.path))
+    return now is None if ps.info.missing else now == ps.info.stamp
 
 
 def load(path: str) -> ProbeSet:
@@ -304,3 +352,43 @@ def load(path: str) -> ProbeSet:
 
 def clear_cache() -> None:
     _cache.clear()
+
+
+# Colour modes Noise and Refinement (docs/overlay.md): linear RGB.
+GREEN, YELLOW, RED = np.array([0.02, 0.8, 0.05]), np.array([1.0, 0.8, 0.0]), np.array([1.0, 0.02, 0.02])
+GREY = np.array([0.5, 0.5, 0.5])
+REFINEMENT_COLOURS = {bakeinfo.NOISE_LIMITED: (0.9, 0.1, 1.0), bakeinfo.NEVER_TESTED: (0.1, 0.35, 1.0),
+                      bakeinfo.NOT_COMPARED: tuple(GREY), bakeinfo.UNKNOWN: tuple(GREY)}
+MIN_CELL_BELOW = (1.0, 0.45, 0.0)   # at Min Cell Size, its parent's error here within the threshold
+
+
+def noise_colours(noise: np.ndarray, tolerance: float) -> np.ndarray:
+    """(P, 3): σ / Error Tolerance 0 green, ½ (the bake's target for a probe's noise) yellow, ≥ 1
+    red, linear between; not measured (NaN) grey."""
+    r = np.asarray(noise, np.float64) / float(tolerance)
+    c = traffic_light(np.nan_to_num(r))
+    c[~np.isfinite(r)] = GREY
+    return c
+
+
+def traffic_light(x: np.ndarray) -> np.ndarray:
+    """(N, 3) float32: x 0 green, 0.5 yellow, 1 red (clamped), linear between."""
+    x = np.clip(np.asarray(x, np.float64), 0.0, 1.0)[:, None]
+    return np.where(x < 0.5, GREEN + (YELLOW - GREEN) * (x * 2), YELLOW + (RED - YELLOW) * (x * 2 - 1)).astype(np.float32)
+
+
+def refinement_colours(reason: np.ndarray, ratio: np.ndarray, parent_ratio: np.ndarray) -> np.ndarray:
+    """(L, 3) per leaf: passed green → yellow as its worst test error / threshold goes 0 → 1;
+    noise-limited magenta; at Min Cell Size red where its parent's error here was above the
+    threshold (the light still changes more than the tolerance: only a smaller Min Cell Size would
+    follow it), orange where not; never tested (predicted to pass) blue; not compared grey."""
+    reason = np.asarray(reason)
+    x = np.clip(np.nan_to_num(np.asarray(ratio, np.float64)), 0.0, 1.0)[:, None]
+    c = GREEN + (YELLOW - GREEN) * x
+    for code, colour in REFINEMENT_COLOURS.items():
+        c[reason == code] = colour
+    at_min = reason == bakeinfo.MIN_CELL
+    above = np.nan_to_num(np.asarray(parent_ratio, np.float64)) > 1.0
+    c[at_min & above] = RED
+    c[at_min & ~above] = MIN_CELL_BELOW
+    return c.astype(np.float32)

@@ -25,17 +25,19 @@ import numpy as np
 import gpu
 from gpu_extras.batch import batch_for_shader
 
-from . import compat
+from . import compat, overlay_data
 from .overlay_data import ProbeSet
 
-TEXELS = 11           # per probe: 0..8 shading SH (rgb), 9 position (xyz) + validity, 10 flat colour
+TEXELS = 12           # per probe: 0..8 shading SH (rgb), 9 position (xyz) + validity, 10 validity colour,
+                      # 11 noise colour (a leaf marker: 9 its centre, 10 its refinement colour)
 TEX_WIDTH = 4096      # texels per row of the probe texture (llvmpipe and every GPU allow 16384)
 CHUNK = 1024          # spheres per batch (one draw call each)
-MODES = {"IRRADIANCE": 0, "VALIDITY": 1, "WHITE": 2}
+# mode -> (shader mode: 0 irradiance, 1 flat colour, 2 white; the flat colour's texel)
+MODES = {"IRRADIANCE": (0, 10), "VALIDITY": (1, 10), "NOISE": (1, 11), "REFINEMENT": (1, 10), "WHITE": (2, 10)}
 
 _VERT = """
 #ifndef TEXELS
-#define TEXELS 11
+#define TEXELS 12
 #endif
 vec4 probe_texel(int i)
 {
@@ -52,7 +54,7 @@ void main()
     return;
   }
   vec4 p = probe_texel(probe * TEXELS + 9);
-  flatColour = probe_texel(probe * TEXELS + 10);
+  flatColour = probe_texel(probe * TEXELS + colourTexel);
   gl_Position = viewProjectionMatrix * vec4(p.xyz + radius * nrm, 1.0);
 }
 """
@@ -106,25 +108,30 @@ void main()
 _LINE_VERT = """
 void main()
 {
-  levelV = level;
+  colourV = col;
   gl_Position = viewProjectionMatrix * vec4(pos, 1.0);
 }
 """
 
 _LINE_FRAG = """
+float srgb_encode(float c)
+{
+  c = clamp(c, 0.0, 1.0);
+  return c <= 0.0031308 ? 12.92 * c : 1.055 * pow(c, 1.0 / 2.4) - 0.055;
+}
 void main()
 {
-  /* Level 0 (Min Cell Size) white, then along a ramp to deep blue at levels >= 6. */
-  float t = clamp(levelV / 6.0, 0.0, 1.0);
-  vec3 c = mix(vec3(1.0, 1.0, 1.0), vec3(1.0, 0.55, 0.1), clamp(t * 2.0, 0.0, 1.0));
-  c = mix(c, vec3(0.15, 0.3, 1.0), clamp(t * 2.0 - 1.0, 0.0, 1.0));
+  vec3 c = colourV;
+  if (encodeSrgb != 0) {
+    c = vec3(srgb_encode(c.r), srgb_encode(c.g), srgb_encode(c.b));
+  }
   fragColor = vec4(c * lineAlpha, lineAlpha);
 }
 """
 
 _shaders: Dict[str, object] = {}
 _sphere_batches: Dict[int, object] = {}
-_resources: Dict[str, tuple] = {}   # path -> (stamp, texture, line batch or None)
+_resources: Dict[str, dict] = {}   # path -> {"key": (stamp, sidecar stamp), textures, line batches}
 
 
 def sphere_shader():
@@ -134,7 +141,8 @@ def sphere_shader():
             attrs=(("VEC3", "nrm"), ("FLOAT", "localId")),
             varyings=(("smooth", "VEC3", "normalW"), ("flat", "INT", "probeIndex"), ("flat", "VEC4", "flatColour")),
             constants=(("MAT4", "viewProjectionMatrix"), ("INT", "probeOffset"), ("INT", "probeCount"),
-                       ("FLOAT", "radius"), ("FLOAT", "exposure"), ("INT", "mode"), ("INT", "encodeSrgb")),
+                       ("FLOAT", "radius"), ("FLOAT", "exposure"), ("INT", "mode"), ("INT", "colourTexel"),
+                       ("INT", "encodeSrgb")),
             samplers=(("FLOAT_2D", "probeData"),),
             defines={"TEXELS": TEXELS, "TEX_WIDTH": TEX_WIDTH})
     return _shaders["sphere"]
@@ -144,9 +152,9 @@ def line_shader():
     if "line" not in _shaders:
         _shaders["line"] = compat.gpu_shader(
             "schnee_probe_cells", _LINE_VERT, _LINE_FRAG,
-            attrs=(("VEC3", "pos"), ("FLOAT", "level")),
-            varyings=(("smooth", "FLOAT", "levelV"),),
-            constants=(("MAT4", "viewProjectionMatrix"), ("FLOAT", "lineAlpha")),
+            attrs=(("VEC3", "pos"), ("VEC3", "col")),
+            varyings=(("smooth", "VEC3", "colourV"),),
+            constants=(("MAT4", "viewProjectionMatrix"), ("FLOAT", "lineAlpha"), ("INT", "encodeSrgb")),
             samplers=(), defines={})
     return _shaders["line"]
 
@@ -198,20 +206,31 @@ def _spheres(subdivisions: int):
 
 def validity_colours(validity: np.ndarray) -> np.ndarray:
     """Validity 0 red, 0.5 yellow, 1 green (linear RGB), (P, 3)."""
-    v = np.clip(np.asarray(validity, np.float32), 0.0, 1.0)[:, None]
-    red, yellow, green = np.array([1.0, 0.02, 0.02]), np.array([1.0, 0.8, 0.0]), np.array([0.02, 0.8, 0.05])
-    return np.where(v < 0.5, red + (yellow - red) * (v * 2), yellow + (green - yellow) * (v * 2 - 1)).astype(np.float32)
+    return overlay_data.traffic_light(1.0 - np.asarray(validity, np.float64))
 
 
-def probe_texture_data(ps: ProbeSet) -> np.ndarray:
-    """The probe texture's texels (rows of TEX_WIDTH, RGBA float32), zero-padded."""
-    n = ps.probe_count
+def level_colours(levels: np.ndarray) -> np.ndarray:
+    """(N, 3) cell line colours by level: 0 (Min Cell Size) white, along a ramp through orange to
+    deep blue at levels >= 6."""
+    t = np.clip(np.asarray(levels, np.float64) / 6.0, 0.0, 1.0)[:, None]
+    white, orange, blue = np.array([1.0, 1.0, 1.0]), np.array([1.0, 0.55, 0.1]), np.array([0.15, 0.3, 1.0])
+    c = white + (orange - white) * np.clip(t * 2.0, 0.0, 1.0)
+    return (c + (blue - c) * np.clip(t * 2.0 - 1.0, 0.0, 1.0)).astype(np.float32)
+
+
+def texture_data(positions: np.ndarray, colours, shading=None, validity=None) -> np.ndarray:
+    """The texels (rows of TEX_WIDTH, RGBA float32, zero-padded) of spheres at ``positions`` (N, 3):
+    ``colours`` the flat colours (N, 3) of texels 10, 11, ...; ``shading`` (N, 9, 3) texels 0..8."""
+    n = len(positions)
     tex = np.zeros((n, TEXELS, 4), np.float32)
-    tex[:, :9, :3] = ps.shading
-    tex[:, 9, :3] = ps.positions
-    tex[:, 9, 3] = ps.validity
-    tex[:, 10, :3] = validity_colours(ps.validity)
-    tex[:, 10, 3] = 1.0
+    if shading is not None:
+        tex[:, :9, :3] = shading
+    tex[:, 9, :3] = positions
+    if validity is not None:
+        tex[:, 9, 3] = validity
+    for k, c in enumerate(colours):
+        tex[:, 10 + k, :3] = c
+        tex[:, 10 + k, 3] = 1.0
     flat = tex.reshape(-1, 4)
     rows = max(1, -(-len(flat) // TEX_WIDTH))
     out = np.zeros((rows * TEX_WIDTH, 4), np.float32)
@@ -219,17 +238,41 @@ def probe_texture_data(ps: ProbeSet) -> np.ndarray:
     return out.reshape(rows, TEX_WIDTH, 4)
 
 
-def _resources_for(ps: ProbeSet):
-    hit = _resources.get(ps.path)
-    if hit is not None and hit[0] == ps.stamp:
-        return hit
-    data = probe_texture_data(ps)
+def probe_texture_data(ps: ProbeSet) -> np.ndarray:
+    """The probe texture's texels: shading, position + validity, the validity and noise colours
+    (grey where the file has no noise, overlay_data.noise_colours)."""
+    noise = (overlay_data.noise_colours(ps.info.noise, ps.info.tolerance) if ps.has_noise
+             else np.tile(overlay_data.GREY.astype(np.float32), (ps.probe_count, 1)))
+    return texture_data(ps.positions, (validity_colours(ps.validity), noise), ps.shading, ps.validity)
+
+
+def leaf_colours(ps: ProbeSet) -> np.ndarray:
+    """(L, 3) the Refinement mode's colour per leaf of ``ps`` (its sidecar's decisions)."""
+    i = ps.info
+    return overlay_data.refinement_colours(i.leaf_reason, i.leaf_ratio, i.leaf_parent_ratio)
+
+
+def _texture(data: np.ndarray):
     buf = gpu.types.Buffer('FLOAT', data.size, data.reshape(-1))
-    tex = gpu.types.GPUTexture((TEX_WIDTH, data.shape[0]), format='RGBA32F', data=buf)
-    lines = None
+    return gpu.types.GPUTexture((TEX_WIDTH, data.shape[0]), format='RGBA32F', data=buf)
+
+
+def _resources_for(ps: ProbeSet) -> dict:
+    key = (ps.stamp, None if ps.info is None else ps.info.stamp)
+    hit = _resources.get(ps.path)
+    if hit is not None and hit["key"] == key:
+        return hit
+    hit = {"key": key, "probes": _texture(probe_texture_data(ps)), "lines": None, "markers": None,
+           "refined_lines": None}
     if len(ps.cell_lines):
-        lines = batch_for_shader(line_shader(), 'LINES', {"pos": ps.cell_lines, "level": ps.cell_levels})
-    hit = (ps.stamp, tex, lines)
+        hit["lines"] = batch_for_shader(line_shader(), 'LINES', {"pos": ps.cell_lines,
+                                                                 "col": level_colours(ps.cell_levels)})
+    if ps.has_refinement and len(ps.leaf_centres):
+        colours = leaf_colours(ps)
+        hit["markers"] = _texture(texture_data(ps.leaf_centres, (colours,)))
+        if len(ps.cell_lines) and ps.structure in ("octree", "kdtree"):
+            per_vertex = np.repeat(colours[:len(ps.cell_lines) // 24], 24, axis=0)
+            hit["refined_lines"] = batch_for_shader(line_shader(), 'LINES', {"pos": ps.cell_lines, "col": per_vertex})
     _resources[ps.path] = hit
     return hit
 
@@ -238,35 +281,52 @@ def free_resources() -> None:
     _resources.clear()
 
 
+def _draw_spheres(tex, count: int, view_projection, mode: str, radius: float, exposure: float, encode_srgb: bool):
+    sh = sphere_shader()
+    batch = _spheres(sphere_subdivisions(count))
+    shader_mode, texel = MODES[mode]
+    sh.bind()
+    sh.uniform_float("viewProjectionMatrix", view_projection)
+    sh.uniform_int("probeCount", count)
+    sh.uniform_float("radius", float(radius))
+    sh.uniform_float("exposure", float(2.0 ** exposure))
+    sh.uniform_int("mode", shader_mode)
+    sh.uniform_int("colourTexel", texel)
+    sh.uniform_int("encodeSrgb", 1 if encode_srgb else 0)
+    sh.uniform_sampler("probeData", tex)
+    for offset in range(0, count, CHUNK):
+        sh.uniform_int("probeOffset", offset)
+        batch.draw(sh)
+
+
 def draw(ps: ProbeSet, view_projection, *, radius: float = 0.1, exposure: float = 0.0,
          mode: str = "IRRADIANCE", show_probes: bool = True, show_cells: bool = True,
          cell_alpha: float = 0.6, encode_srgb: bool = False) -> None:
     """Draw ``ps`` into the bound framebuffer with the matrix ``view_projection`` (mathutils 4x4,
-    Blender world -> clip). Depth test on; the caller restores state it cares about."""
+    Blender world -> clip). Depth test on; the caller restores state it cares about. Mode
+    REFINEMENT draws a sphere per leaf at its centre and the leaves' lines in the colour of their
+    decision (overlay_data.refinement_colours) where the file has a sidecar with them, else white
+    probes and the cells by level."""
     if ps.error or ps.probe_count == 0:
         return
-    _, tex, lines = _resources_for(ps)
+    res = _resources_for(ps)
+    tex, count, lines = res["probes"], ps.probe_count, res["lines"]
+    if mode == "REFINEMENT":
+        if res["markers"] is not None:
+            tex, count = res["markers"], len(ps.leaf_centres)
+            lines = res["refined_lines"] or lines
+        else:
+            mode = "WHITE"
     gpu.state.depth_test_set('LESS_EQUAL')
     gpu.state.depth_mask_set(True)
     if show_probes:
-        sh = sphere_shader()
-        batch = _spheres(sphere_subdivisions(ps.probe_count))
-        sh.bind()
-        sh.uniform_float("viewProjectionMatrix", view_projection)
-        sh.uniform_int("probeCount", ps.probe_count)
-        sh.uniform_float("radius", float(radius))
-        sh.uniform_float("exposure", float(2.0 ** exposure))
-        sh.uniform_int("mode", MODES[mode])
-        sh.uniform_int("encodeSrgb", 1 if encode_srgb else 0)
-        sh.uniform_sampler("probeData", tex)
-        for offset in range(0, ps.probe_count, CHUNK):
-            sh.uniform_int("probeOffset", offset)
-            batch.draw(sh)
+        _draw_spheres(tex, count, view_projection, mode, radius, exposure, encode_srgb)
     if show_cells and lines is not None:
         ls = line_shader()
         ls.bind()
         ls.uniform_float("viewProjectionMatrix", view_projection)
         ls.uniform_float("lineAlpha", float(cell_alpha))
+        ls.uniform_int("encodeSrgb", 1 if encode_srgb else 0)
         gpu.state.blend_set('ALPHA_PREMULT')
         gpu.state.depth_mask_set(False)
         lines.draw(ls)

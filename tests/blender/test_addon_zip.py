@@ -91,7 +91,7 @@ def test_headless_bake_py_of_the_installed_zip_matches_uniform_world(installed):
     origin = [ln.split(" ", 1)[1] for ln in proc.stdout.splitlines() if ln.startswith("SCHNEE-FROM ")]
     assert origin == [str(installed["package"] / "__init__.py")], proc.stdout[-2000:]
     out = installed["uniform"].parent / "headless"
-    assert sorted(p.name for p in out.iterdir()) == ["probes.shprobe", "sky.exr"]
+    assert sorted(p.name for p in out.iterdir()) == ["probes.shprobe", "probes.shprobe.bakeinfo", "sky.exr"]
     from schnee_probes import native  # the checkout's reader reads what the installed copy wrote
     f = native.read_shprobe(str(out / "probes.shprobe"))
     assert f.version == 3 and f.structure == "octree"

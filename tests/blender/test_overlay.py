@@ -27,12 +27,12 @@ def srgb_codes(linear):
     return 255.0 * np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
 
 
-def check_pixels(result):
-    """Every drawn centre pixel against the CPU model; returns the largest difference in codes."""
-    assert "error" not in result, result.get("error")
+def check_pixels(pixels):
+    """Every drawn centre pixel against the CPU model (or the colour of its stored value); returns
+    the largest difference in codes."""
     worst = 0.0
     bad = []
-    for p in result["pixels"]:
+    for p in pixels:
         diff = np.abs(np.asarray(p["code"], float) - srgb_codes(p["want"])).max()
         worst = max(worst, diff)
         if diff > TOLERANCE_CODES:
@@ -60,7 +60,8 @@ def drawn(tmp_path_factory):
 def test_sphere_centre_equals_cpu_irradiance(drawn):
     """3 probes (constant, linear in n, with band 2) x 7 view directions x 2 files (v1 grid
     positions, v2 explicit positions): 42 pixels, each within 1 code of the CPU model."""
-    worst = check_pixels(drawn)
+    assert "error" not in drawn, drawn.get("error")
+    worst = check_pixels(drawn["pixels"])
     modes = [p["mode"] for p in drawn["pixels"]]
     assert modes.count("IRRADIANCE") == 42 and modes.count("VALIDITY") == 6
     print(f"worst difference {worst:.3f} codes ({drawn['renderer']}, Blender {drawn['version']})")
@@ -109,4 +110,32 @@ def test_viewport_handler_draws_the_scene_files(drawn):
     assert drawn["viewport"] == {"drawn": ["grid.shprobe", "points.shprobe"], "error": None, "panel_drawn": True,
                                  "pending_after_first_redraw": ["grid.shprobe", "points.shprobe"],
                                  "python_threads_while_reading": 1}
+    assert "Traceback" not in drawn["stderr"]
+
+
+def test_noise_and_refinement_colours_equal_the_stored_values(drawn):
+    """tree.shprobe (v3, 1 + 8 leaves, 26 probes) with its sidecar: every probe's sphere in Noise
+    (σ from 0 to 1.3 x the tolerance, one not measured: grey), every leaf's sphere in Refinement
+    (one per reason), within 1 code of overlay_data.noise_colours / refinement_colours of the stored
+    values; the Refinement lines' pixels are each a leaf's colour (within 1 code)."""
+    m = drawn["modes"]
+    assert m["has_noise"] and m["has_refinement"], m["holds"]
+    worst = check_pixels(m["pixels"])
+    kinds = [p["mode"] for p in m["pixels"]]
+    assert kinds.count("REFINEMENT") == 9 and kinds.count("NOISE") == 26
+    assert m["line_pixels"] > 200 and m["line_worst"] <= TOLERANCE_CODES
+    print(f"modes: worst difference {worst:.3f} codes, lines {m['line_worst']:.3f} codes")
+
+
+def test_files_without_or_with_a_bad_sidecar_say_so(drawn):
+    m = drawn["modes"]
+    w = m["without"]
+    assert not w["has_noise"] and w["line"].startswith("Noise, refinement: not stored for this file (baked before")
+    assert np.abs(np.asarray(w["code"], float) - srgb_codes(w["want"])).max() <= TOLERANCE_CODES  # grey
+    e = m["sidecar_errors"]
+    assert all(v["error"] is None and not v["has_noise"] for v in e.values()), e
+    assert e["mismatched"]["line"] == ("points.shprobe.bakeinfo: written for another bake of the .shprobe "
+                                       "(its SHA-256 differs); ignored")
+    assert e["truncated"]["line"].startswith("points.shprobe.bakeinfo: ") and e["truncated"]["line"].endswith("ignored")
+    assert e["not_npz"]["line"].startswith("points.shprobe.bakeinfo: ")
     assert "Traceback" not in drawn["stderr"]

@@ -14,6 +14,7 @@ import signal
 import time
 import types
 
+import numpy as np
 import pytest
 
 from conftest import requires_native
@@ -62,7 +63,8 @@ def _adaptive_reference(scenes, local):
     renders = _renders_per_key(local / "renders.log")
     assert max(renders.values()) == 1      # issue 29: each point and seed once
     return types.SimpleNamespace(shprobe=_sha(local / "sh_coeffs" / "probes.shprobe"), points=points,
-                                 first_layer=first_layer, renders=renders)
+                                 first_layer=first_layer, renders=renders,
+                                 bakeinfo=_sidecar(local / "sh_coeffs" / "probes.shprobe.bakeinfo"))
 
 
 scenes = scenes_made_by("resume_scene.py")
@@ -83,6 +85,17 @@ def reference(scenes, tmp_path_factory):
 
 def _sha(path):
     return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _sidecar(path):
+    """The bake-info sidecar's arrays (docs/bakeinfo.md; its zip members carry the write's time, so
+    the bytes differ run to run): noise, leaves, decisions and the .shprobe's hash."""
+    h = hashlib.sha256()
+    with np.load(str(path), allow_pickle=False) as z:
+        for name in sorted(z.files):
+            a = z[name]
+            h.update(f"{name} {a.dtype} {a.shape}".encode() + a.tobytes())
+    return h.hexdigest()
 
 
 def _pixels(path):
@@ -230,6 +243,7 @@ def test_adaptive_shards_pass_by_pass(scenes, tmp_path):
     rc, out = _counted(blend, [*ADAPTIVE, "--merge-shards", "2"], log)
     assert rc == 0, out[-3000:]
     assert _sha(farm / "sh_coeffs" / "probes.shprobe") == adaptive_reference.shprobe
+    assert _sidecar(farm / "sh_coeffs" / "probes.shprobe.bakeinfo") == adaptive_reference.bakeinfo
     # Issue 29: every render of the shards once, and the same renders as the local bake (the merge
     # renders nothing but the sky).
     renders = _renders_per_key(log)
@@ -254,6 +268,7 @@ def test_adaptive_killed_then_resumed_equals_uninterrupted(scenes, tmp_path):
     assert f"{ref.first_layer} of {ref.first_layer} probes already baked, 0 to render in the first pass ({kept} points" \
         in stdout, stdout[-3000:]
     assert _sha(out / "probes.shprobe") == ref.shprobe
+    assert _sidecar(out / "probes.shprobe.bakeinfo") == ref.bakeinfo   # noise and decisions too
     # Issue 29: the killed bake and its resume render every key of the uninterrupted bake, each once,
     # but for the point the kill cut short (its renders without a record: at most its two first rounds).
     renders = _renders_per_key(log)

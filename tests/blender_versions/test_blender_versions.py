@@ -377,7 +377,7 @@ def test_object_probe_mode_property_panel_export(session):
 
 
 # ---------------------------------------------------------------------- the sky's sun (issue 27 item 2)
-SKY_SUN_FILES = ["probes.shprobe", "sky.exr", "sun.json"]
+SKY_SUN_FILES = ["probes.shprobe", "probes.shprobe.bakeinfo", "sky.exr", "sun.json"]  # Adaptive: docs/bakeinfo.md
 
 
 def _sky_sun(session):

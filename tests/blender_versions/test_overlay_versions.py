@@ -13,25 +13,22 @@ import json
 import os
 import shutil
 import subprocess
+import sys
 import time
 import zipfile
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from conftest import REPO, build_target
+
+sys.path.insert(0, str(REPO / "tests" / "blender"))
+from test_overlay import TOLERANCE_CODES, check_pixels  # noqa: E402  (the host test's comparison)
 
 CHROOT = REPO / "scripts" / "blender-chroot.sh"
 SCRIPT = REPO / "tests" / "blender" / "scripts" / "overlay_draw.py"
 ADDON = REPO / "addon" / "schnee_probes"
 SUITES = {"trixie": (4, 3), "sid": (5, 2)}
-TOLERANCE_CODES = 1.0
-
-
-def srgb_codes(linear):
-    c = np.clip(np.asarray(linear, np.float64), 0.0, 1.0)
-    return 255.0 * np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
 
 
 @pytest.fixture(scope="module")
@@ -100,13 +97,7 @@ def drawn(request, xserver):
 def test_sphere_centre_equals_cpu_irradiance(drawn):
     assert "error" not in drawn, drawn.get("error")
     assert tuple(drawn["version"][:2]) == SUITES[drawn["suite"]]
-    worst, bad = 0.0, []
-    for p in drawn["pixels"]:
-        diff = np.abs(np.asarray(p["code"], float) - srgb_codes(p["want"])).max()
-        worst = max(worst, diff)
-        if diff > TOLERANCE_CODES:
-            bad.append(p)
-    assert not bad, bad[:4]
+    worst = check_pixels(drawn["pixels"])
     assert len(drawn["pixels"]) == 48
     print(f"Blender {drawn['version']} ({drawn['renderer']}): worst difference {worst:.3f} codes")
 
@@ -121,3 +112,20 @@ def test_files_errors_and_reload(drawn):
     assert drawn["viewport"] == {"drawn": ["grid.shprobe", "points.shprobe"], "error": None, "panel_drawn": True,
                                  "pending_after_first_redraw": ["grid.shprobe", "points.shprobe"],
                                  "python_threads_while_reading": 1}
+
+
+def test_noise_and_refinement_colours(drawn):
+    """The host test's Noise / Refinement checks (tests/blender/test_overlay.py): each probe's and
+    leaf's centre pixel within 1 code of the colour of its stored value, the lines' pixels leaf
+    colours, a file without / with a bad sidecar a message."""
+    assert "error" not in drawn, drawn.get("error")
+    m = drawn["modes"]
+    assert m["has_noise"] and m["has_refinement"], m["holds"]
+    worst = check_pixels(m["pixels"])
+    assert [p["mode"] for p in m["pixels"]].count("REFINEMENT") == 9
+    assert m["line_pixels"] > 200 and m["line_worst"] <= TOLERANCE_CODES
+    assert m["without"]["line"].startswith("Noise, refinement: not stored for this file (baked before")
+    e = m["sidecar_errors"]
+    assert e["mismatched"]["line"].endswith("(its SHA-256 differs); ignored")
+    assert all(v["error"] is None and not v["has_noise"] for v in e.values()), e
+    print(f"Blender {drawn['version']}: modes worst difference {worst:.3f} codes, lines {m['line_worst']:.3f}")

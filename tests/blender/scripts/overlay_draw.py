@@ -26,7 +26,7 @@ import numpy as np
 from mathutils import Matrix, Vector
 
 import schnee_probes
-from schnee_probes import native, overlay_data, scene_export
+from schnee_probes import bakeinfo, native, overlay_data, scene_export
 
 ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = ARGS[0]
@@ -105,6 +105,7 @@ def run_checks():
     px = overlay_gpu.draw_offscreen(sets, view, proj, 256, 256, radius=RADIUS, exposure=EXPOSURE)
     out["cells_picture_nonblack"] = int((px[..., :3].max(axis=2) > 40).sum())
     np.save(os.path.join(OUT, "cells.npy"), px)
+    out["modes"] = mode_checks()
     out["errors"] = error_checks()
     out["reload"] = reload_check(paths[0])
     out["scene_files"] = scene_files_check(paths)
@@ -112,6 +113,106 @@ def run_checks():
     if BENCH:
         out["bench"] = bench(BENCH)
     return out
+
+
+TOLERANCE = 0.04
+# tree.shprobe's sidecar: one leaf per reason (docs/bakeinfo.md), error / threshold chosen to cross 1.
+LEAF_TABLE = [(bakeinfo.PASSED, 0.012, 0.04, 0.5), (bakeinfo.PASSED, 0.036, 0.04, 0.8),
+              (bakeinfo.NOISE_LIMITED, 0.05, 0.06, 1.3), (bakeinfo.NEVER_TESTED, np.nan, np.nan, 0.7),
+              (bakeinfo.NOT_COMPARED, np.nan, np.nan, 2.0), (bakeinfo.MIN_CELL, np.nan, np.nan, 1.7),
+              (bakeinfo.MIN_CELL, np.nan, np.nan, 0.6)]
+
+
+def write_tree_file():
+    """tree.shprobe: a version 3 octree of a 2 x 1 x 1 root layer of 2 m leaves (min cell 0.5 m),
+    the first split once: 1 + 8 leaves; its sidecar with a noise per probe (0 to 1.3 x the
+    tolerance, one not measured) and a reason per leaf (LEAF_TABLE, repeated)."""
+    path = os.path.join(OUT, "tree.shprobe")
+    tree = native.CornerOctree.uniform((0.0, 1.0, -8.0), 0.5, 2, (2, 1, 1))
+    tree.finalize()
+    tree.split(np.array([1, 0], np.uint8))
+    tree.finalize()
+    info = tree.info()
+    p = int(info["probe_count"])
+    c = np.zeros((p, 9, 3), np.float32)
+    c[:, 0] = 1.0
+    native.write_shprobe_v3(path, tree, c)
+    leaves = native.read_shprobe(path).leaves
+    n = len(leaves)
+    rows = [LEAF_TABLE[i % len(LEAF_TABLE)] for i in range(n)]
+    noise = np.linspace(0.0, 1.3 * TOLERANCE, p).astype(np.float32)
+    noise[3] = np.nan
+    arrays = dict(placement=np.array("ADAPTIVE"), tolerance=np.float64(TOLERANCE), noise_k=np.float64(2.0),
+                  min_cell_size=np.float64(0.5), samples=np.int64(8), noise=noise,
+                  leaves=np.asarray(leaves, np.uint32),
+                  leaf_error=np.array([r[1] for r in rows], np.float32),
+                  leaf_threshold=np.array([r[2] for r in rows], np.float32),
+                  leaf_parent_ratio=np.array([r[3] for r in rows], np.float32),
+                  leaf_reason=np.array([r[0] for r in rows], np.uint8))
+    bakeinfo.write(bakeinfo.path_for(path), path, arrays)
+    return path
+
+
+def mode_checks():
+    """Noise (every probe of tree.shprobe) and Refinement (every leaf's sphere at its centre): the
+    centre pixel against the colour of the stored value (overlay_data.noise_colours /
+    refinement_colours); the Refinement lines' pixels are each one of the leaves' colours; a file
+    without a sidecar says so and draws grey in Noise."""
+    from schnee_probes import overlay_gpu
+    path = write_tree_file()
+    ps = overlay_data.load(path)
+    res = {"holds": ps.holds(), "pixels": [], "has_noise": ps.has_noise, "has_refinement": ps.has_refinement}
+    noise_want = overlay_data.noise_colours(ps.info.noise, ps.info.tolerance)
+    leaf_want = overlay_data.refinement_colours(ps.info.leaf_reason, ps.info.leaf_ratio, ps.info.leaf_parent_ratio)
+    for mode, centres, want in (("NOISE", ps.positions, noise_want), ("REFINEMENT", ps.leaf_centres, leaf_want)):
+        for i, centre in enumerate(centres):
+            view, proj = ortho_view(centre, VIEWS[6], half=0.1)
+            px = overlay_gpu.draw_offscreen([ps], view, proj, SIZE, SIZE, radius=0.05, mode=mode, show_cells=False)
+            res["pixels"].append({"mode": mode, "index": i, "code": px[SIZE // 2, SIZE // 2, :3].tolist(),
+                                  "want": want[i].tolist()})
+    # The leaves' lines alone, seen from above: every lit pixel is one of the leaves' colours.
+    view, proj = ortho_view(ps.leaf_centres.mean(axis=0), (0, 0, 1), half=2.5)
+    px = overlay_gpu.draw_offscreen([ps], view, proj, 129, 129, background=(0, 0, 0), mode="REFINEMENT",
+                                    show_probes=False, cell_alpha=1.0)
+    lit = px[..., :3].reshape(-1, 3)[px[..., :3].reshape(-1, 3).max(axis=1) > 0].astype(float)
+    codes = np.stack([srgb(c) for c in leaf_want])
+    res["line_pixels"] = int(len(lit))
+    res["line_worst"] = float(np.abs(lit[:, None, :] - codes[None]).max(axis=2).min(axis=1).max()) if len(lit) else -1
+    plain = overlay_data.load(os.path.join(OUT, "points.shprobe"))
+    view, proj = ortho_view(plain.positions[0], VIEWS[0])
+    px = overlay_gpu.draw_offscreen([plain], view, proj, SIZE, SIZE, radius=RADIUS, mode="NOISE", show_cells=False)
+    res["without"] = {"line": plain.info_line(), "has_noise": plain.has_noise,
+                      "code": px[SIZE // 2, SIZE // 2, :3].tolist(), "want": overlay_data.GREY.tolist()}
+    res["sidecar_errors"] = sidecar_error_checks(path)
+    return res
+
+
+def srgb(linear):
+    c = np.clip(np.asarray(linear, np.float64), 0.0, 1.0)
+    return 255.0 * np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+
+
+def sidecar_error_checks(tree_path):
+    """A sidecar of another file (mismatched hash), a truncated one and one of another format: the
+    panel's line says why it is ignored; drawing Noise / Refinement then is the no-sidecar drawing."""
+    from schnee_probes import overlay_gpu
+    import shutil
+    res = {}
+    side = bakeinfo.path_for(os.path.join(OUT, "points.shprobe"))
+    cases = (("mismatched", lambda: shutil.copy(bakeinfo.path_for(tree_path), side)),
+             ("truncated", lambda: open(side, "wb").write(open(bakeinfo.path_for(tree_path), "rb").read()[:300])),
+             ("not_npz", lambda: open(side, "wb").write(b"hello")))
+    for name, make in cases:
+        make()
+        overlay_data.clear_cache()
+        ps = overlay_data.load(os.path.join(OUT, "points.shprobe"))
+        view, proj = ortho_view(ps.positions[0], VIEWS[0])
+        for mode in ("NOISE", "REFINEMENT"):
+            overlay_gpu.draw_offscreen([ps], view, proj, 8, 8, mode=mode)
+        res[name] = {"error": ps.error, "line": ps.info_line(), "has_noise": ps.has_noise}
+    os.remove(side)
+    overlay_data.clear_cache()
+    return res
 
 
 def error_checks():
@@ -160,6 +261,8 @@ def viewport_check():
     overlay_gpu.free_resources()
     overlay_data.clear_cache()
     bpy.context.scene.schnee_overlay.show = True
+    # The Refinement mode with its legend in the panel; these files have no sidecar (white spheres).
+    bpy.context.scene.schnee_overlay.colour_mode = "REFINEMENT"
     win = bpy.context.window_manager.windows[0]
     # The panel too: the sidebar shows its first tab (Item), so a copy of the panel is put there
     # (as ui_harness.py does); its draw is recorded, an exception would reach stderr.
@@ -196,6 +299,7 @@ def viewport_check():
         bpy.ops.wm.redraw_timer({"window": win}, type='DRAW_WIN_SWAP', iterations=1)
     drawn = sorted(os.path.basename(p) for p in overlay_gpu._resources)
     bpy.context.scene.schnee_overlay.show = False
+    bpy.context.scene.schnee_overlay.colour_mode = "IRRADIANCE"
     return {"drawn": drawn, "error": overlay._state["error"], "panel_drawn": bool(panel_calls),
             "pending_after_first_redraw": pending, "python_threads_while_reading": python_threads}
 

@@ -5,7 +5,9 @@ sRGB encoding). Run with a GPU context (not -b; under Xvfb on a server):
     xvfb-run -a blender --factory-startup -P tests/blender/scripts/overlay_screenshots.py -- ROOM.shprobe OUT_DIR
 
 ROOM.shprobe: a bake of the bundled room (scenes/make_default_scene.py, then bake.py; docs/overlay.md
-gives the commands). Writes overlay-irradiance.png, overlay-validity.png, overlay-cells.png; quits.
+gives the commands) and its bake-info sidecar ROOM.shprobe.bakeinfo (docs/bakeinfo.md). Writes
+overlay-irradiance.png, overlay-validity.png, overlay-cells.png, overlay-noise.png,
+overlay-refinement.png; quits.
 """
 import math
 import os
@@ -48,15 +50,22 @@ def tick():
         from schnee_probes import overlay_data, overlay_gpu
         ps = overlay_data.load(SRC)
         assert ps.error is None, ps.error
+        assert ps.has_noise and ps.has_refinement, ps.info_line()
         view = look_at((-4.6, -4.6, 3.7), (1.5, 1.5, 0.6))
         proj = perspective(70.0, W / H)
         shots = (("overlay-irradiance.png", dict(mode="IRRADIANCE", show_cells=True, cell_alpha=0.15)),
                  ("overlay-validity.png", dict(mode="VALIDITY", show_cells=False)),
-                 ("overlay-cells.png", dict(mode="WHITE", show_probes=False, cell_alpha=1.0)))
+                 ("overlay-cells.png", dict(mode="WHITE", show_probes=False, cell_alpha=1.0)),
+                 ("overlay-noise.png", dict(mode="NOISE", show_cells=False)),
+                 ("overlay-refinement.png", dict(mode="REFINEMENT", show_cells=True, cell_alpha=0.35)))
         for name, kw in shots:
             px = overlay_gpu.draw_offscreen([ps], view, proj, W, H, radius=0.07, exposure=0.0, **kw)
             save_png(px, name)
         print(f"SHOTS {ps.holds()}, {ps.cell_count} cells", flush=True)
+        reasons = np.bincount(ps.info.leaf_reason, minlength=6).tolist()
+        print(f"SHOTS noise / tolerance: median {np.nanmedian(ps.info.noise) / ps.info.tolerance:.3f}, "
+              f"max {np.nanmax(ps.info.noise) / ps.info.tolerance:.3f}; leaves per reason "
+              f"(unknown, passed, noise-limited, min cell, never tested, not compared) {reasons}", flush=True)
     except Exception:
         traceback.print_exc()
     bpy.ops.wm.quit_blender()
