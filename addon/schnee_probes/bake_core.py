@@ -402,11 +402,13 @@ def write_outputs(bake: ProbeBake) -> List[str]:
     kept points and the bake record last, after the files they describe (region.py)."""
     s = bake.settings
     outputs, stale = bake.plan.outputs(bake.session.tmpdir), None
+    if not bake.plan.volumes:  # a cursor or points bake: its own files only (no output folder needed)
+        return write_all(outputs, stale, bake.log)
     main = abspath(s.output_path)
     if bake._writes_sky:
         more, stale = bake_sky.outputs(bake.session, bake.direct, bake._sky_exr, os.path.dirname(main))
         outputs += more
-    if bake.plan.volumes and s.per_volume_files:
+    if s.per_volume_files:
         outputs.append(rebake_region.points_output(main, bake._manifest, native.sh_count(s.max_band), bake.store))
         outputs.append(rebake_region.record_output(main, s, bake._scene_parts, [t.name for t in bake.plan.targets],
                                                    None if bake.rebake is None else bake.rebake.record))
