@@ -8,6 +8,7 @@ APT_PACKAGES=(
   build-essential cmake ninja-build pkg-config clang clang-format libclang-rt-14-dev
   libembree-dev libopenimageio-dev openimageio-tools libqhull-dev
   python3 python3-dev python3-numpy python3-scipy python3-pytest python3-matplotlib
+  python3-pytest-xdist  # ./test.sh runs pytest on 2 workers (-n 2 --dist loadfile)
   python3-pip python3-setuptools python3-wheel
   blender
   libvulkan-dev glslc mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
