@@ -22,12 +22,14 @@ from typing import Iterator, List, Optional
 import numpy as np
 
 from .file_names import NAME_MAX
+from .safe_open import open_regular
 
 SUFFIX = ".bakeinfo"
 FORMAT = "schnee-bakeinfo"
 VERSION = 1
 MAGIC = b"PK\x03\x04"            # a zip archive (.npz) begins so; bake_outputs.check_replaceable
 MAX_BYTES = 256 << 20            # readers refuse larger sidecars
+SHPROBE_MAX_BYTES = 1 << 62      # the .shprobe hashed: its own reader bounded it already
 HASH_CHUNK = 8 << 20             # bytes hashed per step of a reader
 
 # Why a leaf of the final octree is a leaf (``leaf_reason``; docs/bakeinfo.md).
@@ -40,11 +42,20 @@ def path_for(shprobe_path: str) -> str:
     return shprobe_path + SUFFIX
 
 
+def sha256_steps(path: str, h) -> Iterator[None]:
+    """Feed the regular file at ``path`` to the hash ``h``, :data:`HASH_CHUNK` bytes per step (a
+    generator: it yields after each); safe_open.RefusedFile for a FIFO, device or directory."""
+    f, _ = open_regular(path, "a .shprobe", SHPROBE_MAX_BYTES)
+    with f:
+        for block in iter(lambda: f.read(HASH_CHUNK), b""):
+            h.update(block)
+            yield
+
+
 def sha256_file(path: str) -> str:
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(HASH_CHUNK), b""):
-            h.update(block)
+    for _ in sha256_steps(path, h):
+        pass
     return h.hexdigest()
 
 
@@ -247,19 +258,16 @@ def read_steps(path: str, shprobe_path: str, probe_count: int, leaves, out: List
     try:
         if info.stamp[1] > MAX_BYTES:
             raise ValueError(f"{info.stamp[1]} bytes, more than the {MAX_BYTES >> 20} MiB a sidecar may have")
-        with open(path, "rb") as fh:
+        # Opened as the native readers open files: a FIFO or device is refused, never waited on.
+        fh, _ = open_regular(path, "a bake-info sidecar", MAX_BYTES)
+        with fh:
             if fh.read(len(MAGIC)) != MAGIC:
                 raise ValueError("not a bake-info file (not a .npz archive)")
-        h = hashlib.sha256()
-        with open(shprobe_path, "rb") as fh:
-            while True:
-                block = fh.read(HASH_CHUNK)
-                if not block:
-                    break
-                h.update(block)
-                yield
-        with np.load(path, allow_pickle=False) as z:
-            _parse(info, z, h.hexdigest(), probe_count, leaves)
+            h = hashlib.sha256()
+            yield from sha256_steps(shprobe_path, h)
+            fh.seek(0)
+            with np.load(fh, allow_pickle=False) as z:
+                _parse(info, z, h.hexdigest(), probe_count, leaves)
     except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile, EOFError) as exc:
         out[0] = BakeInfo(path=path, stamp=info.stamp, error=f"{name}: {exc}; ignored")
 

@@ -3,6 +3,7 @@ without Blender: a v3 file written by the native writer and its sidecar read bac
 "Readers" (missing, not an archive, another format or version, another .shprobe's hash, another
 probe count or leaves, a pickled array, over the size cap) gives a message naming the sidecar and
 "ignored", never an exception; a sidecar name over 255 bytes is not written. Runtime < 1 s."""
+import os
 from collections import namedtuple
 
 import numpy as np
@@ -143,6 +144,17 @@ def test_over_the_size_cap_is_refused_before_reading(baked):
         fh.truncate(bakeinfo.MAX_BYTES + 1)     # sparse: no disk space used
     msg = _read(path, f).error
     assert msg.startswith("room.shprobe.bakeinfo: ") and "more than the 256 MiB a sidecar may have" in msg
+
+
+def test_a_fifo_sidecar_is_refused_without_waiting(baked):
+    # A named pipe where the sidecar should be: opened non-blocking and refused (safe_open), so the
+    # overlay's timer never waits on a writer that does not come.
+    path, f = baked
+    side = bakeinfo.path_for(str(path))
+    os.remove(side)
+    os.mkfifo(side)
+    msg = _read(path, f).error
+    assert msg.startswith("room.shprobe.bakeinfo: ") and "not a regular file (a FIFO (named pipe))" in msg, msg
 
 
 def test_no_sidecar_for_a_name_over_255_bytes(tmp_path):
