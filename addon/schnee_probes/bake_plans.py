@@ -218,7 +218,6 @@ class _VolumePlan(PlacementPlan):
             if len(tris) == 0:
                 raise BakeError(f"Probe volume '{name}' has no faces: a volume must be a closed mesh")
         if s.per_volume_files:
-            folder = os.path.dirname(main_path)
             groups, seen = [], {}
             for vol in volumes:
                 stem = region.volume_file_stem(vol[0])
@@ -226,7 +225,7 @@ class _VolumePlan(PlacementPlan):
                     raise BakeError(f"Volumes '{seen[stem]}' and '{vol[0]}' would both be written to "
                                     f"'{stem}.shprobe': rename one of them")
                 seen[stem] = vol[0]
-                groups.append((vol[0], os.path.join(folder, stem + ".shprobe"), [vol]))
+                groups.append((vol[0], region.volume_file(main_path, vol[0]), [vol]))
         else:
             groups = [(os.path.splitext(os.path.basename(main_path))[0], main_path, volumes)]
         if self.rebake is not None:  # one volume; the sky, the sun and the other files are kept
@@ -241,7 +240,9 @@ class _VolumePlan(PlacementPlan):
             check_replaceable(region.points_path(main_path), "journal")
         if s.capture_sky and self.rebake is None:
             check_replaceable(os.path.join(os.path.dirname(main_path), SKY_FILE_NAME), "exr")
-        if self.rebake is None:  # written (Sky Sun "mixed" and a sun) or removed (else: a stale sun would be added twice)
+        # Written (Sky Sun "mixed" and a sun) or removed (else: a stale sun would be added twice); a rebake
+        # keeps it.
+        if self.rebake is None:
             check_replaceable(os.path.join(os.path.dirname(main_path), SUN_FILE_NAME), "sun")
         exclude = frozenset(ob.name for ob in objects)
         # Solid geometry as Cycles renders it, not as the viewport shows it (render_settings.py).

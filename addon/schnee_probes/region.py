@@ -89,8 +89,9 @@ def points_output(main_output: str, manifest: dict, coeff_count: int, store):
 
 
 def settings_values(settings) -> Dict[str, object]:
-    """The settings a record compares: every one but those of :data:`_FREE`."""
-    return {k: v for k, v in asdict(settings).items() if k not in _FREE}
+    """The settings a record compares: every one but those of :data:`_FREE`, as JSON gives them back
+    (tuples as lists), so a record read from its file compares equal."""
+    return json.loads(json.dumps({k: v for k, v in asdict(settings).items() if k not in _FREE}))
 
 
 def read_record(path: str) -> Optional[dict]:
@@ -141,7 +142,7 @@ def record_output(main_output: str, settings, scene: Dict[str, str], names: List
     for name in names:
         volumes[name] = {"file": volume_file_stem(name) + ".shprobe", "scene": part}
     record = {"format": RECORD_FORMAT, "version": RECORD_VERSION,
-              "settings": json.loads(json.dumps(settings_values(settings))), "volumes": volumes}
+              "settings": settings_values(settings), "volumes": volumes}
     return text_output(record_path(main_output), "record", json.dumps(record, indent=2, sort_keys=False) + "\n",
                        sync=True)
 
@@ -182,7 +183,7 @@ class VolumeRebake:
         if record is None:
             raise BakeError(f"No previous bake to keep: {path} is missing (the record a bake with One File per "
                             f"Volume writes); bake every volume once, then rebake '{self.name}'")
-        diff = _differences(record.get("settings", {}), json.loads(json.dumps(settings_values(settings))))
+        diff = _differences(record.get("settings", {}), settings_values(settings))
         if diff:
             raise BakeError(f"The previous bake ({os.path.basename(path)}) was made with other settings: "
                             + "; ".join(diff) + f". Rebake every volume, or rebake '{self.name}' with the "
