@@ -4,8 +4,11 @@ slurm-wlm on localhost, started and stopped here (slurm_cluster.py). `bake.py --
 after the previous (afterok), and a merge job after the last; one task of the first array is killed
 mid-run and requeued by Slurm (`scontrol requeue`, what Slurm does on a node failure
 or preemption); it resumes from its shard journal; the merged .shprobe equals a local bake of the
-same scene byte for byte (the expected bytes come from that local bake). Runtime: ~2 min."""
+same scene byte for byte (the expected bytes come from that local bake). A region rebake of one volume
+(`--farm slurm --only-volume Left --region ...`) reaches every job and writes the bytes of the same
+rebake made here (docs/region-rebake.md "Journal and farm"). Runtime: ~2 min."""
 import hashlib
+import json
 import re
 import shutil
 import sys
@@ -118,3 +121,88 @@ def test_sbatch_option_names_the_program_when_path_has_none(cluster, tmp_path):
         lines = (folder / name).read_text().splitlines()
         assert [l for l in lines if l.startswith("#SBATCH --hold")] == ["#SBATCH --hold"]
         assert not any(sbatch in l for l in lines), lines  # neither an #SBATCH line nor a bake option
+
+
+# A region rebake on the farm (issue 31 item 3; docs/region-rebake.md "Journal and farm"): the window
+# room in two volumes of tests/blender/scripts/region_scenes.py, 1 m cells of the geometry octree (one
+# stage: one shard array), test_region_rebake.py's tiny settings and crate region.
+REGION_ARGS = ["--placement", "OCTREE", "--min-cell-size", "1", "--max-cell-size", "1", "--panorama-resolution",
+               "16", "--samples", "1", "--per-volume-files", "on"]
+REBAKE = ["--only-volume", "Left", "--region", "-1.8", "-1.8", "0", "-0.2", "-0.2", "1"]
+
+
+def _wait(cluster, job, timeout=300):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and cluster.job_state(job) not in (["COMPLETED"], ["FAILED"], ["CANCELLED"]):
+        time.sleep(1)
+    return cluster.job_state(job)
+
+
+def test_farm_region_rebake_equals_a_local_rebake(cluster, tmp_path):
+    # The previous bake: both volumes of the scene before the edit, baked here. Then the edited scene
+    # (the crate in Left) beside a copy of that bake twice: rebaked here, and through sbatch with 2 shards.
+    run_blender(SCRIPTS / "region_scenes.py", tmp_path, timeout=120)
+    previous = tmp_path / "previous"
+    previous.mkdir()
+    shutil.copy(tmp_path / "two_rooms.blend", previous / "scene.blend")
+    run_blender(REPO / "bake.py", *REGION_ARGS, blend=previous / "scene.blend", timeout=300)
+    old = previous / "sh_coeffs"
+    kept = {p.name: _sha(p) for p in old.iterdir()}
+    assert {"Left.shprobe", "Right.shprobe", "sky.exr", "probes.shprobe.bake.json",
+            "probes.shprobe.points"} <= set(kept)
+    local, farm = tmp_path / "local", tmp_path / "farm"
+    for d in (local, farm):
+        shutil.copytree(old, d / "sh_coeffs")
+        shutil.copy(tmp_path / "two_rooms_edited.blend", d / "scene.blend")
+    run_blender(REPO / "bake.py", *REGION_ARGS, *REBAKE, blend=local / "scene.blend", timeout=300)
+
+    proc = run_blender(REPO / "bake.py", *REGION_ARGS, *REBAKE, "--farm", "slurm", "--shards", "2",
+                       blend=farm / "scene.blend", env={"SLURM_CONF": cluster.env["SLURM_CONF"]}, timeout=120)
+    m = re.search(r"submitted 1 shard array\(s\) (\d+) \(2 tasks each.* merge job (\d+)", proc.stdout)
+    assert m, proc.stdout[-2000:]
+    array, merge = m.groups()
+    out = farm / "sh_coeffs"
+    folder = out / "probes.shprobe.farm"   # the main output's farm folder, not Left's
+    state = _wait(cluster, merge)
+    logs = {p.name: p.read_text(errors="replace") for p in sorted(folder.glob("*.log"))}
+    assert state == ["COMPLETED"], "\n".join(t[-3000:] for t in logs.values()) + cluster.logs()
+
+    # The option reached every job: both batch scripts carry it, both shards and the merge rebaked Left
+    # (each job's log), and the shards journaled beside Left's file.
+    for name in ("shards.sbatch", "merge.sbatch"):
+        assert " --only-volume Left --region -1.8 -1.8 0 -0.2 -0.2 1 " in (folder / name).read_text()
+    assert sorted(logs) == [f"merge-{merge}.log", f"shard-{array}_0.log", f"shard-{array}_1.log"]
+    for name, text in logs.items():
+        assert "rebake of 'Left': 28 point(s) of the previous bake kept outside the region, 4 inside it baked " \
+               "again" in text, (name, text[-3000:])
+    renders = {name: int(re.search(r"bake\.py: (\d+) render\(s\) by this run, (\d+) taken", text).group(1))
+               for name, text in logs.items()}
+    # The region's 3 probes outside the crate, split between the shards (2 + 1); the merge renders none.
+    assert sorted(renders.values()) == [0, 1, 2] and renders[f"merge-{merge}.log"] == 0, renders
+    assert f"bake.py: wrote {out / 'Left.shprobe'}" in logs[f"merge-{merge}.log"]
+    assert sorted(p.name for p in out.glob("*.journal")) == ["Left.shprobe.shard-0-of-2.journal",
+                                                            "Left.shprobe.shard-1-of-2.journal"]
+
+    # The farm's files are the local rebake's bytes; what the rebake keeps, the previous bake's bytes.
+    here = local / "sh_coeffs"
+    files = sorted(p.name for p in out.iterdir() if not p.name.startswith("Left.shprobe.shard-")
+                   and p.name != "probes.shprobe.farm")
+    assert files == sorted(p.name for p in here.iterdir())
+    for name in files:
+        if name != "probes.shprobe.points":
+            assert _sha(out / name) == _sha(here / name), name
+    # The kept points: the same records in the same order; the manifest names the .blend each run opened.
+    a, b = journal.read(str(out / "probes.shprobe.points")), journal.read(str(here / "probes.shprobe.points"))
+    assert a.manifest["info"].pop("blend") == str(farm / "scene.blend")
+    assert b.manifest["info"].pop("blend") == str(local / "scene.blend")
+    assert (a.manifest, a.fingerprint, a.shard, a.coeff_count, a.torn_bytes) == \
+        (b.manifest, b.fingerprint, b.shard, b.coeff_count, b.torn_bytes)
+    assert list(a.values) == list(b.values) and len(a.values) == 31   # 28 kept outside the region, 3 new
+    assert all(a.values[k].tobytes() == b.values[k].tobytes() and a.noise[k] == b.noise[k] for k in a.values)
+    assert _sha(out / "Left.shprobe") != kept["Left.shprobe"]
+    for name in set(kept) - {"Left.shprobe", "probes.shprobe.bake.json", "probes.shprobe.points"}:
+        assert _sha(out / name) == kept[name], name   # Right.shprobe, sky.exr, (sun.json)
+    rec = json.loads((out / "probes.shprobe.bake.json").read_text())
+    before = json.loads((old / "probes.shprobe.bake.json").read_text())
+    assert rec["volumes"]["Right"] == before["volumes"]["Right"] and rec["settings"] == before["settings"]
+    assert rec["volumes"]["Left"] != before["volumes"]["Left"]   # the edited scene's geometry
