@@ -517,6 +517,8 @@ class PassRecord:
     rounds: int = 0         # test points given one more round (their decision was not clear)
     probe_rounds: int = 0   # probes given one more round (their noise was above Policy.probe_noise × tol)
     direct_split: int = 0   # leaves split by the lamps' exact direct light alone (no test flagged them)
+    kept: int = 0           # region rebake: leaves outside the region, held to the previous tree (region.py)
+    kept_split: int = 0     # of those, split as the previous tree was
 
 
 class AdaptiveGroup:
@@ -572,6 +574,8 @@ class AdaptiveGroup:
         # smaller error where the sun also shines.
         self.engine_direct = engine_direct
         self._engine_of = {}        # cache index -> the mixed lamps' direct SH there
+        self.kept = None            # region rebake: region.KeptTree, the previous tree outside the region
+        self._kept_split = 0        # per leaf: the previous tree's split of a kept leaf (KeptTree.hold)
 
     # -- geometry queries through the placement's rules
     def _drop_outside(self) -> int:
@@ -667,14 +671,18 @@ class AdaptiveGroup:
                 skip &= (tests.leaf_tests >= 0).any(axis=1)
                 self.passes[-1].predicted = int(skip.sum())
                 tests = without_leaves(tests, skip)
-            need = tests.probe < 0
             self._direct_split = self.direct_check(cache)
+            if self.kept is not None:  # outside a rebake's region: no test, the previous tree's splits
+                tests, self._direct_split, self._kept_split = self.kept.hold(self, tests, self._direct_split)
+            need = tests.probe < 0
             if len(tests.positions) == 0 or not (tests.leaf_tests >= 0).any():
-                if self._direct_split.any():
-                    bakeinfo.record_decision(self, None, self._direct_split, None, None, None)
+                split = self._direct_split | self._kept_split
+                if split.any():
+                    bakeinfo.record_decision(self, None if self.kept is None else self._kept_split, self._direct_split,
+                                             None, None, None)
                     self.passes[-1].direct_split = int((self._direct_split != 0).sum())
-                    self.passes[-1].split = int((self._direct_split != 0).sum())
-                    return more + self._split(self._direct_split, cache)
+                    self.passes[-1].split = int((split != 0).sum())
+                    return more + self._split(split, cache)
                 if more:
                     self.stage = "last"
                     return more
@@ -703,6 +711,8 @@ class AdaptiveGroup:
         pidx = np.asarray(self.probe_index, dtype=np.int64)
         noise = self.seen(cache, pidx)[1].astype(np.float64)
         loud = (noise > target) & ~cache.solid(pidx)
+        if self.kept is not None:  # a rebake keeps the previous records outside its region
+            loud &= self.kept.previous_rows(self.tree.probe_lattice()) < 0
         if not loud.any():
             return []
         todo = cache.more(pidx[loud], cache.needed(pidx[loud], noise[loud], target))
@@ -762,6 +772,7 @@ class AdaptiveGroup:
     def _conclude(self, cache: PointCache, split, err, thr, probe_coeffs, test_coeffs, test_valid) -> List[int]:
         """The pass's decision made: record it, predict the children that pass, split."""
         self.last_errors = (err, thr)
+        split = split | self._kept_split
         bakeinfo.record_decision(self, split, self._direct_split, err, thr, test_valid)
         if self._direct_split is not None:
             self.passes[-1].direct_split = int(((self._direct_split != 0) & (split == 0)).sum())
@@ -773,8 +784,8 @@ class AdaptiveGroup:
             self.finished = True
             return []
         if self.predict > 0:
-            self._settle_children(split, thr, probe_coeffs, cache.validity(self.probe_index), test_coeffs,
-                                  test_valid)
+            settle_children(self, split, thr, probe_coeffs, cache.validity(self.probe_index), test_coeffs,
+                            test_valid)
         self.tests = self.test_index = None
         return self._split(split, cache)
 
@@ -802,7 +813,7 @@ class AdaptiveGroup:
 
     def _split(self, split: np.ndarray, cache: PointCache) -> List[int]:
         """Split the flagged leaves, drop children outside the volumes, request the new probes."""
-        self._direct_split = None
+        self._direct_split, self._kept_split = None, 0
         self.tree.split_axes(np.asarray(split, dtype=np.uint8))   # the octree's masks are 7
         self.tree.finalize()
         self._drop_outside()
@@ -853,52 +864,6 @@ class AdaptiveGroup:
         fail = err[inverse.reshape(-1)] > self.tolerance
         return split_masks(len(leaves), levels, leaf_of, edge, fail, self.axes)
 
-    def _settle_children(self, split, thr, probe_coeffs, validity, test_coeffs, test_valid):
-        """Mark the children of split leaves that are predicted to pass (see Policy.predict). A child's
-        parent ratio is the parent's worst error over its threshold at its test points on the child's
-        closed box (for an octree leaf its centre and the three face centres of the child's octant;
-        where none of those was compared, inside solids, the parent's worst over all its tests)."""
-        tests = self.tests
-        values = test_coeffs.copy()
-        is_probe = tests.probe >= 0
-        values[is_probe] = probe_coeffs[tests.probe[is_probe]]
-        interp = self.tree.interpolate(tests.positions, probe_coeffs, validity)
-        err_t = irradiance_error(interp, values)
-        valid_t = np.asarray(test_valid, dtype=bool).copy()
-        valid_t[is_probe] &= np.asarray(validity)[tests.probe[is_probe]] > 0
-        err_t = np.where(valid_t & np.isfinite(err_t), err_t, np.nan)
-        keys = leaf_keys(self.tree.info())
-        for i in np.flatnonzero(split):
-            key = keys[i]
-            cols = tests.leaf_tests[i]
-            ratios = np.where(cols >= 0, err_t[np.maximum(cols, 0)], np.nan) / max(float(thr[i]), 1e-12)
-            whole = np.nanmax(ratios) if np.isfinite(ratios).any() else np.inf
-            # The rate this leaf's error fell by since its parent predicts its children only when
-            # its parent's rate was measured too (two consecutive halvings seen). The first rate
-            # alone, at the coarsest levels, was chance: in the room at 128×64 px a 4 m leaf from
-            # floor to ceiling predicted from the 16 m → 8 m rate was never tested, 15–28 % off at
-            # nine points. Unknown: 1 (a child passes only where its parent itself passed).
-            # (min(own, parent's) was measured too: more accurate, 1.4–1.5× the renders; see
-            # bench/results/placement.md.)
-            before = self.parent_ratio.get(key)
-            measured = None if before is None or not whole > 0 else min(self.predict, max(1.0, before / whole))
-            if float(thr[i]) > self.policy.predict_noise * self.tolerance:
-                measured = None     # the threshold is the noise's: no rate (Policy.predict_noise)
-            rate = 1.0 if measured is None or key not in self.parent_rate else measured
-            lat = np.where(cols[:, None] >= 0, tests.lattice[np.maximum(cols, 0)], -1).astype(np.int64)
-            for child in child_keys(key, int(split[i])):
-                lo = np.array(child[:3], dtype=np.int64)
-                hi = lo + (1 << np.array(child[3:], dtype=np.int64))
-                # the parent's tests on the child's closed box (the octree: its centre and the three
-                # face centres of the child's octant)
-                inside = (cols >= 0) & ((lat >= lo) & (lat <= hi)).all(axis=1) & np.isfinite(ratios)
-                worst = float(ratios[inside].max()) if inside.any() else whole
-                self.parent_ratio[child] = worst
-                if measured is not None:
-                    self.parent_rate[child] = measured
-                if worst / rate < 1.0:
-                    self.settled.add(child)
-
     def stage_count(self) -> int:
         """An upper bound of the stages (probe bakes, test bakes, more rounds) of this group's
         refinement."""
@@ -912,3 +877,50 @@ class AdaptiveGroup:
     def probe_values(self, cache: PointCache):
         """(coeffs (P, C, 3), validity (P,)) of the finished tree's probes."""
         return cache.values(self.probe_index)[0], cache.validity(self.probe_index)
+
+
+def settle_children(group: "AdaptiveGroup", split, thr, probe_coeffs, validity, test_coeffs, test_valid):
+    """Mark the children of ``group``'s split leaves that are predicted to pass (see Policy.predict).
+    A child's parent ratio is the parent's worst error over its threshold at its test points on the child's
+    closed box (for an octree leaf its centre and the three face centres of the child's octant;
+    where none of those was compared, inside solids, the parent's worst over all its tests)."""
+    tests = group.tests
+    values = test_coeffs.copy()
+    is_probe = tests.probe >= 0
+    values[is_probe] = probe_coeffs[tests.probe[is_probe]]
+    interp = group.tree.interpolate(tests.positions, probe_coeffs, validity)
+    err_t = irradiance_error(interp, values)
+    valid_t = np.asarray(test_valid, dtype=bool).copy()
+    valid_t[is_probe] &= np.asarray(validity)[tests.probe[is_probe]] > 0
+    err_t = np.where(valid_t & np.isfinite(err_t), err_t, np.nan)
+    keys = leaf_keys(group.tree.info())
+    for i in np.flatnonzero(split):
+        key = keys[i]
+        cols = tests.leaf_tests[i]
+        ratios = np.where(cols >= 0, err_t[np.maximum(cols, 0)], np.nan) / max(float(thr[i]), 1e-12)
+        whole = np.nanmax(ratios) if np.isfinite(ratios).any() else np.inf
+        # The rate this leaf's error fell by since its parent predicts its children only when
+        # its parent's rate was measured too (two consecutive halvings seen). The first rate
+        # alone, at the coarsest levels, was chance: in the room at 128×64 px a 4 m leaf from
+        # floor to ceiling predicted from the 16 m → 8 m rate was never tested, 15–28 % off at
+        # nine points. Unknown: 1 (a child passes only where its parent itself passed).
+        # (min(own, parent's) was measured too: more accurate, 1.4–1.5× the renders; see
+        # bench/results/placement.md.)
+        before = group.parent_ratio.get(key)
+        measured = None if before is None or not whole > 0 else min(group.predict, max(1.0, before / whole))
+        if float(thr[i]) > group.policy.predict_noise * group.tolerance:
+            measured = None     # the threshold is the noise's: no rate (Policy.predict_noise)
+        rate = 1.0 if measured is None or key not in group.parent_rate else measured
+        lat = np.where(cols[:, None] >= 0, tests.lattice[np.maximum(cols, 0)], -1).astype(np.int64)
+        for child in child_keys(key, int(split[i])):
+            lo = np.array(child[:3], dtype=np.int64)
+            hi = lo + (1 << np.array(child[3:], dtype=np.int64))
+            # the parent's tests on the child's closed box (the octree: its centre and the three
+            # face centres of the child's octant)
+            inside = (cols >= 0) & ((lat >= lo) & (lat <= hi)).all(axis=1) & np.isfinite(ratios)
+            worst = float(ratios[inside].max()) if inside.any() else whole
+            group.parent_ratio[child] = worst
+            if measured is not None:
+                group.parent_rate[child] = measured
+            if worst / rate < 1.0:
+                group.settled.add(child)

@@ -145,24 +145,33 @@ def dense_output(target, coeffs: np.ndarray, positions: np.ndarray, settings) ->
     return Output(target.path, "shprobe", write)
 
 
-def octree_output(target, coeffs: np.ndarray, validity: np.ndarray, settings, scratch: str) -> Output:
+def octree_output(target, coeffs: np.ndarray, validity: np.ndarray, settings, scratch: str, kept=None) -> Output:
     """Version 3 (the corner octree ``target.group.tree``), or with File Version 1 the same field
     resampled onto the dense grid of Min Cell Size (version 2 above L = 2) through the temporary
-    file ``scratch``."""
+    file ``scratch``. ``kept`` (version 3; region.KeptTree.records): (rows, records, validity) that
+    replace those rows as written, bit for bit."""
     s, group = settings, target.group
+
+    def keep(records, valid):
+        records, valid = np.array(records, dtype=np.float32), np.array(valid, dtype=np.float32)
+        if kept is not None:
+            records[kept[0]], valid[kept[0]] = kept[1], kept[2]
+        return records, valid
 
     def write(tmp):
         kw = dict(default_sh_scale=s.default_sh_scale, default_ambient=s.default_ambient)
         if s.file_version == "V3":
             if s.probe_representation == "SH":
-                native.write_shprobe_v3(tmp, group.tree, coeffs.astype(np.float32), validity=validity, **kw)
+                c, v = keep(coeffs, validity)
+                native.write_shprobe_v3(tmp, group.tree, c, validity=v, **kw)
             else:  # issue 16: the ambient cube fitted to each probe's SH
                 cubes = native.ambient_cube_from_sh(coeffs)
                 if s.probe_representation == "CUBE_HALF":
                     check_half_range(cubes, group.lattice_positions(group.tree.probe_lattice()), target.path)
+                cubes, v = keep(cubes, validity)
                 native.write_shprobe_v3(tmp, group.tree, cubes, representation="ambientCube",
                                         storage="float16" if s.probe_representation == "CUBE_HALF" else "float32",
-                                        validity=validity, **kw)
+                                        validity=v, **kw)
             return
         native.write_shprobe_v3(scratch, group.tree, coeffs.astype(np.float32), validity=validity, **kw)
         dense = native.resample_shprobe_dense(scratch)

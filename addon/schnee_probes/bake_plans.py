@@ -365,6 +365,8 @@ class AdaptivePlan(_VolumePlan):
                 group = adaptive.AdaptiveGroup(name, path, vols, geometry, s.min_cell_size, s.max_cell_size,
                                                s.error_tolerance, s.refinement_tests, direct=self.lamps.check_at,
                                                engine_direct=self.lamps.engine_at, policy=self.policy)
+                if self.rebake is not None:  # a region: the previous tree outside it (region.KeptTree)
+                    group.kept = self.rebake.kept_tree(group)
                 todo = group.start(self.cache)
             except native.SchneeError as exc:
                 raise BakeError(f"Probe placement failed: {exc}") from exc
@@ -477,7 +479,8 @@ class AdaptivePlan(_VolumePlan):
                 raise BakeError(f"Refinement of '{g.name}' failed: {exc}") from exc
             if len(g.passes) > before:
                 prev, rec = g.passes[-2], g.passes[-1]
-                extra = "".join([f", {prev.predicted} predicted to pass" if prev.predicted else "",
+                extra = "".join([f", {prev.kept} kept from the previous bake" if prev.kept else "",
+                                 f", {prev.predicted} predicted to pass" if prev.predicted else "",
                                  f", {prev.rounds} given more samples" if prev.rounds else "",
                                  f", {prev.probe_rounds} probes given more samples" if prev.probe_rounds else "",
                                  f", {prev.direct_split} split by the lamps' direct light"
@@ -521,10 +524,14 @@ class AdaptivePlan(_VolumePlan):
         for t in self.targets:
             coeffs, validity = t.group.probe_values(self.cache)
             coeffs, validity = postprocess.apply(coeffs, validity, t.group.tree, self.settings, log=self.log)
-            shprobe = octree_output(t, coeffs, validity, self.settings, os.path.join(scratch, "octree.shprobe"))
+            kept = t.group.kept   # a region rebake: the previous records outside the region, bit for bit
+            shprobe = octree_output(t, coeffs, validity, self.settings, os.path.join(scratch, "octree.shprobe"),
+                                    None if kept is None else kept.records(t.group.tree.probe_lattice()))
             if self.settings.file_version == "V3":  # File Version 1 resamples: no probe or leaf of the tree
-                out += bakeinfo.with_sidecar(shprobe, bakeinfo.adaptive_arrays(t.group, self.cache, self.settings),
-                                             Output, self.log)
+                arrays = bakeinfo.adaptive_arrays(t.group, self.cache, self.settings)
+                if kept is not None:
+                    kept.patch_sidecar(arrays, t.group)
+                out += bakeinfo.with_sidecar(shprobe, arrays, Output, self.log)
             else:
                 out.append(shprobe)
         return out

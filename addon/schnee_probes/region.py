@@ -30,7 +30,8 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from . import journal, scene_export
+from . import bakeinfo, journal, native, scene_export
+from .adaptive import leaf_keys, leaf_levels, without_leaves
 from .file_names import sibling
 from .safe_open import RefusedFile, open_regular
 from .settings import BakeError
@@ -159,6 +160,13 @@ class VolumeRebake:
         self.box = None if box is None else np.asarray(box, dtype=np.float64).reshape(2, 3)
         self.region = None
 
+    def kept_tree(self, group) -> Optional["KeptTree"]:
+        """The previous bake's tree and records that an Adaptive ``group`` (this volume's) keeps
+        outside the region; None for a rebake of the whole volume (no box: nothing is kept)."""
+        if self.box is None:
+            return None
+        return KeptTree(group.path, self.region, group.origin, group.min_cell)
+
     def output(self, main_output: str) -> str:
         """The file this rebake writes (its journal and shards are named after it)."""
         return volume_file(main_output, self.name)
@@ -169,6 +177,11 @@ class VolumeRebake:
             raise BakeError(f"Rebaking volume '{self.name}' alone needs One File per Volume (--per-volume-files "
                             "on): without it every volume is in one probes.shprobe, which a rebake would replace "
                             "whole; turn it on and bake every volume once")
+        if self.box is not None and settings.placement == "ADAPTIVE" and settings.file_version != "V3":
+            raise BakeError("A region rebake with Adaptive placement needs File Version 3: it keeps the previous "
+                            "octree's leaves and probes outside the region, and a File Version 1 file holds a "
+                            f"resampled grid instead; rebake the whole volume (--only-volume {self.name} without "
+                            "--region) or bake with File Version 3")
 
     def select(self, groups: list, settings, main_output: str, collection: str) -> list:
         """The group (name, path, volumes) of this volume among a bake's ``groups``, after checking
@@ -251,3 +264,116 @@ class VolumeRebake:
                 notes.append(f"Volume '{name}' keeps its earlier bake, made before " + ", ".join(changed)
                              + " changed: bake every volume to bring it up to date")
         return notes
+
+
+class KeptTree:
+    """What an Adaptive region rebake keeps of the previous bake outside its region
+    (docs/region-rebake.md "What a region keeps"): the previous file's octree, whose leaves that do
+    not meet the region the refinement takes as they were (no test; split where the previous tree is
+    split, :meth:`hold`), and the previous file's probe records, which the new file takes over bit for
+    bit at every node outside the region that both trees have (:meth:`records`). ``path``: the
+    volume's previous ``.shprobe``; ``region`` (lo, hi) engine space; ``origin``, ``min_cell``: the
+    rebake's lattice, which must be the previous one's."""
+
+    def __init__(self, path: str, region, origin, min_cell: float):
+        try:
+            self.file = native.read_shprobe(path)
+            info = native.interpolation_from_file(path).info() if self.file.structure in ("octree", "kdtree") \
+                else None
+        except native.SchneeError as exc:
+            raise BakeError(f"Cannot read the previous bake of this volume, {path}: {exc}; rebake the whole volume "
+                            "(without --region)") from None
+        if info is None:
+            raise BakeError(f"{path} holds a {self.file.structure}, not the octree of an Adaptive bake with File "
+                            "Version 3, so a region cannot keep its leaves; rebake the whole volume (without --region)")
+        self.origin, self.min_cell = np.asarray(origin, dtype=np.float64), float(min_cell)
+        if np.max(np.abs(np.asarray(info["origin"]) - self.origin)) > 1e-6 or abs(info["min_cell"] - self.min_cell) > 1e-9:
+            raise BakeError(f"The previous bake of this volume ({os.path.basename(path)}) lies on another lattice (the "
+                            "volume was moved or resized since): a region cannot keep it; rebake the whole volume "
+                            "(without --region)")
+        self.lo, self.hi = (np.asarray(r, dtype=np.float64) for r in region)
+        self.file_leaves = info["leaves"].copy()   # the file's leaf order (the sidecar's)
+        if len(self.file_leaves) and (leaf_levels(info) != leaf_levels(info)[:, :1]).any():
+            self.file_leaves[:, 3] = native.pack_levels(leaf_levels(info))
+        self.leaf_lo = info["leaves"][:, :3].astype(np.int64)
+        self.leaf_size = np.left_shift(1, leaf_levels(info).astype(np.int64))
+        self.leaf_row = {k: i for i, k in enumerate(leaf_keys(info))}
+        self.node_row = {tuple(int(v) for v in p): i for i, p in enumerate(info["probe_lattice"])}
+        self.sidecar = self._sidecar(path)
+
+    def _sidecar(self, path: str) -> Optional[dict]:
+        """The previous bake-info sidecar's arrays (noise, leaf table), None when it has none usable."""
+        side = bakeinfo.path_for(path)
+        read = bakeinfo.read(side, path, self.file.probe_count, self.file.leaves)
+        if read.missing or read.error is not None or not np.array_equal(read.leaves, self.file_leaves):
+            return None
+        with np.load(side, allow_pickle=False) as z:
+            return {k: np.asarray(z[k]) for k in ("noise", "leaves", "leaf_error", "leaf_threshold",
+                                                   "leaf_parent_ratio", "leaf_reason") if k in z.files}
+
+    def meets(self, lattice_lo: np.ndarray, size: np.ndarray) -> np.ndarray:
+        """(L,) bool: the boxes (lattice min corner, size per axis, in min cells) meet the closed region."""
+        lo = self.origin + lattice_lo * self.min_cell
+        hi = lo + size * self.min_cell
+        return np.all((lo <= self.hi) & (hi >= self.lo), axis=1)
+
+    def hold(self, group, tests, direct):
+        """For ``group``'s current leaves: (``tests`` without the kept leaves' tests, ``direct`` (L,)
+        axis masks with the kept leaves' zeroed, the kept leaves' split masks (L,) uint8). A kept leaf
+        is one that does not meet the region; it splits along the axes along which every previous leaf
+        inside it is smaller (the previous tree's first split of it, and the later ones every part of
+        it took: the same leaves in the end), and stays whole where the previous tree has it as a leaf
+        or holds it inside a larger leaf."""
+        info = group.tree.info()
+        lo = info["leaves"][:, :3].astype(np.int64)
+        size = np.left_shift(1, leaf_levels(info).astype(np.int64))
+        kept = ~self.meets(lo, size)
+        masks = np.zeros(len(lo), dtype=np.uint8)
+        keys = leaf_keys(info)
+        for i in np.flatnonzero(kept):
+            if keys[i] in self.leaf_row:
+                continue
+            inside = np.all((self.leaf_lo >= lo[i]) & (self.leaf_lo + self.leaf_size <= lo[i] + size[i]), axis=1)
+            if inside.any():
+                finer = np.all(self.leaf_size[inside] < size[i], axis=0)
+                masks[i] = int(finer[0]) | int(finer[1]) << 1 | int(finer[2]) << 2
+        rec = group.passes[-1]
+        rec.kept, rec.kept_split = int(kept.sum()), int((masks != 0).sum())
+        direct = np.where(kept, 0, np.asarray(direct)).astype(np.uint8)
+        return without_leaves(tests, kept & (tests.leaf_tests >= 0).any(axis=1)), direct, masks
+
+    def previous_rows(self, lattice: np.ndarray) -> np.ndarray:
+        """(P,) int64: per probe of a tree (its lattice nodes), the previous file's probe at the same
+        node when the node lies outside the region, else −1."""
+        lattice = np.asarray(lattice, dtype=np.int64).reshape(-1, 3)
+        pos = self.origin + lattice * self.min_cell
+        outside = np.any((pos < self.lo) | (pos > self.hi), axis=1)
+        out = np.full(len(lattice), -1, dtype=np.int64)
+        for i in np.flatnonzero(outside):
+            out[i] = self.node_row.get(tuple(int(v) for v in lattice[i]), -1)
+        return out
+
+    def records(self, lattice: np.ndarray):
+        """(new rows, the previous file's coefficients there (as stored: SH or ambient-cube faces),
+        its validity there) for the probes of the tree whose ``lattice`` nodes are kept."""
+        rows = self.previous_rows(lattice)
+        new = np.flatnonzero(rows >= 0)
+        validity = self.file.validity if self.file.validity is not None else np.ones(self.file.probe_count, np.float32)
+        return new, self.file.coeffs[rows[new]], validity[rows[new]]
+
+    def patch_sidecar(self, arrays: dict, group) -> None:
+        """The new sidecar's ``arrays`` (bakeinfo.adaptive_arrays) with the previous sidecar's noise at
+        the kept probes and its leaf rows at the kept leaves that are previous leaves."""
+        if self.sidecar is None:
+            return
+        rows = self.previous_rows(group.tree.probe_lattice())
+        keep = rows >= 0
+        arrays["noise"][keep] = self.sidecar["noise"][rows[keep]]
+        info = group.tree.info()
+        lo = info["leaves"][:, :3].astype(np.int64)
+        kept = ~self.meets(lo, np.left_shift(1, leaf_levels(info).astype(np.int64)))
+        for i, key in enumerate(leaf_keys(info)):
+            j = self.leaf_row.get(key)
+            if kept[i] and j is not None:
+                for name in ("error", "threshold", "parent_ratio", "reason"):
+                    arrays["leaf_" + name][i] = self.sidecar["leaf_" + name][j]
