@@ -1,6 +1,7 @@
 """Operators: Bake SH in Volumes (modal, one panorama per timer tick), Rebake Selected Volume (the
-same bake of the active probe volume alone, keeping the other volumes' files: region.py) and Bake SH
-at Cursor.
+same bake of the active probe volume alone, keeping the other volumes' files: region.py), Rebake
+Selected Region (the probes inside the active object's box, in the one volume that box meets) and
+Bake SH at Cursor.
 
 Both drive a :class:`bake_core.ProbeBake`. In a UI session Bake SH in Volumes runs modally (progress
 bar, status bar text, Esc or Ctrl+C in the terminal cancels); without a window (``blender -b``)
@@ -12,9 +13,12 @@ import signal
 import time
 
 import bpy
+import numpy as np
+from mathutils import Vector
 
 from .bake_core import (BakeCancelled, BakeError, BakeSettings, BakeTooLarge, CancelOnSignals, ProbeBake,
                         format_duration, kept_message)
+from .bake_plans import volume_objects
 from .properties import draw_estimate, draw_settings
 
 
@@ -53,6 +57,13 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
     only_volume: bpy.props.StringProperty(
         name="Only Volume", default="", options={'HIDDEN', 'SKIP_SAVE'},
         description="Bake this probe volume alone and keep the other volumes' files (Rebake Selected Volume)")
+    # A FloatVectorProperty cannot be None: use_region says whether region is given.
+    use_region: bpy.props.BoolProperty(
+        name="Use Region", default=False, options={'HIDDEN', 'SKIP_SAVE'},
+        description="Bake only the probes of Only Volume inside Region (Rebake Selected Region)")
+    region: bpy.props.FloatVectorProperty(
+        name="Region", size=6, default=(0.0,) * 6, options={'HIDDEN', 'SKIP_SAVE'},
+        description="Two opposite corners of a box, Blender coordinates (x0, y0, z0, x1, y1, z1)")
 
     @classmethod
     def poll(cls, context):
@@ -68,8 +79,12 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
 
     def execute(self, context):
         props = context.scene.schnee_probes
+        if self.use_region and not self.only_volume:
+            self.report({'ERROR'}, "A region rebake needs the volume it lies in (Only Volume)")
+            return {'CANCELLED'}
         bake = ProbeBake(context.scene, context.view_layer, BakeSettings.from_props(props),
-                         allow_large=self.allow_large, only_volume=self.only_volume or None)
+                         allow_large=self.allow_large, only_volume=self.only_volume or None,
+                         region=tuple(self.region) if self.use_region else None)
         if context.window is None or bpy.app.background:
             return self._run_blocking(bake, props)
         try:
@@ -81,7 +96,8 @@ class SCHNEE_OT_bake_sh_volumes(bpy.types.Operator):
             self.report({'WARNING'}, str(exc))
             bpy.ops.schnee.confirm_large_bake('INVOKE_DEFAULT', probes=exc.probes,
                                               estimate=format_duration(exc.seconds), limit=exc.limit,
-                                              only_volume=self.only_volume)
+                                              only_volume=self.only_volume, use_region=self.use_region,
+                                              region=self.region)
             return {'CANCELLED'}
         except (BakeError, OSError) as exc:
             bake.cancel()
@@ -202,6 +218,8 @@ class SCHNEE_OT_confirm_large_bake(bpy.types.Operator):
     estimate: bpy.props.StringProperty(name="Estimate", options={'SKIP_SAVE'})
     limit: bpy.props.IntProperty(name="Limit", options={'SKIP_SAVE'})
     only_volume: bpy.props.StringProperty(name="Only Volume", options={'HIDDEN', 'SKIP_SAVE'})
+    use_region: bpy.props.BoolProperty(name="Use Region", options={'HIDDEN', 'SKIP_SAVE'})
+    region: bpy.props.FloatVectorProperty(name="Region", size=6, options={'HIDDEN', 'SKIP_SAVE'})
 
     def invoke(self, context, event):
         return context.window_manager.invoke_props_dialog(self, width=420)
@@ -213,8 +231,8 @@ class SCHNEE_OT_confirm_large_bake(bpy.types.Operator):
         col.label(text="OK bakes them all; click outside to leave everything as it is.")
 
     def execute(self, context):
-        bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT', allow_large=True, only_volume=self.only_volume)
-        return {'FINISHED'}
+        return _bake_volume(self, allow_large=True, only_volume=self.only_volume, use_region=self.use_region,
+                            region=self.region)
 
 
 class SCHNEE_OT_rebake_selected_volume(bpy.types.Operator):
@@ -234,7 +252,114 @@ class SCHNEE_OT_rebake_selected_volume(bpy.types.Operator):
         return coll is not None and ob.name in coll.all_objects
 
     def execute(self, context):
-        return bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT', only_volume=context.active_object.name)
+        return _bake_volume(self, only_volume=context.active_object.name)
+
+
+def _bake_volume(op, **options):
+    """Bake SH in Volumes with ``options`` on behalf of ``op``. A refusal reaches ``op``'s caller as its
+    own report (bpy.ops turns the inner operator's ERROR report into a RuntimeError, which would end
+    ``op`` with a Python traceback); a bake running on (modal) or done is FINISHED for ``op``."""
+    try:
+        result = bpy.ops.schnee.bake_sh_volumes('EXEC_DEFAULT', **options)
+    except RuntimeError as exc:
+        op.report({'ERROR'}, str(exc).removeprefix("Error: ").strip())
+        return {'CANCELLED'}
+    return {'FINISHED'} if result & {'FINISHED', 'RUNNING_MODAL'} else {'CANCELLED'}
+
+
+# Object types whose bound_box is the box of their geometry (an Empty's is all zeros: its Cube display
+# is taken from empty_display_size instead).
+BOX_TYPES = frozenset({'MESH', 'CURVE', 'SURFACE', 'META', 'FONT', 'LATTICE'})
+# Boxes that only touch (an overlap this thin, metres) do not meet: a box drawn up to a wall shared
+# by two volumes belongs to the volume it is in.
+TOUCH = 1e-6
+
+
+def world_box(ob, depsgraph):
+    """The world-space axis-aligned box of object ``ob`` as evaluated (its 8 bound_box corners through
+    matrix_world), Blender coordinates: (lo, hi) as numpy arrays; None for an object without a box."""
+    ev = ob.evaluated_get(depsgraph)
+    if ob.type == 'EMPTY' and ob.empty_display_type == 'CUBE':
+        r = ob.empty_display_size
+        corners = [(x, y, z) for x in (-r, r) for y in (-r, r) for z in (-r, r)]
+    elif ob.type in BOX_TYPES:
+        corners = [tuple(c) for c in ev.bound_box]
+    else:
+        return None
+    pts = np.array([tuple(ev.matrix_world @ Vector(c)) for c in corners], dtype=np.float64)
+    return pts.min(axis=0), pts.max(axis=0)
+
+
+def boxes_meet(a, b) -> bool:
+    """Whether boxes ``a`` and ``b`` ((lo, hi)) share more than a face: they overlap by more than
+    TOUCH along every axis where both have an extent (a flat box meets what it lies in)."""
+    overlap = np.minimum(a[1], b[1]) - np.maximum(a[0], b[0])
+    thin = np.minimum(a[1] - a[0], b[1] - b[0]) <= TOUCH
+    return bool(np.all(np.where(thin, overlap >= -TOUCH, overlap > TOUCH)))
+
+
+def _names(names):
+    quoted = [f"'{n}'" for n in names]
+    return quoted[0] if len(quoted) == 1 else ", ".join(quoted[:-1]) + " and " + quoted[-1]
+
+
+def _coords(v):
+    return "(" + ", ".join(f"{x:g}" for x in v) + ")"
+
+
+class SCHNEE_OT_rebake_selected_region(bpy.types.Operator):
+    """Bake again only the probes inside the active object's bounding box (world axes), in the one
+    probe volume that box meets: the volume's probes outside the box keep the previous bake's values,
+    only that volume's .shprobe is rewritten, every other file stays as it was. Needs One File per
+    Volume and a previous bake with the same settings. The active object: a mesh (or curve, text,
+    Cube empty...) that is not a probe volume"""
+    bl_idname = "schnee.rebake_selected_region"
+    bl_label = "Rebake Selected Region"
+    bl_options = {'REGISTER'}
+
+    @classmethod
+    def poll(cls, context):
+        ob, scene = context.active_object, context.scene
+        why = None
+        if scene is None or SCHNEE_OT_bake_sh_volumes._running:
+            why = "A bake is running"
+        elif ob is None:
+            why = "Select an object whose box holds the probes to rebake (a mesh or a Cube empty)"
+        elif not (ob.type in BOX_TYPES or (ob.type == 'EMPTY' and ob.empty_display_type == 'CUBE')):
+            why = f"The active object '{ob.name}' has no box: select a mesh (or curve, text, Cube empty)"
+        else:
+            coll = bpy.data.collections.get(scene.schnee_probes.volume_collection)
+            if coll is not None and ob.name in coll.all_objects:
+                why = f"'{ob.name}' is a probe volume: Rebake Selected Volume rebakes it whole"
+        if why is not None:
+            cls.poll_message_set(why)
+        return why is None
+
+    def execute(self, context):
+        ob, props = context.active_object, context.scene.schnee_probes
+        depsgraph = context.evaluated_depsgraph_get()
+        box = world_box(ob, depsgraph)
+        try:
+            volumes = volume_objects(props.volume_collection)
+        except BakeError as exc:
+            return self._refuse(props, str(exc))
+        met = [v.name for v in volumes if boxes_meet(box, world_box(v, depsgraph))]
+        if not met:
+            return self._refuse(props, f"The box of '{ob.name}' meets no probe volume of collection "
+                                f"'{props.volume_collection}' (its volumes: {_names([v.name for v in volumes])}): "
+                                "move or scale it so that it lies in the volume to rebake")
+        if len(met) > 1:
+            return self._refuse(props, f"The box of '{ob.name}' meets volumes {_names(met)}: a region rebake "
+                                "works in one volume; make the box smaller or rebake each volume")
+        self.report({'INFO'}, f"Rebaking the probes of volume '{met[0]}' inside the box of '{ob.name}': "
+                    f"{_coords(box[0])} .. {_coords(box[1])} (Blender coordinates)")
+        return _bake_volume(self, only_volume=met[0], use_region=True,
+                            region=tuple(float(x) for x in (*box[0], *box[1])))
+
+    def _refuse(self, props, msg):
+        _record(props, message=msg)
+        self.report({'ERROR'}, msg)
+        return {'CANCELLED'}
 
 
 class SCHNEE_OT_bake_sh_cursor(bpy.types.Operator):
@@ -268,6 +393,6 @@ class SCHNEE_OT_bake_sh_cursor(bpy.types.Operator):
 
 
 classes = (SCHNEE_OT_bake_sh_volumes, SCHNEE_OT_confirm_large_bake, SCHNEE_OT_rebake_selected_volume,
-           SCHNEE_OT_bake_sh_cursor)
+           SCHNEE_OT_rebake_selected_region, SCHNEE_OT_bake_sh_cursor)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -63,6 +63,7 @@ class VIEW3D_PT_schnee_probes(SidebarPanel, bpy.types.Panel):
         col.scale_y = 1.3
         col.operator("schnee.bake_sh_volumes", icon='LIGHTPROBE_GRID')
         col.operator("schnee.rebake_selected_volume", icon='FILE_REFRESH')
+        col.operator("schnee.rebake_selected_region", icon='SELECT_SET')
         col.operator("schnee.bake_sh_cursor", icon='PIVOT_CURSOR')
         row = layout.row()
         row.operator("schnee.add_movable_diffuse", text="Movable Diffuse Material", icon='NODE_MATERIAL')

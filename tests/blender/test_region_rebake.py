@@ -5,19 +5,26 @@ byte for byte; its Left.shprobe is the bytes of a full bake of the edited scene 
 Cycles renders the same bits for the same position and seed). Killed, it resumes from its own
 journal; sharded and merged it gives the same bytes; it refuses, in one line and without a
 traceback, an unknown volume, a bake without a previous one, other settings (naming them) and
-One File per Volume off. Scenes: scripts/region_scenes.py (the window room in two volumes, 1 m
-cells: 16 probes each, 15 in Left once the crate is in). Runtime: about a minute on 2 cores."""
+One File per Volume off. The panel's Rebake Selected Region (the box of the active object) writes
+the bytes of the headless ``--region`` rebake with the same box, in Blender 3.4, 4.3 and 5.2 (the
+chroots of scripts/blender-chroot.sh). Scenes: scripts/region_scenes.py (the window room in two
+volumes, 1 m cells: 16 probes each, 15 in Left once the crate is in). Runtime: about a minute on 2
+cores, plus about 45 s per chroot."""
+import contextlib
 import hashlib
 import json
+import os
 import re
 import shutil
 import signal
+import subprocess
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import requires_native, run_blender
+from conftest import ADDON_DIR, BUILD_DIR, REPO, requires_native, run_blender
 from schnee_probes import journal, native
 from test_bake_hazards import SCRIPTS, TINY, Running, bake, last_error, scenes_made_by
 
@@ -234,3 +241,155 @@ def test_region_refusals(scenes, previous, tmp_path):
     proc = bake(blend, *ARGS, "--only-volume", "Left", "--region", *REGION)
     assert proc.returncode == 3 and "Traceback" not in proc.stderr
     assert "No previous bake to keep" in last_error(proc) and "probes.shprobe.points is missing" in last_error(proc)
+
+
+# Rebake Selected Region (the panel's button): the box of a selected object instead of --region. The
+# same box as REGION, drawn by a hidden cube mesh "RegionBox" (and then a Cube empty) in the edited scene.
+CHROOT = REPO / "scripts" / "blender-chroot.sh"
+BOX_SCRIPT = SCRIPTS / "region_box_operator.py"
+BOX_VERSIONS = {"host": (3, 4), "trixie": (4, 3), "sid": (5, 2)}
+
+
+@contextlib.contextmanager
+def _blender_in(suite, tmp_path):
+    """(run, host_dir, inner_dir) for Blender of ``suite``: ``run(args, env)`` runs ``blender -b
+    --factory-startup --python-exit-code 1 ARGS`` there; host_dir (a folder this process writes) is
+    inner_dir for that Blender. The host: tmp_path itself; a chroot (scripts/blender-chroot.sh): a folder
+    in it holding this tree's add-on with the package's bundled libraries (build/addon_zip, which the
+    chroots lack), bake.py, the test scripts; removed at the end. Also gives the paths of the add-on's
+parent folder, bake.py and the scripts as that Blender sees them."""
+    cmd = ["blender", "-b", "--factory-startup", "--python-exit-code", "1"]
+    if suite == "host":
+        def run(args, env=None):
+            full = {**os.environ, "PYTHONPATH": str(ADDON_DIR), "SCHNEE_REPO": str(REPO), **(env or {})}
+            return subprocess.run([*cmd, *map(str, args)], capture_output=True, text=True, timeout=300, env=full)
+        yield run, tmp_path, tmp_path, {"addon": ADDON_DIR, "bake": REPO / "bake.py", "scripts": SCRIPTS}
+        return
+    if os.geteuid() != 0:
+        pytest.skip("entering the Blender chroots needs root")
+    if shutil.which("debootstrap") is None and not Path(f"/var/cache/schnee-chroots/{suite}").exists():
+        pytest.skip("debootstrap missing (scripts/deps.sh installs it)")
+    libs = BUILD_DIR / "addon_zip" / "schnee_probes" / "lib"
+    if not libs.is_dir():
+        pytest.skip("no add-on package build (cmake --build build): its lib/ holds qhull and Embree")
+    proc = subprocess.run([str(CHROOT), "ensure", suite], capture_output=True, text=True, timeout=1800)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    root = Path(proc.stdout.strip().splitlines()[-1])
+    inner = Path("/tmp") / f"schnee-region-box-{os.getpid()}-{suite}"
+    outer = root / inner.relative_to("/")
+    shutil.rmtree(outer, ignore_errors=True)
+    shutil.copytree(ADDON_DIR / "schnee_probes", outer / "addon" / "schnee_probes",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(libs, outer / "addon" / "schnee_probes" / "lib")
+    shutil.copy(REPO / "bake.py", outer / "bake.py")   # finds addon/ beside it
+    for name in (BOX_SCRIPT.name, "count_renders.py"):
+        shutil.copy(SCRIPTS / name, outer / name)
+
+    def run(args, env=None):
+        envs = [f"{k}={v}" for k, v in (env or {}).items()]
+        return subprocess.run([str(CHROOT), "run", suite, "--", "env", *envs, *cmd, *map(str, args)],
+                              capture_output=True, text=True, timeout=300)
+    try:
+        yield run, outer, inner, {"addon": inner / "addon", "bake": inner / "bake.py", "scripts": inner}
+    finally:
+        shutil.rmtree(outer, ignore_errors=True)
+
+
+def _tracebacks(text):
+    """Each Python traceback in ``text``: its frames (the indented lines) and the exception's line."""
+    out, lines = [], text.splitlines()
+    for i, line in enumerate(lines):
+        if line.startswith("Traceback (most recent call last):"):
+            j = i + 1
+            while j < len(lines) and lines[j].startswith(" "):
+                j += 1
+            out.append("\n".join(lines[i:j + 1]))
+    return out
+
+
+def _box_result(proc):
+    lines = [line[line.index("RESULT {") + 7:] for line in proc.stdout.splitlines() if "RESULT {" in line]
+    assert proc.returncode == 0 and lines, proc.stdout[-4000:] + proc.stderr[-3000:]
+    return json.loads(lines[-1])
+
+
+@pytest.mark.parametrize("suite", ["host", pytest.param("trixie", marks=pytest.mark.chroot),
+                                   pytest.param("sid", marks=pytest.mark.chroot)])
+def test_panel_region_button_rebakes_the_box_of_the_active_object(scenes, previous, request, suite, tmp_path):
+    """In Blender 3.4, 4.3 and 5.2: the previous bake and the headless ``--only-volume Left --region
+    REGION`` rebake made by the same Blender are the expected values; the button with the box of
+    "RegionBox" (then of a Cube empty) must write the bytes of that headless rebake, render only the
+    region's 3 probes and refuse a box over both volumes or outside them, writing nothing."""
+    with _blender_in(suite, tmp_path) as (run, host, inner, paths):  # the chroot's folder goes at the end
+        if suite == "host":
+            prev = previous
+        else:   # this Blender's own previous bake (Cycles' bits differ between releases)
+            (host / "prev").mkdir()
+            shutil.copyfile(scenes / "two_rooms.blend", host / "prev" / "two_rooms.blend")
+            proc = run([inner / "prev" / "two_rooms.blend", "-P", paths["bake"], "--", "--placement", "OCTREE", *ARGS])
+            assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+            prev = host / "prev" / "sh_coeffs"
+        for name in ("head", "op"):
+            shutil.copytree(prev, host / name / "sh_coeffs")
+            shutil.copyfile(scenes / "two_rooms_edited.blend", host / name / "two_rooms_edited.blend")
+        proc = run([inner / "head" / "two_rooms_edited.blend", "-P", paths["bake"], "--", "--placement", "OCTREE",
+                    *ARGS, "--only-volume", "Left", "--region", *REGION])
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        before = {p.name: _sha(p) for p in (host / "op" / "sh_coeffs").iterdir()}
+        proc = run([inner / "op" / "two_rooms_edited.blend", "-P", paths["scripts"] / BOX_SCRIPT.name, "--",
+                    paths["addon"], *REGION], env={"SCHNEE_TEST_RENDER_LOG": inner / "op" / "renders.log"})
+        r = _box_result(proc)
+        renders = (host / "op" / "renders.log").read_text().splitlines()
+        head, out = host / "head" / "sh_coeffs", host / "op" / "sh_coeffs"
+        by_cell = {name: _by_cell(d / "Left.shprobe") for name, d in (("prev", prev), ("head", head), ("op", out))}
+        head_points, op_points = (journal.read(str(d / "probes.shprobe.points")) for d in (head, out))
+        head_sha = {p.name: _sha(p) for p in head.iterdir()}
+    assert tuple(r["version"][:2]) == BOX_VERSIONS[suite] and r["label"] == "Rebake Selected Region"
+    # No traceback of ours (5.2's Debian package prints one of its own bl_pkg at every start: cattrs missing).
+    assert not [t for t in _tracebacks(proc.stdout + proc.stderr) if "schnee" in t or "region_box" in t]
+    # poll: an object with a box that is not a volume (the mesh, the Cube empty); not nothing, a lamp,
+    # a Plain Axes empty or the volume itself.
+    assert r["polls"] == {"None": False, "Lamp": False, "Left": False, "CubeEmpty": True, "Axes": False,
+                          "RegionBox": True}
+    # The refusals: one sentence each, the operator's report (background mode raises it), nothing written;
+    # the third is the bake's own (region.py's text), passed on by the button as its report.
+    assert r["before"] == before
+    both = ("The box of 'RegionBox' meets volumes 'Left' and 'Right': a region rebake works in one volume; "
+            "make the box smaller or rebake each volume")
+    none = ("The box of 'RegionBox' meets no probe volume of collection 'ProbeVolumes' (its volumes: 'Left' and "
+            "'Right'): move or scale it so that it lies in the volume to rebake")
+    one_file = ("Rebaking volume 'Left' alone needs One File per Volume (--per-volume-files on): without it every "
+                "volume is in one probes.shprobe, which a rebake would replace whole; turn it on and bake every volume "
+                "once")
+    for key, text in (("both", both), ("none", none), ("one_file", one_file)):
+        assert r[key]["result"] == ["CANCELLED"] and r[key]["message"] == text
+        assert r[key]["error"].strip() == f"Error: {text}" and r[key]["files"] == []
+        assert r[f"after_{key}"] == before
+    # The box's rebake: FINISHED, the 3 probes of the region outside the crate rendered (the headless
+    # --region test's count), Left's file, the record and the kept points written; the bytes of the
+    # headless rebake with REGION, Right and the sky the previous bake's.
+    for key in ("box", "empty"):
+        assert r[key]["result"] == ["FINISHED"] and r[key]["error"] is None, r[key]
+        assert r[key]["files"] == ["Left.shprobe", "probes.shprobe.bake.json", "probes.shprobe.points"]
+        assert r[key]["message"].startswith("Baked 15 probes in ")
+    assert len(renders) == 6 and renders[:3] == renders[3:]   # 3 for the box, the same 3 for the empty
+    after = r["after_box"]
+    assert after["Left.shprobe"] == head_sha["Left.shprobe"] != before["Left.shprobe"]
+    assert after["probes.shprobe.bake.json"] == head_sha["probes.shprobe.bake.json"]
+    assert (after["Right.shprobe"], after["sky.exr"]) == (before["Right.shprobe"], before["sky.exr"])
+    assert r["after_empty"] == after   # the Cube empty of the same world box: the same bytes again
+    # The kept points: the headless rebake's (their manifest names the .blend, which differs).
+    assert len(op_points.values) == len(head_points.values) == 31
+    assert {k: v.tobytes() for k, v in op_points.values.items()} == \
+        {k: v.tobytes() for k, v in head_points.values.items()}
+    # Per probe: outside the box the previous bake's bits, inside (3 rendered + the crate's cell)
+    # new ones; on the host, the inside ones are the full edited bake's (as the --region test).
+    lo, hi = np.array([-1.8, 0.0, 0.2]), np.array([-0.2, 1.0, 1.8])   # REGION in engine space (x, z, -y)
+    new, old = by_cell["op"], by_cell["prev"]
+    inside = [c for c in new if np.all(np.array(c) >= lo) and np.all(np.array(c) <= hi)]
+    assert len(new) == 16 and len(inside) == 4 and new == by_cell["head"]
+    assert all(new[c] == old[c] for c in new if c not in inside)
+    assert sum(new[c] != old[c] for c in inside) >= 3
+    if suite == "host":
+        full = _by_cell(request.getfixturevalue("edited_full") / "Left.shprobe")
+        assert all(new[c] == full[c] for c in inside)
