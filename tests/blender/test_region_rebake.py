@@ -7,9 +7,10 @@ journal; sharded and merged it gives the same bytes; it refuses, in one line and
 traceback, an unknown volume, a bake without a previous one, other settings (naming them) and
 One File per Volume off. The panel's Rebake Selected Region (the box of the active object) writes
 the bytes of the headless ``--region`` rebake with the same box, in Blender 3.4, 4.3 and 5.2 (the
-chroots of scripts/blender-chroot.sh). Scenes: scripts/region_scenes.py (the window room in two
-volumes, 1 m cells: 16 probes each, 15 in Left once the crate is in). Runtime: about a minute on 2
-cores, plus about 45 s per chroot."""
+chroots of scripts/blender-chroot.sh), and in a UI session (Xvfb) through Bake Many Probes? and the
+modal bake. Scenes: scripts/region_scenes.py (the window room in two volumes, 1 m cells: 16 probes
+each, 15 in Left once the crate is in). Runtime: about 2 minutes on 2 cores, plus about 30 s per
+chroot."""
 import contextlib
 import hashlib
 import json
@@ -393,3 +394,38 @@ def test_panel_region_button_rebakes_the_box_of_the_active_object(scenes, previo
     if suite == "host":
         full = _by_cell(request.getfixturevalue("edited_full") / "Left.shprobe")
         assert all(new[c] == full[c] for c in inside)
+
+
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run not installed")
+def test_panel_region_button_in_a_ui_session(scenes, previous, tmp_path):
+    """Blender 3.4 with a window (Xvfb, scripts/region_box_modal.py): the button's bake above Confirm
+    Above asks first and writes nothing; a simulated Return on Bake Many Probes? runs it modally with
+    the region the dialog was given: the bytes of the headless ``--region`` rebake with the same box
+    (the expected value, made here by bake.py); then a box over both volumes is refused."""
+    head = tmp_path / "head"
+    shutil.copytree(previous, head / "sh_coeffs")
+    shutil.copyfile(scenes / "two_rooms_edited.blend", head / "two_rooms_edited.blend")
+    proc = bake(head / "two_rooms_edited.blend", *ARGS, "--only-volume", "Left", "--region", *REGION)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    blend, out = _edited(scenes, previous, tmp_path / "ui")
+    before = {p.name: _sha(p) for p in out.iterdir()}
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", "blender", str(blend), "--factory-startup",
+           "--enable-event-simulate", "--python-exit-code", "1", "-P", str(SCRIPTS / "region_box_modal.py"), "--",
+           str(ADDON_DIR), *REGION]
+    env = {**os.environ, "PYTHONPATH": str(ADDON_DIR), "SCHNEE_REPO": str(REPO)}
+    r = _box_result(subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env))
+    assert r["before"] == r["after_large"] == before
+    assert r["large"] == [["CANCELLED"], None] and not r["large_running"]
+    assert r["large_message"].startswith("15 probes (estimated ") and "limit of 10 (Confirm Above)" in r["large_message"]
+    assert r["running_seen"] and r["ticks_waited"] <= 1200
+    assert r["confirmed_message"].startswith("Baked 15 probes in ")
+    assert r["files"] == ["Left.shprobe", "probes.shprobe.bake.json", "probes.shprobe.points"]
+    after = r["after_confirmed"]
+    for name in ("Left.shprobe", "probes.shprobe.bake.json"):
+        assert after[name] == _sha(head / "sh_coeffs" / name)
+    assert after["Left.shprobe"] != before["Left.shprobe"]
+    assert (after["Right.shprobe"], after["sky.exr"]) == (before["Right.shprobe"], before["sky.exr"])
+    text = ("The box of 'RegionBox' meets volumes 'Left' and 'Right': a region rebake works in one volume; "
+            "make the box smaller or rebake each volume")
+    assert r["both"] == [["CANCELLED"], f"Error: {text}\n"] and r["both_message"] == text
+    assert r["after_both"] == after
