@@ -145,7 +145,8 @@ def _parser(settings):
     a("--sbatch", default="sbatch", metavar="PATH",
       help="with --farm slurm: the sbatch program that submits the jobs (default: sbatch found on PATH)")
     a("--restart", action="store_true",
-      help="discard this bake's journal (the probes a cancelled or crashed run kept) and bake from scratch")
+      help="discard this bake's journal (the probes a cancelled or crashed run kept) and bake from scratch; with "
+           "--farm: remove the shard journals and the merge's journal before submitting")
     a("--scene", help="scene name (default: the active scene)")
     a("--quiet", action="store_true", help="no progress line")
     return p
@@ -191,7 +192,7 @@ def _main():
                                                 "only_volume", "region")}
     bake_settings = settings.BakeSettings.from_props(scene.schnee_probes, **overrides)
     if args.farm:
-        _submit(args, bake_core, bake_settings)
+        _submit(args, bake_core, bake_settings, scene, view_layer)
         return
     mode = "CURSOR" if args.cursor else "VOLUMES"
     bake = bake_core.ProbeBake(scene, view_layer, bake_settings, mode=mode, cursor=args.cursor,
@@ -252,23 +253,35 @@ def _check_combinations(parser, args):
                      "--only-volume rebakes one probe volume")
 
 
-def _submit(args, bake_core, bake_settings):
-    """--farm slurm: write the batch scripts next to the output and submit them; bake nothing here."""
+def _submit(args, bake_core, bake_settings, scene, view_layer):
+    """--farm slurm: write the batch scripts next to the output and submit them; bake nothing here.
+    Journals the jobs would refuse (another bake's) are reported first; --restart removes them."""
     import importlib
 
     import bpy
 
-    farm = importlib.import_module(bake_core.__name__.rsplit(".", 1)[0] + ".farm")
+    package = bake_core.__name__.rsplit(".", 1)[0]
+    farm = importlib.import_module(package + ".farm")
     if args.cursor or args.shard or args.merge_shards:
         _fail(EXIT_USAGE, "--farm bakes volumes; it cannot be combined with --cursor, --shard or --merge-shards")
     if not bpy.data.filepath:
         _fail(EXIT_USAGE, "--farm needs a saved .blend (farm nodes open the file)")
-    adaptive = importlib.import_module(bake_core.__name__.rsplit(".", 1)[0] + ".adaptive")
+    adaptive = importlib.import_module(package + ".adaptive")
     stages = 1
     if bake_settings.placement == "ADAPTIVE":  # one job array per refinement stage
         stages = adaptive.stage_bound(bake_settings.min_cell_size, bake_settings.max_cell_size)
     try:
         output = bake_core.abspath(bake_settings.output_path)
+        farm.find_sbatch(args.sbatch)   # before --restart removes anything
+
+        def manifest():
+            fingerprint, journal = (importlib.import_module(f"{package}.{m}") for m in ("fingerprint", "journal"))
+            return journal.make_manifest(fingerprint.parts(scene, view_layer, bake_settings), scene=scene.name,
+                                         blend=bpy.data.filepath)
+        removed = farm.prepare_journals(farm.job_journals(output, args.shards, args.only_volume), manifest,
+                                        restart=args.restart)
+        for path in removed:
+            print(f"bake.py: --restart: removed {path}")
         ids = farm.submit_slurm(bpy.app.binary_path, os.path.abspath(bpy.data.filepath), os.path.abspath(__file__),
                                 farm.forwarded_args(_script_args(), output=output), args.shards, output,
                                 sbatch_options=args.sbatch_option, sbatch=args.sbatch, stages=stages)

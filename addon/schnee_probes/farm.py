@@ -13,7 +13,7 @@ import re
 import shlex
 import shutil
 import subprocess
-from typing import List, Optional, Sequence
+from typing import Callable, List, Optional, Sequence
 
 from .file_names import sibling
 
@@ -131,6 +131,54 @@ def submit_slurm(blender: str, blend: str, bake_py: str, bake_args: Sequence[str
         arrays.append(_sbatch(sbatch, paths["shards.sbatch"], dep))
     merge = _sbatch(sbatch, paths["merge.sbatch"], [f"--dependency=afterok:{arrays[-1]}", "--kill-on-invalid-dep=yes"])
     return arrays + [merge]
+
+
+def job_journals(output: str, shards: int, only_volume: Optional[str] = None) -> List[str]:
+    """The journals the jobs of a farm bake of ``output`` open: the ``shards`` shard journals and the
+    merge's local journal, named after the volume's own file for a rebake (``--only-volume``)."""
+    from .region import volume_file
+    target = output if only_volume is None else volume_file(output, only_volume)
+    # bake_points.shard_journal_path and local_journal_path's names (normative, docs/farm.md "Shards");
+    # spelled here because bake_points needs Blender (bake_outputs imports bpy) and this module does not.
+    return [sibling(target, f".shard-{k}-of-{shards}.journal") for k in range(shards)] + [sibling(target, ".journal")]
+
+
+def prepare_journals(paths: Sequence[str], manifest: Callable[[], dict], restart: bool = False) -> List[str]:
+    """Before submitting: the existing journals among ``paths`` (:func:`job_journals`) must belong to
+    this bake, as every job checks (shards and merges refuse a journal of another bake; docs/farm.md),
+    so a journal left by an earlier farm bake of an edited scene fails here, once, instead of in
+    every job. ``manifest``: the bake's journal manifest, computed only when a journal exists.
+    Journals of this bake are kept (resubmitted jobs resume from them). ``restart`` (``--restart``,
+    which the jobs themselves never get: a requeued task must resume) removes them all instead, once
+    no running job holds the lock of any of them (else nothing is removed). Returns the removed paths."""
+    from . import journal
+    from .output_lock import OutputBusy, OutputLock
+    found = [p for p in paths if os.path.lexists(p)]
+    if restart:  # every lock first: a refusal removes nothing
+        locks = [OutputLock(p) for p in found]
+        try:
+            for path, lock in zip(found, locks):
+                try:
+                    lock.acquire()
+                except OutputBusy as busy:
+                    raise FarmError(f"a job is writing {path} ({busy.holder_text()}); wait for it or cancel it "
+                                    "(scancel), then submit again") from None
+            for path in found:
+                os.unlink(path)
+        finally:
+            for lock in locks:
+                lock.release()
+        return found
+    if found:
+        want = manifest()
+        for path in found:
+            try:
+                journal.read(path, expect_manifest=want)
+            except journal.JournalError as exc:
+                names = ", ".join(os.path.basename(p) for p in found)
+                raise FarmError(f"{exc}, or submit with --restart (removes {names}); nothing was submitted: "
+                                "every job would refuse it") from None
+    return []
 
 
 def forwarded_args(argv: Sequence[str], drop_with_value=("--farm", "--shards", "--sbatch-option", "--sbatch",

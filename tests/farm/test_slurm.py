@@ -129,6 +129,7 @@ def test_sbatch_option_names_the_program_when_path_has_none(cluster, tmp_path):
 REGION_ARGS = ["--placement", "OCTREE", "--min-cell-size", "1", "--max-cell-size", "1", "--panorama-resolution",
                "16", "--samples", "1", "--per-volume-files", "on"]
 REBAKE = ["--only-volume", "Left", "--region", "-1.8", "-1.8", "0", "-0.2", "-0.2", "1"]
+SUBMITTED = r"submitted 1 shard array\(s\) (\d+) \(2 tasks each.* merge job (\d+)"
 
 
 def _wait(cluster, job, timeout=300):
@@ -158,7 +159,7 @@ def test_farm_region_rebake_equals_a_local_rebake(cluster, tmp_path):
 
     proc = run_blender(REPO / "bake.py", *REGION_ARGS, *REBAKE, "--farm", "slurm", "--shards", "2",
                        blend=farm / "scene.blend", env={"SLURM_CONF": cluster.env["SLURM_CONF"]}, timeout=120)
-    m = re.search(r"submitted 1 shard array\(s\) (\d+) \(2 tasks each.* merge job (\d+)", proc.stdout)
+    m = re.search(SUBMITTED, proc.stdout)
     assert m, proc.stdout[-2000:]
     array, merge = m.groups()
     out = farm / "sh_coeffs"
@@ -206,3 +207,41 @@ def test_farm_region_rebake_equals_a_local_rebake(cluster, tmp_path):
     before = json.loads((old / "probes.shprobe.bake.json").read_text())
     assert rec["volumes"]["Right"] == before["volumes"]["Right"] and rec["settings"] == before["settings"]
     assert rec["volumes"]["Left"] != before["volumes"]["Left"]   # the edited scene's geometry
+
+    # A second edit (the crate taken out again) and a second farm rebake of Left. The shard journals of
+    # the first are of another bake: every job would refuse them, so the submission does, and submits
+    # nothing; --restart removes them and the rebake runs. Its Left.shprobe is the first bake's bytes
+    # (the unedited scene again: the region's 4 probes render the same bits, the 28 outside are kept).
+    shutil.copy(tmp_path / "two_rooms.blend", farm / "scene.blend")
+    farm_env = {"SLURM_CONF": cluster.env["SLURM_CONF"]}
+    proc = run_blender(REPO / "bake.py", *REGION_ARGS, *REBAKE, "--farm", "slurm", "--shards", "2",
+                       blend=farm / "scene.blend", env=farm_env, timeout=120, check=False)
+    assert proc.returncode == 3, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert proc.stderr.strip().splitlines()[-1] == (
+        f"bake.py: error: farm submission failed: {out / 'Left.shprobe.shard-0-of-2.journal'} belongs to another "
+        "bake (changed since it was written: geometry, materials); delete it to bake from scratch, or submit with "
+        "--restart (removes Left.shprobe.shard-0-of-2.journal, Left.shprobe.shard-1-of-2.journal); nothing was "
+        "submitted: every job would refuse it")
+    assert cluster.run("squeue", "-h").stdout.strip() == ""
+    proc = run_blender(REPO / "bake.py", *REGION_ARGS, *REBAKE, "--farm", "slurm", "--shards", "2", "--restart",
+                       blend=farm / "scene.blend", env=farm_env, timeout=120)
+    assert re.findall(r"bake\.py: --restart: removed (\S+)", proc.stdout) == [
+        str(out / f"Left.shprobe.shard-{k}-of-2.journal") for k in range(2)]
+    array, merge = re.search(SUBMITTED, proc.stdout).groups()
+    state = _wait(cluster, merge)
+    logs = {p.name: p.read_text(errors="replace") for p in sorted(folder.glob(f"*-{array}_*.log"))}
+    assert state == ["COMPLETED"], "\n".join(t[-3000:] for t in logs.values()) + cluster.logs()
+    assert sum(int(re.search(r"bake\.py: (\d+) render\(s\) by this run", t).group(1)) for t in logs.values()) == 4
+    assert _sha(out / "Left.shprobe") == kept["Left.shprobe"]
+    for name in set(kept) - {"Left.shprobe", "probes.shprobe.bake.json", "probes.shprobe.points"}:
+        assert _sha(out / name) == kept[name], name
+    assert json.loads((out / "probes.shprobe.bake.json").read_text())["volumes"] == before["volumes"]
+    # Submitted again unchanged: the journals are this bake's, kept for the jobs to resume from (held
+    # and cancelled here: what is checked is that the submission accepts them).
+    proc = run_blender(REPO / "bake.py", *REGION_ARGS, *REBAKE, "--farm", "slurm", "--shards", "2",
+                       "--sbatch-option=--hold", blend=farm / "scene.blend", env=farm_env, timeout=120)
+    ids = re.search(SUBMITTED, proc.stdout).groups()
+    cluster.run("scancel", *ids, check=False)
+    assert "--restart: removed" not in proc.stdout
+    assert sorted(p.name for p in out.glob("*.journal")) == ["Left.shprobe.shard-0-of-2.journal",
+                                                            "Left.shprobe.shard-1-of-2.journal"]
