@@ -272,6 +272,9 @@ def _submit(args, bake_core, bake_settings, scene, view_layer):
         stages = adaptive.stage_bound(bake_settings.min_cell_size, bake_settings.max_cell_size)
     try:
         output = bake_core.abspath(bake_settings.output_path)
+        if args.only_volume:  # what every job would refuse, refused once here (nothing submitted)
+            region, plans = (importlib.import_module(f"{package}.{m}") for m in ("region", "bake_plans"))
+            plans.check_rebake(region.VolumeRebake(args.only_volume, args.region), bake_settings, output)
         farm.find_sbatch(args.sbatch)   # before --restart removes anything
 
         def manifest():

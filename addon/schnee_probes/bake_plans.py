@@ -212,22 +212,7 @@ class _VolumePlan(PlacementPlan):
         s = self.settings
         main_path = abspath(s.output_path)
         objects = volume_objects(s.volume_collection)
-        depsgraph = bpy.context.evaluated_depsgraph_get()
-        volumes = [scene_export.volume_mesh(ob, depsgraph) for ob in objects]
-        for name, _, tris in volumes:
-            if len(tris) == 0:
-                raise BakeError(f"Probe volume '{name}' has no faces: a volume must be a closed mesh")
-        if s.per_volume_files:
-            groups, seen = [], {}
-            for vol in volumes:
-                stem = region.volume_file_stem(vol[0])
-                if stem in seen:
-                    raise BakeError(f"Volumes '{seen[stem]}' and '{vol[0]}' would both be written to "
-                                    f"'{stem}.shprobe': rename one of them")
-                seen[stem] = vol[0]
-                groups.append((vol[0], region.volume_file(main_path, vol[0]), [vol]))
-        else:
-            groups = [(os.path.splitext(os.path.basename(main_path))[0], main_path, volumes)]
+        volumes, groups = volume_groups(objects, s, main_path)
         if self.rebake is not None:  # one volume; the sky, the sun and the other files are kept
             groups = self.rebake.select(groups, s, main_path, s.volume_collection)
             volumes = groups[0][2]
@@ -631,6 +616,36 @@ class RefinementLamps:
         timings = self.session.timings
         timings["direct"] = timings.get("direct", 0.0) + time.perf_counter() - t
         return out
+
+
+def volume_groups(objects, s, main_path: str):
+    """(volumes, groups [(name, path, volumes)]) of the volume ``objects``: one group per volume with
+    One File per Volume (``s.per_volume_files``), else one for all; BakeError for a volume without
+    faces or two volumes written to one file."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    volumes = [scene_export.volume_mesh(ob, depsgraph) for ob in objects]
+    for name, _, tris in volumes:
+        if len(tris) == 0:
+            raise BakeError(f"Probe volume '{name}' has no faces: a volume must be a closed mesh")
+    if not s.per_volume_files:
+        return volumes, [(os.path.splitext(os.path.basename(main_path))[0], main_path, volumes)]
+    groups, seen = [], {}
+    for vol in volumes:
+        stem = region.volume_file_stem(vol[0])
+        if stem in seen:
+            raise BakeError(f"Volumes '{seen[stem]}' and '{vol[0]}' would both be written to "
+                            f"'{stem}.shprobe': rename one of them")
+        seen[stem] = vol[0]
+        groups.append((vol[0], region.volume_file(main_path, vol[0]), [vol]))
+    return volumes, groups
+
+
+def check_rebake(rebake: "region.VolumeRebake", s, main_path: str) -> None:
+    """The checks a rebake of ``rebake.name`` makes before it places anything (region.py), made
+    where nothing is baked: bake.py --farm, before it submits jobs that would each refuse."""
+    rebake.check_settings(s)
+    _, groups = volume_groups(volume_objects(s.volume_collection), s, main_path)
+    rebake.select(groups, s, main_path, s.volume_collection)
 
 
 def volume_objects(name: str) -> list:

@@ -138,3 +138,22 @@ def test_adaptive_region_rebake_refusals(scenes, previous, tmp_path):
     proc = run_blender(BAKE_PY, *ARGS, *region, blend=blend, check=False, timeout=300)
     assert _refused(proc).startswith("bake.py: error: Cannot read the previous bake of this volume, ")
     assert left.read_bytes() == kept[:len(kept) // 2]
+
+
+def test_farm_rebake_refused_at_submission(scenes, previous, tmp_path):
+    """What every farm job of a rebake would refuse is refused once by bake.py --farm, before
+    sbatch is looked for: exit 3, the rebake's own message, no job script or log folder written."""
+    prev_dir, _ = previous
+    shutil.copytree(prev_dir, tmp_path / "sh_coeffs")
+    blend = tmp_path / "two_rooms_edited.blend"
+    shutil.copyfile(scenes / "two_rooms_edited.blend", blend)
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    farm = ["--farm", "slurm", "--shards", "2", "--sbatch", str(tmp_path / "no-sbatch-here")]
+    proc = run_blender(BAKE_PY, *ARGS, *farm, "--only-volume", "Kitchen", blend=blend, check=False, timeout=300)
+    assert _refused(proc) == ("bake.py: error: farm submission failed: No probe volume named 'Kitchen' in "
+                              "collection 'ProbeVolumes' (its volumes: 'Left', 'Right')")
+    proc = run_blender(BAKE_PY, *ARGS, "--samples", "4", *farm, "--only-volume", "Left", "--region", *REGION,
+                       blend=blend, check=False, timeout=300)
+    assert _refused(proc).startswith("bake.py: error: farm submission failed: The previous bake "
+                                     "(probes.shprobe.bake.json) was made with other settings: samples 8 then, 4 now")
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before
