@@ -25,7 +25,8 @@ with --bundled GLTF, the bundled room's export) four configurations: per object,
 bricks, per pixel from the buffers, off (the raster floor); interleaved rounds, paired ratios per round,
 each launch's wall and CPU seconds (the schnee-view child's rusage), the load average at the start and
 end, GPU memory per probe from the engine's stderr (pool + indirection, + brick tables + visibility
-records), --json OUT writes every launch. --scenes v1,v3,bundled picks scenes. --merge A.json B.json
+records), --json OUT writes every launch. --memory-table: the GPU memory per probe the engine allocates (its
+`probe memory:` line) on both paths, one 1-frame launch each, no timing. --scenes v1,v3,bundled picks scenes. --merge A.json B.json
 [--json OUT] prints (and writes) several such runs of the same options as one.
 Environment: SCHNEE_VIEW (default build/schnee-view), VK_ICD_FILENAMES as for the tests (lavapipe).
 """
@@ -135,6 +136,14 @@ def run_full(view, scene, out, mode, frames, w, h, path):
         rec["brick_vis"] = {"records": int(g[0]), "record_bytes": int(g[0]) * 64, "traced_cells": int(g[2]),
                             "blocked_leaves": int(g[3]), "table_bytes": int(g[4]), "segments": int(g[5]),
                             "triangles": int(g[6]), "build_ms": float(g[7])}
+    pm = re.search(r"probe memory: (\d+) B on the GPU for (\d+) file probe\(s\), ([\d.]+) B per probe: pool (\d+) B, "
+                   r"indirection (\d+) B, brick tables and records (\d+) B, storage buffers (\d+) B .*?; "
+                   r"(file probes (?:not )?uploaded)", err)
+    if pm:
+        g = pm.groups()
+        rec["probe_memory"] = {"total_bytes": int(g[0]), "file_probes": int(g[1]), "bytes_per_probe": float(g[2]),
+                               "pool_bytes": int(g[3]), "indirection_bytes": int(g[4]), "brick_vis_bytes": int(g[5]),
+                               "storage_bytes": int(g[6]), "file_probes_uploaded": g[7] == "file probes uploaded"}
     loaded = re.search(r"loaded .*?: (\d+) object\(s\), (\d+) probe grid\(s\), (\d+) probe\(s\)", err)
     if loaded:
         rec["objects"], rec["grids"], rec["probe_entries"] = map(int, loaded.groups())
@@ -212,6 +221,43 @@ def bricks_table(a, view):
     if a.json:
         Path(a.json).write_text(json.dumps(result, indent=1))
     print_tables(result)
+
+
+def memory_table(a, view):
+    """--memory-table: the GPU memory per probe the engine allocates (its `probe memory:` line), one 1-frame
+    launch per scene and probe path (per pixel), no timing. "before" = the bricks plus the storage buffers the
+    buffers path uploads: what a --probe-path bricks process held until the engine uploaded the file's probes
+    only where a shader reads them (docs/engine.md "Probe buffers")."""
+    names = [x.strip() for x in a.scenes.split(",") if x.strip()]
+    rows = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        room = make_room.main(Path(tmp) / "room")
+        v3 = octree_scene(room)[0]
+        scenes = {"v1": room, "v3": v3, "bundled": Path(a.bundled)}
+        for n in names:
+            rows[n] = {p: run_full(view, scenes[n], Path(tmp) / "f.png", "pixel", 1, a.width, a.height, p)
+                       for p in ("bricks", "buffers")}
+    tree = Path(view).resolve().parent.parent
+    commit = subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True).stdout.strip()
+    print(f"Viewer {view} (tree at {commit}); {a.width} x {a.height}, 1 frame, per pixel.\n")
+    print("| scene | probes | pool | indirection | brick tables + records | storage buffers (bricks path) | "
+          "B per probe (pool + indirection) | B per probe (all, allocated) | before: + the full storage buffers | "
+          "buffers path, allocated |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    out = {}
+    for n in names:
+        b, f = rows[n]["bricks"]["probe_memory"], rows[n]["buffers"]["probe_memory"]
+        P = b["file_probes"]
+        before = b["pool_bytes"] + b["indirection_bytes"] + b["brick_vis_bytes"] + f["storage_bytes"]
+        uploaded = "file probes" if b["file_probes_uploaded"] else "slots only"
+        print(f"| {n} | {P} | {b['pool_bytes']} B | {b['indirection_bytes']} B | {b['brick_vis_bytes']} B | "
+              f"{b['storage_bytes']} B ({uploaded}) | {(b['pool_bytes'] + b['indirection_bytes']) / P:.1f} | "
+              f"{b['bytes_per_probe']:.1f} | {before / P:.1f} | {f['bytes_per_probe']:.1f} |")
+        out[n] = {"bricks": b, "buffers": f, "before_bytes_per_probe": before / P}
+    if a.json:
+        Path(a.json).write_text(json.dumps({"command": "bench/bench_engine_v3.py " + " ".join(sys.argv[1:]),
+                                            "viewer_commit": commit, "scenes": out}, indent=1))
 
 
 def summarise(result):
@@ -333,7 +379,9 @@ def main():
     ap.add_argument("--height", type=int, default=360)
     ap.add_argument("--octree-only", action="store_true")
     ap.add_argument("--bricks-table", action="store_true", help="issue 30's table (see the docstring)")
-    ap.add_argument("--scenes", default="v1,v3,bundled", help="--bricks-table: v1,v3,bundled")
+    ap.add_argument("--memory-table", action="store_true",
+                    help="GPU memory per probe only (the engine's probe memory line), 1 frame per launch")
+    ap.add_argument("--scenes", default="v1,v3,bundled", help="--bricks-table / --memory-table: v1,v3,bundled")
     ap.add_argument("--bundled", default=str(REPO / "out" / "default" / "gltf" / "scene.gltf"),
                     help="--bricks-table: the bundled room's glTF (scripts/main_job.py's export)")
     ap.add_argument("--json", default=None, help="--bricks-table: write every launch here")
@@ -350,6 +398,9 @@ def main():
         return
     if a.bricks_table:
         bricks_table(a, view)
+        return
+    if a.memory_table:
+        memory_table(a, view)
         return
     with tempfile.TemporaryDirectory() as tmp:
         room = make_room.main(Path(tmp) / "room")

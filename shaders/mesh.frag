@@ -66,7 +66,10 @@ void main() {
         probe_lit = index != 0u;
         // A probe from a grid that holds cubes only is shaded with its cube (docs/ambient-cube.md §5).
         bool cube_obj = cube || (index != 0u && (draw.flags & SV_DRAW_CUBE_ONLY) != 0u);
-        e_probe = probe_scaled_irradiance(index, n, cube_obj);
+        // The slots sit after the file's probes, or right after the fallback when the file's probes are
+        // not uploaded (frame.probe_rebase, docs/engine.md "Probe buffers"); draw.probe_index stays the
+        // object's probe as --print-assignments and the probe-index view give it.
+        e_probe = probe_scaled_irradiance(index == 0u ? 0u : index - frame.probe_rebase, n, cube_obj);
     } else if (!probe_lit) {
         e_probe = probe_scaled_irradiance(0u, n, cube);
     }

@@ -195,7 +195,9 @@ SV_STRUCT(sv_gpu_frame)
     SV_UINT(light_count);
     SV_UINT(debug_mode);           /* SV_DEBUG_* */
     SV_UINT(flags);                /* SV_FRAME_* */
-    SV_UINT(probe_count);          /* entries in the probe buffer, fallback included */
+    SV_UINT(probe_rebase);         /* subtracted from a nonzero draw.probe_index to give its probe-buffer
+                                      entry: 0, or total - 1 when the buffer holds the fallback and the
+                                      per-object slots only (docs/engine.md "Probe buffers") */
     SV_UINT(grid_count);           /* entries in the grid buffer (per-pixel mode) */
     SV_UINT(probe_mode);           /* SV_PROBE_MODE_*: override for every material, or _MATERIAL */
     SV_FLOAT(normal_bias);         /* per-pixel: sample point moved along n by this many grid spacings */

@@ -132,6 +132,7 @@ sv_renderer_desc sv_app_renderer_desc(const sv_options *opt, const sv_sky *sky)
     d.shadow_cascades = opt->shadow_cascades;
     d.cube_probes = opt->probe_representation == SV_PROBE_REP_AMBIENT_CUBE;
     d.sky = sky && sky->present && !opt->no_sky ? sky : NULL;
+    d.probe_view = opt->show_cells || !opt->headless; /* the window's C and B keys turn the probe view on */
     return d;
 }
 

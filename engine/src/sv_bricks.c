@@ -277,42 +277,66 @@ static bool upload_3d(sv_renderer *r, const uint32_t dims[3], VkFormat format, c
     return sv_upload_staging_to_image(r, &staging, out, &region, 1);
 }
 
-/* The storage buffers the same grids take on the default path: their entries (probes and hanging
- * nodes), their leaves with visibility tables, the kd trees' split nodes. */
+/* The storage buffers the same grids take on the buffers path (--probe-path buffers): their entries
+ * (probes and hanging nodes); a tree grid's leaves with visibility tables and a kd tree's split nodes; a
+ * dense grid's cell index and neighbour mask (4 B each per cell). */
 static uint64_t buffer_bytes(const sv_renderer *r, const sv_probes *probes, const brick_set *s)
 {
     uint64_t bytes = 0;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
-        if (!s->b[g]) continue;
+        if (!s->b[g] && !s->dense[g]) continue;
         const pb_shprobe *f = probes->grids[g].file;
         bytes +=
             (uint64_t)probes->grids[g].entries * (r->half_probes ? sizeof(sv_gpu_probe_half) : sizeof(sv_gpu_probe));
+        if (s->dense[g]) {
+            bytes += (uint64_t)f->grid_dims[0] * f->grid_dims[1] * f->grid_dims[2] * 8u;
+            continue;
+        }
         bytes += (uint64_t)f->element_count * (SV_LEAF_INTS + SV_LEAF_VIS_INTS) * 4u;
         if (f->structure == PB_SHPROBE_KDTREE) bytes += (uint64_t)f->split_node_count * 4u;
     }
     return bytes;
 }
 
-static void report(const sv_renderer *r, const sv_probes *probes, const brick_set *s, size_t pool_bytes,
-                   size_t index_bytes)
+/* Keeps the bricks' figures for sv_bricks_report (printed once the storage buffers exist). */
+static void keep_stats(sv_renderer *r, const sv_probes *probes, const brick_set *s, size_t pool_bytes,
+                       size_t index_bytes)
 {
-    uint64_t bricks = 0, texels = 0, dense = 0;
-    for (uint32_t g = 0; g < probes->grid_count; ++g)
-        if (s->b[g]) bricks += s->info[g].brick_count, texels += s->info[g].texel_count;
-    for (uint32_t g = 0; g < probes->grid_count; ++g)
-        if (s->dense[g]) ++dense;
-    if (dense)
+    memset(&r->brick_stats, 0, sizeof r->brick_stats);
+    for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        if (s->b[g]) r->brick_stats.bricks += s->info[g].brick_count, r->brick_stats.texels += s->info[g].texel_count;
+        if (s->dense[g]) ++r->brick_stats.dense;
+    }
+    r->brick_stats.probes = s->probes;
+    r->brick_stats.pool_bytes = pool_bytes;
+    r->brick_stats.index_bytes = index_bytes;
+    r->brick_stats.buffers_path_bytes = buffer_bytes(r, probes, s);
+    memcpy(r->brick_stats.pool, s->pool, sizeof s->pool);
+    memcpy(r->brick_stats.index, s->index, sizeof s->index);
+    r->brick_stats.groups = s->groups;
+    r->brick_stats.f32 = s->f32;
+}
+
+void sv_bricks_report(const sv_renderer *r, uint64_t gpu_bytes, uint64_t file_probes)
+{
+    if (!r->bricks) return;
+    if (r->brick_stats.dense)
         fprintf(stderr, "schnee-view: probe bricks: %llu dense grid(s) as cell-centred textures\n",
-                (unsigned long long)dense);
-    double per = s->probes ? 1.0 / (double)s->probes : 0.0, buf = (double)buffer_bytes(r, probes, s);
+                (unsigned long long)r->brick_stats.dense);
+    double per = r->brick_stats.probes ? 1.0 / (double)r->brick_stats.probes : 0.0;
     fprintf(stderr,
             "schnee-view: probe bricks: %llu bricks (%llu texels) of %llu probes; pool %u x %u x %u %s (%u groups), "
-            "%zu B; indirection %u x %u x %u, %zu B; GPU memory %.1f B per probe (storage buffers, %s: %.1f B per "
-            "probe)\n",
-            (unsigned long long)bricks, (unsigned long long)texels, (unsigned long long)s->probes, s->pool[0],
-            s->pool[1], s->pool[2], s->f32 ? "RGBA32F" : "RGBA16F", s->groups, pool_bytes, s->index[0], s->index[1],
-            s->index[2], index_bytes, (double)(pool_bytes + index_bytes) * per, r->half_probes ? "half" : "float",
-            buf * per);
+            "%llu B; indirection %u x %u x %u, %llu B; GPU memory %.1f B per probe (storage buffers, %s: %.1f B per "
+            "probe); allocated %.1f B per file probe (the bricks, brick tables, records and the storage buffers "
+            "this run uploads: the probe memory line)\n",
+            (unsigned long long)r->brick_stats.bricks, (unsigned long long)r->brick_stats.texels,
+            (unsigned long long)r->brick_stats.probes, r->brick_stats.pool[0], r->brick_stats.pool[1],
+            r->brick_stats.pool[2], r->brick_stats.f32 ? "RGBA32F" : "RGBA16F", r->brick_stats.groups,
+            (unsigned long long)r->brick_stats.pool_bytes, r->brick_stats.index[0], r->brick_stats.index[1],
+            r->brick_stats.index[2], (unsigned long long)r->brick_stats.index_bytes,
+            (double)(r->brick_stats.pool_bytes + r->brick_stats.index_bytes) * per, r->half_probes ? "half" : "float",
+            (double)r->brick_stats.buffers_path_bytes * per,
+            file_probes ? (double)gpu_bytes / (double)file_probes : 0.0);
 }
 
 /* Builds every bricked grid's bricks, plans, checks and uploads the pool and the indirection. Returns 1 on
@@ -352,7 +376,7 @@ static int upload_bricks(sv_renderer *r, const sv_probes *probes, brick_set *s, 
         ok = upload_3d(r, s->pool, pf, pool, pool_bytes, &r->brick_pool) &&
              (!s->index[2] || upload_3d(r, s->index, VK_FORMAT_R32G32B32A32_UINT, index, index_bytes, &r->brick_index));
     }
-    if (ok) report(r, probes, s, pool_bytes, index_bytes);
+    if (ok) keep_stats(r, probes, s, pool_bytes, index_bytes);
     r->bricks = ok;
     free(pool);
     free(index);

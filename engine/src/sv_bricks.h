@@ -21,9 +21,13 @@
  * indirection exceeds the device's maxImageDimension3D, or the device cannot filter the pool's format
  * linearly: with `required` (--probe-path bricks given) false with a clear error; else (the default) the
  * same message as a warning, the stand-ins stay bound, r->bricks false and every grid takes the storage
- * buffers. Prints the bricks' GPU memory per probe when uploaded. */
+ * buffers. Keeps the bricks' figures for sv_bricks_report. */
 bool sv_bricks_upload(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, sv_gpu_grid *grids, bool enabled,
                       bool required);
+/* The `probe bricks:` line (when the bricks are uploaded): the bricks' figures kept by sv_bricks_upload, what
+ * the same grids take on the buffers path, and gpu_bytes (every probe texture and buffer this run allocated,
+ * sv_upload_probes) per file probe. */
+void sv_bricks_report(const sv_renderer *r, uint64_t gpu_bytes, uint64_t file_probes);
 void sv_bricks_destroy(sv_renderer *r);
 
 #endif

@@ -174,7 +174,7 @@ static void fill_frame(const sv_renderer *r, const sv_scene *scene, const sv_vie
     frame->light_count = r->light_count;
     frame->debug_mode = view->debug_mode;
     frame->flags = view->flags | (r->has_sky ? SV_FRAME_SKY : 0u) | (r->bricks ? SV_FRAME_BRICKS : 0u);
-    frame->probe_count = r->probe_count;
+    frame->probe_rebase = r->probe_rebase;
     frame->grid_count = r->grid_count;
     frame->probe_mode = view->probe_mode;
     /* Without a cube buffer (no material and no --probe-representation asked for cubes) an

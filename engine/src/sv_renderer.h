@@ -60,6 +60,9 @@ typedef struct sv_renderer_desc {
     bool bricks_required;     /* asked for explicitly: a brick set the device cannot hold is an error (exit 1);
                                  else a warning and the storage buffers */
     uint32_t shader_loops;    /* --shader-loops: SV_SHADER_LOOPS_* (default AUTO) */
+    bool probe_view;          /* the probe view may be drawn in this run (--probe-view, --brick-view, or the
+                                 window, whose C and B keys turn it on): its spheres read the file's probes and
+                                 the cell buffer, so they are uploaded (docs/engine.md "Probe buffers") */
 } sv_renderer_desc;
 /* Which build of mesh.frag a device gets (shaders/bricks.glsl SV_FOR_GROUPS): AUTO = the unrolled channel-group
  * loops on a GPU, the plain loops on a CPU device (lavapipe), where the unrolled ones cost 1.6-1.9x. */
@@ -102,6 +105,19 @@ typedef struct sv_renderer {
     uint32_t sphere_first_index, sphere_index_count;
     int32_t sphere_vertex_offset;
     uint32_t light_count, sphere_count, outline_count, probe_count, grid_count;
+    /* The file's probes (and the cell buffer) are uploaded only where a shader of this run reads them
+     * (docs/engine.md "Probe buffers"): false under --probe-path bricks when every grid is a bricked tree
+     * grid or tetrahedra, SH only, without the probe view; the probe buffer then holds the fallback and the per-object slots (probe_rebase = total - 1:
+     * slot entry = draw.probe_index - probe_rebase) and the cell index one dummy entry. Under --probe-path
+     * bricks the cell buffer (probe view) is uploaded only with sv_renderer_desc.probe_view. */
+    bool file_probes;
+    uint32_t probe_rebase;
+    /* What sv_bricks_upload made, for the memory report (sv_bricks_report) once the buffers exist. */
+    struct {
+        uint64_t bricks, texels, probes, dense, pool_bytes, index_bytes, buffers_path_bytes;
+        uint32_t pool[3], index[3], groups;
+        bool f32;
+    } brick_stats;
     bool half_probes;
     bool unrolled_groups; /* mesh.frag with SV_UNROLL_GROUPS (sv_shader_loops_unrolled) */
     bool has_cubes;       /* the cube buffer (float or half by half_probes) holds the probes' ambient cubes */

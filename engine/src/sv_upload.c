@@ -392,14 +392,79 @@ static bool create_probe_buffers(sv_renderer *r, const sv_probes *probes, const 
                                       ssbo, &r->cell_index);
 }
 
+/* Whether a shader of this run can read the file's probes or the cell index (docs/engine.md "Probe buffers"):
+ * always on the buffers path (--probe-path buffers, as before); with the bricks, the probe view (its spheres),
+ * ambient cubes (per pixel they take the buffers path) and any grid that is neither a bricked tree grid nor
+ * tetrahedra: dense grids (the home-cell fallback of step 5 reads the file probe; per object may name one),
+ * grids of cubes, tree grids the bricks did not take (the device's fallback). Tetrahedra are read per object
+ * only, through the object's slot (per pixel skips them). */
+static bool file_probes_read(const sv_probes *probes, const sv_renderer_desc *desc, const probe_pack *k)
+{
+    if (!desc->bricks || desc->probe_view || k->want_cubes) return true;
+    const uint32_t tree = SV_GRID_OCTREE | SV_GRID_BRICKS;
+    for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        uint32_t f = k->grids[g].base[2];
+        if (f & SV_GRID_CUBE_ONLY) return true;
+        if (!(f & SV_GRID_TETRA) && (f & tree) != tree) return true;
+    }
+    return false;
+}
+
+/* The probe buffer without the file's probes: the fallback (entry 0), then the per-object slots moved down
+ * from entry `total` to entry 1; no cell index (one dummy entry, create_probe_buffers). */
+static void keep_fallback_and_slots(probe_pack *k, const sv_probes *probes)
+{
+    uint32_t n = probes->slot_count, t = probes->total;
+    memmove(k->p + 1, k->p + t, n * sizeof *k->p);
+    if (k->ph) memmove(k->ph + 1, k->ph + t, n * sizeof *k->ph);
+    k->count = 1u + n;
+    k->grid_cells = 0;
+}
+
+/* The `probe bricks:` line (sv_bricks_report) and the `probe memory:` line: every probe texture and storage
+ * buffer as allocated (the 1x1x1 stand-ins and the one-entry dummies included), per file probe. */
+static void report_memory(const sv_renderer *r, const sv_probes *probes)
+{
+    uint64_t file = 0;
+    for (uint32_t g = 0; g < probes->grid_count; ++g) file += probes->grids[g].file->probe_count;
+    if (!probes->grid_count) return;
+    const sv_buffer *b[] = {&r->probes, &r->probes_half, &r->cubes,     &r->cubes_half,
+                            &r->cells,  &r->grids,       &r->cell_index};
+    uint64_t sz[7], buffers = 0;
+    for (int i = 0; i < 7; ++i) buffers += sz[i] = b[i]->size;
+    /* The stand-ins: a 1x1x1 RGBA16F pool (8 B) and RGBA32UI indirection (16 B; kept with dense grids only). */
+    uint64_t pool = r->bricks ? r->brick_stats.pool_bytes : 8u;
+    uint64_t index = r->bricks && r->brick_stats.index_bytes ? r->brick_stats.index_bytes : 16u;
+    uint64_t total = pool + index + r->brick_vis.size + buffers;
+    sv_bricks_report(r, total, file);
+    fprintf(stderr,
+            "schnee-view: probe memory: %llu B on the GPU for %llu file probe(s), %.1f B per probe: pool %llu B, "
+            "indirection %llu B, brick tables and records %llu B, storage buffers %llu B (probes %llu, probes half "
+            "%llu, cubes %llu, cubes half %llu, cells %llu, grids %llu, cell index %llu); %s %u entries\n",
+            (unsigned long long)total, (unsigned long long)file, file ? (double)total / (double)file : 0.0,
+            (unsigned long long)pool, (unsigned long long)index, (unsigned long long)r->brick_vis.size,
+            (unsigned long long)buffers, (unsigned long long)sz[0], (unsigned long long)sz[1],
+            (unsigned long long)sz[2], (unsigned long long)sz[3], (unsigned long long)sz[4], (unsigned long long)sz[5],
+            (unsigned long long)sz[6],
+            r->file_probes ? "file probes uploaded: the probe buffer holds"
+                           : "file probes not uploaded (no shader of this run reads them): the probe buffer holds the "
+                             "fallback and the per-object slots,",
+            r->probe_count);
+}
+
 bool sv_upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes *probes, const sv_renderer_desc *desc)
 {
     probe_pack k = {0};
     bool ok = pack_probes(scene, probes, desc, &k);
     r->half_probes = k.half;
     /* The bricks (--probe-path bricks) mark their grids' records before the grid buffer is made. */
-    ok = ok && sv_bricks_upload(r, scene, probes, k.grids, desc->bricks, desc->bricks_required) &&
-         create_probe_buffers(r, probes, &k);
+    ok = ok && sv_bricks_upload(r, scene, probes, k.grids, desc->bricks, desc->bricks_required);
+    r->file_probes = !ok || file_probes_read(probes, desc, &k);
+    if (!r->file_probes) keep_fallback_and_slots(&k, probes);
+    /* Only the probe view reads the cell buffer (--probe-path buffers keeps its uploads as they were). */
+    if (desc->bricks && !desc->probe_view) k.nspheres = k.ncells = 0;
+    r->probe_rebase = r->file_probes ? 0u : probes->total - 1u;
+    ok = ok && create_probe_buffers(r, probes, &k);
     r->probe_count = k.count;
     r->grid_count = probes->grid_count;
     r->probes_src = probes;
@@ -417,6 +482,7 @@ bool sv_upload_probes(sv_renderer *r, const sv_scene *scene, const sv_probes *pr
     free(k.cells);
     free(k.grids);
     free(k.cell_index);
+    if (ok) report_memory(r, probes);
     return ok;
 }
 
@@ -497,7 +563,7 @@ void sv_upload_probe_slots(sv_renderer *r, VkCommandBuffer cmd)
     const sv_probes *P = r->probes_src;
     if (!P || !P->slot_count || P->slots_version == r->slots_uploaded) return;
     r->slots_uploaded = P->slots_version;
-    uint32_t n = P->slot_count, base = P->total;
+    uint32_t n = P->slot_count, base = P->total - r->probe_rebase; /* after the file's probes, or at 1 */
     if (r->half_probes) {
         sv_gpu_probe_half *h = calloc(n, sizeof *h);
         sv_gpu_cube_half *ch = r->has_cubes ? calloc(n, sizeof *ch) : NULL;
@@ -558,7 +624,7 @@ void sv_upload_probe_slots(sv_renderer *r, VkCommandBuffer cmd)
 void sv_upload_retrace_masks(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene)
 {
     uint32_t movable = count_movable(scene);
-    if (!r->probes_src || movable == r->masks_movable) return;
+    if (!r->probes_src || !r->file_probes || movable == r->masks_movable) return; /* no cell index uploaded */
     r->masks_movable = movable;
     sv_gpu_grid *grids = NULL;
     int32_t *cells = NULL;
