@@ -5,9 +5,11 @@
 #
 #   scripts/build-chroot.sh SUITE        SUITE: trixie (Debian 13) or sid (Debian unstable)
 #
-# The tracked and untracked-but-not-ignored files of the checkout are copied (mtimes kept) to
-# /tmp/schnee-build/src inside the chroot; the build tree /tmp/schnee-build/build stays there
-# between runs, so a rerun only rebuilds what changed (SCHNEE_BUILD_CHROOT_CLEAN=1: from scratch).
+# The tracked and untracked-but-not-ignored files of the checkout are synced to
+# /tmp/schnee-build/src inside the chroot (scripts/sync_tree.py: only files whose bytes or mode
+# differ are copied, so a fresh clone or worktree of the same code leaves every mtime as it was);
+# the build tree /tmp/schnee-build/build stays there between runs, so a rerun only rebuilds what
+# changed (SCHNEE_BUILD_CHROOT_CLEAN=1: from scratch).
 # Configured with -DSCHNEE_WERROR=ON, built with Ninja, then `ctest -L native`, then the Python
 # module is imported with the chroot's python3 and bakes a placement (pb_embree_dyn.c opening the
 # release's Embree). Prints the versions built against. Needs root (chroot).
@@ -25,14 +27,12 @@ mkdir -p "$work"
 exec 8>"$work.lock"
 flock 8
 if [ "${SCHNEE_BUILD_CHROOT_CLEAN:-0}" = 1 ]; then rm -rf "$work/build"; fi
-rm -rf "$work/src.new"
-mkdir "$work/src.new"
+rm -rf "$work/src.new" # (a copy of the whole tree before scripts/sync_tree.py)
+mkdir -p "$work/src"
 git ls-files -z -co --exclude-standard | while IFS= read -r -d '' f; do
     case "$f" in node_modules | node_modules/*) continue ;; esac
     if [ -f "$f" ]; then printf '%s\0' "$f"; fi
-done | tar -c --null -T - | tar -x -C "$work/src.new"
-rm -rf "$work/src"
-mv "$work/src.new" "$work/src"
+done | python3 scripts/sync_tree.py "$work/src"
 
 jobs="${SCHNEE_BUILD_JOBS:-$(nproc)}"
 # shellcheck disable=SC2016  # expanded inside the chroot

@@ -9,7 +9,9 @@ module with the release's python3 for a closed-form placement (tests/build_versi
 
 Runtime on 2 shared cores (measured): first run per release, chroot creation + clean build + tests,
 260 s (trixie) and 86-185 s (sid); a rerun with the chroot and its build tree cached 12 s each
-(only changed files rebuild; all three tests of this file 24 s).
+(only changed files rebuild; all three tests of this file 24 s). A fresh clone or worktree reruns as
+fast: scripts/sync_tree.py copies only files whose bytes differ, so the checkout's new mtimes
+rebuild nothing (sid from a fresh worktree: 9.9 s, was 70 s when the whole tree was copied).
 """
 import os
 import re
