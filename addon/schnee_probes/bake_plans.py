@@ -510,12 +510,13 @@ class AdaptivePlan(_VolumePlan):
             coeffs, validity = t.group.probe_values(self.cache)
             coeffs, validity = postprocess.apply(coeffs, validity, t.group.tree, self.settings, log=self.log)
             kept = t.group.kept   # a region rebake: the previous records outside the region, bit for bit
+            rows = None if kept is None else kept.previous_rows(t.group.tree.probe_lattice())
             shprobe = octree_output(t, coeffs, validity, self.settings, os.path.join(scratch, "octree.shprobe"),
-                                    None if kept is None else kept.records(t.group.tree.probe_lattice()))
+                                    None if kept is None else kept.records(rows))
             if self.settings.file_version == "V3":  # File Version 1 resamples: no probe or leaf of the tree
                 arrays = bakeinfo.adaptive_arrays(t.group, self.cache, self.settings)
                 if kept is not None:
-                    kept.patch_sidecar(arrays, t.group)
+                    kept.patch_sidecar(arrays, t.group, rows)
                 out += bakeinfo.with_sidecar(shprobe, arrays, Output, self.log)
             else:
                 out.append(shprobe)

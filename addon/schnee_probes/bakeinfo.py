@@ -82,19 +82,28 @@ def record_decision(group, tests_split, direct_split, err, thr, test_valid) -> N
         direct=zero if direct_split is None else np.asarray(direct_split, np.uint8).copy()))
 
 
+def file_leaf_words(info: dict) -> np.ndarray:
+    """(L, 4) uint32: a tree's leaves (``CornerOctree.info()``) as its file writes them: x, y, z and
+    the level (v3), or the packed per-axis levels (v4) when some leaf's levels differ."""
+    from .adaptive import leaf_levels
+    from .native import pack_levels
+    words = np.array(info["leaves"], dtype=np.uint32)
+    levels = leaf_levels(info)
+    if len(words) and (levels != levels[:, :1]).any():
+        words[:, 3] = pack_levels(levels)
+    return words
+
+
 def leaf_table(group) -> dict:
     """Per leaf of ``group``'s final tree (the file's leaf order): error, threshold (NaN where it
     has no test of its own), its parent's ratio next to it, and why it is a leaf (the REASONS)."""
     from .adaptive import leaf_keys, leaf_levels
-    from .native import pack_levels
     info = group.tree.info()
     leaves = np.asarray(info["leaves"], dtype=np.uint32)
     keys = leaf_keys(info)
     levels = leaf_levels(info)
     n = len(leaves)
-    file_leaves = leaves.copy()   # the file's: level (v3) or the packed per-axis levels (v4)
-    if n and (levels != levels[:, :1]).any():
-        file_leaves[:, 3] = pack_levels(levels)
+    file_leaves = file_leaf_words(info)
     err = np.full(n, np.nan, np.float32)
     thr = np.full(n, np.nan, np.float32)
     parent = np.array([group.parent_ratio.get(k, math.nan) for k in keys], np.float32)
@@ -192,6 +201,8 @@ class BakeInfo:
     noise: Optional[np.ndarray] = None          # (P,) relative σ, NaN = not measured
     leaves: Optional[np.ndarray] = None         # (L, 4)
     leaf_ratio: Optional[np.ndarray] = None     # (L,) error / threshold, NaN = no own test
+    leaf_error: Optional[np.ndarray] = None     # (L,) as stored (a region rebake keeps them: region.py)
+    leaf_threshold: Optional[np.ndarray] = None
     leaf_parent_ratio: Optional[np.ndarray] = None
     leaf_reason: Optional[np.ndarray] = None
     stamp: tuple = (0, 0)
@@ -238,6 +249,7 @@ def _parse(info: BakeInfo, z, sha: str, probe_count: int, leaves) -> None:
         thr = _field(z, "leaf_threshold", np.float32, (n,))
         with np.errstate(divide="ignore", invalid="ignore"):
             info.leaf_ratio = np.where(thr > 0, err / np.where(thr > 0, thr, 1), np.nan).astype(np.float32)
+        info.leaf_error, info.leaf_threshold = err, thr
         info.leaf_parent_ratio = _field(z, "leaf_parent_ratio", np.float32, (n,))
         info.leaf_reason = _field(z, "leaf_reason", np.uint8, (n,))
         info.leaves = own

@@ -292,27 +292,17 @@ class KeptTree:
                             "volume was moved or resized since): a region cannot keep it; rebake the whole volume "
                             "(without --region)")
         self.lo, self.hi = (np.asarray(r, dtype=np.float64) for r in region)
-        self.file_leaves = info["leaves"].copy()   # the file's leaf order (the sidecar's)
-        if len(self.file_leaves) and (leaf_levels(info) != leaf_levels(info)[:, :1]).any():
-            self.file_leaves[:, 3] = native.pack_levels(leaf_levels(info))
-        self.leaf_lo = info["leaves"][:, :3].astype(np.int64)
-        self.leaf_size = np.left_shift(1, leaf_levels(info).astype(np.int64))
+        self.leaf_lo, self.leaf_size = _leaf_boxes(info)
         self.leaf_row = {k: i for i, k in enumerate(leaf_keys(info))}
         self.node_row = {tuple(int(v) for v in p): i for i, p in enumerate(info["probe_lattice"])}
-        self.sidecar = self._sidecar(path)
+        # The previous sidecar, when it is valid for the file and its leaf rows are in the tree's order.
+        side = bakeinfo.read(bakeinfo.path_for(path), path, self.file.probe_count, self.file.leaves)
+        usable = not side.missing and side.error is None and np.array_equal(side.leaves, bakeinfo.file_leaf_words(info))
+        self.sidecar = side if usable else None
 
-    def _sidecar(self, path: str) -> Optional[dict]:
-        """The previous bake-info sidecar's arrays (noise, leaf table), None when it has none usable."""
-        side = bakeinfo.path_for(path)
-        read = bakeinfo.read(side, path, self.file.probe_count, self.file.leaves)
-        if read.missing or read.error is not None or not np.array_equal(read.leaves, self.file_leaves):
-            return None
-        with np.load(side, allow_pickle=False) as z:
-            return {k: np.asarray(z[k]) for k in ("noise", "leaves", "leaf_error", "leaf_threshold",
-                                                   "leaf_parent_ratio", "leaf_reason") if k in z.files}
-
-    def meets(self, lattice_lo: np.ndarray, size: np.ndarray) -> np.ndarray:
-        """(L,) bool: the boxes (lattice min corner, size per axis, in min cells) meet the closed region."""
+    def meets(self, info: dict) -> np.ndarray:
+        """(L,) bool: the leaves of a tree (``CornerOctree.info()``) that meet the closed region."""
+        lattice_lo, size = _leaf_boxes(info)
         lo = self.origin + lattice_lo * self.min_cell
         hi = lo + size * self.min_cell
         return np.all((lo <= self.hi) & (hi >= self.lo), axis=1)
@@ -325,9 +315,8 @@ class KeptTree:
         it took: the same leaves in the end), and stays whole where the previous tree has it as a leaf
         or holds it inside a larger leaf."""
         info = group.tree.info()
-        lo = info["leaves"][:, :3].astype(np.int64)
-        size = np.left_shift(1, leaf_levels(info).astype(np.int64))
-        kept = ~self.meets(lo, size)
+        lo, size = _leaf_boxes(info)
+        kept = ~self.meets(info)
         masks = np.zeros(len(lo), dtype=np.uint8)
         keys = leaf_keys(info)
         for i in np.flatnonzero(kept):
@@ -353,27 +342,30 @@ class KeptTree:
             out[i] = self.node_row.get(tuple(int(v) for v in lattice[i]), -1)
         return out
 
-    def records(self, lattice: np.ndarray):
+    def records(self, rows: np.ndarray):
         """(new rows, the previous file's coefficients there (as stored: SH or ambient-cube faces),
-        its validity there) for the probes of the tree whose ``lattice`` nodes are kept."""
-        rows = self.previous_rows(lattice)
+        its validity there) for the probes whose :meth:`previous_rows` ``rows`` are kept."""
         new = np.flatnonzero(rows >= 0)
         validity = self.file.validity if self.file.validity is not None else np.ones(self.file.probe_count, np.float32)
         return new, self.file.coeffs[rows[new]], validity[rows[new]]
 
-    def patch_sidecar(self, arrays: dict, group) -> None:
+    def patch_sidecar(self, arrays: dict, group, rows: np.ndarray) -> None:
         """The new sidecar's ``arrays`` (bakeinfo.adaptive_arrays) with the previous sidecar's noise at
-        the kept probes and its leaf rows at the kept leaves that are previous leaves."""
+        the kept probes (``rows``: :meth:`previous_rows` of the final tree) and its leaf rows at the
+        kept leaves that are previous leaves."""
         if self.sidecar is None:
             return
-        rows = self.previous_rows(group.tree.probe_lattice())
         keep = rows >= 0
-        arrays["noise"][keep] = self.sidecar["noise"][rows[keep]]
+        arrays["noise"][keep] = self.sidecar.noise[rows[keep]]
         info = group.tree.info()
-        lo = info["leaves"][:, :3].astype(np.int64)
-        kept = ~self.meets(lo, np.left_shift(1, leaf_levels(info).astype(np.int64)))
+        kept = ~self.meets(info)
         for i, key in enumerate(leaf_keys(info)):
             j = self.leaf_row.get(key)
             if kept[i] and j is not None:
                 for name in ("error", "threshold", "parent_ratio", "reason"):
-                    arrays["leaf_" + name][i] = self.sidecar["leaf_" + name][j]
+                    arrays["leaf_" + name][i] = getattr(self.sidecar, "leaf_" + name)[j]
+
+
+def _leaf_boxes(info: dict):
+    """(lattice min corners (L, 3), sizes per axis in min cells (L, 3)) of a tree's leaves."""
+    return info["leaves"][:, :3].astype(np.int64), np.left_shift(1, leaf_levels(info).astype(np.int64))

@@ -143,7 +143,7 @@ def _rebake(tmp_path, kept_tree: bool):
     cache2 = drive(after, rebake_field)
     coeffs, validity = after.probe_values(cache2)
     if kept_tree:
-        rows, rec, valid = after.kept.records(after.tree.probe_lattice())
+        rows, rec, valid = after.kept.records(after.kept.previous_rows(after.tree.probe_lattice()))
         coeffs = coeffs.astype(np.float32)
         coeffs[rows], validity = rec, validity.copy()
         validity[rows] = valid
