@@ -46,6 +46,27 @@ def run_blender(script, *args, blend=None, timeout=900, check=True, env=None):
     return proc
 
 
+BLENDER_CHROOT = REPO / "scripts" / "blender-chroot.sh"
+
+
+def addon_chroot(suite):
+    """(root, libs) to run this tree's add-on in the Blender chroot ``suite`` (scripts/blender-chroot.sh,
+    made when missing): the chroot's root folder and the add-on package build's lib/ (build/addon_zip:
+    qhull and Embree, which the chroots lack). Skips without root, without debootstrap for a missing
+    chroot, or without the package build."""
+    import shutil
+    if os.geteuid() != 0:
+        pytest.skip("entering the Blender chroots needs root")
+    if shutil.which("debootstrap") is None and not Path(f"/var/cache/schnee-chroots/{suite}").exists():
+        pytest.skip("debootstrap missing (scripts/deps.sh installs it)")
+    libs = BUILD_DIR / "addon_zip" / "schnee_probes" / "lib"
+    if not libs.is_dir():
+        pytest.skip("no add-on package build (cmake --build build): its lib/ holds qhull and Embree")
+    proc = subprocess.run([str(BLENDER_CHROOT), "ensure", suite], capture_output=True, text=True, timeout=1800)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    return Path(proc.stdout.strip().splitlines()[-1]), libs
+
+
 @contextlib.contextmanager
 def file_lock(path):
     """An exclusive flock on `path` (created if missing) for the with-block: what the tests share

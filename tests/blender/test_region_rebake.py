@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import ADDON_DIR, BUILD_DIR, REPO, requires_native, run_blender
+from conftest import ADDON_DIR, BLENDER_CHROOT as CHROOT, REPO, addon_chroot, requires_native, run_blender
 from schnee_probes import journal, native
 from test_bake_hazards import SCRIPTS, TINY, Running, bake, last_error, scenes_made_by
 
@@ -246,7 +246,6 @@ def test_region_refusals(scenes, previous, tmp_path):
 
 # Rebake Selected Region (the panel's button): the box of a selected object instead of --region. The
 # same box as REGION, drawn by a hidden cube mesh "RegionBox" (and then a Cube empty) in the edited scene.
-CHROOT = REPO / "scripts" / "blender-chroot.sh"
 BOX_SCRIPT = SCRIPTS / "region_box_operator.py"
 BOX_VERSIONS = {"host": (3, 4), "trixie": (4, 3), "sid": (5, 2)}
 
@@ -266,16 +265,7 @@ parent folder, bake.py and the scripts as that Blender sees them."""
             return subprocess.run([*cmd, *map(str, args)], capture_output=True, text=True, timeout=300, env=full)
         yield run, tmp_path, tmp_path, {"addon": ADDON_DIR, "bake": REPO / "bake.py", "scripts": SCRIPTS}
         return
-    if os.geteuid() != 0:
-        pytest.skip("entering the Blender chroots needs root")
-    if shutil.which("debootstrap") is None and not Path(f"/var/cache/schnee-chroots/{suite}").exists():
-        pytest.skip("debootstrap missing (scripts/deps.sh installs it)")
-    libs = BUILD_DIR / "addon_zip" / "schnee_probes" / "lib"
-    if not libs.is_dir():
-        pytest.skip("no add-on package build (cmake --build build): its lib/ holds qhull and Embree")
-    proc = subprocess.run([str(CHROOT), "ensure", suite], capture_output=True, text=True, timeout=1800)
-    assert proc.returncode == 0, proc.stderr[-4000:]
-    root = Path(proc.stdout.strip().splitlines()[-1])
+    root, libs = addon_chroot(suite)
     inner = Path("/tmp") / f"schnee-region-box-{os.getpid()}-{suite}"
     outer = root / inner.relative_to("/")
     shutil.rmtree(outer, ignore_errors=True)

@@ -16,11 +16,10 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ADDON_DIR, BUILD_DIR, REPO, requires_native, run_blender
+from conftest import ADDON_DIR, BLENDER_CHROOT as CHROOT, REPO, addon_chroot, requires_native, run_blender
 
 HERE = Path(__file__).resolve().parent
 SCRIPT = HERE / "scripts" / "render_device.py"
-CHROOT = REPO / "scripts" / "blender-chroot.sh"
 NO_GPU = "no GPU available"
 CPU_LABEL = re.compile(r"^CPU \(\d+ threads?\)$")
 
@@ -34,16 +33,7 @@ def _result(stdout):
 def _in_chroot(suite):
     """Run the script in the chroot's Blender on a copy of the add-on (with the native module's
     libraries from the add-on package build/addon_zip, which the chroots lack)."""
-    if os.geteuid() != 0:
-        pytest.skip("entering the Blender chroots needs root")
-    if shutil.which("debootstrap") is None and not Path(f"/var/cache/schnee-chroots/{suite}").exists():
-        pytest.skip("debootstrap missing (scripts/deps.sh installs it)")
-    libs = BUILD_DIR / "addon_zip" / "schnee_probes" / "lib"
-    if not libs.is_dir():
-        pytest.skip("no add-on package build (cmake --build build): its lib/ holds qhull and Embree")
-    proc = subprocess.run([str(CHROOT), "ensure", suite], capture_output=True, text=True, timeout=1800)
-    assert proc.returncode == 0, proc.stderr[-4000:]
-    root = Path(proc.stdout.strip().splitlines()[-1])
+    root, libs = addon_chroot(suite)
     inner = Path("/tmp") / f"schnee-render-device-{os.getpid()}-{suite}"
     outer = root / inner.relative_to("/")
     shutil.rmtree(outer, ignore_errors=True)
