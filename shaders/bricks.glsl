@@ -79,8 +79,8 @@ bool brick_separable(float w[8], out vec3 f1)
 // with the anti-leak rules of step 5, mirroring pb_bricks_sample_surface()).
 
 // ---- dense grids (docs/grid-field.md, --probe-path bricks): a line-by-line mirror of
-// pb_grid_field_sample_surface_texture() of native/src/pb_grid_field.c (pb_grid_field_query's steps 1-5a; the caller, grid_irradiance, does 5b, the home-cell fallback,
-// as before). The grid's cell-centred texture (pb_grid_field_texture_f16: N = v s c, D = v per cell) lies in
+// pb_grid_field_sample_surface_texture() of native/src/pb_grid_field.c (pb_grid_field_query's steps 1-5, step 5's
+// fallback from the texture too: no file probe is read). The grid's cell-centred texture (pb_grid_field_texture_f16: N = v s c, D = v per cell) lies in
 // the brick pool at (0, 0, gr.bricks.z) of each channel group's slab (gr.bricks.w = C | slab << 8).
 // Corner k's weight is trilinear x keep_k (keep: 0 where the mask drops it, else its back-face weight, 1 for
 // a movable object; validity is in N and D). Where these weights are separable (brick_separable, e.g. an
@@ -104,7 +104,7 @@ float[25] grid_tex_basis(uint C, vec3 n)
     return AY;
 }
 
-// false: no weight left (sum w v <= 1e-6, PB_GRID_FIELD_MIN_WEIGHT): the caller's fallback.
+// false: no value (sum w v and step 5's sum tri v <= 1e-6, PB_GRID_FIELD_MIN_WEIGHT): the next grid.
 bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, out vec3 e_out)
 {
     e_out = vec3(0.0);
@@ -127,7 +127,7 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
     uint vis = uint(cell_probe[gr.base.y + uint(home.x + home.y * dims.x + home.z * dims.x * dims.y)]);
     // 4. (the loop over k) each corner's weight besides validity: trilinear x keep_k, keep_k = 0 when the
     //    mask drops it, else its back-face weight (1 for a movable object). Empty cells have N = D = 0.
-    float w[8];
+    float w[8], tri[8];
     for (int k = 0; k < 8; ++k) {
         ivec3 o = ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1);
         ivec3 ci = clamp(i0 + o, ivec3(0), dims - 1);
@@ -136,7 +136,8 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
             all(lessThanEqual(abs(d), ivec3(1))) && (vis & (1u << uint(d.x + 1 + 3 * (d.y + 1) + 9 * (d.z + 1)))) == 0u;
         float b = movable ? 1.0 : smoothstep(-0.1, 0.1, dot(cell_centre(gr, ci) - p_surface, n) / h);
         vec3 w3 = mix(1.0 - f, f, vec3(o));
-        w[k] = w3.x * w3.y * w3.z * (masked ? 0.0 : b);
+        tri[k] = w3.x * w3.y * w3.z;
+        w[k] = tri[k] * (masked ? 0.0 : b);
     }
     uint C = gr.bricks.w & 255u;
     uint groups = (3u * C + 4u) / 4u; // ceil((3C + 1) / 4)
@@ -155,18 +156,26 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
     vec3 tc = (clamp(vec3(i0) + f1, vec3(0.0), vec3(dims - 1)) + 0.5 + vec3(0.0, 0.0, float(gr.bricks.z))) / size;
     vec4 t0 = one ? textureLod(brick_pool, tc, 0.0) : vec4(0.0); // N_0 (RGB), D
     if (one && t0.w < 1.0 / 64.0) one = false;
+    bool done = false;
     if (one) {
         // pb_grid_field_sample_surface_texture's texture_tap: texel centres (t + 1/2 + (0, 0, z offset)) /
         // pool size (tc above); the hardware's trilinear filter (its sub-texel weights).
         float slab = float(gr.bricks.w >> 8u) / size.z;
-        D = t0.w;                           // N / D of the tap = sum w (N, D) / sum w (N, D): sw cancels
-        if (!(sw * D > 1e-6)) return false; // 5. sum w <= 1e-6: the caller's home-cell fallback
+        D = t0.w;              // N / D of the tap = sum w (N, D) / sum w (N, D): sw cancels
+        done = sw * D > 1e-6;  // else sum w v <= 1e-6: step 5 below
         s = AY[0] * t0.rgb;
-        SV_FOR_GROUPS(g, groups) {
-            brick_group_add(g, textureLod(brick_pool, tc + vec3(0.0, 0.0, float(g) * slab), 0.0), C, AY, s);
+        if (done) {
+            SV_FOR_GROUPS(g, groups) {
+                brick_group_add(g, textureLod(brick_pool, tc + vec3(0.0, 0.0, float(g) * slab), 0.0), C, AY, s);
+            }
         }
-    } else {
-        // The rule's weights exactly: sum_k w_k (N, D)_k = (sum w v s c, sum w v).
+    }
+    // Pass 0: the rule's weights exactly, 8 taps: sum_k w_k (N, D)_k = (sum w v s c, sum w v) (not after the
+    // one tap: its sum w D is the taps'). Pass 1, step 5 (sum w v <= 1e-6): the plain trilinear weights, the
+    // texture's own N / D at the point, exact taps (its D may be tiny); D <= 1e-6 too: no value (next grid).
+    for (int pass = one ? 1 : 0; pass < 2 && !done; ++pass) {
+        if (pass == 1)
+            for (int k = 0; k < 8; ++k) w[k] = tri[k];
         vec4 a0 = vec4(0.0);
         for (int k = 0; k < 8; ++k) {
             if (w[k] <= 0.0) continue;
@@ -174,7 +183,8 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
                 w[k] * grid_tex_fetch(gr, clamp(i0 + ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1), ivec3(0), dims - 1), 0u);
         }
         D = a0.w;
-        if (!(D > 1e-6)) return false; // 5. sum w <= 1e-6: the caller's home-cell fallback
+        done = D > 1e-6;
+        if (!done) continue;
         s = AY[0] * a0.rgb;
         SV_FOR_GROUPS(g, groups) {
             vec4 tg = vec4(0.0);
@@ -186,7 +196,8 @@ bool grid_tex_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool movable, o
             brick_group_add(g, tg, C, AY, s);
         }
     }
-    e_out = s / D; // 5. renormalised: sum w v s E / sum w v
+    if (!done) return false;
+    e_out = s / D; // 5. renormalised: sum w v s E / sum w v (step 5: sum tri v s E / sum tri v)
     return true;
 }
 

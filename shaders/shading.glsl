@@ -255,15 +255,15 @@ bool octree_irradiance(sv_gpu_grid gr, vec3 p_surface, vec3 n, bool cube, bool m
 // surfaces the bake saw; 1 for a movable object, SV_DRAW_MOVABLE, as in octree_irradiance); empty
 // cells (-1) are skipped and the weights renormalised. A neighbour is also dropped when the cell
 // holding p + 0.01 spacing * n (the "home" cell, on the lit side of the surface) cannot see it: its
-// visibility mask (Embree segments between cell centres, computed at load) has the bit clear. When every weight is 0 the cell holding
-// p is used alone (the per-object rule); when that is empty too, the next grid is tried.
+// visibility mask (Embree segments between cell centres, computed at load) has the bit clear. When every weight is 0 (step 5)
+// the plain trilinear x validity weights are used (no mask, no back face); when they are 0 too, the next grid is tried.
 // Returns E(n) including each probe's own scale; false when no grid holds p. `cube`: the probes'
 // ambient cubes instead of their SH, with the same weights, validity and visibility rules
 // (docs/ambient-cube.md §5; the fit is linear, so this is the cube of the interpolated SH).
 // The dense branch is pb_grid_field_query() of native/src/pb_grid_field.c step by step (docs/grid-field.md,
 // the one definition; tests/python/test_native_grid_field.py checks the engine tests' numpy oracle against
-// it): 1 p, rel, u and the box; 2 c, i0, f; 3 rel_h, home, vis; 4 the loop over k; 5 wsum > 1e-6, else the
-// cell holding u alone. Under --probe-path bricks it reads the grid's texture (grid_tex_irradiance).
+// it): 1 p, rel, u and the box; 2 c, i0, f; 3 rel_h, home, vis; 4 the loop over k; 5 wsum > 1e-6, else pass 1's
+// plain trilinear x validity weights. Under --probe-path bricks it reads the grid's texture (grid_tex_irradiance).
 bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, bool movable, out vec3 e_out) {
     e_out = vec3(0.0);
     for (uint g = 0u; g < frame.grid_count; ++g) {
@@ -291,21 +291,27 @@ bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, bool movable, out 
         if (any(lessThan(u, vec3(-0.01))) || any(greaterThan(u, vec3(dims) + 0.01))) continue;
         uint off = gr.dims.w;
         // --probe-path bricks (SH only): the grid's texture in the pool (bricks.glsl grid_tex_irradiance,
-        // pb_grid_field's rule: one filtered fetch per group or 8 exact taps), then the fallback below.
-        bool tex = !cube && (frame.flags & SV_FRAME_BRICKS) != 0u && (gr.base.z & SV_GRID_BRICKS) != 0u;
-        if (tex && grid_tex_irradiance(gr, p_surface, n, movable, e_out)) return true;
-        if (!tex) {
-            vec3 c = u - 0.5;
-            ivec3 i0 = ivec3(floor(c));
-            vec3 f = c - vec3(i0);
-            vec3 rel_h = rel + n * (0.01 * h);
-            ivec3 home = clamp(ivec3(floor(vec3(dot(rel_h, gr.axes[0].xyz), dot(rel_h, gr.axes[1].xyz),
-                                                  dot(rel_h, gr.axes[2].xyz)) / h)), ivec3(0), dims - 1);
-            uint vis = uint(cell_probe[gr.base.y + uint(home.x + home.y * dims.x + home.z * dims.x * dims.y)]);
-            uint band = 0u;
-            float AY[25];
-            // Probes of one grid share the band: evaluate the basis once.
-            bool have_basis = false;
+        // pb_grid_field's rule: one filtered fetch per group or 8 exact taps, step 5 from the texture too, so
+        // no file probe is read); false: no value, the next grid.
+        if (!cube && (frame.flags & SV_FRAME_BRICKS) != 0u && (gr.base.z & SV_GRID_BRICKS) != 0u) {
+            if (grid_tex_irradiance(gr, p_surface, n, movable, e_out)) return true;
+            continue;
+        }
+        vec3 c = u - 0.5;
+        ivec3 i0 = ivec3(floor(c));
+        vec3 f = c - vec3(i0);
+        vec3 rel_h = rel + n * (0.01 * h);
+        ivec3 home = clamp(ivec3(floor(vec3(dot(rel_h, gr.axes[0].xyz), dot(rel_h, gr.axes[1].xyz),
+                                              dot(rel_h, gr.axes[2].xyz)) / h)), ivec3(0), dims - 1);
+        uint vis = uint(cell_probe[gr.base.y + uint(home.x + home.y * dims.x + home.z * dims.x * dims.y)]);
+        uint band = 0u;
+        float AY[25];
+        // Probes of one grid share the band: evaluate the basis once.
+        bool have_basis = false;
+        // Pass 0: the rule's anti-leak weights (mask, back faces, validity). Pass 1, step 5 (pass 0's sum
+        // <= 1e-6): the plain trilinear x validity weights, no mask, no back face (pb_grid_field_query; the
+        // texture's own N / D at the point); <= 1e-6 too: no value, the next grid.
+        for (int pass = 0; pass < 2; ++pass) {
             vec3 e = vec3(0.0);
             float wsum = 0.0;
             for (int k = 0; k < 8; ++k) {
@@ -314,14 +320,16 @@ bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, bool movable, out 
                 int idx = cell_probe[off + uint(ci.x + ci.y * dims.x + ci.z * dims.x * dims.y)];
                 if (idx < 0) continue;
                 ivec3 d = ci - home; // in {-1, 0, 1}^3 but for float edge cases (then: no information)
-                if (all(lessThanEqual(abs(d), ivec3(1))) && (vis & (1u << uint(d.x + 1 + 3 * (d.y + 1) + 9 * (d.z + 1)))) == 0u)
+                if (pass == 0 && all(lessThanEqual(abs(d), ivec3(1))) &&
+                    (vis & (1u << uint(d.x + 1 + 3 * (d.y + 1) + 9 * (d.z + 1)))) == 0u)
                     continue;
                 vec3 w3 = mix(1.0 - f, f, vec3(o));
                 float w = w3.x * w3.y * w3.z;
                 vec3 centre = cell_centre(gr, ci);
                 float t = dot(centre - p_surface, n) / h;
                 uint pi = gr.base.x + uint(idx);
-                w *= (movable ? 1.0 : smoothstep(-0.1, 0.1, t)) * (cube ? cube_validity(pi) : probe_validity(pi));
+                w *= (movable || pass == 1 ? 1.0 : smoothstep(-0.1, 0.1, t)) *
+                     (cube ? cube_validity(pi) : probe_validity(pi));
                 if (w <= 0.0) continue;
                 if (cube) {
                     e += w * cube_scale(pi) * cube_irradiance(pi, n);
@@ -339,13 +347,6 @@ bool grid_irradiance(vec3 p_surface, vec3 n, bool cube_asked, bool movable, out 
                 e_out = e / wsum;
                 return true;
             }
-        } // !tex
-        ivec3 cell = clamp(ivec3(floor(u)), ivec3(0), dims - 1); // margin points: the face cell
-        int idx = cell_probe[off + uint(cell.x + cell.y * dims.x + cell.z * dims.x * dims.y)];
-        if (idx >= 0) {
-            uint pi = gr.base.x + uint(idx);
-            e_out = probe_scaled_irradiance(pi, n, cube);
-            return true;
         }
     }
     return false;

@@ -1179,8 +1179,9 @@ class GridField:
                                static_surface: bool = False, normal_bias: float = 0.0, subtexel_bits: int = 0):
         """The rule in the texture form as the engine samples it (pb_grid_field_sample_surface_texture) at
         surface points (N, 3) with unit normals (N, 3) (None: no normal): (coeffs (N, C, 3) = N / D (0
-        without a value), D (N,) = sum w D, has_value (N,) bool (D > 1e-6; else the rule's fallback), taps
-        (N,) uint8: 1 where the kept weights are separable (one filtered tap), 8 elsewhere, 0 outside)."""
+        without a value), D (N,) = sum w D (step 5's D where it was taken), has_value (N,) bool (the rule has a
+        value: its weights or step 5's plain trilinear fallback), taps (N,) uint8: 1 where the kept weights are
+        separable (one filtered tap), 8 elsewhere (step 5 included), 0 outside)."""
         p, _ = _vectors(points, "points")
         n = None if normals is None else _vectors(normals, "normals")[0]
         if n is not None and n.shape != p.shape:

@@ -114,6 +114,10 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
     if (!sv_app_gpu_init(&gpu, opt, NULL, 0, NULL, NULL, false) ||
         !sv_app_gpu_renderer(&gpu, opt, scene, probes, sky, VK_FORMAT_R8G8B8A8_SRGB, w, h))
         goto done;
+    /* Without the file's probes on the GPU an object on a dense grid reads its slot (docs/engine.md "Probe
+     * buffers"); the index views name the object's probe and read none. */
+    if (!gpu.renderer.file_probes && opt->debug_mode != SV_DEBUG_PROBE_INDEX && opt->debug_mode != SV_DEBUG_PROBE_COLOR)
+        sv_probes_use_slots(probes, scene);
     if (!sv_image_create(ctx, w, h, VK_FORMAT_R8G8B8A8_SRGB,
                          VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
                          VK_IMAGE_ASPECT_COLOR_BIT, &out) ||

@@ -146,9 +146,9 @@ static const pb_grid_field *dense_field(sv_probes *P, uint32_t g)
  * the movable rule (no normal: no back faces, home = the cell of c) and no masks; each weighted corner's
  * probe is judged by the segment from its cell's centre to c through the static scene (sv_probe_visible,
  * the trees' per-object test), hidden ones dropped, the rest renormalised (corners clamped onto one cell
- * merged); when the kept raw weight is <= 1e-6, the field's step 5: the cell holding c alone. False when
- * the grid gives no value (outside, or no weight and an empty cell: the next grid). Without a field (build
- * failure): the cell holding c, as before. */
+ * merged); when the kept raw weight is <= 1e-6, the field's step 5: its plain trilinear x validity weights
+ * (without the segment test). False when the grid gives no value (outside, or no valid corner: the next
+ * grid). Without a field (build failure): the cell holding c, as before. */
 static bool dense_weights(sv_probes *P, uint32_t g, const sv_scene *scene, uint32_t self, const double c[3],
                           pb_interp_weights *out)
 {
@@ -165,33 +165,34 @@ static bool dense_weights(sv_probes *P, uint32_t g, const sv_scene *scene, uint3
     pb_grid_field_weights w;
     pb_grid_field_status st = pb_grid_field_query(fld, c, NULL, NULL, &w);
     if (st == PB_GRID_FIELD_OUTSIDE || st == PB_GRID_FIELD_NONE) return false;
-    if (st == PB_GRID_FIELD_WEIGHTS) {
-        float centres[8 * 3];
-        sv_vis_query q = {P->vis, scene, self, centres};
+    float centres[8 * 3];
+    sv_vis_query q = {P->vis, scene, self, centres};
+    /* Pass 0: the weighted corners the segment test keeps. Pass 1, step 5 (pass 0 kept <= 1e-6, or the field's
+     * own step 5): the field's weights without the segment test (the plain trilinear x validity here: no
+     * masks, no back faces). */
+    for (int pass = st == PB_GRID_FIELD_WEIGHTS ? 0 : 1; pass < 2; ++pass) {
         double sum = 0.0;
+        out->count = 0;
         for (int k = 0; k < 8; ++k) {
-            if (!(w.raw[k] > 0.0) || w.probe[k] < 0) continue;
-            sv_cell_centre(f, (int)w.cell[k][0], (int)w.cell[k][1], (int)w.cell[k][2], centres + 3 * k);
-            if (!sv_probe_visible(&q, (uint32_t)k, c)) continue;
+            double wk = pass == 0 ? w.raw[k] : w.weight[k];
+            if (!(wk > 0.0) || w.probe[k] < 0) continue;
+            if (pass == 0) {
+                sv_cell_centre(f, (int)w.cell[k][0], (int)w.cell[k][1], (int)w.cell[k][2], centres + 3 * k);
+                if (!sv_probe_visible(&q, (uint32_t)k, c)) continue;
+            }
             uint32_t j = 0;
             while (j < out->count && out->probe[j] != (uint32_t)w.probe[k]) ++j;
             if (j == out->count) out->probe[out->count++] = (uint32_t)w.probe[k], out->weight[j] = 0.0;
-            out->weight[j] += w.raw[k];
-            sum += w.raw[k];
+            out->weight[j] += wk;
+            sum += wk;
         }
-        if (sum > PB_GRID_FIELD_MIN_WEIGHT) {
+        if (sum > (pass == 0 ? PB_GRID_FIELD_MIN_WEIGHT : 0.0)) {
             for (uint32_t j = 0; j < out->count; ++j) out->weight[j] /= sum;
             return true;
         }
     }
-    /* Step 5 (also when the segment test hid every weighted corner): the home cell alone, whatever its
-     * validity. */
     out->count = 0;
-    size_t cell = w.home[0] + (size_t)f->grid_dims[0] * (w.home[1] + (size_t)f->grid_dims[1] * w.home[2]);
-    int32_t idx = f->grid[cell];
-    if (idx < 0 || (uint32_t)idx >= f->probe_count) return false;
-    out->count = 1, out->probe[0] = (uint32_t)idx, out->weight[0] = 1.0;
-    return true;
+    return false;
 }
 
 uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
@@ -239,7 +240,8 @@ uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
             pb_interp_weights w;
             if (!gr->tree && !gr->tetra) { /* dense grid: its field at the centre (docs/grid-field.md) */
                 if (!dense_weights(P, g, scene, i, pd, &w)) continue;
-                if (w.count == 1 || i >= P->slot_count) { /* one probe (or no slot): its own entry */
+                /* One probe (or no slot): its own entry, where the file's probes are on the GPU. */
+                if ((w.count == 1 && !P->dense_slots) || i >= P->slot_count) {
                     uint32_t best = 0;
                     for (uint32_t k = 1; k < w.count; ++k) best = w.weight[k] > w.weight[best] ? k : best;
                     o->probe = gr->base + w.probe[best];
@@ -272,4 +274,18 @@ uint32_t sv_probes_assign(sv_probes *P, sv_scene *scene)
                 "(static-scene Embree build included)\n",
                 n, sv_now_ms() - t0);
     return n;
+}
+
+uint32_t sv_probes_use_slots(sv_probes *P, sv_scene *scene)
+{
+    if (P->dense_slots) return 0;
+    P->dense_slots = true;
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < scene->object_count; ++i) {
+        sv_object *o = &scene->objects[i];
+        bool file_probe = o->probe > 0 && o->probe < P->total;
+        o->needs_probe = o->needs_probe || file_probe;
+        n += file_probe;
+    }
+    return n ? sv_probes_assign(P, scene) : 0;
 }

@@ -15,7 +15,11 @@
  * centre with the file's validity. Both with one visibility judge: the segment probe (a dense grid's:
  * its cell's centre) -> centre through the static scene (objects never moved, without the queried object
  * itself) drops the probe. The weighted probes are blended into the object's slot; a dense grid's single
- * probe of weight 1 (at a cell centre, or its step-5 fallback) is given as its own buffer entry. */
+ * probe of weight 1 (at a cell centre) is given as its own buffer entry, unless probes->dense_slots. */
 uint32_t sv_probes_assign(sv_probes *probes, sv_scene *scene);
+/* The renderer left the file's probes off the GPU (docs/engine.md "Probe buffers"): from now on every object
+ * on a dense grid reads its slot (a single probe of weight 1 too); re-queries those that named a file probe.
+ * Returns how many. */
+uint32_t sv_probes_use_slots(sv_probes *probes, sv_scene *scene);
 
 #endif

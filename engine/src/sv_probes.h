@@ -70,6 +70,8 @@ typedef struct sv_probes {
     uint32_t movable_seen;  /* movable objects at the last assignment (a change re-queries every object) */
     pb_grid_field **fields; /* per grid: a dense grid's field for per object (pb_grid_field, movable
                                rule, no masks), built at its first query; NULL elsewhere */
+    bool dense_slots;       /* an object on a dense grid reads its slot even where one probe has all the
+                               weight (the file's probes are not on the GPU: sv_probes_use_slots) */
 } sv_probes;
 
 /* Reads every grid of the scene. A file that cannot be read or is malformed is an error (message

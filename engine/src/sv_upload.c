@@ -392,33 +392,50 @@ static bool create_probe_buffers(sv_renderer *r, const sv_probes *probes, const 
                                       ssbo, &r->cell_index);
 }
 
-/* Whether a shader of this run can read the file's probes or the cell index (docs/engine.md "Probe buffers"):
- * always on the buffers path (--probe-path buffers, as before); with the bricks, the probe view (its spheres),
- * ambient cubes (per pixel they take the buffers path) and any grid that is neither a bricked tree grid nor
- * tetrahedra: dense grids (the home-cell fallback of step 5 reads the file probe; per object may name one),
- * grids of cubes, tree grids the bricks did not take (the device's fallback). Tetrahedra are read per object
- * only, through the object's slot (per pixel skips them). */
+/* Whether a shader of this run can read the file's probes or the whole cell index (docs/engine.md "Probe
+ * buffers"): always on the buffers path (--probe-path buffers, as before); with the bricks, the probe view
+ * (its spheres), ambient cubes (per pixel they take the buffers path) and any grid that is neither bricked
+ * (a tree grid's bricks or a dense grid's texture, step 5 included) nor tetrahedra: grids of cubes, grids
+ * the bricks did not take (the device's fallback). Tetrahedra are read per object only, through the
+ * object's slot (per pixel skips them); so is a dense grid per object (sv_probes_use_slots). */
 static bool file_probes_read(const sv_probes *probes, const sv_renderer_desc *desc, const probe_pack *k)
 {
     if (!desc->bricks || desc->probe_view || k->want_cubes) return true;
-    const uint32_t tree = SV_GRID_OCTREE | SV_GRID_BRICKS;
     for (uint32_t g = 0; g < probes->grid_count; ++g) {
         uint32_t f = k->grids[g].base[2];
         if (f & SV_GRID_CUBE_ONLY) return true;
-        if (!(f & SV_GRID_TETRA) && (f & tree) != tree) return true;
+        if (!(f & (SV_GRID_TETRA | SV_GRID_BRICKS))) return true;
     }
     return false;
 }
 
+/* Cell-index entries of every dense grid's cells (sv_probes_gpu_grids: the cell indices, then as many
+ * masks, then the trees' entries). */
+static uint32_t dense_cells(const sv_probes *probes)
+{
+    uint64_t n = 0;
+    for (uint32_t g = 0; g < probes->grid_count; ++g) {
+        const pb_shprobe *f = probes->grids[g].file;
+        if (!probes->grids[g].tree && !probes->grids[g].tetra && f->grid)
+            n += (uint64_t)f->grid_dims[0] * f->grid_dims[1] * f->grid_dims[2];
+    }
+    return (uint32_t)n;
+}
+
 /* The probe buffer without the file's probes: the fallback (entry 0), then the per-object slots moved down
- * from entry `total` to entry 1; no cell index (one dummy entry, create_probe_buffers). */
+ * from entry `total` to entry 1. The cell index keeps the dense grids' neighbour masks alone (a dense grid's
+ * texture reads its home cell's, grid_tex_irradiance), their records pointing there; else one dummy entry
+ * (create_probe_buffers). */
 static void keep_fallback_and_slots(probe_pack *k, const sv_probes *probes)
 {
-    uint32_t n = probes->slot_count, t = probes->total;
+    uint32_t n = probes->slot_count, t = probes->total, cells = dense_cells(probes);
     memmove(k->p + 1, k->p + t, n * sizeof *k->p);
     if (k->ph) memmove(k->ph + 1, k->ph + t, n * sizeof *k->ph);
     k->count = 1u + n;
-    k->grid_cells = 0;
+    memmove(k->cell_index, k->cell_index + cells, cells * sizeof *k->cell_index);
+    for (uint32_t g = 0; g < probes->grid_count; ++g)
+        if (!(k->grids[g].base[2] & (SV_GRID_OCTREE | SV_GRID_TETRA))) k->grids[g].base[1] -= cells;
+    k->grid_cells = cells;
 }
 
 /* The `probe bricks:` line (sv_bricks_report) and the `probe memory:` line: every probe texture and storage
@@ -624,14 +641,17 @@ void sv_upload_probe_slots(sv_renderer *r, VkCommandBuffer cmd)
 void sv_upload_retrace_masks(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene)
 {
     uint32_t movable = count_movable(scene);
-    if (!r->probes_src || !r->file_probes || movable == r->masks_movable) return; /* no cell index uploaded */
+    /* Without the file's probes the cell index holds the dense grids' masks alone (keep_fallback_and_slots). */
+    uint32_t skip = r->probes_src && !r->file_probes ? dense_cells(r->probes_src) : 0;
+    if (!r->probes_src || (!r->file_probes && !skip) || movable == r->masks_movable) return;
     r->masks_movable = movable;
     sv_gpu_grid *grids = NULL;
     int32_t *cells = NULL;
     uint32_t n = 0;
     if (!sv_probes_gpu_grids(r->probes_src, scene, &grids, &cells, &n)) return;
+    if (skip) n = skip; /* the masks, which follow the dense cells' indices */
     if ((VkDeviceSize)n * sizeof(int32_t) <= r->cell_index.size) {
-        update_buffer(cmd, r->cell_index.buffer, 0, cells, n * sizeof(int32_t));
+        update_buffer(cmd, r->cell_index.buffer, 0, cells + skip, n * sizeof(int32_t));
         VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
                               .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
                               .dstAccessMask = VK_ACCESS_SHADER_READ_BIT};

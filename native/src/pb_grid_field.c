@@ -244,24 +244,24 @@ pb_grid_field_status pb_grid_field_query(const pb_grid_field *f, const double p_
         w.raw[k] = wk;
         wsum += wk;
     }
-    /* 5. renormalised, or the cell holding u alone, or nothing. */
+    /* 5. renormalised; else the plain trilinear x validity weights of the 8 corners (no mask, no back face:
+     *    the texture's own N / D at t = clamp(u - 1/2, 0, dims - 1)), renormalised by their sum D; else
+     *    nothing. raw[] keeps the anti-leak weights. */
     if (wsum > PB_GRID_FIELD_MIN_WEIGHT) {
         for (int k = 0; k < 8; k++) w.weight[k] = w.raw[k] / wsum;
         w.status = PB_GRID_FIELD_WEIGHTS;
         return *out = w, w.status;
     }
-    uint32_t cell[3];
-    for (int a = 0; a < 3; a++) cell[a] = (uint32_t)clamp_i((int64_t)floor(w.u[a]), 0, (int64_t)dims[a] - 1);
-    int32_t own = f->cells[flat(dims, cell[0], cell[1], cell[2])];
-    for (int k = 0; k < 8; k++) w.weight[k] = 0.0, w.probe[k] = -1;
-    memcpy(w.cell[0], cell, sizeof cell);
-    w.probe[0] = own;
-    if (own < 0) {
-        w.status = PB_GRID_FIELD_NONE;
-        return *out = w, w.status;
+    double d = 0.0;
+    for (int k = 0; k < 8; k++) {
+        double wk = 1.0;
+        for (int a = 0; a < 3; a++) wk *= (k >> a) & 1 ? fr[a] : 1.0 - fr[a];
+        wk *= w.probe[k] >= 0 ? f->validity[w.probe[k]] : 0.0;
+        w.weight[k] = wk > 0.0 ? wk : 0.0;
+        d += w.weight[k];
     }
-    w.weight[0] = 1.0;
-    w.status = PB_GRID_FIELD_FALLBACK;
+    for (int k = 0; k < 8; k++) w.weight[k] = d > PB_GRID_FIELD_MIN_WEIGHT ? w.weight[k] / d : 0.0;
+    w.status = d > PB_GRID_FIELD_MIN_WEIGHT ? PB_GRID_FIELD_FALLBACK : PB_GRID_FIELD_NONE;
     return *out = w, w.status;
 }
 
@@ -373,7 +373,7 @@ bool pb_grid_field_sample_surface_texture(const pb_grid_field *f, const double p
     uint32_t vis = f->masks[flat(dims, home[0], home[1], home[2])];
     /* 4. Each corner's weight besides validity (which is in N and D): trilinear × keep_k, keep_k = 0 where
      *    the mask drops the corner, else its back-face weight (1 for a movable object). */
-    double w[8];
+    double w[8], tri8[8];
     int64_t ci[8][3];
     for (int k = 0; k < 8; k++) {
         int o3[3] = {k & 1, (k >> 1) & 1, (k >> 2) & 1};
@@ -394,11 +394,12 @@ bool pb_grid_field_sample_surface_texture(const pb_grid_field *f, const double p
                    h;
         double b = o.static_surface ? smoothstep(-PB_GRID_FIELD_BACK_RAMP, PB_GRID_FIELD_BACK_RAMP, t) : 1.0;
         w[k] = tri * (masked ? 0.0 : b);
+        tri8[k] = tri;
     }
     /* 5. Separable weights (pb_bricks_separable): one filtered tap at t = clamp(i0 + f', 0, dims − 1) (a
      *    clamped axis has both corners in one cell), exactly Σ (w_k / sw) (N, D)_k; kept where its D >=
-     *    PB_GRID_FIELD_FILTER_MIN_D. Else the 8 texels with w exactly. Σ w v <= 1e-6: no value here (the
-     *    caller's home-cell fallback). */
+     *    PB_GRID_FIELD_FILTER_MIN_D. Else the 8 texels with w exactly. Σ w v <= 1e-6: the rule's fallback,
+     *    the 8 texels with the plain trilinear weights (exact taps: its D may be tiny). */
     double f1[3], sw = 0.0;
     for (int k = 0; k < 8; k++) sw += w[k];
     uint32_t taps = 8;
@@ -421,6 +422,17 @@ bool pb_grid_field_sample_surface_texture(const pb_grid_field *f, const double p
         for (uint32_t c = 0; c < in->channels; c++) acc[c] += w[k] * tx[c];
     }
     bool has = acc[3] > PB_GRID_FIELD_MIN_WEIGHT;
+    if (!has) {
+        taps = 8;
+        memset(acc, 0, sizeof acc);
+        for (int k = 0; k < 8; k++) {
+            if (!(tri8[k] > 0.0)) continue;
+            const double *tx =
+                f->texels + flat(dims, (uint32_t)ci[k][0], (uint32_t)ci[k][1], (uint32_t)ci[k][2]) * in->channels;
+            for (uint32_t c = 0; c < in->channels; c++) acc[c] += tri8[k] * tx[c];
+        }
+        has = acc[3] > PB_GRID_FIELD_MIN_WEIGHT;
+    }
     if (taps_out) *taps_out = taps;
     if (d_out) *d_out = acc[3];
     texture_ratio(f, acc, has, coeffs_out);

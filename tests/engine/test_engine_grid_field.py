@@ -2,8 +2,9 @@
 builds each dense SH grid's cell-centred texture with the core (pb_grid_field: N = v s c, D = v per cell,
 RGBA16F in the brick pool), and bricks.glsl's grid_tex_irradiance samples it with one filtered fetch per
 channel group where the rule's weights besides validity are separable (movable objects with a full mask,
-axis-aligned floors and walls), else with 8 texelFetch taps and the rule's exact weights; the
-home-cell fallback stays shading.glsl's. Real lavapipe, Khronos validation layer on (viewer.run).
+axis-aligned floors and walls), else with 8 texelFetch taps and the rule's exact weights; step 5 (no
+anti-leak weight left) with 8 texelFetch taps and the plain trilinear weights, from the texture too. Real
+lavapipe, Khronos validation layer on (viewer.run).
 
 Expected values come from the core's C through the Python module (native.GridField: the rule's status,
 weights and coefficients; its binary16 texture and texel coordinates), as test_engine_bricks.py does for
@@ -88,14 +89,14 @@ def texture_model(field, points, bits=0):
 
 def expected_pixels(field, q, coeffs, scale, p, up, model=None, model8=None):
     """Pixel expected per status: WEIGHTS the texture model (when given) else the C's sum w s c; FALLBACK
-    the home cell's own probe (s c, from the float buffers); NONE / OUTSIDE probe 0's 0.2."""
+    (step 5) the C's sum of the plain trilinear x validity weights (the engine's 8 exact taps of the texture);
+    NONE / OUTSIDE probe 0's 0.2."""
     want = np.full((len(p), 3), FALLBACK)
     w = q["status"] == W
     src = q["coeffs"] if model is None else model
     want[w] = e_of(src[w], up[w])
     fb = q["status"] == F
-    own = q["probe"][fb, 0]
-    want[fb] = e_of(coeffs[own] * scale.astype(float)[own, None, None], up[fb])
+    want[fb] = e_of(q["coeffs"][fb], up[fb])
     return want
 
 
@@ -178,7 +179,7 @@ def test_glsl_exact_taps_equal_the_c_on_static_floors(tmp_path):
     # 0.2: back-face weights drop the corners below the floor and the home cell's mask those across it
     # (the engine traces them; the C gets the same masks from the straddle rule): where the kept weights are
     # separable (a whole face dropped or kept) one filtered fetch at f', else the 8 exact taps, and points
-    # with every weight 0 the home cell's probe alone. Bound: binary16 texels, |N~/D~ - N/D| <= 2^-11
+    # with every weight 0 step 5's plain trilinear x validity weights (8 exact taps). Bound: binary16 texels, |N~/D~ - N/D| <= 2^-11
     # (sum w |E_k| + |E|) per channel, doubled, + 2e-5 of the peak + 1e-5 (fp32 weights and sums) + one
     # 2^-8 filter step for the filtered points.
     entry, cells, coeffs, validity, scale, _ = random_dense(tmp_path, 8)

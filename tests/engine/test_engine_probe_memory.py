@@ -1,6 +1,6 @@
 """Which probe storage buffers schnee-view uploads (docs/engine.md "Probe buffers", issue 30 "GPU memory per
-probe"): with --probe-path bricks and every grid a bricked tree grid (SH, no probe view) the file's probes,
-the cell buffer and the cell index are not uploaded; the probe buffer holds the fallback probe and the
+probe"): with --probe-path bricks and every grid a bricked tree grid or a dense grid's texture (SH, no probe
+view) the file's probes, the cell buffer and the cell index (but a dense grid's masks) are not uploaded; the probe buffer holds the fallback probe and the
 per-object slots (moved down to entry 1), the cell index one dummy entry; tetrahedra are read through the
 objects' slots only, so they join. The cell buffer is uploaded for the probe view only. Real lavapipe, validation on
 (viewer.run).
@@ -9,7 +9,8 @@ Shading must not change: the same scene with and without the file's probes on th
 alike. The A/B pair is one scene and the same scene with a second grid, of ambient cubes, far from every object
 and pixel (a cube grid needs the file's probes, so the engine uploads them; the tree grid is first, so every
 pixel and object takes the same grid either way). Per object is also compared with --probe-path buffers, which reads the
-same slot. Scenes that keep the file's probes (a v1 dense grid, the probe view) render as before.
+same slot. A v1 dense grid joins them (its texture and its step 5, the objects' slots), its cell index the
+masks alone. Scenes that keep the file's probes (the probe view, ambient cubes) render as before.
 
 The `probe memory:` / `probe bricks:` lines are checked against an independent sum: the pool's texels x 8 B
 (RGBA16F), the indirection's x 16 B (RGBA32UI), 16 B per brick of brick tables, 64 B per visibility record
@@ -145,8 +146,10 @@ def test_report_is_the_allocation_and_below_the_old_sum(tmp_path):
     assert total < old and m["buffers"] * 5 < buf["buffers"], (total, old)
 
 
-def test_v1_dense_grid_keeps_the_file_probes_and_reports_them(tmp_path):
-    """A dense grid's home-cell fallback (step 5) and per object (one-probe weights) read the file's probes."""
+def test_v1_dense_grid_needs_no_file_probes(tmp_path):
+    """A dense grid under the bricks: per pixel its texture (step 5 too, docs/grid-field.md), per object its
+    slot (a single probe of weight 1 too), so the file's probes stay off the GPU; the cell index holds the
+    neighbour masks alone. Bit for bit as the same scene with the file's probes uploaded (a far cube grid)."""
     grid = np.arange(32, dtype=np.int32).reshape(2, 4, 4).transpose(1, 0, 2).copy()  # (Z, Y, X) = 4 x 2 x 4
     grid[1, 0, 2] = -1
     count = 32
@@ -156,28 +159,39 @@ def test_v1_dense_grid_keeps_the_file_probes_and_reports_them(tmp_path):
     mo = b_.material("box", sh_scale=1.0, ambient_term=0.0, probe_mode="object")
     b_.node("Floor", mesh=b_.mesh("floor", sg.quad(4.0, 4.0, 1), mp), translation=(2.0, 0.3, 2.0))
     b_.node("Box", mesh=b_.mesh("box", sg.cube(0.1), mo), translation=(1.3, 0.8, 2.6))
+    # At the centre of cell (1, 0, 2): one probe has all the weight (it used to name the file probe).
+    b_.node("Centred", mesh=b_.mesh("centred", sg.cube(0.1), mo), translation=(1.5, 0.5, 2.5))
     b_.node("Camera", camera=b_.ortho_camera("top", 2.0), translation=(2.0, 3.0, 2.0), rotation=sg.ROT_LOOK_DOWN)
     b_.probe_grids([entry])
     scene = b_.write(tmp_path / "v1.gltf")
-    img, err = render(scene, tmp_path / "a.exr")
+    proc = viewer.check(viewer.run(scene, "--headless", "--output", tmp_path / "a.exr", "--width", N, "--height",
+                                   N, "--print-assignments"))
+    img, err = viewer.read_image(tmp_path / "a.exr")[..., :3], proc.stderr
     m, b = memory(err), bricks_line(err)
-    assert m["uploaded"] and "probe bricks: 1 dense grid(s)" in err
-    # The file's probes, one slot per object, the cell index and masks (2 ints per cell); the cell buffer (the
-    # probe view's, one sphere per probe and one outline per occupied cell) is a dummy without the probe view.
-    storage = (1 + count + objects(err)) * PROBE + PROBE_HALF + CUBE + CUBE_HALF + CELL + GRID + 2 * grid.size * INT
-    assert m["buffers"] == storage
+    assert not m["uploaded"] and NOT_UPLOADED in err and "probe bricks: 1 dense grid(s)" in err, err
+    # --print-assignments (before the renderer) still names the file probe: entry 1 + grid[2, 0, 1].
+    assert viewer.assignments(proc.stdout)["Centred"] == 1 + int(grid[2, 0, 1])
+    # The fallback and one slot per object, the masks (1 int per cell), one-entry dummies for the rest.
+    storage = (1 + objects(err)) * PROBE + PROBE_HALF + CUBE + CUBE_HALF + CELL + GRID + grid.size * INT
+    assert (m["probes"], m["cell_index"], m["buffers"]) == ((1 + objects(err)) * PROBE, grid.size * INT, storage)
     # Dense only: no indirection and no brick tables (the 16-B stand-ins stay bound).
     total = b["pool_bytes"] + 16 + 16 + storage
     assert (m["index"], m["vis"], m["total"]) == (16, 16, total)
-    assert abs(b["allocated"] - total / count) <= 0.05
+    assert abs(b["allocated"] - total / count) <= 0.0501 and abs(m["per_probe"] - total / count) <= 0.0501
     assert b["pool_bytes"] == int(np.prod(b["pool"])) * 8
-    # What the grid takes on the buffers path (was reported as 0.0 B for a dense grid): its entries at the L4
-    # stride and 8 B per cell (index and neighbour mask).
+    # What the grid takes on the buffers path: its entries at the L4 stride and 8 B per cell (index and mask).
     assert abs(b["buffers_path"] - (count * PROBE + grid.size * 8) / count) <= 0.05
-    # Per object reads the same slot on both paths; per pixel is the bricks' own (test_engine_grid_field.py).
-    obj, _ = render(scene, tmp_path / "o.exr", "--probe-mode", "object")
-    obj_buf, _ = render(scene, tmp_path / "ob.exr", "--probe-mode", "object", "--probe-path", "buffers")
-    assert np.array_equal(obj, obj_buf) and img.max() > 0.1
+    # The same scene with the file's probes uploaded: the same image, per pixel and per object.
+    img_b, err_b = render(with_far_cube_grid(tmp_path, scene), tmp_path / "b.exr")
+    mb = memory(err_b)
+    assert mb["uploaded"] and mb["cell_index"] > 2 * grid.size * INT, err_b
+    assert np.array_equal(img, img_b) and img.max() > 0.1
+    # Per object everywhere: the slots (no file probes) against --probe-path buffers (the Centred box its file
+    # probe there, scale 1: the same value).
+    obj, err_o = render(scene, tmp_path / "o.exr", "--probe-mode", "object")
+    obj_buf, err_ob = render(scene, tmp_path / "ob.exr", "--probe-mode", "object", "--probe-path", "buffers")
+    assert not memory(err_o)["uploaded"] and memory(err_ob)["uploaded"]
+    assert np.array_equal(obj, obj_buf) and obj.max() > 0.1
 
 
 def test_tetrahedra_need_only_the_slots(tmp_path):

@@ -187,20 +187,57 @@ static void test_rule_by_hand(void)
     double p5[3] = {0.995, 0.5, 0.5};
     pb_grid_field_query(fm, p5, n2, NULL, &w);
     TU_CHECK(w.home[0] == 1);
-    /* Fallback: both probes invalid -> the cell holding u alone with weight 1, whatever its validity. */
-    g.validity[0] = g.validity[1] = 0.0f;
+    /* Step 5, static surface at (0.75, 0.7, 0.5) facing +y: both centres (y = 0.5) lie 0.2 cells behind it,
+     * back faces 0, W = 0: the plain trilinear x validity weights 0.75 x 0.5 / 0.25 x 1 -> 0.6 / 0.4 (y
+     * clamps both its corners onto the one layer), value 0.6 + 1.2 = 1.8 (the old rule took the cell
+     * holding u, probe 0: 1.0); the texture's own N / D at the point is the same. */
+    double p6[3] = {0.75, 0.7, 0.5}, n6[3] = {0, 1, 0};
+    TU_CHECK_EQ_INT(pb_grid_field_query(f, p6, n6, &st, &w), PB_GRID_FIELD_FALLBACK);
+    TU_CHECK_NEAR(w.backface[0] + w.backface[1], 0.0, 0.0);
+    w0 = w1 = 0;
+    for (int k = 0; k < 8; k++) *(w.probe[k] == 0 ? &w0 : &w1) += w.weight[k];
+    TU_CHECK_NEAR(w0, 0.6, 1e-15);
+    TU_CHECK_NEAR(w1, 0.4, 1e-15);
+    TU_CHECK_EQ_INT(pb_grid_field_sample(f, p6, n6, &st, c), PB_GRID_FIELD_FALLBACK);
+    TU_CHECK_NEAR(c[0], 1.8, 1e-14);
+    double ct[CC * 3], d6 = 0;
+    uint32_t taps = 0;
+    TU_CHECK(pb_grid_field_sample_surface_texture(f, p6, n6, &st, 0, ct, &d6, &taps));
+    TU_CHECK_NEAR(ct[0], 1.8, 1e-14);
+    TU_CHECK_NEAR(d6, 0.625, 1e-15); /* D = 0.75 x 0.5 + 0.25 x 1 */
+    TU_CHECK(taps == 8);
+    TU_CHECK(pb_grid_field_sample_texture(f, p6, 0, NULL, ct, NULL));
+    TU_CHECK_NEAR(ct[0], 1.8, 1e-14);
+    /* Step 5 with an invalid home probe: validity 0 / 1, home cell 0's mask drops probe 1 (fm's masks): at x
+     * = 0.9 W = 0; the plain weights 0.6 x 0 / 0.4 x 1 leave probe 1 alone: 3 (the old rule: probe 0, 1.0,
+     * whatever its validity). */
+    g.validity[0] = 0.0f;
+    pb_grid_field *fv = build(&g, NULL, o, h, masks);
+    TU_REQUIRE(fv);
+    TU_CHECK_EQ_INT(pb_grid_field_sample(fv, p3, NULL, NULL, c), PB_GRID_FIELD_FALLBACK);
+    TU_CHECK_NEAR(c[0], 3.0, 1e-15);
+    TU_CHECK(pb_grid_field_sample_surface_texture(fv, p3, NULL, NULL, 0, ct, NULL, NULL));
+    TU_CHECK_NEAR(ct[0], 3.0, 1e-15);
+    /* Both probes invalid: D = 0, no value (the old rule: the cell holding u, 3.0); the texture agrees. */
+    g.validity[1] = 0.0f;
     pb_grid_field *fz = build(&g, NULL, o, h, NULL);
     TU_REQUIRE(fz);
-    TU_CHECK_EQ_INT(pb_grid_field_sample(fz, p4, NULL, NULL, c), PB_GRID_FIELD_FALLBACK);
-    TU_CHECK_NEAR(c[0], 3.0, 0.0);
+    TU_CHECK_EQ_INT(pb_grid_field_sample(fz, p4, NULL, NULL, c), PB_GRID_FIELD_NONE);
+    TU_CHECK_NEAR(c[0], 0.0, 0.0);
     TU_CHECK(!pb_grid_field_sample_texture(fz, p4, 0, NULL, NULL, NULL)); /* D = 0: the texture has no value */
-    /* Empty home cell too: no value. */
+    TU_CHECK(!pb_grid_field_sample_surface_texture(fz, p4, NULL, NULL, 0, NULL, NULL, NULL));
+    /* Valid probe 0, empty cell 1: at x = 1.1 (c = 0.6) probe 0 keeps 0.4 x 1 -> its value; at x = 1.9 the
+     * two corners clamp onto cell 1: no value. */
+    g.validity[0] = 1.0f;
     g.cells[1] = -1;
     pb_grid_field *fe = build(&g, NULL, o, h, NULL);
     TU_REQUIRE(fe);
-    TU_CHECK_EQ_INT(pb_grid_field_query(fe, p4, NULL, NULL, &w), PB_GRID_FIELD_NONE);
-    TU_CHECK_EQ_INT(pb_grid_field_query(fe, p, NULL, NULL, &w), PB_GRID_FIELD_FALLBACK);
+    TU_CHECK_EQ_INT(pb_grid_field_sample(fe, p4, NULL, NULL, c), PB_GRID_FIELD_WEIGHTS);
+    TU_CHECK_NEAR(c[0], 1.0, 1e-15);
+    double p7[3] = {1.9, 0.5, 0.5};
+    TU_CHECK_EQ_INT(pb_grid_field_query(fe, p7, NULL, NULL, &w), PB_GRID_FIELD_NONE);
     pb_grid_field_destroy(f), pb_grid_field_destroy(fm), pb_grid_field_destroy(fz), pb_grid_field_destroy(fe);
+    pb_grid_field_destroy(fv);
     free_grid(&g);
 }
 

@@ -9,7 +9,7 @@
  *      faces of an ambient cube), optional validity, scale and 27-bit neighbour-visibility masks.
  *   2. pb_grid_field_build(&desc, &field, &err). The field copies what it needs.
  *   3. pb_grid_field_query(field, p, n, &opts, &w): the 8 corner weights (probe indices and weights summing
- *      to 1) or the home-cell fallback; pb_grid_field_sample(): Σ w s c (scale folded in).
+ *      to 1), or step 5's plain trilinear fallback; pb_grid_field_sample(): Σ w s c (scale folded in).
  *   4. For an upload: pb_grid_field_get_info(), pb_grid_field_texture_f32() / _f16() (RGBA channel groups);
  *      pb_grid_field_sample_texture() is the trilinear texture sample (exact or quantised fractions).
  *   5. pb_grid_field_destroy().
@@ -26,14 +26,14 @@
  *      the cell is empty (−1) or when d = ci − home lies in {−1,0,1}³ and mask bit (d.x+1) + 3(d.y+1) +
  *      9(d.z+1) is clear; w = Π_a (bit ? f_a : 1 − f_a) × (static_surface ? smoothstep(−0.1, 0.1,
  *      dot(centre(ci) − p_s, n) / h) : 1) × validity; skipped when w <= 0.
- *   5. W = Σ w > 1e-6 (PB_GRID_FIELD_MIN_WEIGHT): weights w / W. Else the cell clamp(floor(u), 0, dims − 1)
- *      alone with weight 1 when it holds a probe (whatever its validity: the per-object rule); else no value
- *      (the caller tries the next grid, then probe 0).
+ *   5. W = Σ w > 1e-6 (PB_GRID_FIELD_MIN_WEIGHT): weights w / W. Else the plain trilinear × validity
+ *      weights of the 8 corners (no mask, no back face: the texture's own N / D at the point), divided by
+ *      their sum D when D > 1e-6; else no value (the caller tries the next grid, then probe 0).
  * Texture form (normative; docs/grid-field.md "Texture"): texel (x, y, z) at the centre of cell (x, y, z),
  * channels at the colour count C: 0–2 = N_0 RGB, 3 = D, then N_1 … N_{C−1} RGB consecutively, RGBA groups of
  * 4 (ceil((3C + 1) / 4)); N_i = v·s·c_i and D = v with v = max(validity, 0) of the cell's probe, 0 for an
  * empty cell. Sampled at t = clamp(u − ½, 0, dims − 1) (clamp to edge), trilinear, N / D: equal to the rule
- * when every corner kept its mask bit and (movable, or) every back-face weight is 1, and W > 1e-6. The
+ * when every corner kept its mask bit and (movable, or) every back-face weight is 1, and to step 5. The
  * engine (pb_grid_field_sample_surface_texture) filters in hardware where the kept weights trilinear × mask
  * × back face are separable (one tap at their per-axis mean f', e.g. an axis-aligned floor or wall) and
  * D >= PB_GRID_FIELD_FILTER_MIN_D; elsewhere it takes 8 texel fetches with the rule's exact weights.
@@ -50,7 +50,7 @@ extern "C" {
 
 #define PB_GRID_FIELD_MARGIN       0.01         /* cells: the box's margin, and the home cell's offset along n */
 #define PB_GRID_FIELD_FILTER_MIN_D (1.0 / 64.0) /* the engine filters only where D >= this (else exact taps) */
-#define PB_GRID_FIELD_MIN_WEIGHT   1e-6         /* Σ w at or below this: the home-cell fallback */
+#define PB_GRID_FIELD_MIN_WEIGHT   1e-6         /* Σ w at or below this: step 5's fallback */
 #define PB_GRID_FIELD_BACK_RAMP    0.1          /* back-face weight smoothstep(−0.1, 0.1, dot(c − p, n) / h) */
 #define PB_GRID_FIELD_ALL_VISIBLE  UINT32_C(0x7FFFFFF) /* a mask with all 27 neighbour bits set */
 #define PB_GRID_FIELD_MAX_COLOURS  25u                 /* L4 SH; an ambient cube has 6 */
@@ -93,17 +93,17 @@ typedef struct pb_grid_field_opts {
 
 typedef enum pb_grid_field_status {
     PB_GRID_FIELD_OUTSIDE = 0, /* not in the grid's box (with the margin) */
-    PB_GRID_FIELD_NONE,        /* in the box, no weight and an empty home cell: no value */
+    PB_GRID_FIELD_NONE,        /* in the box, no weight and no valid corner (D <= 1e-6): no value */
     PB_GRID_FIELD_WEIGHTS,     /* weight[] over the 8 corners, summing to 1 */
-    PB_GRID_FIELD_FALLBACK,    /* the cell holding u alone: probe[0] with weight 1 */
+    PB_GRID_FIELD_FALLBACK,    /* step 5: weight[] = the plain trilinear × validity weights / D, summing to 1 */
 } pb_grid_field_status;
 
 typedef struct pb_grid_field_weights {
     pb_grid_field_status status;
-    uint32_t cell[8][3]; /* corner k's clamped cell (WEIGHTS); FALLBACK: cell[0] */
-    int32_t probe[8];    /* its probe or −1 (empty); FALLBACK: probe[0] */
+    uint32_t cell[8][3]; /* corner k's clamped cell */
+    int32_t probe[8];    /* its probe or −1 (empty) */
     double weight[8];    /* normalised, 0 where skipped (corners clamped onto one cell keep separate weights) */
-    double raw[8];       /* before normalisation (trilinear × back face × validity; 0 where skipped) */
+    double raw[8];       /* step 4's, before normalisation (trilinear × back face × validity; 0 where skipped) */
     double backface[8];  /* the back-face factor (1 for a movable object), also of skipped corners */
     bool masked[8];      /* the home cell's mask dropped this corner */
     uint32_t home[3];    /* the home cell */
@@ -144,9 +144,10 @@ bool pb_grid_field_sample_texture(const pb_grid_field *field, const double p[3],
  * (1 without static_surface); validity and empty cells are in the texels' N and D. Where w is separable
  * (pb_bricks_separable of pb_bricks.h, f') one trilinear sample at t = clamp(i0 + f', 0, dims − 1)
  * (fractions rounded to subtexel_bits), kept when its D >= PB_GRID_FIELD_FILTER_MIN_D; else 8 texels with
- * w exactly. Both give Σ w (N, D) / Σ w, so N / D is the rule's value. *taps_out (optional): 1 or 8 (0
- * outside the box); d_out (optional): Σ w D; coeffs_out (optional): N / D (coeff_count × 3, 0 without a
- * value). True when Σ w D > 1e-6 (else the rule's home-cell fallback, not done here). */
+ * w exactly. Both give Σ w (N, D) / Σ w, so N / D is the rule's value. When Σ w D <= 1e-6, step 5: the 8
+ * texels with the plain trilinear weights (exact). *taps_out (optional): 1 or 8 (0 outside the box); d_out
+ * (optional): Σ w D (step 5's D where it was taken); coeffs_out (optional): N / D (coeff_count × 3, 0 without a
+ * value). True when the rule has a value (WEIGHTS or FALLBACK). */
 bool pb_grid_field_sample_surface_texture(const pb_grid_field *field, const double p_surface[3], const double n[3],
                                           const pb_grid_field_opts *opts, uint32_t subtexel_bits, double *coeffs_out,
                                           double *d_out, uint32_t *taps_out);

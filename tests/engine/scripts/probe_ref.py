@@ -86,26 +86,31 @@ def grid_irradiance(p, n, grid, origin, spacing, coeffs, validity=None, evaluate
     i0 = np.floor(c).astype(int)
     f = c - i0
     e = np.zeros((len(p), 3))
+    plain = np.zeros((len(p), 3))  # step 5: trilinear x validity alone (no back face)
     wsum = np.zeros(len(p))
+    dsum = np.zeros(len(p))
     for k in range(8):
         o = np.array([k & 1, (k >> 1) & 1, (k >> 2) & 1])
         ci = np.clip(i0 + o, 0, dims - 1)
         idx = grid[ci[:, 2], ci[:, 1], ci[:, 0]]
-        w = np.prod(np.where(o == 1, f, 1 - f), axis=1)
+        tri = np.prod(np.where(o == 1, f, 1 - f), axis=1)
         centre = np.asarray(origin, float) + (ci + 0.5) * spacing
         t = np.einsum("ij,ij->i", centre - p, n) / spacing
-        w = w * (smoothstep(-0.1, 0.1, t) if backface else 1.0) * np.where(idx >= 0, validity[np.maximum(idx, 0)], 0.0)
-        w = np.where(idx >= 0, w, 0.0)
+        v = np.where(idx >= 0, validity[np.maximum(idx, 0)], 0.0)
+        w = tri * (smoothstep(-0.1, 0.1, t) if backface else 1.0) * v
+        w = np.where((idx >= 0) & (w > 0), w, 0.0)
+        d = np.where(idx >= 0, tri * np.maximum(v, 0.0), 0.0)
         ek = np.stack([evaluate(coeffs[j], n[i]) if j >= 0 else np.zeros(3) for i, j in enumerate(idx)])
         e += w[:, None] * ek
+        plain += d[:, None] * ek
         wsum += w
+        dsum += d
     out = np.where(wsum[:, None] > 1e-6, e / np.maximum(wsum, 1e-30)[:, None], 0.0)
-    # Every weight 0: the cell holding p alone (the per-object rule).
-    cell = np.clip(np.floor(u).astype(int), 0, dims - 1)
-    own = grid[cell[:, 2], cell[:, 1], cell[:, 0]]
-    for i in np.nonzero(held & (wsum <= 1e-6))[0]:
-        out[i] = evaluate(coeffs[own[i]], n[i]) if own[i] >= 0 else 0.0
-    held = held & ((wsum > 1e-6) | (own >= 0))
+    # Every weight 0 (step 5, docs/grid-field.md): the plain trilinear x validity weights, no value when their
+    # sum is 0 too.
+    low = held & (wsum <= 1e-6) & (dsum > 1e-6)
+    out[low] = plain[low] / dsum[low, None]
+    held = held & ((wsum > 1e-6) | (dsum > 1e-6))
     return out, held
 
 
