@@ -98,12 +98,15 @@ def run(view, scene, out, mode, frames, w, h, path="buffers"):
 
 
 def run_full(view, scene, out, mode, frames, w, h, path):
-    """One launch: the frame median, scene-pass GPU median, wall and CPU seconds, the memory lines."""
+    """One launch: the frame median, scene-pass GPU median, wall and CPU seconds, the memory lines. A path
+    "bricks-fragment" is the bricks with --probe-pass fragment (the per-pixel probes in the scene pass's
+    fragment shader); the others take the default, the probe pass (docs/engine.md "The per-pixel probe pass")."""
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
+    extra = ["--probe-pass", "fragment"] if path.endswith("-fragment") else []
     proc = subprocess.run([view, str(scene), "--headless", "--output", str(out), "--width", str(w), "--height", str(h),
-                           "--frames", str(frames), "--no-direct", "--probe-mode", mode, "--probe-path", path],
-                          capture_output=True, text=True, timeout=1800)
+                           "--frames", str(frames), "--no-direct", "--probe-mode", mode, "--probe-path",
+                           path.removesuffix("-fragment")] + extra, capture_output=True, text=True, timeout=1800)
     wall = time.perf_counter() - t0
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
@@ -112,8 +115,10 @@ def run_full(view, scene, out, mode, frames, w, h, path):
     m = re.search(r"frame\(s\) at \d+x\d+: mean ([\d.]+) ms, median ([\d.]+) ms, min ([\d.]+) ms", err)
     dev = re.search(r"device (.*?);", err)
     scene_ms = re.search(r"GPU time per frame \(timestamps, median\):.*? scene ([\d.]+) ms", err)
+    pass_ms = re.search(r"after the objects' raster \(the probe pass\) ([\d.]+) ms", err)
     rec = {"frame_median_ms": float(m.group(2)), "frame_mean_ms": float(m.group(1)), "frame_min_ms": float(m.group(3)),
            "scene_pass_ms": float(scene_ms.group(1)) if scene_ms else None, "device": dev.group(1) if dev else "?",
+           "probe_pass_ms": float(pass_ms.group(1)) if pass_ms else None,
            "wall_s": wall, "cpu_s": (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime),
            "load_after": os.getloadavg()[0]}
     b = re.search(r"probe bricks: (\d+) bricks \((\d+) texels\) of (\d+) probes; pool (\d+) x (\d+) x (\d+) (\w+) "
@@ -150,7 +155,8 @@ def run_full(view, scene, out, mode, frames, w, h, path):
     return rec
 
 
-BRICK_CONFIGS = [("object", "buffers"), ("pixel", "bricks"), ("pixel", "buffers"), ("off", "buffers")]
+BRICK_CONFIGS = [("object", "buffers"), ("pixel", "bricks"), ("pixel", "bricks-fragment"), ("pixel", "buffers"),
+                 ("off", "buffers")]
 
 
 def dense_buffer_bytes(scene):
@@ -278,6 +284,9 @@ def summarise(result):
 
         s["ratios"] = {
             "bricks_per_object": pair("pixel bricks", "object buffers"),
+            "fragment_per_object": pair("pixel bricks-fragment", "object buffers"),
+            "pass_per_fragment": pair("pixel bricks", "pixel bricks-fragment"),
+            "cpu_fragment_per_object": pair("pixel bricks-fragment", "object buffers", "cpu_s"),
             "buffers_per_object": pair("pixel buffers", "object buffers"),
             "bricks_per_buffers": pair("pixel bricks", "pixel buffers"),
             "off_per_object": pair("off buffers", "object buffers"),
@@ -289,6 +298,7 @@ def summarise(result):
             "cpu_buffers_per_object": pair("pixel buffers", "object buffers", "cpu_s"),
             "cpu_bricks_per_buffers": pair("pixel bricks", "pixel buffers", "cpu_s")}
         s["above_floor_ms"] = {"bricks": above("pixel bricks"), "buffers": above("pixel buffers"),
+                               "fragment": above("pixel bricks-fragment"),
                                "object": above("object buffers")}
 
 
@@ -336,7 +346,9 @@ def print_tables(result):
         for key, rs in result["scenes"][n]["runs"].items():
             m, p = key.split()
             fm = [r["frame_median_ms"] for r in rs]
-            what = {"object": "per object", "pixel": f"per pixel ({p})", "off": "off (raster floor)"}[m]
+            path = {"bricks": "bricks, probe pass", "bricks-fragment": "bricks, fragment shader",
+                    "buffers": "buffers, probe pass"}.get(p, p)
+            what = {"object": "per object", "pixel": f"per pixel ({path})", "off": "off (raster floor)"}[m]
             print(f"| {n} | {what} | {median(fm):.0f} ms | {min(fm):.0f}-{max(fm):.0f} ms | "
                   f"{median([r['scene_pass_ms'] for r in rs]):.0f} ms | "
                   f"{median([r['wall_s'] for r in rs]):.1f} / {median([r['cpu_s'] for r in rs]):.1f} |")
@@ -358,6 +370,16 @@ def print_tables(result):
         q = result["scenes"][n]["ratios"]
         print(f"| {n} | {f(q, 'cpu_bricks_per_object')} | {f(q, 'cpu_buffers_per_object')} | "
               f"{f(q, 'cpu_bricks_per_buffers')} |")
+    if all("pass_per_fragment" in result["scenes"][n]["ratios"] for n in names):
+        print("\n| scene | probe pass / per object | fragment shader / per object | probe pass / fragment shader | "
+              "CPU-s: probe pass / per object, fragment / per object | probe pass's own GPU time (median) |")
+        print("|---|---|---|---|---|---|")
+        for n in names:
+            q = result["scenes"][n]["ratios"]
+            pp = [r["probe_pass_ms"] for r in result["scenes"][n]["runs"]["pixel bricks"] if r.get("probe_pass_ms")]
+            own = f"{median(pp):.0f} ms" if pp else "n/a"
+            print(f"| {n} | {f(q, 'bricks_per_object')} | {f(q, 'fragment_per_object')} | {f(q, 'pass_per_fragment')} | "
+                  f"{f(q, 'cpu_bricks_per_object')}, {f(q, 'cpu_fragment_per_object')} | {own} |")
     print("\n| scene | probes | bricks / texels | pool | indirection | brick tables | records | B per probe "
           "(pool + indirection) | B per probe (all) | B per texel | buffers B per probe |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")

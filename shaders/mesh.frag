@@ -12,6 +12,15 @@ layout(location = 1) in vec3 v_normal;
 layout(location = 2) in vec2 v_uv;
 
 layout(location = 0) out vec4 out_color;
+#ifdef SV_DEFERRED_PROBES
+// The deferred probe pass (docs/engine.md "The per-pixel probe pass"): a per-pixel fragment writes its
+// colour without the terms E decides and what probe_pass.comp needs to add them; any other fragment its
+// whole colour and meta 0.
+layout(location = SV_GBUF_POINT) out uvec4 out_point;     // p bits, meta (SV_GBUF_META_*)
+layout(location = SV_GBUF_NORMAL) out vec4 out_normal;    // n, sky specular r
+layout(location = SV_GBUF_DIFFUSE) out vec4 out_diffuse;  // albedo sh_scale / pi, sky specular g
+layout(location = SV_GBUF_BAKED) out vec4 out_baked;      // baked lights' direct light, sky specular b
+#endif
 
 void main() {
     vec3 n = normalize(v_normal);
@@ -55,13 +64,46 @@ void main() {
     uint own_rep = node_rep != 0u ? node_rep - 1u : m.probe_representation;
     uint rep = frame.probe_representation == SV_PROBE_REP_MATERIAL ? own_rep : frame.probe_representation;
     bool cube = rep == SV_PROBE_REP_AMBIENT_CUBE;
+#ifdef SV_DEFERRED_PROBES
+    out_point = uvec4(0u);
+    if (mode == SV_PROBE_MODE_PIXEL) {
+        // The same terms as below, apart: colour = rest + k max(E, 0) + ratio(E) spec + (lit ? 0 : baked).
+        uint index = draw.probe_index;
+        uint entry = index == 0u ? 0u : index - frame.probe_rebase;
+        vec3 k = albedo * m.sh_scale / SH_PI;
+        vec3 spec = vec3(0.0), baked = vec3(0.0), rest = albedo * m.ambient_term;
+        if ((frame.flags & (SV_FRAME_SKY | SV_FRAME_NO_SPECULAR)) == SV_FRAME_SKY)
+            spec = sky_specular_unscaled(v_world, n, albedo, m.metallic, m.roughness);
+        if ((frame.flags & SV_FRAME_NO_DIRECT) == 0u) {
+            rest += direct_light_of(v_world, n, albedo, m.metallic, m.roughness, true, false);
+            baked = direct_light_of(v_world, n, albedo, m.metallic, m.roughness, false, true);
+        }
+        vec3 emissive = m.emissive.rgb;
+        if (m.emissive_texture >= 0) emissive *= texture(emissive_tex, v_uv).rgb;
+        out_color = vec4(rest + emissive, 1.0);
+        uint meta = SV_GBUF_META_PIXEL | (cube ? SV_GBUF_META_CUBE : 0u) |
+                    ((draw.flags & SV_DRAW_MOVABLE) != 0u ? SV_GBUF_META_MOVABLE : 0u) |
+                    ((draw.flags & SV_DRAW_TETRA) != 0u ? SV_GBUF_META_TETRA : 0u) |
+                    ((draw.flags & SV_DRAW_CUBE_ONLY) != 0u ? SV_GBUF_META_CUBE_ONLY : 0u) |
+                    (entry << SV_GBUF_META_ENTRY_SHIFT);
+        out_point = uvec4(floatBitsToUint(v_world), meta);
+        out_normal = vec4(n, spec.r);
+        out_diffuse = vec4(k, spec.g);
+        out_baked = vec4(baked, spec.b);
+        return;
+    }
+#endif
     vec3 e_probe;
     bool probe_lit; // E came from a baked probe rather than the fallback probe 0 (for baked lights)
     // Per pixel, a fragment no octree or dense grid holds takes the object's own probe when that was
     // interpolated from tetrahedra (no GPU point location for them), else the fallback probe 0.
+#ifndef SV_DEFERRED_PROBES
     if (mode == SV_PROBE_MODE_PIXEL)
         probe_lit = grid_irradiance(v_world, n, cube, (draw.flags & SV_DRAW_MOVABLE) != 0u, e_probe);
     if (mode != SV_PROBE_MODE_PIXEL || (!probe_lit && (draw.flags & SV_DRAW_TETRA) != 0u)) {
+#else
+    if (true) { // the non-pixel modes (a per-pixel fragment returned above)
+#endif
         uint index = mode == SV_PROBE_MODE_OFF ? 0u : draw.probe_index;
         probe_lit = index != 0u;
         // A probe from a grid that holds cubes only is shaded with its cube (docs/ambient-cube.md §5).

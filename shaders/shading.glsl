@@ -366,21 +366,29 @@ float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
 // (interiors) do not reflect it at full strength. e_probe: the irradiance the diffuse term used;
 // cube: it came from the ambient cubes, so the sky's E is the fallback probe's cube too (ratio 1
 // outside the grids in either representation).
-vec3 sky_specular(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, vec3 e_probe, bool cube) {
+// The split-sum term before the ratio (the deferred probe pass applies the ratio after E is known).
+vec3 sky_specular_unscaled(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness) {
     vec3 v = normalize(frame.camera_pos.xyz - p);
     float nv = clamp(dot(n, v), 1e-4, 1.0);
     vec3 r = reflect(-v, n);
     float mips = frame.camera_pos.w;
     float rough = clamp(roughness, 0.0, 1.0);
     vec3 pre = textureLod(sky_tex, sky_uv(r), rough * max(mips - 1.0, 0.0)).rgb;
-    vec2 ab = texture(brdf_lut, vec2(nv, rough)).rg;
+    vec2 ab = textureLod(brdf_lut, vec2(nv, rough), 0.0).rg;
     vec3 f0 = mix(vec3(0.04), albedo, metallic);
-    vec3 spec = pre * (f0 * ab.x + ab.y);
-    if ((frame.flags & SV_FRAME_NO_RENORM) == 0u) {
-        float sky = luminance(max(cube ? cube_irradiance(0u, n) : probe_irradiance(0u, n), vec3(0.0)));
-        float ratio = sky > 1e-6 ? clamp(luminance(max(e_probe, vec3(0.0))) / sky, 0.0, 1.0) : 1.0;
-        spec *= ratio;
-    }
+    return pre * (f0 * ab.x + ab.y);
+}
+
+// clamp(lum(E_probe(n)) / lum(E_sky(n)), 0, 1), 1 under SV_FRAME_NO_RENORM.
+float sky_specular_ratio(vec3 n, vec3 e_probe, bool cube) {
+    if ((frame.flags & SV_FRAME_NO_RENORM) != 0u) return 1.0;
+    float sky = luminance(max(cube ? cube_irradiance(0u, n) : probe_irradiance(0u, n), vec3(0.0)));
+    return sky > 1e-6 ? clamp(luminance(max(e_probe, vec3(0.0))) / sky, 0.0, 1.0) : 1.0;
+}
+
+vec3 sky_specular(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, vec3 e_probe, bool cube) {
+    vec3 spec = sky_specular_unscaled(p, n, albedo, metallic, roughness);
+    if ((frame.flags & SV_FRAME_NO_RENORM) == 0u) spec *= sky_specular_ratio(n, e_probe, cube);
     return spec;
 }
 
@@ -466,7 +474,9 @@ float shadow_visibility(sv_gpu_light light, vec3 p, vec3 n, vec3 l) {
 // the surface (probe mode off, or outside every grid) no probe holds the light and it is added.
 // Realtime and mixed lights (spot.z 0 and 2) always add it; one with shadow map layers (spot.w >= 0)
 // is multiplied by shadow_visibility().
-vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, bool probe_lit) {
+// skip_baked / only_baked: the lights summed (the deferred probe pass sums the baked ones apart, to add
+// them where no baked probe lit the pixel).
+vec3 direct_light_of(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, bool skip_baked, bool only_baked) {
     vec3 v = normalize(frame.camera_pos.xyz - p);
     vec3 f0 = mix(vec3(0.04), albedo, metallic);
     float r = clamp(roughness, 0.05, 1.0);
@@ -475,7 +485,8 @@ vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, 
     float specular = (frame.flags & SV_FRAME_NO_SPECULAR) != 0u ? 0.0 : 1.0;
     for (uint i = 0u; i < frame.light_count; ++i) {
         sv_gpu_light light = lights[i];
-        if (probe_lit && abs(light.spot.z - float(SV_LIGHT_BAKED)) < 0.5) continue;
+        bool baked = abs(light.spot.z - float(SV_LIGHT_BAKED)) < 0.5;
+        if ((skip_baked && baked) || (only_baked && !baked)) continue;
         uint type = uint(light.direction_type.w);
         vec3 l;
         float atten = 1.0;
@@ -506,6 +517,10 @@ vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, 
         sum += ((1.0 - metallic) * albedo / SH_PI + specular * f0 * spec) * radiance * nl;
     }
     return sum;
+}
+
+vec3 direct_light(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, bool probe_lit) {
+    return direct_light_of(p, n, albedo, metallic, roughness, probe_lit, false);
 }
 
 #endif

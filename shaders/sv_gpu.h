@@ -78,6 +78,23 @@
 #define SV_BINDING_EMISSIVE_TEX   1
 /* Tone-mapping pass, set 0. */
 #define SV_BINDING_HDR 0
+
+/* The deferred per-pixel probe pass (docs/engine.md "The per-pixel probe pass"): mesh.frag built with
+ * SV_DEFERRED_PROBES writes the HDR target (location 0) and four G-buffer targets; probe_pass.comp
+ * reads them as storage images of set SV_SET_PROBE_PASS and adds the probe terms into the HDR target. */
+#define SV_GBUF_POINT            1 /* RGBA32UI: the surface point's float bits, meta */
+#define SV_GBUF_NORMAL           2 /* RGBA32F: n, the sky specular's r */
+#define SV_GBUF_DIFFUSE          3 /* RGBA32F: albedo * sh_scale / pi, the sky specular's g */
+#define SV_GBUF_BAKED            4 /* RGBA32F: the baked lights' direct light, the sky specular's b */
+#define SV_GBUF_COUNT            4
+#define SV_SET_PROBE_PASS        2   /* binding 0 the HDR target, 1 + i G-buffer target SV_GBUF_POINT + i */
+#define SV_PROBE_PASS_GROUP      8   /* local size x = y */
+#define SV_GBUF_META_PIXEL       1u  /* a per-pixel fragment: the probe pass shades it */
+#define SV_GBUF_META_MOVABLE     2u  /* SV_DRAW_MOVABLE */
+#define SV_GBUF_META_CUBE        4u  /* the ambient-cube representation */
+#define SV_GBUF_META_TETRA       8u  /* SV_DRAW_TETRA: outside every grid, the object's own probe */
+#define SV_GBUF_META_CUBE_ONLY   16u /* SV_DRAW_CUBE_ONLY */
+#define SV_GBUF_META_ENTRY_SHIFT 8u  /* bits 8-31: the object's probe-buffer entry (0: none) */
 /* Specialization constant ids. */
 #define SV_CONSTANT_HALF_PROBES 0 /* bool: probes are read from the half storage */
 /* Vertex inputs (one interleaved buffer: position, normal, uv). */

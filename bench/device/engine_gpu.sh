@@ -74,6 +74,30 @@ if [ "${SET:-shader}" = bricks ]; then
     cat "$LOG"
     exit 0
 fi
+# SET=pass: the per-pixel probe pass (docs/engine.md "The per-pixel probe pass"): per object, per pixel from the
+# bricks in the compute pass and in the fragment shader, per pixel from the buffers in the compute pass, off,
+# and the raster floor, on the three scenes of SET=bricks, current build only; the probe pass's own time is
+# the GPU line's "after the objects' raster" figure.
+if [ "${SET:-shader}" = pass ]; then
+    for r in $(seq "$ROUNDS"); do
+        for sc in room room_v3 bundled/scene; do
+            nosky=
+            [ "$sc" = bundled/scene ] && nosky=--no-sky
+            for cfg in "object buffers compute" "pixel bricks compute" "pixel bricks fragment" \
+                       "pixel buffers compute" "off buffers compute"; do
+                set -- $cfg
+                run "r$r $sc $1-$2-$3" "$S/$sc.gltf" $HD --no-direct $nosky --probe-mode "$1" --probe-path "$2" \
+                    --probe-pass "$3"
+            done
+            run "r$r $sc debug-normals" "$S/$sc.gltf" $HD --no-direct $nosky --debug normals
+        done
+    done
+    "$VIEW" "$S/bundled/scene.gltf" --headless --output "$OUT/frame_bundled.pfm" --width 640 --height 360 \
+        --probe-mode pixel --probe-path bricks --no-sky >>"$LOG" 2>&1
+    rm -f "$OUT/t.pfm"
+    cat "$LOG"
+    exit 0
+fi
 # SET=repr: the probe representations instead (bench_engine_representations.py's configurations on the
 # v1 grid room, --no-direct), current build only.
 if [ "${SET:-shader}" = repr ]; then

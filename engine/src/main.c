@@ -54,6 +54,9 @@ static void usage(FILE *f)
         "  --shader-loops auto|plain|unrolled  the scene shader's channel-group loops: unrolled (GPUs) or plain\n"
         "                           (CPU devices such as lavapipe, where unrolled is slower); default auto by the\n"
         "                           device type (docs/engine.md \"Probe bricks\")\n"
+        "  --probe-pass auto|fragment|compute  where per-pixel probes are shaded: once per pixel in a compute\n"
+        "                           pass after the scene pass (compute; auto = compute) or in the scene pass's\n"
+        "                           fragment shader, every fragment drawn (docs/engine.md \"The per-pixel probe pass\")\n"
         "  --normal-bias B          per-pixel: move the sample point B grid spacings along the normal (default 0)\n"
         "  --shadow-res N           texels per side of each shadow map layer of a mixed/realtime light (a sun:\n"
         "                           one per cascade, a spot: one, a point light: six; default %u; at most %u;\n"
@@ -119,6 +122,7 @@ static const struct {
     {"--move", 4},           {"--frames", 1},
     {"--screenshot", 1},     {"--probe-path", 1},
     {"--brick-view", 1},     {"--shader-loops", 1},
+    {"--probe-pass", 1},
 };
 
 /* The values option `a` takes, 0 when it takes none or is not an option. */
@@ -206,6 +210,11 @@ static int parse_choice(const char *a, const char *v, sv_options *o)
         for (k = 0; k < 3 && strcmp(v, names[k]) != 0; ++k) continue;
         if (k == 3) return bad_value(a, v);
         o->shader_loops = (uint32_t)k;
+    } else if (strcmp(a, "--probe-pass") == 0) {
+        static const char *const names[3] = {"auto", "fragment", "compute"}; /* SV_PROBE_PASS_* */
+        for (k = 0; k < 3 && strcmp(v, names[k]) != 0; ++k) continue;
+        if (k == 3) return bad_value(a, v);
+        o->probe_pass = (uint32_t)k;
     } else {
         return -1;
     }

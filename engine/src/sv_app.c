@@ -128,6 +128,7 @@ sv_renderer_desc sv_app_renderer_desc(const sv_options *opt, const sv_sky *sky)
     d.bricks = opt->bricks;
     d.bricks_required = opt->bricks && opt->bricks_given;
     d.shader_loops = opt->shader_loops;
+    d.probe_pass = opt->probe_pass;
     d.shadow_res = opt->shadow_res;
     d.shadow_cascades = opt->shadow_cascades;
     d.cube_probes = opt->probe_representation == SV_PROBE_REP_AMBIENT_CUBE;

@@ -44,6 +44,7 @@ typedef struct sv_options {
     bool bricks;                   /* --probe-path bricks (default): per-pixel probes from the probe bricks */
     bool bricks_given;             /* --probe-path given (bricks then required: no fallback to buffers) */
     uint32_t shader_loops;         /* --shader-loops: SV_SHADER_LOOPS_* (default auto) */
+    uint32_t probe_pass;           /* --probe-pass: SV_PROBE_PASS_* (default auto) */
     float normal_bias;             /* --normal-bias, grid spacings (default 0) */
     uint32_t shadow_res;           /* --shadow-res, texels per shadow map side (default 2048, 0 = off) */
     uint32_t shadow_cascades;      /* --shadow-cascades, layers per shadowed sun (1..4, default 4) */

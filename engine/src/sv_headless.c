@@ -72,12 +72,12 @@ static void report_times(uint32_t frames, uint32_t w, uint32_t h, double *frame_
             "readback on the last)\n",
             frames, w, h, frame_total / frames, med, frame_min);
     if (!gpu_ms) return;
-    double stage[3];
-    for (int k = 0; k < 3; ++k) stage[k] = median(gpu_ms + (size_t)k * frames, frames);
+    double stage[4];
+    for (int k = 0; k < 4; ++k) stage[k] = median(gpu_ms + (size_t)k * frames, frames);
     fprintf(stderr,
             "schnee-view: GPU time per frame (timestamps, median): shadows %.3f ms, scene %.3f ms, tone map "
-            "%.3f ms, total %.3f ms\n",
-            stage[0], stage[1], stage[2], stage[0] + stage[1] + stage[2]);
+            "%.3f ms, total %.3f ms; of the scene, after the objects' raster (the probe pass) %.3f ms\n",
+            stage[0], stage[1], stage[2], stage[0] + stage[1] + stage[2], stage[3]);
 }
 
 /* Writes the read-back RGBA (float linear, or 8-bit sRGB-encoded bytes) as RGB to `path`. */
@@ -124,15 +124,18 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
         !sv_buffer_create(ctx, (VkDeviceSize)w * h * (linear ? 16 : 4), VK_BUFFER_USAGE_TRANSFER_DST_BIT, true,
                           &readback))
         goto done;
-    fprintf(stderr, "schnee-view: device %s; Vulkan setup %.1f ms, scene upload %.1f ms; shader loops %s\n",
+    fprintf(stderr,
+            "schnee-view: device %s; Vulkan setup %.1f ms, scene upload %.1f ms; shader loops %s; per-pixel probes in "
+            "the %s\n",
             ctx->properties.deviceName, gpu.setup_ms, gpu.upload_ms,
-            gpu.renderer.unrolled_groups ? "unrolled" : "plain");
+            gpu.renderer.unrolled_groups ? "unrolled" : "plain",
+            gpu.renderer.probe_pass ? "probe pass (compute)" : "scene pass (fragment)");
 
     VkCommandBuffer cmd = gpu.cmd;
     uint32_t frames = opt->frames ? opt->frames : 1;
     double frame_total = 0.0, frame_min = 1e30;
     frame_ms = calloc(frames, sizeof *frame_ms); /* for the medians (benchmarks); NULL: none */
-    gpu_ms = calloc((size_t)frames * 3, sizeof *gpu_ms);
+    gpu_ms = calloc((size_t)frames * 4, sizeof *gpu_ms);
     bool gpu_times = gpu_ms != NULL;
     for (uint32_t f = 0; f < frames; ++f) {
         bool last = f + 1 == frames;
@@ -156,9 +159,9 @@ int sv_run_headless(const sv_options *opt, sv_scene *scene, sv_probes *probes, c
         frame_total += ms;
         if (ms < frame_min) frame_min = ms;
         if (frame_ms) frame_ms[f] = ms;
-        double stage[3];
+        double stage[4];
         gpu_times = gpu_times && sv_renderer_gpu_times(&gpu.renderer, stage);
-        for (int k = 0; gpu_times && k < 3; ++k) gpu_ms[(size_t)k * frames + f] = stage[k];
+        for (int k = 0; gpu_times && k < 4; ++k) gpu_ms[(size_t)k * frames + f] = stage[k];
     }
     report_times(frames, w, h, frame_ms, frame_total, frame_min, gpu_times ? gpu_ms : NULL);
     if (!write_output(opt->output, readback.mapped, linear, w, h)) goto done;

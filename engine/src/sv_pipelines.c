@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sv_probe_pass.h"
 #include "sv_upload.h"
 
 /* SPIR-V embedded at build time (glslc -mfmt=c), so the binary runs from any working directory. */
@@ -17,6 +18,10 @@ static const uint32_t mesh_frag_spv[] =
 /* mesh.frag built with SV_UNROLL_GROUPS (shaders/bricks.glsl SV_FOR_GROUPS): GPUs take it (SV_SHADER_LOOPS_*). */
 static const uint32_t mesh_frag_unrolled_spv[] =
 #include "mesh.frag.unrolled.inc"
+    ;
+/* mesh.frag built with SV_DEFERRED_PROBES: the scene pass of the per-pixel probe pass (sv_probe_pass.h). */
+static const uint32_t mesh_frag_deferred_spv[] =
+#include "mesh.frag.deferred.inc"
     ;
 static const uint32_t probe_cells_vert_spv[] =
 #include "probe_cells.vert.inc"
@@ -63,23 +68,26 @@ static const uint32_t shadow_vert_spv[] =
 /* Set 0: the first 11 are buffers (in the order of scene_buffers() below), the last 5 images. */
 enum { SCENE_BUFFERS = 11 };
 #define SV_VF (VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT)
+/* What the probe pass's compute shader reads too (shaders/probe_pass.comp: the frame, the probes, the grids). */
+#define SV_FC  (VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT)
+#define SV_VFC (SV_VF | VK_SHADER_STAGE_COMPUTE_BIT)
 static const VkDescriptorSetLayoutBinding scene_bindings[SV_SCENE_BINDING_COUNT] = {
-    {SV_BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, SV_VF, NULL},
+    {SV_BINDING_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, SV_VFC, NULL},
     {SV_BINDING_MATERIALS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-    {SV_BINDING_PROBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+    {SV_BINDING_PROBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, SV_FC, NULL},
     {SV_BINDING_LIGHTS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     {SV_BINDING_CELLS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT, NULL},
-    {SV_BINDING_GRIDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, SV_VF, NULL},
-    {SV_BINDING_CELL_INDEX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-    {SV_BINDING_PROBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-    {SV_BINDING_CUBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-    {SV_BINDING_CUBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-    {SV_BINDING_BRICK_VIS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+    {SV_BINDING_GRIDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, SV_VFC, NULL},
+    {SV_BINDING_CELL_INDEX, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, SV_FC, NULL},
+    {SV_BINDING_PROBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, SV_FC, NULL},
+    {SV_BINDING_CUBES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, SV_FC, NULL},
+    {SV_BINDING_CUBES_HALF, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, SV_FC, NULL},
+    {SV_BINDING_BRICK_VIS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, SV_FC, NULL},
     {SV_BINDING_SKY, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     {SV_BINDING_BRDF_LUT, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
     {SV_BINDING_SHADOW, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-    {SV_BINDING_BRICK_POOL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
-    {SV_BINDING_BRICK_INDEX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT, NULL},
+    {SV_BINDING_BRICK_POOL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, SV_FC, NULL},
+    {SV_BINDING_BRICK_INDEX, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, SV_FC, NULL},
 };
 /* Set 1, per material: separate sets rather than a sampler array, since lavapipe (and Vulkan 1.0 in
  * general) need not support dynamically indexed sampler arrays. */
@@ -229,8 +237,9 @@ bool sv_pipelines_create_descriptors(sv_renderer *r, const sv_gltf *g)
 /* ---- the pipeline table --------------------------------------------------------------------- */
 
 enum { LAYOUT_SCENE, LAYOUT_TONEMAP, LAYOUT_SHADOW }; /* pipeline_desc.layout */
-enum { TARGET_NONE, TARGET_HDR, TARGET_OUTPUT };      /* pipeline_desc.color */
-enum { DEPTH_NONE, DEPTH_SCENE, DEPTH_SHADOW };       /* pipeline_desc.depth */
+/* pipeline_desc.color; TARGET_GBUF: the HDR target and the probe pass's G-buffer (sv_probe_pass_formats) */
+enum { TARGET_NONE, TARGET_HDR, TARGET_OUTPUT, TARGET_GBUF };
+enum { DEPTH_NONE, DEPTH_SCENE, DEPTH_SHADOW }; /* pipeline_desc.depth */
 
 /* One graphics pipeline: shaders, vertex layout, targets and fixed-function state. Every pipeline
  * has one viewport and scissor (dynamic), fills polygons, and takes glTF's CCW winding: Vulkan
@@ -250,6 +259,7 @@ typedef struct pipeline_desc {
     uint32_t attribute_count; /* vertex attributes read (position, normal, uv: SV_VERTEX_FLOATS), 0 = none */
     VkPrimitiveTopology topology;
     bool half_probes_constant; /* specialised with SV_CONSTANT_HALF_PROBES (the scene's probe storage) */
+    bool gbuf_writes;          /* TARGET_GBUF: the fragment shader writes the G-buffer (else masked off) */
 } pipeline_desc;
 
 #define SV_SPV(name) name##_spv, sizeof(name##_spv)
@@ -269,6 +279,11 @@ static const pipeline_desc pipeline_table[SV_PIPELINE_COUNT] = {
                                   VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST, false},
     [SV_PIPELINE_SKY] = {SV_SPV(sky_vert), SV_SPV(sky_frag), LAYOUT_SCENE, TARGET_HDR, DEPTH_SCENE, false, false,
                          VK_CULL_MODE_NONE, 0, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST, true},
+    [SV_PIPELINE_MESH_DEFERRED] = {SV_SPV(mesh_vert), SV_SPV(mesh_frag_deferred), LAYOUT_SCENE, TARGET_GBUF,
+                                   DEPTH_SCENE, true, false, VK_CULL_MODE_NONE, 3, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
+                                   true, true},
+    [SV_PIPELINE_SKY_DEFERRED] = {SV_SPV(sky_vert), SV_SPV(sky_frag), LAYOUT_SCENE, TARGET_GBUF, DEPTH_SCENE, false,
+                                  false, VK_CULL_MODE_NONE, 0, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST, true, false},
     [SV_PIPELINE_TONEMAP] = {SV_SPV(fullscreen_vert), SV_SPV(tonemap_frag), LAYOUT_TONEMAP, TARGET_OUTPUT, DEPTH_NONE,
                              false, false, VK_CULL_MODE_NONE, 0, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST, false},
     [SV_PIPELINE_SHADOW] = {SV_SPV(shadow_vert), SV_NO_SPV, LAYOUT_SHADOW, TARGET_NONE, DEPTH_SHADOW, true, false,
@@ -314,13 +329,13 @@ typedef struct fixed_state {
     VkPipelineRasterizationStateCreateInfo rs;
     VkPipelineMultisampleStateCreateInfo ms;
     VkPipelineDepthStencilStateCreateInfo ds;
-    VkPipelineColorBlendAttachmentState blend;
+    VkPipelineColorBlendAttachmentState blend[1 + SV_GBUF_COUNT];
     VkPipelineColorBlendStateCreateInfo cb;
     VkDynamicState dyn[2];
     VkPipelineDynamicStateCreateInfo dy;
 } fixed_state;
 
-static void fill_fixed_state(const pipeline_desc *d, bool has_color, bool has_depth, fixed_state *s)
+static void fill_fixed_state(const pipeline_desc *d, uint32_t colors, bool has_depth, fixed_state *s)
 {
     s->ia = (VkPipelineInputAssemblyStateCreateInfo){
         .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO, .topology = d->topology};
@@ -343,9 +358,11 @@ static void fill_fixed_state(const pipeline_desc *d, bool has_color, bool has_de
         .depthWriteEnable = has_depth && d->depth_test,
         .depthCompareOp = VK_COMPARE_OP_LESS,
     };
-    s->blend = (VkPipelineColorBlendAttachmentState){.colorWriteMask = 0xF};
+    s->blend[0] = (VkPipelineColorBlendAttachmentState){.colorWriteMask = 0xF};
+    for (uint32_t i = 1; i < colors; ++i)
+        s->blend[i] = (VkPipelineColorBlendAttachmentState){.colorWriteMask = d->gbuf_writes ? 0xF : 0u};
     if (d->blend)
-        s->blend = (VkPipelineColorBlendAttachmentState){
+        s->blend[0] = (VkPipelineColorBlendAttachmentState){
             .blendEnable = VK_TRUE,
             .srcColorBlendFactor = VK_BLEND_FACTOR_SRC_ALPHA,
             .dstColorBlendFactor = VK_BLEND_FACTOR_ONE_MINUS_SRC_ALPHA,
@@ -357,8 +374,8 @@ static void fill_fixed_state(const pipeline_desc *d, bool has_color, bool has_de
         };
     s->cb = (VkPipelineColorBlendStateCreateInfo){
         .sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
-        .attachmentCount = has_color ? 1 : 0,
-        .pAttachments = &s->blend,
+        .attachmentCount = colors,
+        .pAttachments = s->blend,
     };
     s->dyn[0] = VK_DYNAMIC_STATE_VIEWPORT;
     s->dyn[1] = VK_DYNAMIC_STATE_SCISSOR;
@@ -372,10 +389,16 @@ static VkPipeline create_pipeline(sv_renderer *r, const pipeline_desc *d, const 
 {
     sv_context *ctx = r->ctx;
     VkPipeline pipe = VK_NULL_HANDLE;
-    const VkFormat colors[] = {VK_FORMAT_UNDEFINED, r->hdr_format, r->output_format};
+    const VkFormat colors[] = {VK_FORMAT_UNDEFINED, r->hdr_format, r->output_format, r->hdr_format};
     const VkFormat depths[] = {VK_FORMAT_UNDEFINED, r->depth_format, r->shadow_format};
     const VkPipelineLayout layouts[] = {r->scene_layout, r->tonemap_layout, r->shadow_layout};
-    VkFormat color = colors[d->color], depth = depths[d->depth];
+    VkFormat depth = depths[d->depth];
+    VkFormat color[1 + SV_GBUF_COUNT] = {colors[d->color]};
+    uint32_t color_count = d->color == TARGET_NONE ? 0u : 1u;
+    if (d->color == TARGET_GBUF) {
+        for (uint32_t i = 0; i < SV_GBUF_COUNT; ++i) color[1 + i] = sv_probe_pass_formats()[i];
+        color_count = 1 + SV_GBUF_COUNT;
+    }
     const VkSpecializationInfo *sp = d->half_probes_constant ? spec : NULL;
     VkShaderModule vs = sv_shader_module(ctx, d->vs, d->vs_size);
     VkShaderModule fs = d->fs ? sv_shader_module(ctx, d->fs, d->fs_size) : VK_NULL_HANDLE;
@@ -406,11 +429,11 @@ static VkPipeline create_pipeline(sv_renderer *r, const pipeline_desc *d, const 
         vi.pVertexAttributeDescriptions = attrs;
     }
     fixed_state s;
-    fill_fixed_state(d, color != VK_FORMAT_UNDEFINED, depth != VK_FORMAT_UNDEFINED, &s);
+    fill_fixed_state(d, color_count, depth != VK_FORMAT_UNDEFINED, &s);
     VkPipelineRenderingCreateInfo rendering = {
         .sType = VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO,
-        .colorAttachmentCount = color != VK_FORMAT_UNDEFINED ? 1 : 0,
-        .pColorAttachmentFormats = &color,
+        .colorAttachmentCount = color_count,
+        .pColorAttachmentFormats = color,
         .depthAttachmentFormat = depth,
     };
     VkGraphicsPipelineCreateInfo info = {
@@ -443,6 +466,7 @@ bool sv_pipelines_create(sv_renderer *r)
     VkSpecializationInfo spec = {1, &entry, sizeof(half), &half};
     for (uint32_t i = 0; i < SV_PIPELINE_COUNT; ++i) {
         if (pipeline_table[i].layout == LAYOUT_SHADOW && !r->shadow_count) continue; /* no shadow pass */
+        if (pipeline_table[i].color == TARGET_GBUF && !r->probe_pass) continue;      /* no probe pass */
         pipeline_desc d = pipeline_table[i];
         if (i == SV_PIPELINE_MESH && r->unrolled_groups) {
             d.fs = mesh_frag_unrolled_spv;

@@ -10,6 +10,7 @@
 #include "sv_bricks.h"
 #include "sv_math.h"
 #include "sv_pipelines.h"
+#include "sv_probe_pass.h"
 #include "sv_shadows.h"
 #include "sv_upload.h"
 
@@ -65,10 +66,18 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
         return false;
     if (!sv_buffer_create(ctx, sizeof(sv_gpu_frame), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true, &r->frame)) return false;
     r->material_count = g->material_count + 1;
-    return sv_pipelines_create_descriptors(r, g) && sv_pipelines_create(r) && create_timestamps(r);
+    /* The probe pass where per-pixel probes can be asked for: a grid to sample (docs/engine.md "The per-pixel
+     * probe pass"); --probe-mode material takes it when a material or node asks for per pixel. */
+    r->probe_pass = desc->probe_pass != SV_PROBE_PASS_FRAGMENT && r->grid_count > 0;
+    for (uint32_t m = 0; m < g->material_count; ++m)
+        r->pixel_modes |= scene->ext.materials[m].probe_mode == SV_PROBE_MODE_PIXEL;
+    for (uint32_t o = 0; o < scene->object_count; ++o)
+        r->pixel_modes |= scene->objects[o].probe_mode == SV_PROBE_MODE_PIXEL;
+    return sv_pipelines_create_descriptors(r, g) && (!r->probe_pass || sv_probe_pass_create(r)) &&
+           sv_pipelines_create(r) && create_timestamps(r);
 }
 
-bool sv_renderer_gpu_times(sv_renderer *r, double ms[3])
+bool sv_renderer_gpu_times(sv_renderer *r, double ms[4])
 {
     uint64_t t[SV_TIMESTAMPS];
     if (!r->timestamps || vkGetQueryPoolResults(r->ctx->device, r->timestamps, 0, SV_TIMESTAMPS, sizeof t, t,
@@ -76,6 +85,7 @@ bool sv_renderer_gpu_times(sv_renderer *r, double ms[3])
         return false;
     double period_ms = r->ctx->properties.limits.timestampPeriod * 1e-6;
     for (int k = 0; k < 3; ++k) ms[k] = (double)((t[k + 1] - t[k]) & r->timestamp_mask) * period_ms;
+    ms[3] = (double)((t[2] - t[4]) & r->timestamp_mask) * period_ms;
     return true;
 }
 
@@ -87,13 +97,14 @@ bool sv_renderer_resize(sv_renderer *r, uint32_t width, uint32_t height)
     sv_image_destroy(ctx, &r->depth);
     if (!sv_image_create(ctx, width, height, r->hdr_format,
                          VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
-                             VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                             VK_IMAGE_USAGE_TRANSFER_SRC_BIT | (r->probe_pass ? VK_IMAGE_USAGE_STORAGE_BIT : 0u),
                          VK_IMAGE_ASPECT_COLOR_BIT, &r->hdr) ||
         !sv_image_create(ctx, width, height, r->depth_format, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
                          VK_IMAGE_ASPECT_DEPTH_BIT, &r->depth))
         return false;
     r->width = width;
     r->height = height;
+    if (!sv_probe_pass_resize(r)) return false;
     VkDescriptorImageInfo img = {r->hdr_sampler, r->hdr.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
     VkWriteDescriptorSet w = {
         .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
@@ -186,8 +197,10 @@ static void fill_frame(const sv_renderer *r, const sv_scene *scene, const sv_vie
     if (shadows) sv_shadows_fit(r, scene, view, frame);
 }
 
-/* The HDR target and depth to attachments, cleared (black, alpha 0; depth 1), rendering begun. */
-static void begin_scene_pass(const sv_renderer *r, VkCommandBuffer cmd)
+/* The HDR target and depth to attachments, cleared (black, alpha 0; depth 1), rendering begun; with
+ * `deferred` the probe pass's G-buffer too (sv_probe_pass_begin); `keep_depth`: the depth is stored for a
+ * later rendering (the probe view after the probe pass). */
+static void begin_scene_pass(const sv_renderer *r, VkCommandBuffer cmd, bool deferred, bool keep_depth)
 {
     sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                      VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
@@ -199,21 +212,55 @@ static void begin_scene_pass(const sv_renderer *r, VkCommandBuffer cmd)
                      VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT,
                      VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT,
                      VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
-    VkRenderingAttachmentInfo color = {
+    VkRenderingAttachmentInfo color[1 + SV_GBUF_COUNT] = {{
         .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
         .imageView = r->hdr.view,
         .imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
         .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
         .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
         .clearValue.color = {{0.0f, 0.0f, 0.0f, 0.0f}}, /* background is black, alpha 0 */
-    };
+    }};
+    if (deferred) sv_probe_pass_begin(r, cmd, color + 1);
     VkRenderingAttachmentInfo depth = {
         .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
         .imageView = r->depth.view,
         .imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
         .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
-        .storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
+        .storeOp = keep_depth ? VK_ATTACHMENT_STORE_OP_STORE : VK_ATTACHMENT_STORE_OP_DONT_CARE,
         .clearValue.depthStencil = {1.0f, 0},
+    };
+    VkRenderingInfo ri = {
+        .sType = VK_STRUCTURE_TYPE_RENDERING_INFO,
+        .renderArea = {{0, 0}, {r->width, r->height}},
+        .layerCount = 1,
+        .colorAttachmentCount = deferred ? 1 + SV_GBUF_COUNT : 1,
+        .pColorAttachments = color,
+        .pDepthAttachment = &depth,
+    };
+    vkCmdBeginRendering(cmd, &ri);
+    set_viewport(r, cmd);
+}
+
+/* After the probe pass: the HDR target and depth as they are, for the probe view drawn over them. */
+static void resume_scene_pass(const sv_renderer *r, VkCommandBuffer cmd)
+{
+    sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_GENERAL,
+                     VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                     VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT,
+                     VK_ACCESS_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT);
+    VkRenderingAttachmentInfo color = {
+        .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
+        .imageView = r->hdr.view,
+        .imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+        .loadOp = VK_ATTACHMENT_LOAD_OP_LOAD,
+        .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
+    };
+    VkRenderingAttachmentInfo depth = {
+        .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
+        .imageView = r->depth.view,
+        .imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+        .loadOp = VK_ATTACHMENT_LOAD_OP_LOAD,
+        .storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
     };
     VkRenderingInfo ri = {
         .sType = VK_STRUCTURE_TYPE_RENDERING_INFO,
@@ -227,11 +274,12 @@ static void begin_scene_pass(const sv_renderer *r, VkCommandBuffer cmd)
     set_viewport(r, cmd);
 }
 
-/* Every primitive of every object with its material's set 1 (rebound only when it changes from
+/* Every primitive of every object (with `pipeline`, the mesh's or the probe pass's) with its material's set 1 (rebound only when it changes from
  * `bound_material`), transform, normal matrix, probe and flags. */
-static void draw_objects(const sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene, uint32_t bound_material)
+static void draw_objects(const sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene, uint32_t bound_material,
+                         sv_pipeline_id pipeline)
 {
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->pipelines[SV_PIPELINE_MESH]);
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->pipelines[pipeline]);
     VkDeviceSize zero = 0;
     vkCmdBindVertexBuffers(cmd, 0, 1, &r->vertices.buffer, &zero);
     vkCmdBindIndexBuffer(cmd, r->indices.buffer, 0, VK_INDEX_TYPE_UINT32);
@@ -295,11 +343,14 @@ static void draw_probe_view(const sv_renderer *r, VkCommandBuffer cmd, const sv_
     }
 }
 
-/* The scene pass into the HDR target: the sky (shaded view only), the objects, the probe view; the
- * target ends shader-readable for the tone map. */
+/* The scene pass into the HDR target: the sky (shaded view only), the objects, with the probe pass the
+ * dispatch that adds the per-pixel probe terms (sv_probe_pass.h), the probe view; the target ends
+ * shader-readable for the tone map. Timestamp 4 after the objects, 2 at the end. */
 static void record_scene_pass(const sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scene, const sv_view *view)
 {
-    begin_scene_pass(r, cmd);
+    bool deferred = sv_probe_pass_active(r, view);
+    bool cells = view->show_cells && r->sphere_count + r->outline_count + sv_brick_view_count(r);
+    begin_scene_pass(r, cmd, deferred, deferred && cells);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->scene_layout, SV_SET_SCENE, 1, &r->scene_set, 0,
                             NULL);
     /* Set 1 must be bound for every pipeline of this layout: the default material's set. */
@@ -309,17 +360,34 @@ static void record_scene_pass(const sv_renderer *r, VkCommandBuffer cmd, const s
         sv_gpu_draw none = {0};
         vkCmdPushConstants(cmd, r->scene_layout, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
                            sizeof(none), &none);
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r->pipelines[SV_PIPELINE_SKY]);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
+                          r->pipelines[deferred ? SV_PIPELINE_SKY_DEFERRED : SV_PIPELINE_SKY]);
         vkCmdDraw(cmd, 3, 1, 0, 0);
     }
-    draw_objects(r, cmd, scene, r->material_count - 1);
-    if (view->show_cells && r->sphere_count + r->outline_count + sv_brick_view_count(r)) draw_probe_view(r, cmd, view);
+    draw_objects(r, cmd, scene, r->material_count - 1, deferred ? SV_PIPELINE_MESH_DEFERRED : SV_PIPELINE_MESH);
+    if (cells && !deferred) draw_probe_view(r, cmd, view);
     vkCmdEndRendering(cmd);
+    if (r->timestamps) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, r->timestamps, 4);
+    VkImageLayout layout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    VkPipelineStageFlags stage = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
+    VkAccessFlags access = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
+    if (deferred) {
+        sv_probe_pass_record(r, cmd);
+        layout = VK_IMAGE_LAYOUT_GENERAL;
+        stage = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT;
+        access = VK_ACCESS_SHADER_WRITE_BIT;
+        if (cells) {
+            resume_scene_pass(r, cmd);
+            draw_probe_view(r, cmd, view);
+            vkCmdEndRendering(cmd);
+            layout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+            stage = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
+            access = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
+        }
+    }
     if (r->timestamps) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, r->timestamps, 2);
-    sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
-                     VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT,
-                     VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT,
-                     VK_ACCESS_SHADER_READ_BIT);
+    sv_image_barrier(cmd, r->hdr.image, VK_IMAGE_ASPECT_COLOR_BIT, layout, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+                     stage, access, VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
 }
 
 /* The tone-map pass: the HDR target through exposure, operator and sRGB into the output image,
@@ -388,6 +456,7 @@ void sv_renderer_destroy(sv_renderer *r)
     VkDevice dev = ctx->device;
     vkDeviceWaitIdle(dev);
     if (r->timestamps) vkDestroyQueryPool(dev, r->timestamps, NULL);
+    sv_probe_pass_destroy(r);
     sv_pipelines_destroy(r);
     sv_shadows_destroy(r);
     sv_bricks_destroy(r);

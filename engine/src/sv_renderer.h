@@ -60,6 +60,7 @@ typedef struct sv_renderer_desc {
     bool bricks_required;     /* asked for explicitly: a brick set the device cannot hold is an error (exit 1);
                                  else a warning and the storage buffers */
     uint32_t shader_loops;    /* --shader-loops: SV_SHADER_LOOPS_* (default AUTO) */
+    uint32_t probe_pass;      /* --probe-pass: SV_PROBE_PASS_* (default AUTO), sv_probe_pass.h */
     bool probe_view;          /* the probe view may be drawn in this run (--probe-view, --brick-view, or the
                                  window, whose C and B keys turn it on): its spheres read the file's probes and
                                  the cell buffer, so they are uploaded (docs/engine.md "Probe buffers") */
@@ -68,6 +69,9 @@ typedef struct sv_renderer_desc {
  * loops on a GPU, the plain loops on a CPU device (lavapipe), where the unrolled ones cost 1.6-1.9x. */
 enum { SV_SHADER_LOOPS_AUTO, SV_SHADER_LOOPS_PLAIN, SV_SHADER_LOOPS_UNROLLED };
 bool sv_shader_loops_unrolled(uint32_t shader_loops, VkPhysicalDeviceType type);
+/* Where per-pixel probes are shaded (docs/engine.md "The per-pixel probe pass"): AUTO = COMPUTE; FRAGMENT = in
+ * the scene pass's fragment shader, every fragment drawn; COMPUTE = the deferred probe pass, once per pixel. */
+enum { SV_PROBE_PASS_AUTO, SV_PROBE_PASS_FRAGMENT, SV_PROBE_PASS_COMPUTE };
 #define SV_SHADOW_DEFAULT_RES 2048u
 #define SV_SHADOW_MAX_RES     8192u
 #define SV_RENDERER_DESC_DEFAULT                                                                                       \
@@ -85,6 +89,8 @@ typedef enum sv_pipeline_id {
     SV_PIPELINE_BRICK_OUTLINE, /* brick view: a brick's region outline (sv_brick_view.h) */
     SV_PIPELINE_BRICK_TEXELS,  /* brick view: a brick's texels as spheres */
     SV_PIPELINE_SKY,           /* the background, behind everything */
+    SV_PIPELINE_MESH_DEFERRED, /* the objects into the HDR target and the G-buffer (sv_probe_pass.h) */
+    SV_PIPELINE_SKY_DEFERRED,  /* the background, with the G-buffer attached (not written) */
     SV_PIPELINE_TONEMAP,       /* HDR target -> output image */
     SV_PIPELINE_SHADOW,        /* depth only, into a shadow map layer (only with shadowed lights) */
     SV_PIPELINE_COUNT
@@ -152,6 +158,17 @@ typedef struct sv_renderer {
     sv_image hdr, depth;
     uint32_t width, height;
 
+    /* The deferred per-pixel probe pass (sv_probe_pass.h): on unless --probe-pass fragment or the device
+     * lacks the attachments; the G-buffer at the targets' size, the compute pipeline and its set. */
+    bool probe_pass;
+    bool pixel_modes; /* a material or node asks for per-pixel probes (for --probe-mode material) */
+    sv_image gbuf[SV_GBUF_COUNT];
+    VkDescriptorSetLayout probe_pass_set_layout;
+    VkDescriptorPool probe_pass_pool;
+    VkDescriptorSet probe_pass_set;
+    VkPipelineLayout probe_pass_layout;
+    VkPipeline probe_pass_pipeline;
+
     /* Shadow maps (docs/engine.md "Shadows"): one depth layer per cascade of a shadowed directional
      * light and per spot light, six per point light (a 1x1 single layer, never rendered, when none),
      * rendered at the start of every frame. */
@@ -171,12 +188,14 @@ typedef struct sv_renderer {
     uint64_t timestamp_mask; /* the queue's timestampValidBits as a mask */
 } sv_renderer;
 
-#define SV_TIMESTAMPS 4
+#define SV_TIMESTAMPS 5
 
 /* The GPU time of the last frame's stages in ms (timestamps; wait for the frame's fence first):
  * ms[0] shadow maps (with the probes' slot upload and mask retrace before them), ms[1] the scene pass
- * (sky, meshes, cells), ms[2] tone mapping to the output. False where the queue has no timestamps. */
-bool sv_renderer_gpu_times(sv_renderer *r, double ms[3]);
+ * (sky, meshes, the probe pass, cells), ms[2] tone mapping to the output, ms[3] the part of ms[1] from the
+ * end of the objects' raster to the end of the scene pass: the probe pass's dispatch (and the probe view
+ * after it), 0 without. False where the queue has no timestamps. */
+bool sv_renderer_gpu_times(sv_renderer *r, double ms[4]);
 
 /* Uploads the scene (geometry, materials, textures, lights) and the probes, builds pipelines for
  * `output_format`. Prints a clear message and returns false on failure (call destroy anyway). */

@@ -203,13 +203,21 @@ bool sv_create_device(sv_context *ctx)
         .queueCount = 1,
         .pQueuePriorities = &priority,
     };
+    /* Optional features, enabled where the device has them: independent blend and maintenance4 (the
+     * compute shader's LocalSizeId, SPIR-V 1.6) for the probe pass (sv_probe_pass.h). */
+    VkPhysicalDeviceVulkan13Features has13 = {.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+    VkPhysicalDeviceFeatures2 has = {.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, .pNext = &has13};
+    vkGetPhysicalDeviceFeatures2(ctx->physical, &has);
+    ctx->probe_pass_features = has.features.independentBlend && has13.maintenance4;
     VkPhysicalDeviceVulkan13Features v13 = {
         .sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES,
         .dynamicRendering = VK_TRUE,
+        .maintenance4 = ctx->probe_pass_features,
     };
     VkPhysicalDeviceFeatures2 features = {
         .sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2,
         .pNext = &v13,
+        .features.independentBlend = ctx->probe_pass_features,
     };
     const char *swapchain_ext = VK_KHR_SWAPCHAIN_EXTENSION_NAME;
     VkDeviceCreateInfo info = {

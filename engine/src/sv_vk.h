@@ -39,6 +39,7 @@ typedef struct sv_context {
     VkQueue queue;
     VkCommandPool command_pool;
     bool validation;            /* VK_LAYER_KHRONOS_validation enabled */
+    bool probe_pass_features;   /* independentBlend and maintenance4 enabled (the probe pass, sv_probe_pass.h) */
     uint32_t validation_errors; /* counted by the debug messenger */
     uint32_t validation_warnings;
 } sv_context;

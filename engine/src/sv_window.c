@@ -319,7 +319,7 @@ static int draw_frame(sv_window *w, const sv_options *opt, sv_scene *scene, sv_p
     sv_input_update(&w->input, dt, &w->view, scene, probes);
     update_title(w, scene, now);
     VK_CHECK(vkWaitForFences(ctx->device, 1, &w->gpu.fence, VK_TRUE, UINT64_MAX));
-    double stage[3]; /* the previous frame is done: its GPU time, smoothed like the frame time */
+    double stage[4]; /* the previous frame is done: its GPU time, smoothed like the frame time */
     if (w->frame > 0 && sv_renderer_gpu_times(&w->gpu.renderer, stage)) {
         double g = stage[0] + stage[1] + stage[2];
         w->gpu_avg = w->gpu_avg > 0.0 ? 0.9 * w->gpu_avg + 0.1 * g : g;

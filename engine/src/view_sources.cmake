@@ -12,6 +12,7 @@ set(SV_VIEW_SOURCES
   src/sv_shadows.c
   src/sv_shadow_math.c
   src/sv_pipelines.c
+  src/sv_probe_pass.c
   src/sv_input.c
   src/sv_headless.c
   src/sv_window.c
