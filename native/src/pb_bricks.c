@@ -369,12 +369,18 @@ static pb_result build_records(build *B, const pb_bricks_desc *d, const uint8_t 
     return PB_SUCCESS;
 }
 
+/* At most PB_BRICKS_POOL_SIDE bricks along x and y, as few layers in z as hold them, then as few rows in y,
+ * then as few columns in x: fewer than y · z slots stay empty (the cube of the old rule left up to 22 % of
+ * the pool empty on the generated room's 50 bricks; this one none). */
 static void pool_layout(pb_bricks *b)
 {
-    uint32_t n = b->brick_count, p = 0;
-    while ((uint64_t)p * p * p < n) p++;
-    b->pool_bricks[0] = b->pool_bricks[1] = p;
-    b->pool_bricks[2] = p ? (uint32_t)(((uint64_t)n + (uint64_t)p * p - 1u) / ((uint64_t)p * p)) : 0;
+    uint64_t n = b->brick_count, s = PB_BRICKS_POOL_SIDE;
+    uint64_t z = (n + s * s - 1u) / (s * s);
+    uint64_t y = z ? (n + s * z - 1u) / (s * z) : 0;
+    uint64_t x = y ? (n + y * z - 1u) / (y * z) : 0;
+    b->pool_bricks[0] = (uint32_t)x;
+    b->pool_bricks[1] = (uint32_t)y;
+    b->pool_bricks[2] = (uint32_t)z;
 }
 
 pb_result pb_bricks_build(const pb_bricks_desc *desc, pb_bricks **out, pb_error *err)

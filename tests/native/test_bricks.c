@@ -271,6 +271,12 @@ static void test_pool_layout(void)
     TU_CHECK_EQ_INT(in.channels, 28);
     TU_CHECK_EQ_INT(in.groups, 7);
     TU_CHECK((uint64_t)in.pool_bricks[0] * in.pool_bricks[1] * in.pool_bricks[2] >= in.brick_count);
+    /* The layout rule (pb_bricks.h): at most 51 along x and y, the fewest z layers, then y rows, then x columns,
+     * so fewer than y·z slots stay empty. */
+    const uint64_t X = in.pool_bricks[0], Y = in.pool_bricks[1], Z = in.pool_bricks[2], nb = in.brick_count;
+    TU_CHECK(X <= PB_BRICKS_POOL_SIDE && Y <= PB_BRICKS_POOL_SIDE);
+    TU_CHECK_EQ_INT(Z, (nb + 51 * 51 - 1) / (51 * 51));
+    TU_CHECK(X * Y * Z - nb < Y * Z && (X - 1) * Y * Z < nb && X * (Y - 1) * Z < nb);
     uint64_t px = in.pool_texels[0], py = in.pool_texels[1], pz = in.pool_texels[2], n = px * py * pz * 4 * in.groups;
     float *f = malloc(n * sizeof *f);
     uint16_t *h = malloc(n * sizeof *h);

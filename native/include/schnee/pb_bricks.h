@@ -33,9 +33,10 @@
  *   - Channels at the file's band, C = coeff_count: channel 0–2 = N_0 (RGB), 3 = D, then N_1 … N_{C−1}
  *     RGB consecutively; channels = 3C + 1, groups = ceil(channels / 4) RGBA textures (unused channels
  *     of the last group are 0). L2: 28 channels, 7 groups.
- *   - Pool: bricks side by side on a grid of pool_bricks[0] × [1] × [2] bricks (the smallest cube side
- *     p with p³ ≥ brick_count on x and y, then as few layers in z as hold them); brick b's texel origin
- *     is 5 · (b mod p, (b / p) mod p, b / p²). Texels of the pool past the last brick are 0.
+ *   - Pool: bricks side by side on a grid of pool_bricks[0] × [1] × [2] = X × Y × Z bricks: Z = the
+ *     fewest layers of PB_BRICKS_POOL_SIDE² bricks that hold them, then Y = the fewest rows of
+ *     PB_BRICKS_POOL_SIDE, X = the fewest columns (fewer than Y · Z slots stay empty); brick b's texel
+ *     origin is 5 · (b mod X, (b / X) mod Y, b / (X Y)). Texels of the pool past the last brick are 0.
  *   - Indirection: one RGBA32UI entry per level-0 region (4³ min cells), ceil(E/4) per axis, x fastest:
  *     x = brick | level << 27 (PB_BRICKS_NONE = no brick), y / z = the occupancy bits of the region's
  *     64 unit cells (bit i + 4j + 16k, bits 0–31 in y, 32–63 in z: a leaf holds that min cell), w = 0.
@@ -65,6 +66,8 @@ extern "C" {
 #define PB_BRICK_TEXELS             125u                 /* B³ */
 #define PB_BRICKS_INDEX_BITS        27u                  /* indirection x: brick index bits, then the level */
 #define PB_BRICKS_MAX               (UINT32_C(1) << 27)  /* bricks one pool may hold */
+#define PB_BRICKS_POOL_SIDE         51u /* pool bricks along x and y at most: 255 texels, within Vulkan's minimum
+                                           maxImageDimension3D (256) */
 #define PB_BRICKS_NONE              UINT32_C(0xFFFFFFFF) /* indirection x of a region without a brick */
 #define PB_BRICKS_MARGIN            0.01                 /* min cells: the lattice's and the faces' margin */
 #define PB_BRICKS_MAX_COEFFS        25u                  /* L4 */
