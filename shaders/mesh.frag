@@ -12,6 +12,12 @@ layout(location = 1) in vec3 v_normal;
 layout(location = 2) in vec2 v_uv;
 
 layout(location = 0) out vec4 out_color;
+// Builds without the per-pixel grid lookup (docs/engine.md "The per-pixel probe pass"): SV_DEFERRED_PROBES, the
+// scene pass of a frame with the probe pass; SV_LEAN_SCENE, the scene pass of a frame where no fragment asks
+// for per-pixel probes (a per-pixel mode there takes the object's probe: the renderer never draws one).
+#if defined(SV_DEFERRED_PROBES) || defined(SV_LEAN_SCENE)
+#define SV_SCENE_NO_GRIDS
+#endif
 #ifdef SV_DEFERRED_PROBES
 // The deferred probe pass (docs/engine.md "The per-pixel probe pass"): a per-pixel fragment writes its
 // colour without the terms E decides and what probe_pass.comp needs to add them; any other fragment its
@@ -97,7 +103,7 @@ void main() {
     bool probe_lit; // E came from a baked probe rather than the fallback probe 0 (for baked lights)
     // Per pixel, a fragment no octree or dense grid holds takes the object's own probe when that was
     // interpolated from tetrahedra (no GPU point location for them), else the fallback probe 0.
-#ifndef SV_DEFERRED_PROBES
+#ifndef SV_SCENE_NO_GRIDS
     if (mode == SV_PROBE_MODE_PIXEL)
         probe_lit = grid_irradiance(v_world, n, cube, (draw.flags & SV_DRAW_MOVABLE) != 0u, e_probe);
     if (mode != SV_PROBE_MODE_PIXEL || (!probe_lit && (draw.flags & SV_DRAW_TETRA) != 0u)) {

@@ -23,6 +23,10 @@ static const uint32_t mesh_frag_unrolled_spv[] =
 static const uint32_t mesh_frag_deferred_spv[] =
 #include "mesh.frag.deferred.inc"
     ;
+/* mesh.frag built with SV_LEAN_SCENE: the scene pass of a frame where no fragment asks for per-pixel probes. */
+static const uint32_t mesh_frag_lean_spv[] =
+#include "mesh.frag.lean.inc"
+    ;
 static const uint32_t probe_cells_vert_spv[] =
 #include "probe_cells.vert.inc"
     ;
@@ -282,6 +286,8 @@ static const pipeline_desc pipeline_table[SV_PIPELINE_COUNT] = {
     [SV_PIPELINE_MESH_DEFERRED] = {SV_SPV(mesh_vert), SV_SPV(mesh_frag_deferred), LAYOUT_SCENE, TARGET_GBUF,
                                    DEPTH_SCENE, true, false, VK_CULL_MODE_NONE, 3, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST,
                                    true, true},
+    [SV_PIPELINE_MESH_LEAN] = {SV_SPV(mesh_vert), SV_SPV(mesh_frag_lean), LAYOUT_SCENE, TARGET_HDR, DEPTH_SCENE, true,
+                               false, VK_CULL_MODE_NONE, 3, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST, true},
     [SV_PIPELINE_SKY_DEFERRED] = {SV_SPV(sky_vert), SV_SPV(sky_frag), LAYOUT_SCENE, TARGET_GBUF, DEPTH_SCENE, false,
                                   false, VK_CULL_MODE_NONE, 0, VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST, true, false},
     [SV_PIPELINE_TONEMAP] = {SV_SPV(fullscreen_vert), SV_SPV(tonemap_frag), LAYOUT_TONEMAP, TARGET_OUTPUT, DEPTH_NONE,
@@ -467,6 +473,7 @@ bool sv_pipelines_create(sv_renderer *r)
     for (uint32_t i = 0; i < SV_PIPELINE_COUNT; ++i) {
         if (pipeline_table[i].layout == LAYOUT_SHADOW && !r->shadow_count) continue; /* no shadow pass */
         if (pipeline_table[i].color == TARGET_GBUF && !r->probe_pass) continue;      /* no probe pass */
+        if (i == SV_PIPELINE_MESH_LEAN && !r->lean_scene) continue;                  /* --probe-pass fragment */
         pipeline_desc d = pipeline_table[i];
         if (i == SV_PIPELINE_MESH && r->unrolled_groups) {
             d.fs = mesh_frag_unrolled_spv;

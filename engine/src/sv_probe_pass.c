@@ -117,6 +117,13 @@ bool sv_probe_pass_active(const sv_renderer *r, const sv_view *view)
     return view->probe_mode == SV_PROBE_MODE_PIXEL || (view->probe_mode == SV_PROBE_MODE_MATERIAL && r->pixel_modes);
 }
 
+bool sv_probe_pass_lean(const sv_renderer *r, const sv_view *view)
+{
+    if (view->debug_mode != SV_DEBUG_NONE) return false;
+    return view->probe_mode == SV_PROBE_MODE_OFF || view->probe_mode == SV_PROBE_MODE_OBJECT ||
+           (view->probe_mode == SV_PROBE_MODE_MATERIAL && !r->pixel_modes);
+}
+
 void sv_probe_pass_begin(const sv_renderer *r, VkCommandBuffer cmd, VkRenderingAttachmentInfo att[SV_GBUF_COUNT])
 {
     for (uint32_t i = 0; i < SV_GBUF_COUNT; ++i) {

@@ -24,6 +24,9 @@ bool sv_probe_pass_resize(sv_renderer *r);
 /* Whether this frame's scene pass takes the deferred path: the pass is on, the view is shaded (no debug
  * view) and some fragment can ask for per-pixel probes. */
 bool sv_probe_pass_active(const sv_renderer *r, const sv_view *view);
+/* Whether no fragment of this frame can ask for per-pixel probes and it is shaded (no debug view): the scene
+ * pass may take the shader without the grid lookup (SV_PIPELINE_MESH_LEAN). */
+bool sv_probe_pass_lean(const sv_renderer *r, const sv_view *view);
 /* The G-buffer targets to attachments (cleared where read: the point target's meta is 0 elsewhere). */
 void sv_probe_pass_begin(const sv_renderer *r, VkCommandBuffer cmd, VkRenderingAttachmentInfo att[SV_GBUF_COUNT]);
 /* After the scene pass: the dispatch over the HDR target, which ends in VK_IMAGE_LAYOUT_GENERAL. */

@@ -69,6 +69,7 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
     /* The probe pass where per-pixel probes can be asked for: a grid to sample (docs/engine.md "The per-pixel
      * probe pass"); --probe-mode material takes it when a material or node asks for per pixel. */
     r->probe_pass = desc->probe_pass != SV_PROBE_PASS_FRAGMENT && r->grid_count > 0;
+    r->lean_scene = desc->probe_pass != SV_PROBE_PASS_FRAGMENT;
     for (uint32_t m = 0; m < g->material_count; ++m)
         r->pixel_modes |= scene->ext.materials[m].probe_mode == SV_PROBE_MODE_PIXEL;
     for (uint32_t o = 0; o < scene->object_count; ++o)
@@ -364,7 +365,12 @@ static void record_scene_pass(const sv_renderer *r, VkCommandBuffer cmd, const s
                           r->pipelines[deferred ? SV_PIPELINE_SKY_DEFERRED : SV_PIPELINE_SKY]);
         vkCmdDraw(cmd, 3, 1, 0, 0);
     }
-    draw_objects(r, cmd, scene, r->material_count - 1, deferred ? SV_PIPELINE_MESH_DEFERRED : SV_PIPELINE_MESH);
+    /* The scene shader: with the G-buffer; without the grid lookup where no fragment asks for it; else the
+     * whole forward shader (debug views, --probe-pass fragment, per pixel without the pass). */
+    sv_pipeline_id mesh = deferred                                       ? SV_PIPELINE_MESH_DEFERRED
+                          : r->lean_scene && sv_probe_pass_lean(r, view) ? SV_PIPELINE_MESH_LEAN
+                                                                         : SV_PIPELINE_MESH;
+    draw_objects(r, cmd, scene, r->material_count - 1, mesh);
     if (cells && !deferred) draw_probe_view(r, cmd, view);
     vkCmdEndRendering(cmd);
     if (r->timestamps) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, r->timestamps, 4);

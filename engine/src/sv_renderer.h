@@ -90,6 +90,7 @@ typedef enum sv_pipeline_id {
     SV_PIPELINE_BRICK_TEXELS,  /* brick view: a brick's texels as spheres */
     SV_PIPELINE_SKY,           /* the background, behind everything */
     SV_PIPELINE_MESH_DEFERRED, /* the objects into the HDR target and the G-buffer (sv_probe_pass.h) */
+    SV_PIPELINE_MESH_LEAN,     /* the objects of a frame without per-pixel probes (no grid lookup in the shader) */
     SV_PIPELINE_SKY_DEFERRED,  /* the background, with the G-buffer attached (not written) */
     SV_PIPELINE_TONEMAP,       /* HDR target -> output image */
     SV_PIPELINE_SHADOW,        /* depth only, into a shadow map layer (only with shadowed lights) */
@@ -161,6 +162,7 @@ typedef struct sv_renderer {
     /* The deferred per-pixel probe pass (sv_probe_pass.h): on unless --probe-pass fragment or the device
      * lacks the attachments; the G-buffer at the targets' size, the compute pipeline and its set. */
     bool probe_pass;
+    bool lean_scene;  /* frames without per-pixel probes take SV_PIPELINE_MESH_LEAN (not --probe-pass fragment) */
     bool pixel_modes; /* a material or node asks for per-pixel probes (for --probe-mode material) */
     sv_image gbuf[SV_GBUF_COUNT];
     VkDescriptorSetLayout probe_pass_set_layout;

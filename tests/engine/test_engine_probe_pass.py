@@ -157,3 +157,14 @@ def test_bad_probe_pass_value_and_debug_views(tmp_path, rooms):
     b, _ = render(rooms["v3"], tmp_path / "b.exr", "--probe-mode", "pixel", "--debug", "normals", "--probe-pass",
                   "fragment")
     assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("mode", ["object", "off", "material"])
+def test_frames_without_per_pixel_take_the_lean_shader_alike(tmp_path, rooms, mode):
+    # Without a per-pixel fragment (per object, off, or --probe-mode material where no material or node asks
+    # for per pixel) the scene pass takes mesh.frag built without the grid lookup (SV_LEAN_SCENE); the
+    # forward shader (--probe-pass fragment) shades the same.
+    lean, proc = render(rooms["v3"], tmp_path / "l.exr", "--probe-mode", mode)
+    full, _ = render(rooms["v3"], tmp_path / "f.exr", "--probe-mode", mode, "--probe-pass", "fragment")
+    assert_same(lean, full)
+    assert "after the objects' raster (the probe pass)" in proc.stderr
