@@ -2,7 +2,7 @@
 
 The plugin's GLSL (schneeDenseSample: the 0.01 margin, clamped corners, the home cell's 27-bit neighbour
 mask, back faces on static surfaces, validity in N and D, one filtered tap where the kept weights are
-separable and D >= 1/64, else 8 texelFetch taps, the home-cell fallback whatever the validity) is run in
+separable and D >= 1/64, else 8 texelFetch taps, step 5's plain trilinear x validity sample) is run in
 headless chromium (SwiftShader, one browser launch for the module) at random surface points of random
 dense grids (15 % empty cells, 20 % invalid probes, scales, identity and rotated axes, two tilted walls
 as triangles in half of them; static and movable points) and compared with native.GridField.query

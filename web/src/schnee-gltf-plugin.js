@@ -26,7 +26,7 @@
  *   the back-face weights of the brick cell's 8 corners, and the visibility: texels and 64-B records of
  *   blocked brick cells traced at load through the static scene's triangles (schnee-vis.js, as
  *   sv_bricks_vis.c); one filtered tap where the kept weights are separable, else 8 texelFetch taps. Dense
- *   grids: docs/grid-field.md (neighbour masks traced at load, back faces, one or 8 taps, home-cell fallback).
+ *   grids: docs/grid-field.md (neighbour masks traced at load, back faces, one or 8 taps, step 5 the plain trilinear sample).
  */
 import * as THREE from 'three';
 import { parseShprobe, ShprobeError } from './shprobe.js';
@@ -210,11 +210,10 @@ bool schneeBrickTap(ivec3 r0, int si, vec3 xt, vec4 C, float nz, float ay[SCHNEE
 }
 
 // Dense grids per pixel: pb_grid_field_sample_surface_texture (docs/grid-field.md "The rule" steps 2-5,
-// bricks.glsl grid_tex_irradiance + shading.glsl grid_irradiance's home-cell fallback). u: the point's grid
-// coordinates (in the box with the 0.01 margin; the page's normal bias is 0, as schnee-view's default).
-// The level atlas holds per cell R/G = the 27-bit neighbour mask (low 16 / high 11 bits, traced at load
-// through the static scene as sv_probe_visibility_masks), B = 1 where the cell holds a probe; the atlas
-// holds after the groups N/D slabs as many fallback slabs (N = s c, D = 1: the probe whatever its validity).
+// bricks.glsl grid_tex_irradiance). u: the point's grid coordinates (in the box with the 0.01 margin; the
+// page's normal bias is 0, as schnee-view's default). The level atlas holds per cell R/G = the 27-bit
+// neighbour mask (low 16 / high 11 bits, traced at load through the static scene as
+// sv_probe_visibility_masks), B = 1 where the cell holds a probe.
 bool schneeDenseSample(int g, vec3 u, vec3 nrm, bool isStatic, float ay[SCHNEE_MAX_COEFFS], out vec3 e) {
   vec4 B = schneeGridB[g], C = schneeGridC[g];
   ivec3 dims = ivec3(B.xyz), lz = ivec3(0, 0, int(C.w));
@@ -246,12 +245,13 @@ bool schneeDenseSample(int g, vec3 u, vec3 nrm, bool isStatic, float ay[SCHNEE_M
   } else if (schneeTap8c(i0, 1, dims - 1, C, int(B.z), w, ay, 1e-6, e)) {
     return true;
   }
-  // 5b. no weight left: the cell clamp(floor(u)) alone when it holds a probe, whatever its validity
-  ivec3 cell = clamp(ivec3(floor(u)), ivec3(0), dims - 1);
-  e = vec3(0.0);
-  if (texelFetch(schneeLevelTex, cell + lz, 0).b < 0.5) return false;
-  float w1[8] = float[8](1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-  return schneeTap8(cell + ivec3(0, 0, int(C.z) * dims.z), 1, C, int(B.z), w1, ay, e);
+  // 5. no weight left: the plain trilinear x validity sample (no mask, no back face), the texture's own
+  // N / D at the point, 8 exact taps (its D may be tiny); D <= 1e-6 too: no value (the next grid)
+  for (int k = 0; k < 8; k++) {
+    vec3 w3 = mix(1.0 - f, f, vec3(ivec3(k & 1, (k >> 1) & 1, (k >> 2) & 1)));
+    w[k] = w3.x * w3.y * w3.z;
+  }
+  return schneeTap8c(i0, 1, dims - 1, C, int(B.z), w, ay, 1e-6, e);
 }
 
 // Per pixel: grid g at world point p with normal n (false: no value here, the next grid). Trees follow
@@ -625,7 +625,8 @@ export class ProbeGrid {
     }
     if (this.kind === 'tetrahedra') return this.tetraWeights(c, visible);
     if (this.kind !== 'grid') return null;
-    /* docs/grid-field.md, movable rule (no normal: no back faces, home = the cell of c), no masks. */
+    /* docs/grid-field.md "Per object": the movable rule (no normal: no back faces), no masks, each corner
+     * judged by the segment from its cell's centre to c; none left: step 5, the weights without that test. */
     const dims = f.gridDims, h = f.gridSpacing, a = f.gridAxes, u = [0, 0, 0];
     const d = [0, 1, 2].map((k) => c[k] - f.gridOrigin[k]);
     for (let k = 0; k < 3; k++) {
@@ -634,9 +635,8 @@ export class ProbeGrid {
     }
     const clampi = (v, k) => Math.min(Math.max(v, 0), dims[k] - 1);
     const i0 = u.map((v) => Math.floor(v - 0.5)), fr = u.map((v, k) => v - 0.5 - i0[k]);
-    const home = u.map((v, k) => clampi(Math.floor(v), k));
     const cell = (ci) => f.grid[ci[0] + dims[0] * (ci[1] + dims[1] * ci[2])];
-    const out = new Map();
+    const out = new Map(), corners = [];
     let sum = 0;
     for (let k = 0; k < 8; k++) {
       const ci = [0, 1, 2].map((ax) => clampi(i0[ax] + ((k >> ax) & 1), ax));
@@ -645,16 +645,23 @@ export class ProbeGrid {
       let w = Math.max(f.validity[p], 0);
       for (let ax = 0; ax < 3; ax++) w *= (k >> ax) & 1 ? fr[ax] : 1 - fr[ax];
       if (!(w > 0)) continue;
+      corners.push([ci, p, w]);
       if (!visible(this._cellCentre(ci), c)) continue;
       mergeAdd(out, p, w);
       sum += w;
     }
-    if (sum > 1e-6) {
-      for (const [p, w] of out) out.set(p, w / sum);
-      return out;
+    if (!(sum > 1e-6)) {
+      /* step 5 (every weighted corner hidden): the field's weights without the segment test */
+      out.clear();
+      sum = 0;
+      for (const [, p, w] of corners) {
+        mergeAdd(out, p, w);
+        sum += w;
+      }
+      if (!(sum > 1e-6)) return null;
     }
-    const p = cell(home); /* step 5: the home cell alone, whatever its validity */
-    return p >= 0 ? new Map([[p, 1]]) : null;
+    for (const [p, w] of out) out.set(p, w / sum);
+    return out;
   }
 
   /** Σ w s c over a weight map: SH (count × 3) of the blend. */
@@ -766,7 +773,7 @@ export class ProbeGrid {
     const dense = this.kind === 'grid';
     const dims = dense ? f.gridDims.slice() : f.gridDims.map((v) => v + 1);
     const total = dims[0] * dims[1] * dims[2];
-    const slabs = dense ? 2 * groups : groups; /* dense: then the fallback slabs (N = s c, D = 1) */
+    const slabs = groups;
     const data = new Float32Array(total * slabs * 4);
     const put = (t, ch, v) => { data[4 * (t + total * (ch >> 2)) + (ch & 3)] = v; };
     const write = (t, weights) => {
@@ -787,11 +794,7 @@ export class ProbeGrid {
           const t = x + dims[0] * (y + dims[1] * z);
           if (dense) {
             const p = f.grid[t];
-            if (p >= 0) {
-              write(t, new Map([[p, 1]]));
-              put(t + total * groups, 3, 1);
-              for (let i = 0; i < 3 * n; i++) put(t + total * groups, i < 3 ? i : i + 1, f.probeScale[p] * f.coeffs[3 * n * p + i]);
-            }
+            if (p >= 0) write(t, new Map([[p, 1]]));
           } else {
             const w = this._texelWeights([x, y, z]);
             if (w) write(t, w);

@@ -61,12 +61,13 @@
 extern "C" {
 #endif
 
-#define PB_BRICK_TEXELS_AXIS        5u                   /* B: texels per axis of a brick */
-#define PB_BRICK_CELLS_AXIS         4u                   /* B − 1: cells per axis of a brick */
-#define PB_BRICK_TEXELS             125u                 /* B³ */
-#define PB_BRICKS_INDEX_BITS        27u                  /* indirection x: brick index bits, then the level */
-#define PB_BRICKS_MAX               (UINT32_C(1) << 27)  /* bricks one pool may hold */
-#define PB_BRICKS_POOL_SIDE         51u /* pool bricks along x and y at most: 255 texels, within Vulkan's minimum
+#define PB_BRICK_TEXELS_AXIS 5u                  /* B: texels per axis of a brick */
+#define PB_BRICK_CELLS_AXIS  4u                  /* B − 1: cells per axis of a brick */
+#define PB_BRICK_TEXELS      125u                /* B³ */
+#define PB_BRICKS_INDEX_BITS 27u                 /* indirection x: brick index bits, then the level */
+#define PB_BRICKS_MAX        (UINT32_C(1) << 27) /* bricks one pool may hold */
+#define PB_BRICKS_POOL_SIDE                                                                                            \
+    51u /* pool bricks along x and y at most: 255 texels, within Vulkan's minimum
                                            maxImageDimension3D (256) */
 #define PB_BRICKS_NONE              UINT32_C(0xFFFFFFFF) /* indirection x of a region without a brick */
 #define PB_BRICKS_MARGIN            0.01                 /* min cells: the lattice's and the faces' margin */
