@@ -198,6 +198,22 @@ static void fill_frame(const sv_renderer *r, const sv_scene *scene, const sv_vie
     if (shadows) sv_shadows_fit(r, scene, view, frame);
 }
 
+/* Rendering begun over `count` colour attachments and the depth, the viewport set. */
+static void begin_rendering(const sv_renderer *r, VkCommandBuffer cmd, const VkRenderingAttachmentInfo *color,
+                            uint32_t count, const VkRenderingAttachmentInfo *depth)
+{
+    VkRenderingInfo ri = {
+        .sType = VK_STRUCTURE_TYPE_RENDERING_INFO,
+        .renderArea = {{0, 0}, {r->width, r->height}},
+        .layerCount = 1,
+        .colorAttachmentCount = count,
+        .pColorAttachments = color,
+        .pDepthAttachment = depth,
+    };
+    vkCmdBeginRendering(cmd, &ri);
+    set_viewport(r, cmd);
+}
+
 /* The HDR target and depth to attachments, cleared (black, alpha 0; depth 1), rendering begun; with
  * `deferred` the probe pass's G-buffer too (sv_probe_pass_begin); `keep_depth`: the depth is stored for a
  * later rendering (the probe view after the probe pass). */
@@ -230,16 +246,7 @@ static void begin_scene_pass(const sv_renderer *r, VkCommandBuffer cmd, bool def
         .storeOp = keep_depth ? VK_ATTACHMENT_STORE_OP_STORE : VK_ATTACHMENT_STORE_OP_DONT_CARE,
         .clearValue.depthStencil = {1.0f, 0},
     };
-    VkRenderingInfo ri = {
-        .sType = VK_STRUCTURE_TYPE_RENDERING_INFO,
-        .renderArea = {{0, 0}, {r->width, r->height}},
-        .layerCount = 1,
-        .colorAttachmentCount = deferred ? 1 + SV_GBUF_COUNT : 1,
-        .pColorAttachments = color,
-        .pDepthAttachment = &depth,
-    };
-    vkCmdBeginRendering(cmd, &ri);
-    set_viewport(r, cmd);
+    begin_rendering(r, cmd, color, deferred ? 1 + SV_GBUF_COUNT : 1, &depth);
 }
 
 /* After the probe pass: the HDR target and depth as they are, for the probe view drawn over them. */
@@ -249,6 +256,12 @@ static void resume_scene_pass(const sv_renderer *r, VkCommandBuffer cmd)
                      VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
                      VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT,
                      VK_ACCESS_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT);
+    /* The objects' depth, stored by the first rendering, is tested against here. */
+    sv_image_barrier(cmd, r->depth.image, VK_IMAGE_ASPECT_DEPTH_BIT, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+                     VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT,
+                     VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT,
+                     VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT,
+                     VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
     VkRenderingAttachmentInfo color = {
         .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
         .imageView = r->hdr.view,
@@ -263,16 +276,7 @@ static void resume_scene_pass(const sv_renderer *r, VkCommandBuffer cmd)
         .loadOp = VK_ATTACHMENT_LOAD_OP_LOAD,
         .storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
     };
-    VkRenderingInfo ri = {
-        .sType = VK_STRUCTURE_TYPE_RENDERING_INFO,
-        .renderArea = {{0, 0}, {r->width, r->height}},
-        .layerCount = 1,
-        .colorAttachmentCount = 1,
-        .pColorAttachments = &color,
-        .pDepthAttachment = &depth,
-    };
-    vkCmdBeginRendering(cmd, &ri);
-    set_viewport(r, cmd);
+    begin_rendering(r, cmd, &color, 1, &depth);
 }
 
 /* Every primitive of every object (with `pipeline`, the mesh's or the probe pass's) with its material's set 1 (rebound only when it changes from
