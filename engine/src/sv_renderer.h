@@ -11,6 +11,7 @@
  *   sv_shadows.c      shadow layers, the shadow map array and its depth-only pass
  *   sv_shadow_math.c  the light-space fitting (cascades, spot, cube faces): pure math, no Vulkan
  *   sv_pipelines.c    samplers, descriptor sets, and every pipeline from one table of descriptions
+ *   sv_probe_pass.c   the per-pixel probe pass: G-buffer, compute pipeline, the dispatch
  */
 #ifndef SV_RENDERER_H
 #define SV_RENDERER_H
