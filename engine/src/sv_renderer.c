@@ -69,6 +69,14 @@ bool sv_renderer_create(sv_renderer *r, sv_context *ctx, const sv_scene *scene, 
     /* The probe pass where per-pixel probes can be asked for: a grid to sample (docs/engine.md "The per-pixel
      * probe pass"); --probe-mode material takes it when a material or node asks for per pixel. */
     r->probe_pass = desc->probe_pass != SV_PROBE_PASS_FRAGMENT && r->grid_count > 0;
+    /* The G-buffer's meta word holds an object's probe-buffer entry in its top 24 bits. */
+    if (r->probe_pass && r->probe_count >> (32u - SV_GBUF_META_ENTRY_SHIFT)) {
+        fprintf(stderr,
+                "schnee-view: warning: %u probe-buffer entries exceed the probe pass's %u: per-pixel probes are "
+                "shaded in the scene pass\n",
+                r->probe_count, 1u << (32u - SV_GBUF_META_ENTRY_SHIFT));
+        r->probe_pass = false;
+    }
     r->lean_scene = desc->probe_pass != SV_PROBE_PASS_FRAGMENT;
     for (uint32_t m = 0; m < g->material_count; ++m)
         r->pixel_modes |= scene->ext.materials[m].probe_mode == SV_PROBE_MODE_PIXEL;
