@@ -387,9 +387,7 @@ float sky_specular_ratio(vec3 n, vec3 e_probe, bool cube) {
 }
 
 vec3 sky_specular(vec3 p, vec3 n, vec3 albedo, float metallic, float roughness, vec3 e_probe, bool cube) {
-    vec3 spec = sky_specular_unscaled(p, n, albedo, metallic, roughness);
-    if ((frame.flags & SV_FRAME_NO_RENORM) == 0u) spec *= sky_specular_ratio(n, e_probe, cube);
-    return spec;
+    return sky_specular_unscaled(p, n, albedo, metallic, roughness) * sky_specular_ratio(n, e_probe, cube);
 }
 
 // A distinct, stable colour per probe index (index 0, the fallback, is mid grey).

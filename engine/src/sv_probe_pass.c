@@ -111,17 +111,20 @@ bool sv_probe_pass_resize(sv_renderer *r)
     return true;
 }
 
+/* Some fragment of a frame of `view` can ask for per-pixel probes. */
+static bool wants_pixel(const sv_renderer *r, const sv_view *view)
+{
+    return view->probe_mode == SV_PROBE_MODE_PIXEL || (view->probe_mode == SV_PROBE_MODE_MATERIAL && r->pixel_modes);
+}
+
 bool sv_probe_pass_active(const sv_renderer *r, const sv_view *view)
 {
-    if (!r->probe_pass || view->debug_mode != SV_DEBUG_NONE) return false;
-    return view->probe_mode == SV_PROBE_MODE_PIXEL || (view->probe_mode == SV_PROBE_MODE_MATERIAL && r->pixel_modes);
+    return r->probe_pass && view->debug_mode == SV_DEBUG_NONE && wants_pixel(r, view);
 }
 
 bool sv_probe_pass_lean(const sv_renderer *r, const sv_view *view)
 {
-    if (view->debug_mode != SV_DEBUG_NONE) return false;
-    return view->probe_mode == SV_PROBE_MODE_OFF || view->probe_mode == SV_PROBE_MODE_OBJECT ||
-           (view->probe_mode == SV_PROBE_MODE_MATERIAL && !r->pixel_modes);
+    return view->debug_mode == SV_DEBUG_NONE && !wants_pixel(r, view);
 }
 
 void sv_probe_pass_begin(const sv_renderer *r, VkCommandBuffer cmd, VkRenderingAttachmentInfo att[SV_GBUF_COUNT])
@@ -131,14 +134,9 @@ void sv_probe_pass_begin(const sv_renderer *r, VkCommandBuffer cmd, VkRenderingA
                          VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0,
                          VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT);
         /* Only the point target is read where no per-pixel fragment wrote (its meta): the others need no clear. */
-        att[i] = (VkRenderingAttachmentInfo){
-            .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
-            .imageView = r->gbuf[i].view,
-            .imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
-            .loadOp = i == 0 ? VK_ATTACHMENT_LOAD_OP_CLEAR : VK_ATTACHMENT_LOAD_OP_DONT_CARE,
-            .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
-            .clearValue.color = {.uint32 = {0u, 0u, 0u, 0u}},
-        };
+        att[i] = sv_attachment(r->gbuf[i].view, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                               i == 0 ? VK_ATTACHMENT_LOAD_OP_CLEAR : VK_ATTACHMENT_LOAD_OP_DONT_CARE,
+                               VK_ATTACHMENT_STORE_OP_STORE); /* the point target cleared to meta 0 */
     }
 }
 

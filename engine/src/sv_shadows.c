@@ -128,14 +128,10 @@ void sv_shadows_record(sv_renderer *r, VkCommandBuffer cmd, const sv_scene *scen
     VkRect2D scissor = {{0, 0}, {r->shadow_res, r->shadow_res}};
     VkDeviceSize zero = 0;
     for (uint32_t k = 0; k < r->shadow_count; ++k) {
-        VkRenderingAttachmentInfo depth = {
-            .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
-            .imageView = r->shadow_layer_views[k],
-            .imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
-            .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
-            .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
-            .clearValue.depthStencil = {1.0f, 0},
-        };
+        VkRenderingAttachmentInfo depth =
+            sv_attachment(r->shadow_layer_views[k], VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+                          VK_ATTACHMENT_LOAD_OP_CLEAR, VK_ATTACHMENT_STORE_OP_STORE);
+        depth.clearValue.depthStencil = (VkClearDepthStencilValue){1.0f, 0};
         VkRenderingInfo ri = {
             .sType = VK_STRUCTURE_TYPE_RENDERING_INFO,
             .renderArea = scissor,

@@ -447,6 +447,18 @@ fail:
     return ok;
 }
 
+VkRenderingAttachmentInfo sv_attachment(VkImageView view, VkImageLayout layout, VkAttachmentLoadOp load,
+                                        VkAttachmentStoreOp store)
+{
+    return (VkRenderingAttachmentInfo){
+        .sType = VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO,
+        .imageView = view,
+        .imageLayout = layout,
+        .loadOp = load,
+        .storeOp = store,
+    };
+}
+
 void sv_image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect, VkImageLayout from,
                       VkImageLayout to, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
                       VkPipelineStageFlags dst_stage, VkAccessFlags dst_access)

@@ -100,6 +100,9 @@ void sv_image_destroy(sv_context *ctx, sv_image *img);
 VkCommandBuffer sv_begin_one_shot(sv_context *ctx);
 bool sv_end_one_shot(sv_context *ctx, VkCommandBuffer cmd);
 
+/* A dynamic-rendering attachment of `view` in `layout` (clear value zero: black, alpha 0, or depth 0). */
+VkRenderingAttachmentInfo sv_attachment(VkImageView view, VkImageLayout layout, VkAttachmentLoadOp load,
+                                        VkAttachmentStoreOp store);
 /* Layout transition (every mip level and array layer) with a full-pipeline barrier scoped to the
  * given stages and accesses. */
 void sv_image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect, VkImageLayout from,
