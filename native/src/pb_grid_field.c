@@ -340,6 +340,19 @@ bool pb_grid_field_sample_texture(const pb_grid_field *f, const double p[3], uin
     return has;
 }
 
+/* acc += Σ_k w[k] · texel(ci[k]) over the corners with a weight (the exact taps). */
+static void exact_taps(const pb_grid_field *f, int64_t ci[8][3], const double w[8], double *acc)
+{
+    const uint32_t *dims = f->info.dims;
+    const uint32_t channels = f->info.channels;
+    for (int k = 0; k < 8; k++) {
+        if (!(w[k] > 0.0)) continue;
+        const double *tx =
+            f->texels + flat(dims, (uint32_t)ci[k][0], (uint32_t)ci[k][1], (uint32_t)ci[k][2]) * channels;
+        for (uint32_t c = 0; c < channels; c++) acc[c] += w[k] * tx[c];
+    }
+}
+
 bool pb_grid_field_sample_surface_texture(const pb_grid_field *f, const double p_surface[3], const double n_in[3],
                                           const pb_grid_field_opts *opts, uint32_t bits, double *coeffs_out,
                                           double *d_out, uint32_t *taps_out)
@@ -415,22 +428,12 @@ bool pb_grid_field_sample_surface_texture(const pb_grid_field *f, const double p
         else
             memset(acc, 0, sizeof acc);
     }
-    for (int k = 0; taps == 8 && k < 8; k++) {
-        if (!(w[k] > 0.0)) continue;
-        const double *tx =
-            f->texels + flat(dims, (uint32_t)ci[k][0], (uint32_t)ci[k][1], (uint32_t)ci[k][2]) * in->channels;
-        for (uint32_t c = 0; c < in->channels; c++) acc[c] += w[k] * tx[c];
-    }
+    if (taps == 8) exact_taps(f, ci, w, acc);
     bool has = acc[3] > PB_GRID_FIELD_MIN_WEIGHT;
     if (!has) {
         taps = 8;
         memset(acc, 0, sizeof acc);
-        for (int k = 0; k < 8; k++) {
-            if (!(tri8[k] > 0.0)) continue;
-            const double *tx =
-                f->texels + flat(dims, (uint32_t)ci[k][0], (uint32_t)ci[k][1], (uint32_t)ci[k][2]) * in->channels;
-            for (uint32_t c = 0; c < in->channels; c++) acc[c] += tri8[k] * tx[c];
-        }
+        exact_taps(f, ci, tri8, acc);
         has = acc[3] > PB_GRID_FIELD_MIN_WEIGHT;
     }
     if (taps_out) *taps_out = taps;
