@@ -364,7 +364,11 @@ class PointCache:
         self.policy = policy
         self.first, self.most = round_samples(samples, policy)
         self.count_coeffs = native.sh_count(band)
-        self._keys = {}              # lattice key -> entry
+        self._keys = {}              # lattice key (+ placement key, see index) -> entry
+        self._placed = {}            # lattice key -> where the group that asked first placed the node
+        # Two groups place a node on the face they share on either side of it, Policy.render_inset
+        # inside each, along up to three axes: within this they share one point.
+        self.share = 2.0 * math.sqrt(3.0) * policy.render_inset + 1e-9
         self._render_keys = {}       # render position key -> entry
         self.positions = np.zeros((0, 3))
         self.coeffs = np.zeros((0, self.count_coeffs, 3))
@@ -388,16 +392,27 @@ class PointCache:
     def key(p) -> tuple:
         return tuple(int(round(c * 1e6)) for c in p)
 
-    def index(self, points: np.ndarray,
-              locate: Callable[[np.ndarray], Tuple[np.ndarray, np.ndarray]]) -> (np.ndarray, List[int]):
+    def index(self, points: np.ndarray, locate: Callable[[np.ndarray], Tuple[np.ndarray, np.ndarray]],
+              place: Optional[Callable[[np.ndarray], np.ndarray]] = None) -> (np.ndarray, List[int]):
         """(cache index per point, indices of new points that need a render). ``locate`` maps node
         positions (N, 3) to where their panoramas are rendered and the solid test's back-face ratio
-        there: (positions (N, 3), ratio (N,))."""
+        there: (positions (N, 3), ratio (N,)); ``place`` (AdaptiveGroup.render_positions) to where
+        they render before any relocation, without the solid test (default: where they are).
+
+        Groups share a node's entry only where they place it within :attr:`share` of each other: a
+        node on a face two volumes share renders once, 1 cm inside the volume that asked first. A
+        volume's lattice runs past its box to a power of two of cells, and a node beyond the box is
+        placed on the box's face: the neighbour volume's node there, inside it, is a point of its own
+        (before, it took the light rendered on the face, up to the lattice's overhang away)."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        placed = pts if place is None else np.asarray(place(pts), dtype=np.float64).reshape(-1, 3)
         out = np.empty(len(pts), dtype=np.int64)
-        slots, new_pts, waiting = {}, [], []
+        slots, new_pts, waiting, new_placed = {}, [], [], []
         for i, p in enumerate(pts):
             k = self.key(p)
+            at = self._placed.get(k)
+            if at is not None and np.sum((at - placed[i]) ** 2) > self.share ** 2:
+                k = k + self.key(placed[i])   # another group's placement of this node: its own point
             j = self._keys.get(k)
             if j is not None:
                 out[i] = j
@@ -405,6 +420,7 @@ class PointCache:
             if k not in slots:
                 slots[k] = len(new_pts)
                 new_pts.append(p)
+                new_placed.append(placed[i])
             waiting.append((i, slots[k]))
         if not new_pts:
             return out, []
@@ -421,6 +437,7 @@ class PointCache:
                 if ratio[s] <= self.solid_ratio:
                     todo.append(j)
             self._keys[k] = j
+            self._placed.setdefault(k[:3], new_placed[s])
             entry.append(j)
         for i, s in waiting:
             out[i] = entry[s]
@@ -641,6 +658,12 @@ class AdaptiveGroup:
                     break
         return at, ratio
 
+    def stand_in_radius(self) -> float:
+        """How far from its lattice node a node's render position can lie, when the node is on or within
+        Policy.render_inset of the volumes' box: the inset along each axis, then the relocation's reach
+        (:meth:`locate`). A region rebake's KeptTree.stand_in looks this far for the previous bake's point."""
+        return math.sqrt(3.0) * self.policy.render_inset + min(self.policy.relocate, 0.25 * self.min_cell)
+
     def smallest_cell(self) -> float:
         levels = leaf_levels(self.tree.info())
         return self.min_cell * float(2 ** int(levels.min())) if len(levels) else self.min_cell
@@ -648,7 +671,7 @@ class AdaptiveGroup:
     # -- the state machine
     def start(self, cache: PointCache) -> List[int]:
         """Request the first layer's probes; returns the cache indices to render."""
-        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()), self.locate)
+        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()), self.locate, self.render_positions)
         info = self.tree.info()
         self.passes.append(PassRecord(1, len(info["leaves"]), int(info["probe_count"]), self.smallest_cell()))
         return todo
@@ -690,7 +713,7 @@ class AdaptiveGroup:
                 return []
             self.tests = tests
             self.test_index = np.full(len(tests.positions), -1, dtype=np.int64)
-            idx, todo = cache.index(self.lattice_positions(tests.lattice[need]), self.locate)
+            idx, todo = cache.index(self.lattice_positions(tests.lattice[need]), self.locate, self.render_positions)
             self.test_index[need] = idx
             self.passes[-1].tests = int(need.sum())
             self.stage = "tests"
@@ -818,7 +841,7 @@ class AdaptiveGroup:
         self.tree.finalize()
         self._drop_outside()
         self.tree.finalize()
-        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()), self.locate)
+        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()), self.locate, self.render_positions)
         info = self.tree.info()
         self.passes.append(PassRecord(len(self.passes) + 1, len(info["leaves"]), int(info["probe_count"]),
                                       self.smallest_cell()))

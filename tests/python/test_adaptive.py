@@ -226,6 +226,26 @@ def test_a_position_is_rendered_once():
     assert at_edge.sum() == len(np.unique(cache.positions[at_edge], axis=0)) > 0
 
 
+def test_a_neighbour_volumes_node_past_its_box_is_not_this_volumes_point():
+    # Two 3 m volumes side by side along x (A: 0..3, B: 3..6), 0.5 m cells under 2 m leaves: A's lattice
+    # runs to x = 4, and A's nodes at x = 3.5 and 4 render on its face (x = 2.99). B's nodes there lie
+    # inside B: each is a point of its own, rendered where it is (before, B took the light A rendered
+    # on the face, 0.5-1 m away). The nodes on the shared face x = 3 stay one point (A's, 1 cm inside A).
+    a = adaptive.AdaptiveGroup("A", "", [box_mesh("a", (0.0, 0.0, 0.0), (3.0, 2.0, 2.0))], [], 0.5, 2.0, 0.05)
+    b = adaptive.AdaptiveGroup("B", "", [box_mesh("b", (3.0, 0.0, 0.0), (6.0, 2.0, 2.0))], [], 0.5, 2.0, 0.05)
+    cache = adaptive.PointCache(2)
+    nodes = np.array([[3.0, 1.0, 1.0], [3.5, 1.0, 1.0], [4.0, 1.0, 1.0]])
+    ia, _ = cache.index(nodes, a.locate, a.render_positions)
+    ib, _ = cache.index(nodes, b.locate, b.render_positions)
+    inset = adaptive.DEFAULT_POLICY.render_inset
+    assert np.allclose(cache.positions[ia], [[3 - inset, 1, 1]] * 3)          # A: one point on its face
+    assert ib[0] == ia[0]                                                      # the shared face: A's point
+    assert np.allclose(cache.positions[ib[1:]], nodes[1:])                     # inside B: B's own points
+    assert len(set(ib[1:].tolist()) & set(ia.tolist())) == 0
+    again, todo = cache.index(nodes, b.locate, b.render_positions)             # asked again: the same
+    assert np.array_equal(again, ib) and todo == []
+
+
 def test_nodes_on_the_volume_boundary_render_just_inside_it():
     group = adaptive.AdaptiveGroup("hall", "", [VOLUME], [], 0.5, 2.0, 0.05)
     nodes = np.array([[0.0, 0.0, 0.0], [8.0, 2.0, 2.0], [4.0, 1.0, 1.0], [9.0, -1.0, 0.5]])
