@@ -264,6 +264,8 @@ class ProbeBake:
             pos = self.plan.position(i)
             key = journal.key_of(pos, self.plan.journal_flags(i)) if store is not None else None
             hit = store.lookup(key) if key is not None else None
+            if hit is None and store is not None:  # a region rebake's kept node (AdaptivePlan.kept_value)
+                hit = self.plan.kept_value(i, store)
             rendered = False
             if hit is not None:  # a kept point of an earlier bake (region.py) is replayed as it was
                 self.plan.store(i, *hit, kept=store.seeded(key))

@@ -27,7 +27,7 @@ from typing import Callable, List, Optional
 import bpy
 import numpy as np
 
-from . import adaptive, bakeinfo, direct_light, native, postprocess, region, render_settings, scene_export
+from . import adaptive, bakeinfo, direct_light, journal, native, postprocess, region, render_settings, scene_export
 from .adaptive import DEFAULT_POLICY, Policy
 from .bake_checks import BakeCancelled
 from .bake_outputs import (DEBUG_SHPROBE_NAME, DEBUG_SUBDIR, DEBUG_TEXT_NAME, SKY_FILE_NAME, SUN_FILE_NAME,
@@ -100,6 +100,11 @@ class PlacementPlan:
 
     def journal_flags(self, i: int) -> int:
         return 0
+
+    def kept_value(self, i: int, store):
+        """A region rebake's value for point ``i`` when its own journal key misses: (coeffs, noise) or
+        None (AdaptivePlan)."""
+        return None
 
     def store(self, i: int, coeffs, noise: float, kept: bool = False):
         """Keep a value taken from a journal (``kept``: an earlier bake's kept point, region.py)."""
@@ -318,6 +323,8 @@ class AdaptivePlan(_VolumePlan):
         self.first_forecast = None      # (points, seconds in all) logged once FORECAST_MIN_POINTS are measured
         self.forecasts = []             # the forecast at the end of each pass (the benchmarks' record)
         self.known_points = 0           # points rendered or queued when the last stage was queued
+        self._kept_sig, self._kept_nodes = None, {}  # region rebake: entry -> (group, node) (kept_value)
+        self.kept_values = 0            # region rebake: kept nodes that took the previous bake's value
 
     @property
     def positions(self):
@@ -383,6 +390,31 @@ class AdaptivePlan(_VolumePlan):
         # mean and σ), then the round's index (2, 3, ...: its own value; the record's noise field
         # holds the round's samples).
         return int(self.cache.rounds[i])
+
+    def kept_value(self, i, store):
+        """Region rebake (region.KeptTree): (coeffs, noise) for entry ``i``'s first rounds when ``i`` is
+        a probe at a node whose record the rebake keeps and ``store`` lacks its own key, else None.
+        Such a node's record is the previous file's in the end, so a render there would be overwritten:
+        it only feeds the decisions of the leaves around it that meet the region, which take what the
+        previous bake had there: its point rendered beside the node (KeptTree.stand_in). The previous
+        bake rendered the node elsewhere when another volume's group asked for it first (a node on a
+        face two volumes share renders Policy.render_inset inside the volume that asked)."""
+        if self.rebake is None or self.cache.rounds[i] != 0 or getattr(self.rebake, "first_points", None) is None:
+            return None
+        sig = (len(self.cache),) + tuple(len(g.probe_index) for g in self.groups)
+        if sig != self._kept_sig:
+            self._kept_sig, self._kept_nodes = sig, {}
+            for g in self.groups:
+                if g.kept is not None:
+                    lattice = g.tree.probe_lattice()
+                    pos = g.lattice_positions(lattice)
+                    for j in np.flatnonzero(g.kept.previous_rows(lattice) >= 0):
+                        self._kept_nodes.setdefault(int(g.probe_index[j]), (g, pos[j]))
+        hit = self._kept_nodes.get(int(i))
+        p = None if hit is None else hit[0].kept.stand_in(hit[1], self.rebake.first_points, hit[0].stand_in_radius())
+        value = store.lookup(journal.key_of(p, 0)) if p is not None and store.seeded(journal.key_of(p, 0)) else None
+        self.kept_values += value is not None
+        return value
 
     def store(self, i, coeffs, noise, kept=False):
         # A later round holds its samples in the noise field. A kept round (region.py) is replayed
@@ -505,6 +537,9 @@ class AdaptivePlan(_VolumePlan):
         return len(np.unique(np.concatenate([g.probe_index for g in self.groups])))
 
     def outputs(self, scratch):
+        if self.kept_values:
+            self.log(f"Schnee: {self.kept_values} kept probe(s) outside the region took the previous bake's point "
+                     "beside them instead of a render (the file keeps their previous records)")
         out = []
         for t in self.targets:
             coeffs, validity = t.group.probe_values(self.cache)

@@ -159,6 +159,7 @@ class VolumeRebake:
         # volume's bounds, else the bounds with VOLUME_MARGIN; set by select().
         self.box = None if box is None else np.asarray(box, dtype=np.float64).reshape(2, 3)
         self.region = None
+        self.first_points = None   # the previous bake's first-round points kept outside the region (seed)
 
     def kept_tree(self, group) -> Optional["KeptTree"]:
         """The previous bake's tree and records that an Adaptive ``group`` (this volume's) keeps
@@ -248,6 +249,10 @@ class VolumeRebake:
             raise BakeError(f"{path} was baked with other settings; bake every volume again")
         values = kept_outside(kept.values, self.region)
         taken = store.seed(values, kept.noise)
+        # Their first rounds by position, for the kept nodes the previous bake rendered elsewhere
+        # (AdaptivePlan.stand_in).
+        first = [journal.KEY.unpack(k)[:3] for k in values if journal.KEY.unpack(k)[3] == 0]
+        self.first_points = np.array(first, dtype=np.float64).reshape(-1, 3)
         log(f"Schnee: rebake of '{self.name}': {taken} point(s) of the previous bake kept outside the region, "
             f"{len(kept.values) - len(values)} inside it baked again")
 
@@ -341,6 +346,18 @@ class KeptTree:
         for i in np.flatnonzero(outside):
             out[i] = self.node_row.get(tuple(int(v) for v in lattice[i]), -1)
         return out
+
+    @staticmethod
+    def stand_in(node, points: np.ndarray, radius: float):
+        """The one point of ``points`` ((K, 3) engine space: the previous bake's first-round points kept
+        outside the region) within ``radius`` of a kept ``node``'s lattice position, or None when there
+        is none or more than one (AdaptivePlan.stand_in: the node is then rendered, and its record is
+        still the previous file's). Nodes lie a Min Cell Size apart and each renders within ``radius`` of
+        its own, so one point is the node's own render unless the Min Cell Size is below 2 ``radius``."""
+        if points is None or len(points) == 0:
+            return None
+        near = np.flatnonzero(np.sum((points - np.asarray(node, dtype=np.float64)) ** 2, axis=1) <= radius * radius)
+        return points[near[0]] if len(near) == 1 else None
 
     def records(self, rows: np.ndarray):
         """(new rows, the previous file's coefficients there (as stored: SH or ambient-cube faces),

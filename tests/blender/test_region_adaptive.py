@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import requires_native, run_blender
-from schnee_probes import bakeinfo, native, scene_export
+from schnee_probes import bakeinfo, journal, native, scene_export
 from test_bake_hazards import BAKE_PY, scenes_made_by
 
 pytestmark = requires_native
@@ -115,6 +115,51 @@ def test_adaptive_region_rebake_keeps_the_previous_tree_and_bits_outside(scenes,
         if not m:   # a previous leaf outside the box: a leaf again, or inside a leaf decided anew
             assert tuple(np.concatenate([a, b]).tolist()) in new_keys or \
                 np.any(redone & np.all((nlo <= a) & (nhi >= b), axis=1))
+
+
+# Blender space: Right's far corner. The full bake asked for the nodes on the x = 0 face Left and Right
+# share from Left first (Left's group is first), so it rendered them 1 cm inside Left; a rebake of Right
+# would render them 1 cm inside Right, and its file keeps their previous records.
+RIGHT_REGION = ["0.6", "-2.1", "-0.1", "2.1", "-0.6", "1"]
+
+
+def test_kept_probes_take_the_previous_value_instead_of_a_render(scenes, previous, tmp_path):
+    """A region rebake of Right renders no probe whose record it keeps: the nodes on the face it
+    shares with Left (rendered from Left's side before) take the previous bake's point beside them
+    (AdaptivePlan.kept_value). Expected from the files: those nodes are kept (outside the box, in both
+    trees, the previous bits), and the rebake's own points (its points file less the previous one's)
+    lie more than the stand-in radius (sqrt(3) cm + 5 cm) from every one of them."""
+    prev_dir, _ = previous
+    shutil.copytree(prev_dir, tmp_path / "sh_coeffs")
+    out = tmp_path / "sh_coeffs"
+    blend = tmp_path / "two_rooms_edited.blend"
+    shutil.copyfile(scenes / "two_rooms_edited.blend", blend)
+    proc = _bake(blend, "--only-volume", "Right", "--region", *RIGHT_REGION)
+
+    _, old_info, old = _tree(prev_dir / "Right.shprobe")
+    _, new_info, new = _tree(out / "Right.shprobe")
+    origin, h = np.asarray(new_info["origin"]), float(new_info["min_cell"])
+    corners = scene_export.blender_to_engine(np.array(RIGHT_REGION, dtype=np.float64).reshape(2, 3))
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    face = []   # kept nodes on the shared face (engine x = 0), rendered before from Left's side
+    for n in new:
+        p = origin + np.array(n) * h
+        if abs(p[0]) < 1e-9 and (np.any(p < lo) or np.any(p > hi)) and n in old and \
+                np.frombuffer(old[n][1], np.float32)[0] > 0:
+            assert new[n] == old[n]
+            face.append(p)
+    assert len(face) > 5
+
+    def keys(path):
+        return set(journal.read(str(path)).values)
+    own = [np.array(journal.KEY.unpack(k)[:3]) for k in keys(out / "probes.shprobe.points")
+           - keys(prev_dir / "probes.shprobe.points")]
+    assert own   # the box's points are rendered
+    radius = 3 ** 0.5 * 0.01 + 0.05
+    near = [p for p in own if min(np.linalg.norm(np.array(face) - p, axis=1)) <= radius]
+    assert near == []
+    m = re.search(r"Schnee: (\d+) kept probe\(s\) outside the region took the previous bake's point", proc.stdout)
+    assert m and int(m.group(1)) >= len(face), proc.stdout[-3000:]
 
 
 def _refused(proc):
