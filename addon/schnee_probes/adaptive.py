@@ -658,6 +658,10 @@ class AdaptiveGroup:
                     break
         return at, ratio
 
+    def _index(self, cache: PointCache, lattice: np.ndarray):
+        """PointCache.index of lattice nodes, placed and located as this group renders them."""
+        return cache.index(self.lattice_positions(lattice), self.locate, self.render_positions)
+
     def stand_in_radius(self) -> float:
         """How far from its lattice node a node's render position can lie, when the node is on or within
         Policy.render_inset of the volumes' box: the inset along each axis, then the relocation's reach
@@ -671,7 +675,7 @@ class AdaptiveGroup:
     # -- the state machine
     def start(self, cache: PointCache) -> List[int]:
         """Request the first layer's probes; returns the cache indices to render."""
-        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()), self.locate, self.render_positions)
+        self.probe_index, todo = self._index(cache, self.tree.probe_lattice())
         info = self.tree.info()
         self.passes.append(PassRecord(1, len(info["leaves"]), int(info["probe_count"]), self.smallest_cell()))
         return todo
@@ -713,7 +717,7 @@ class AdaptiveGroup:
                 return []
             self.tests = tests
             self.test_index = np.full(len(tests.positions), -1, dtype=np.int64)
-            idx, todo = cache.index(self.lattice_positions(tests.lattice[need]), self.locate, self.render_positions)
+            idx, todo = self._index(cache, tests.lattice[need])
             self.test_index[need] = idx
             self.passes[-1].tests = int(need.sum())
             self.stage = "tests"
@@ -841,7 +845,7 @@ class AdaptiveGroup:
         self.tree.finalize()
         self._drop_outside()
         self.tree.finalize()
-        self.probe_index, todo = cache.index(self.lattice_positions(self.tree.probe_lattice()), self.locate, self.render_positions)
+        self.probe_index, todo = self._index(cache, self.tree.probe_lattice())
         info = self.tree.info()
         self.passes.append(PassRecord(len(self.passes) + 1, len(info["leaves"]), int(info["probe_count"]),
                                       self.smallest_cell()))
