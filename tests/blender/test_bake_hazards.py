@@ -182,10 +182,12 @@ class Running:
                 return
             buf.extend(chunk)
 
-    def wait_for(self, text, timeout=240):
+    def wait_for(self, text, timeout=240, after=None):
+        """Until stdout holds ``text`` (after the first ``after``, when given)."""
         end = time.monotonic() + timeout
         while time.monotonic() < end:
-            if text.encode() in self.out:
+            start = 0 if after is None else self.out.find(after.encode())
+            if start >= 0 and text.encode() in self.out[start:]:
                 return
             if self.proc.poll() is not None:
                 break
@@ -271,6 +273,8 @@ def test_second_sigint_still_cancels_cleanly(scenes, tmp_path, when):
                   pre=[SCRIPTS / "slow_render.py", SCRIPTS / "bake_state_probe.py"])
     run.wait_for("probe 1/")
     assert list(tmp.glob("schnee_bake_*"))
+    if when == "during_render":  # inside probe 2's 3 s post-render sleep, not between two probes
+        run.wait_for("SLOW_RENDER start", after="probe 1/")
     run.proc.send_signal(signal.SIGINT)
     if when == "during_exit":
         run.wait_for("SLOW_EXIT start", timeout=30)  # bake.py is done; Blender is exiting
