@@ -323,7 +323,6 @@ class AdaptivePlan(_VolumePlan):
         self.first_forecast = None      # (points, seconds in all) logged once FORECAST_MIN_POINTS are measured
         self.forecasts = []             # the forecast at the end of each pass (the benchmarks' record)
         self.known_points = 0           # points rendered or queued when the last stage was queued
-        self._kept_sig, self._kept_nodes = None, {}  # region rebake: entry -> (group, node) (kept_value)
         self.kept_values = 0            # region rebake: kept nodes that took the previous bake's value
 
     @property
@@ -399,22 +398,21 @@ class AdaptivePlan(_VolumePlan):
         previous bake had there: its point rendered beside the node (KeptTree.stand_in). The previous
         bake rendered the node elsewhere when another volume's group asked for it first (a node on a
         face two volumes share renders Policy.render_inset inside the volume that asked)."""
-        if self.rebake is None or self.cache.rounds[i] != 0 or getattr(self.rebake, "first_points", None) is None:
+        if self.rebake is None or self.rebake.first_points is None or self.cache.rounds[i] != 0:
             return None
-        sig = (len(self.cache),) + tuple(len(g.probe_index) for g in self.groups)
-        if sig != self._kept_sig:
-            self._kept_sig, self._kept_nodes = sig, {}
-            for g in self.groups:
-                if g.kept is not None:
-                    lattice = g.tree.probe_lattice()
-                    pos = g.lattice_positions(lattice)
-                    for j in np.flatnonzero(g.kept.previous_rows(lattice) >= 0):
-                        self._kept_nodes.setdefault(int(g.probe_index[j]), (g, pos[j]))
-        hit = self._kept_nodes.get(int(i))
-        p = None if hit is None else hit[0].kept.stand_in(hit[1], self.rebake.first_points, hit[0].stand_in_radius())
-        value = store.lookup(journal.key_of(p, 0)) if p is not None and store.seeded(journal.key_of(p, 0)) else None
-        self.kept_values += value is not None
-        return value
+        for g in self.groups:
+            j = np.flatnonzero(np.asarray(g.probe_index) == i)[:1] if g.kept is not None else []
+            if len(j) == 0:
+                continue
+            lattice = g.tree.probe_lattice()[j]
+            if g.kept.previous_rows(lattice)[0] < 0:
+                continue
+            p = g.kept.stand_in(g.lattice_positions(lattice)[0], self.rebake.first_points, g.stand_in_radius())
+            key = None if p is None else journal.key_of(p, 0)
+            value = store.lookup(key) if key is not None and store.seeded(key) else None
+            self.kept_values += value is not None
+            return value
+        return None
 
     def store(self, i, coeffs, noise, kept=False):
         # A later round holds its samples in the noise field. A kept round (region.py) is replayed

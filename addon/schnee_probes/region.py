@@ -250,9 +250,9 @@ class VolumeRebake:
         values = kept_outside(kept.values, self.region)
         taken = store.seed(values, kept.noise)
         # Their first rounds by position, for the kept nodes the previous bake rendered elsewhere
-        # (AdaptivePlan.stand_in).
-        first = [journal.KEY.unpack(k)[:3] for k in values if journal.KEY.unpack(k)[3] == 0]
-        self.first_points = np.array(first, dtype=np.float64).reshape(-1, 3)
+        # (AdaptivePlan.kept_value).
+        keys = [journal.KEY.unpack(k) for k in values]
+        self.first_points = np.array([k[:3] for k in keys if k[3] == 0], dtype=np.float64).reshape(-1, 3)
         log(f"Schnee: rebake of '{self.name}': {taken} point(s) of the previous bake kept outside the region, "
             f"{len(kept.values) - len(values)} inside it baked again")
 
@@ -351,7 +351,7 @@ class KeptTree:
     def stand_in(node, points: np.ndarray, radius: float):
         """The one point of ``points`` ((K, 3) engine space: the previous bake's first-round points kept
         outside the region) within ``radius`` of a kept ``node``'s lattice position, or None when there
-        is none or more than one (AdaptivePlan.stand_in: the node is then rendered, and its record is
+        is none or more than one (AdaptivePlan.kept_value: the node is then rendered, and its record is
         still the previous file's). Nodes lie a Min Cell Size apart and each renders within ``radius`` of
         its own, so one point is the node's own render unless the Min Cell Size is below 2 ``radius``."""
         if points is None or len(points) == 0:
